@@ -1,0 +1,1 @@
+//! Points and lines of the projective plane.

@@ -1,0 +1,43 @@
+//! camgeom: camera geometry and tracking for microcontroller camera boards.
+//!
+//! `#![no_std]`, no allocator, no panics on any input. Every buffer is fixed-size or provided by
+//! the caller. Floating-point code is generic over [`nalgebra::RealField`] with `f32` as the
+//! default; [`fixed`] holds integer-only paths for cores without an FPU.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
+//! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
+//! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
+//! | [`fixed`] | Q16.16 projective transfer (homography, projection) without floating point |
+#![no_std]
+#![cfg_attr(docsrs, feature(doc_cfg))]
+#![warn(missing_docs)]
+// No panic path may be reachable from the public API: these lints keep it so in library code.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::indexing_slicing,
+        clippy::unreachable,
+        clippy::todo,
+        clippy::unimplemented
+    )
+)]
+#![forbid(unsafe_code)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod camera;
+mod error;
+pub mod fixed;
+pub mod homogeneous;
+mod scalar;
+pub mod transform;
+
+pub use error::{Error, Result};
+pub use nalgebra;
+pub use scalar::Real;

@@ -1,0 +1,59 @@
+//! The scalar bound shared by the floating-point code.
+
+use nalgebra::RealField;
+
+/// A floating-point scalar: `f32` (the default everywhere) or `f64`.
+///
+/// A thin alias of [`RealField`] + [`Copy`] with the few constants camgeom's tolerances use.
+pub trait Real: RealField + Copy {
+    /// Machine epsilon of the type.
+    const EPSILON: Self;
+    /// Converts an `f64` literal (exact for `f64`, rounded for `f32`).
+    fn lit(v: f64) -> Self;
+    /// Converts to `f64` (for reporting and fixed-point quantisation).
+    fn to_f64(self) -> f64;
+    /// `true` when neither NaN nor infinite.
+    fn finite(self) -> bool;
+}
+
+impl Real for f32 {
+    const EPSILON: Self = f32::EPSILON;
+    #[inline]
+    fn lit(v: f64) -> Self {
+        v as f32
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self as f64
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+impl Real for f64 {
+    const EPSILON: Self = f64::EPSILON;
+    #[inline]
+    fn lit(v: f64) -> Self {
+        v
+    }
+    #[inline]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+}
+
+/// `Ok(())` when every value is finite, else [`crate::Error::NonFinite`].
+#[inline]
+pub(crate) fn check_finite<T: Real>(values: &[T]) -> crate::Result<()> {
+    if values.iter().all(|v| v.finite()) {
+        Ok(())
+    } else {
+        Err(crate::Error::NonFinite)
+    }
+}
