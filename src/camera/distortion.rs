@@ -113,7 +113,7 @@ impl<T: Real> Distortion<T> {
             let j = self.jacobian(x.x, x.y);
             let det = j.determinant();
             // A non-positive determinant means the model has folded: no unique inverse here.
-            if !(det > T::EPSILON * j.amax() * j.amax()) {
+            if !det.finite() || det <= T::EPSILON * j.amax() * j.amax() {
                 return Err(Error::NoConvergence);
             }
             let inv = Matrix2::new(j.m22, -j.m12, -j.m21, j.m11) / det;

@@ -134,3 +134,165 @@ impl<T: Real> Camera<T> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::homogeneous::{Line2h, Point2h};
+    use approx::assert_relative_eq;
+    use proptest::prelude::*;
+
+    /// The bundled chessboard camera (OpenCV's calibration sample, `left_intrinsics.yml`).
+    fn chessboard_camera() -> Camera<f64> {
+        let k = Intrinsics::new(
+            535.915_733_961_632,
+            535.915_733_961_632,
+            342.283_154_733_084,
+            235.570_829_097_882,
+        )
+        .unwrap();
+        let d = Distortion::from_opencv([
+            -0.266_372_609_096_607,
+            -0.038_588_898_922_304_7,
+            0.001_783_194_704_285_30,
+            -0.000_281_221_004_411_155,
+            0.238_391_530_808_785,
+        ])
+        .unwrap();
+        Camera::new(k, d)
+    }
+
+    fn pose(r: [f64; 3], t: [f64; 3]) -> Pose<f64> {
+        Pose::from_rodrigues(Vector3::from(r), Vector3::from(t)).unwrap()
+    }
+
+    #[test]
+    fn points_behind_or_on_the_camera_plane_are_errors() {
+        let cam = chessboard_camera();
+        let id = Pose::identity();
+        assert_eq!(
+            cam.project(&id, &Point3::new(0.1, 0.2, -1.0)),
+            Err(Error::BehindCamera)
+        );
+        assert_eq!(
+            cam.project(&id, &Point3::new(0.1, 0.2, 0.0)),
+            Err(Error::BehindCamera)
+        );
+        assert_eq!(
+            cam.project(&id, &Point3::new(f64::NAN, 0.2, 1.0)),
+            Err(Error::NonFinite)
+        );
+        assert_eq!(
+            cam.project(&id, &Point3::new(0.0, 0.0, f64::INFINITY)),
+            Err(Error::NonFinite)
+        );
+        let mut out = [Ok(Point2::origin()); 2];
+        let pts = [Point3::new(0.0, 0.0, 1.0), Point3::new(0.0, 0.0, -1.0)];
+        cam.project_points(&id, &pts, &mut out).unwrap();
+        assert!(out[0].is_ok());
+        assert_eq!(out[1], Err(Error::BehindCamera));
+        assert_eq!(
+            cam.project_points(&id, &pts, &mut out[..1]),
+            Err(Error::LengthMismatch)
+        );
+        assert_eq!(
+            cam.back_project(&Point2::new(f64::NAN, 1.0)),
+            Err(Error::NonFinite)
+        );
+    }
+
+    #[test]
+    fn principal_point_is_the_optical_axis() {
+        let cam = chessboard_camera();
+        let c = Point2::new(cam.intrinsics.cx(), cam.intrinsics.cy());
+        let ray = cam.back_project(&c).unwrap();
+        assert_relative_eq!(ray.into_inner(), Vector3::z(), epsilon = 1e-15);
+        assert_relative_eq!(
+            cam.project(&Pose::identity(), &Point3::new(0.0, 0.0, 3.0))
+                .unwrap(),
+            c
+        );
+    }
+
+    /// The vanishing point of a family of parallel 3D lines is the image of their common
+    /// direction, `v = K R d`; two directions of a plane give its vanishing line `K⁻ᵀ R n`.
+    #[test]
+    fn vanishing_geometry_of_a_grid() {
+        let cam = Camera::pinhole(chessboard_camera().intrinsics);
+        let pose = pose([0.4, -0.3, 0.1], [-0.2, 0.1, 2.0]);
+        let k = cam.intrinsics.matrix();
+        let mut vps = [Point2h::ideal(1.0, 0.0).unwrap(); 2];
+        for (axis, vp) in [Vector3::x(), Vector3::y()].iter().zip(vps.iter_mut()) {
+            // Two grid lines along `axis` through different points of the z = 0 plane.
+            let line = |o: Vector3<f64>| {
+                let a = cam.project(&pose, &Point3::from(o)).unwrap();
+                let b = cam.project(&pose, &Point3::from(o + axis * 0.5)).unwrap();
+                Point2h::from_euclidean(&a)
+                    .unwrap()
+                    .join(&Point2h::from_euclidean(&b).unwrap())
+                    .unwrap()
+            };
+            let other = Vector3::new(axis.y, axis.x, 0.0);
+            let (l1, l2) = (line(other * 0.1), line(other * 0.6));
+            *vp = l1.meet(&l2).unwrap();
+            let expected = k * pose.apply_vector(axis);
+            let (a, b) = (vp.normalized().coords().normalize(), expected.normalize());
+            assert!((a - b).amax() < 1e-9 || (a + b).amax() < 1e-9, "{a} vs {b}");
+        }
+        let horizon: Line2h<f64> = crate::homogeneous::vanishing_line(&vps[0], &vps[1]).unwrap();
+        let n = k.try_inverse().unwrap().transpose() * pose.apply_vector(&Vector3::z());
+        let (a, b) = (horizon.coords().normalize(), n.normalize());
+        assert!((a - b).amax() < 1e-9 || (a + b).amax() < 1e-9);
+    }
+
+    fn finite_pose() -> impl Strategy<Value = Pose<f64>> {
+        (
+            prop::array::uniform3(-1.5f64..1.5),
+            prop::array::uniform3(-1.0f64..1.0),
+        )
+            .prop_map(|(r, t)| pose(r, t))
+    }
+
+    proptest! {
+        /// back_project(project(X)) is the direction of X in the camera frame.
+        #[test]
+        fn project_back_project_round_trip(
+            pose in finite_pose(),
+            x in prop::array::uniform2(-0.5f64..0.5),
+            depth in 0.3f64..20.0,
+        ) {
+            let cam = chessboard_camera();
+            // A camera-frame point inside the lens's calibrated field (|x_n| ≤ 0.5).
+            let xc = Point3::new(x[0] * depth, x[1] * depth, depth);
+            let xw = pose.inverse().apply(&xc);
+            let u = cam.project(&pose, &xw).unwrap();
+            let ray = cam.back_project(&u).unwrap();
+            prop_assert!((ray.into_inner() - xc.coords.normalize()).amax() < 1e-10);
+            // And the point along the ray at the original depth reprojects to the same pixel.
+            let again = cam.project_camera_point(&Point3::from(ray.into_inner() * xc.coords.norm())).unwrap();
+            prop_assert!((again - u).amax() < 1e-8);
+        }
+
+        /// f32 and f64 paths agree to f32 rounding (a few 1e-4 px at 600 px from the origin).
+        #[test]
+        fn f32_matches_f64(x in prop::array::uniform2(-0.5f64..0.5), depth in 0.3f64..20.0) {
+            let cam = chessboard_camera();
+            let xc = Point3::new(x[0] * depth, x[1] * depth, depth);
+            let u64 = cam.project_camera_point(&xc).unwrap();
+            let u32 = cam.cast::<f32>().project_camera_point(&xc.cast::<f32>()).unwrap();
+            prop_assert!((u32.cast::<f64>() - u64).amax() < 1e-3);
+        }
+
+        /// Projection never panics, whatever the input.
+        #[test]
+        fn projection_total(v in prop::array::uniform3(prop::num::f32::ANY)) {
+            let cam = chessboard_camera().cast::<f32>();
+            if let Ok(u) = cam.project_camera_point(&Point3::from(v)) {
+                prop_assert!(u.x.is_finite() && u.y.is_finite());
+            }
+            if let Ok(r) = cam.back_project(&Point2::new(v[0], v[1])) {
+                prop_assert!(r.into_inner().iter().all(|c| c.is_finite()));
+            }
+        }
+    }
+}
