@@ -32,8 +32,9 @@ pub struct Distortion<T: Real = f32> {
 pub struct UndistortConfig<T: Real = f32> {
     /// Newton iterations at most (each costs one distortion and one 2x2 solve).
     pub max_iterations: u8,
-    /// Stop when `|distort(x) - x_d|` (normalised units) is at most this. Raised to the
-    /// type's rounding floor, `8 ε max(1, |x_d|)`, when smaller.
+    /// Accept when `|distort(x) - x_d|` (normalised units) is at most this. Raised to
+    /// `8 ε max(1, |x_d|)` when smaller; the iteration keeps improving past it while it can,
+    /// down to the rounding floor `2 ε max(1, |x_d|)`.
     pub tolerance: T,
 }
 
@@ -100,15 +101,27 @@ impl<T: Real> Distortion<T> {
         }
         let target = Vector2::new(d.x, d.y);
         let scale = T::one().max(target.amax());
+        // Accept at `tol`, but keep stepping while Newton still improves, down to the rounding
+        // floor (`2 ε`): the pixel error is `f` times this residual, so stopping early would
+        // make the error grow with the focal length.
         let tol = cfg.tolerance.max(T::lit(8.0) * T::EPSILON * scale);
+        let floor = T::lit(2.0) * T::EPSILON * scale;
         let mut x = target;
+        let mut best = (T::max_value().unwrap_or(T::one() / T::EPSILON), x);
         for _ in 0..cfg.max_iterations {
             let r = self.eval(x.x, x.y) - target;
             if !(r.x.finite() && r.y.finite()) {
                 return Err(Error::NoConvergence);
             }
-            if r.amax() <= tol {
-                return Ok(Point2::new(x.x, x.y));
+            let err = r.amax();
+            if err < best.0 {
+                best = (err, x);
+            } else if best.0 <= tol {
+                // No further progress at the rounding floor.
+                break;
+            }
+            if err <= floor {
+                break;
             }
             let j = self.jacobian(x.x, x.y);
             let det = j.determinant();
@@ -119,9 +132,8 @@ impl<T: Real> Distortion<T> {
             let inv = Matrix2::new(j.m22, -j.m12, -j.m21, j.m11) / det;
             x -= inv * r;
         }
-        let r = self.eval(x.x, x.y) - target;
-        if r.amax() <= tol {
-            Ok(Point2::new(x.x, x.y))
+        if best.0 <= tol {
+            Ok(Point2::new(best.1.x, best.1.y))
         } else {
             Err(Error::NoConvergence)
         }
