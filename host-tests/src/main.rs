@@ -1,1 +1,268 @@
-fn main() {}
+//! `camgeom`: camgeom's algorithms on files, for checking them against other tools.
+//!
+//! Conventions shared by every subcommand are in `host-tests/CLI.md`: point lists are CSV in and
+//! out (optional header on input, a header on output), structured results are pretty-printed
+//! JSON, and a usage or input error exits with status 2 and one line on stderr.
+
+use std::fmt::Debug;
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use camgeom::Real;
+use camgeom::camera::Camera;
+use camgeom::nalgebra::{Point3, Vector3};
+use camgeom::transform::Pose;
+use camgeom_host::intrinsics::CameraSpec;
+use camgeom_host::points::{format_float, parse_vector, read_points3};
+use camgeom_host::{load_camera, status_name};
+use clap::{Args, Parser, Subcommand};
+use serde::Serialize;
+
+/// Exit status of a usage or input error (as clap uses for usage errors).
+const EXIT_INPUT: u8 = 2;
+/// Exit status when the output cannot be written.
+const EXIT_OUTPUT: u8 = 1;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "camgeom",
+    version,
+    about = "camgeom's camera geometry on files: check the library against OpenCV and recorded data",
+    after_help = "Point lists are CSV (one point per line, optional header line, `-` reads stdin); \
+                  structured results are JSON. Exit status: 0 ok, 2 usage or input error, \
+                  1 output error. See CLI.md."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Project 3-D points through a calibrated camera (OpenCV's projectPoints).
+    ///
+    /// Reads world points `X,Y,Z` (CSV), maps them through the world-to-camera pose given by
+    /// OpenCV's rvec/tvec (identity by default), applies the lens distortion and K, and writes
+    /// `u,v,status` per input point: status is `ok` or the camgeom error that stopped that
+    /// point (`behind_camera`, `non_finite`, ...), with u and v `nan` in CSV (`null` in JSON).
+    Project(ProjectArgs),
+    /// Read a camera file in any supported format and print it in camgeom's JSON (or TOML) form.
+    Camera(CameraArgs),
+}
+
+/// The camera file option shared by every subcommand that needs a camera.
+#[derive(Args, Debug)]
+struct CameraOpt {
+    /// Camera file: .yml/.yaml or .xml (OpenCV calibration: camera_matrix and
+    /// distortion_coefficients), .json or .toml (camgeom: fx, fy, cx, cy and optional skew,
+    /// distortion, width and height).
+    #[arg(long, value_name = "FILE")]
+    intrinsics: PathBuf,
+}
+
+/// A world-to-camera pose as OpenCV gives it (solvePnP, calibrateCamera).
+#[derive(Args, Debug)]
+struct PoseOpt {
+    /// Rotation vector (axis * angle in radians), world to camera. Default 0,0,0.
+    #[arg(long, value_name = "RX,RY,RZ", allow_hyphen_values = true, value_parser = parse_vector::<3>)]
+    rvec: Option<[f64; 3]>,
+    /// Translation, world to camera, in the units of the points. Default 0,0,0.
+    #[arg(long, value_name = "TX,TY,TZ", allow_hyphen_values = true, value_parser = parse_vector::<3>)]
+    tvec: Option<[f64; 3]>,
+}
+
+/// Output options shared by the subcommands that return a point list.
+#[derive(Args, Debug)]
+struct OutputOpt {
+    /// Print JSON (`{"points": [{"u": .., "v": .., "status": "ok"}, ...]}`) instead of CSV.
+    #[arg(long)]
+    json: bool,
+    /// Compute in f32, as the firmware does (default f64). Numbers are printed with the
+    /// shortest text that reads back to the same f32.
+    #[arg(long)]
+    f32: bool,
+}
+
+#[derive(Args, Debug)]
+struct ProjectArgs {
+    #[command(flatten)]
+    camera: CameraOpt,
+    /// World points, CSV rows `X,Y,Z` (optional header); `-` reads stdin.
+    #[arg(long, value_name = "FILE.csv")]
+    points: PathBuf,
+    #[command(flatten)]
+    pose: PoseOpt,
+    #[command(flatten)]
+    output: OutputOpt,
+}
+
+#[derive(Args, Debug)]
+struct CameraArgs {
+    #[command(flatten)]
+    camera: CameraOpt,
+    /// Print TOML instead of JSON.
+    #[arg(long)]
+    toml: bool,
+}
+
+/// A failure: the exit status and the one-line message.
+struct Failure {
+    code: u8,
+    message: String,
+}
+
+impl From<camgeom_host::Error> for Failure {
+    fn from(e: camgeom_host::Error) -> Self {
+        Failure {
+            code: EXIT_INPUT,
+            message: e.to_string(),
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind as K;
+            if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion) {
+                // Help and version go to stdout with status 0.
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            let message = if e.kind() == K::DisplayHelpOnMissingArgumentOrSubcommand {
+                // Bare `camgeom`: clap would print the whole help; keep to one line.
+                let names: Vec<String> = <Cli as clap::CommandFactory>::command()
+                    .get_subcommands()
+                    .map(|c| c.get_name().to_string())
+                    .filter(|n| n != "help")
+                    .collect();
+                format!("a subcommand is required: {}", names.join(", "))
+            } else {
+                // clap's message is the paragraph before `Usage:`; join it into one line.
+                let text = e.to_string();
+                let para: Vec<&str> = text
+                    .lines()
+                    .map(str::trim)
+                    .skip_while(|l| l.is_empty())
+                    .take_while(|l| !l.is_empty())
+                    .collect();
+                let joined = para.join(" ");
+                joined
+                    .strip_prefix("error: ")
+                    .unwrap_or(&joined)
+                    .to_string()
+            };
+            eprintln!("camgeom: error: {message} (see `camgeom --help`)");
+            return ExitCode::from(EXIT_INPUT);
+        }
+    };
+    let result = match &cli.command {
+        Command::Project(a) => project(a),
+        Command::Camera(a) => camera(a),
+    };
+    match result.and_then(|out| write_stdout(&out)) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("camgeom: error: {}", f.message);
+            ExitCode::from(f.code)
+        }
+    }
+}
+
+fn write_stdout(s: &str) -> Result<(), Failure> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(s.as_bytes()).and_then(|_| out.flush()) {
+        Ok(()) => Ok(()),
+        // A closed pipe (`camgeom ... | head`) is not an error of ours.
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+        Err(e) => Err(Failure {
+            code: EXIT_OUTPUT,
+            message: format!("cannot write the output: {e}"),
+        }),
+    }
+}
+
+fn project(a: &ProjectArgs) -> Result<String, Failure> {
+    let spec = load_camera(&a.camera.intrinsics)?;
+    let points = read_points3(&a.points)?;
+    let rvec = a.pose.rvec.unwrap_or([0.0; 3]);
+    let tvec = a.pose.tvec.unwrap_or([0.0; 3]);
+    if a.output.f32 {
+        project_as(spec.camera_f32(), rvec, tvec, &points, a.output.json)
+    } else {
+        project_as(spec.camera, rvec, tvec, &points, a.output.json)
+    }
+}
+
+/// One projected point of the JSON output.
+#[derive(Serialize)]
+struct ProjectedPoint<T> {
+    u: Option<T>,
+    v: Option<T>,
+    status: String,
+}
+
+#[derive(Serialize)]
+struct Projected<T> {
+    points: Vec<ProjectedPoint<T>>,
+}
+
+fn project_as<T: Real + Serialize + Debug>(
+    camera: Camera<T>,
+    rvec: [f64; 3],
+    tvec: [f64; 3],
+    points: &[Point3<f64>],
+    json: bool,
+) -> Result<String, Failure> {
+    let v3 = |a: [f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
+    let pose = Pose::<T>::from_rodrigues(v3(rvec), v3(tvec)).map_err(|e| Failure {
+        code: EXIT_INPUT,
+        message: format!("invalid pose: {e}"),
+    })?;
+    let projected: Vec<ProjectedPoint<T>> = points
+        .iter()
+        .map(|p| {
+            let x = Point3::new(T::lit(p.x), T::lit(p.y), T::lit(p.z));
+            match camera.project(&pose, &x) {
+                Ok(u) => ProjectedPoint {
+                    u: Some(u.x),
+                    v: Some(u.y),
+                    status: "ok".to_string(),
+                },
+                Err(e) => ProjectedPoint {
+                    u: None,
+                    v: None,
+                    status: status_name(&e),
+                },
+            }
+        })
+        .collect();
+    if json {
+        return Ok(to_json(&Projected { points: projected }));
+    }
+    let mut out = String::from("u,v,status\n");
+    for p in &projected {
+        let f = |v: Option<T>| v.map_or_else(|| "nan".to_string(), format_float);
+        out.push_str(&format!("{},{},{}\n", f(p.u), f(p.v), p.status));
+    }
+    Ok(out)
+}
+
+fn camera(a: &CameraArgs) -> Result<String, Failure> {
+    let spec: CameraSpec = load_camera(&a.camera.intrinsics)?;
+    Ok(if a.toml {
+        spec.to_toml()
+    } else {
+        spec.to_json()
+    })
+}
+
+/// Pretty-printed JSON with a final newline.
+fn to_json<S: Serialize>(value: &S) -> String {
+    // The output types hold only numbers, strings and options: serialising cannot fail.
+    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
+    s.push('\n');
+    s
+}

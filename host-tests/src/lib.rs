@@ -1,0 +1,30 @@
+//! camgeom on the host: loaders for recorded data and calibration files, shared by the
+//! integration tests, the benchmarks and the `camgeom` command-line tool.
+//!
+//! | module | what |
+//! |---|---|
+//! | [`storage`] | OpenCV `FileStorage` (YAML and XML) parser, plain-text matrices |
+//! | [`intrinsics`] | camera files (OpenCV calibration YAML/XML, camgeom JSON/TOML) to a [`intrinsics::CameraSpec`] |
+//! | [`points`] | point lists as CSV, the CLI's number formatting |
+//! | [`error`] | one error type naming the file, the line and what is wrong |
+#![warn(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod error;
+pub mod intrinsics;
+pub mod points;
+pub mod storage;
+
+pub use error::{Error, ErrorKind, Result, status_name};
+pub use intrinsics::{CameraSpec, load_camera};
+pub use storage::{FileStorage, Matrix, read_matrix_text};
+
+/// The package root (`host-tests/`), for tests and tools that read the bundled data.
+pub fn package_dir() -> &'static std::path::Path {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `host-tests/data/`, the bundled recorded data (see its README for provenance).
+pub fn data_dir() -> std::path::PathBuf {
+    package_dir().join("data")
+}

@@ -1,0 +1,51 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)] // Each test binary uses a different subset.
+
+use std::path::PathBuf;
+
+use camgeom_host::CameraSpec;
+
+/// `host-tests/data/chessboard/<name>`.
+pub fn chessboard(name: &str) -> PathBuf {
+    camgeom_host::data_dir().join("chessboard").join(name)
+}
+
+/// The bundled calibration (OpenCV's `left_intrinsics.yml`).
+pub fn bundled_camera() -> CameraSpec {
+    camgeom_host::load_camera(chessboard("left_intrinsics.yml")).expect("bundled camera")
+}
+
+/// The 13 bundled poses, `[rx, ry, rz, tx, ty, tz]` (rows of `extrinsic_parameters`).
+pub fn bundled_poses() -> Vec<[f64; 6]> {
+    let fs = camgeom_host::FileStorage::open(chessboard("left_intrinsics.yml")).unwrap();
+    let m = fs.matrix("extrinsic_parameters").unwrap();
+    assert_eq!((m.rows, m.cols), (13, 6));
+    (0..m.rows)
+        .map(|r| m.row(r).unwrap().try_into().unwrap())
+        .collect()
+}
+
+/// Writes `content` to a fresh file `name` under the test's scratch directory.
+pub fn scratch_file(name: &str, content: &str) -> PathBuf {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("camgeom-host-tests");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, content).unwrap();
+    path
+}
+
+/// The pixel grid over the whole `w x h` image with spacing `step`, always including the last
+/// row and column (`w - 1`, `h - 1`).
+pub fn pixel_grid(w: u32, h: u32, step: u32) -> Vec<(f64, f64)> {
+    let axis = |n: u32| {
+        let mut v: Vec<u32> = (0..n).step_by(step as usize).collect();
+        if *v.last().unwrap() != n - 1 {
+            v.push(n - 1);
+        }
+        v
+    };
+    let (xs, ys) = (axis(w), axis(h));
+    ys.iter()
+        .flat_map(|&y| xs.iter().map(move |&x| (x as f64, y as f64)))
+        .collect()
+}
