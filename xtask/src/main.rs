@@ -1,1 +1,51 @@
-fn main() {}
+//! camgeom's multi-step commands, run from anywhere in the repository:
+//!
+//! | command | what |
+//! |---|---|
+//! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
+//! | `cargo xtask run` | builds the firmware, runs it on QEMU, decodes and checks its defmt log |
+//! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
+//!
+//! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
+//! default 120) bounds the emulator run.
+
+mod ci;
+mod firmware;
+mod setup;
+mod util;
+
+use std::process::ExitCode;
+
+const USAGE: &str = "usage: cargo xtask <command>
+
+commands:
+  setup   install the rustup targets and components and qemu-system-arm the other commands need
+  run     build the firmware (release), run it on QEMU mps2-an500, decode and check its log
+  ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("setup") => setup::setup(),
+        Some("run") => setup::setup().and_then(|()| firmware::build_and_run().map(|_| ())),
+        Some("ci") => ci::ci(),
+        Some("help" | "-h" | "--help") => {
+            println!("{USAGE}");
+            return ExitCode::SUCCESS;
+        }
+        other => {
+            if let Some(cmd) = other {
+                eprintln!("xtask: unknown command `{cmd}`\n");
+            }
+            eprintln!("{USAGE}");
+            return ExitCode::from(2);
+        }
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

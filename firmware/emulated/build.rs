@@ -1,0 +1,16 @@
+//! Puts the repository's root `memory.x` (the one description of the board's memory) on the
+//! linker's search path, where cortex-m-rt's `link.x` includes it.
+
+use std::path::PathBuf;
+use std::{env, fs};
+
+fn main() {
+    let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("set by cargo"));
+    let src = manifest.join("../../memory.x");
+    let out = PathBuf::from(env::var_os("OUT_DIR").expect("set by cargo"));
+    let memory = fs::read(&src).unwrap_or_else(|e| panic!("cannot read {}: {e}", src.display()));
+    fs::write(out.join("memory.x"), memory).expect("cannot write memory.x to OUT_DIR");
+    println!("cargo:rustc-link-search={}", out.display());
+    println!("cargo:rerun-if-changed={}", src.display());
+    println!("cargo:rerun-if-changed=build.rs");
+}

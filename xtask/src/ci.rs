@@ -1,0 +1,129 @@
+//! `cargo xtask ci`: every check, in order, stopping at the first failure.
+
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use anyhow::{Result, anyhow};
+
+use crate::firmware::{build_and_run, firmware_cargo, firmware_dir};
+use crate::setup::{TARGETS, setup};
+use crate::util::{cargo, in_ci, locked, root, run};
+
+type Step = (String, Box<dyn FnOnce() -> Result<()>>);
+
+fn root_cargo(args: &[&str]) -> Command {
+    let mut cmd = cargo();
+    cmd.current_dir(root()).args(args);
+    cmd
+}
+
+fn steps() -> Vec<Step> {
+    let mut steps: Vec<Step> = Vec::new();
+    let mut add = |name: &str, f: Box<dyn FnOnce() -> Result<()>>| steps.push((name.into(), f));
+
+    add("setup", Box::new(setup));
+    add(
+        "fmt (root)",
+        Box::new(|| run(&mut root_cargo(&["fmt", "--all", "--check"]))),
+    );
+    add(
+        "fmt (firmware)",
+        Box::new(|| {
+            // Not `--all`: that also takes path dependencies, i.e. the core, which the root
+            // check already covers.
+            let mut cmd = cargo();
+            cmd.current_dir(firmware_dir()).args(["fmt", "--check"]);
+            run(&mut cmd)
+        }),
+    );
+    add(
+        "clippy (root)",
+        Box::new(|| {
+            let mut cmd = root_cargo(&["clippy", "--workspace", "--all-targets"]);
+            run(locked(&mut cmd).args(["--", "-D", "warnings"]))
+        }),
+    );
+    add(
+        "clippy (firmware)",
+        Box::new(|| {
+            let mut cmd = firmware_cargo("clippy");
+            cmd.args(["--workspace", "--all-targets"]);
+            run(locked(&mut cmd).args(["--", "-D", "warnings"]))
+        }),
+    );
+    add(
+        "test (root)",
+        Box::new(|| run(locked(&mut root_cargo(&["test", "--workspace"])))),
+    );
+    for target in TARGETS {
+        for features in [&["--no-default-features"][..], &["--features", "defmt"]] {
+            add(
+                &format!("build camgeom {} ({target})", features.join(" ")),
+                Box::new(move || {
+                    let mut cmd = root_cargo(&["build", "-p", "camgeom", "--target", target]);
+                    cmd.args(features);
+                    run(locked(&mut cmd))
+                }),
+            );
+        }
+    }
+    add(
+        "doc",
+        Box::new(|| {
+            let mut cmd = root_cargo(&["doc", "-p", "camgeom", "--no-deps"]);
+            run(locked(&mut cmd).env("RUSTDOCFLAGS", "-D warnings"))
+        }),
+    );
+    add(
+        "firmware on QEMU",
+        Box::new(|| build_and_run().map(|summary| println!("firmware: {summary}"))),
+    );
+    steps
+}
+
+fn secs(d: Duration) -> String {
+    format!("{:.1} s", d.as_secs_f64())
+}
+
+pub fn ci() -> Result<()> {
+    let all = steps();
+    let count = all.len();
+    println!(
+        "xtask ci: {count} steps{}",
+        if in_ci() { " (CI: cargo --locked)" } else { "" }
+    );
+    let start = Instant::now();
+    let mut done: Vec<(String, Duration)> = Vec::new();
+    for (i, (name, step)) in all.into_iter().enumerate() {
+        println!("\n==> [{}/{count}] {name}", i + 1);
+        let t = Instant::now();
+        let result = step();
+        let took = t.elapsed();
+        if let Err(e) = result {
+            print_timings(&done);
+            return Err(anyhow!(
+                "step {}/{count} `{name}` failed after {}: {e:#}",
+                i + 1,
+                secs(took)
+            ));
+        }
+        println!("<== {name}: ok ({})", secs(took));
+        done.push((name, took));
+    }
+    print_timings(&done);
+    println!(
+        "xtask ci: all {count} steps passed in {}",
+        secs(start.elapsed())
+    );
+    Ok(())
+}
+
+fn print_timings(done: &[(String, Duration)]) {
+    if done.is_empty() {
+        return;
+    }
+    println!("\nstep timings:");
+    for (name, took) in done {
+        println!("  {:>8}  {name}", secs(*took));
+    }
+}

@@ -1,0 +1,231 @@
+//! `cargo xtask run`: build the firmware, run it on QEMU, decode its defmt log, check it.
+//!
+//! The firmware writes defmt frames to semihosting stdout, which QEMU (`target=native`) writes
+//! to its own stdout. The firmware never touches the UART that `-nographic` also connects to
+//! stdout, and QEMU's own diagnostics go to stderr, so stdout holds only defmt frames.
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+use std::{fs, thread};
+
+use anyhow::{Context, Result, bail};
+use defmt_decoder::{DecodeError, Table};
+use object::{Object, ObjectSection, SectionFlags, elf};
+
+use crate::setup::{FIRMWARE_TARGET, QEMU};
+use crate::util::{cargo, locked, root, run};
+
+const PACKAGE: &str = "camgeom-fw-emulated";
+/// The line the firmware logs when it has done all its work; the run fails without it.
+const SUMMARY: &str = "projected ";
+const SUMMARY_REST: &str = " points, cost ";
+
+/// RAM starts here on the emulated board (see `memory.x`): sections at or above it take RAM.
+const RAM_ORIGIN: u64 = 0x2000_0000;
+const FLASH_LEN: u64 = 2 * 1024 * 1024;
+const RAM_LEN: u64 = 512 * 1024;
+
+pub fn firmware_dir() -> PathBuf {
+    root().join("firmware")
+}
+
+/// The firmware's own target directory (whatever `CARGO_TARGET_DIR` the caller has, so the
+/// ELF is always found at the same place and the root workspace's build lock is not shared).
+pub fn firmware_target_dir() -> PathBuf {
+    firmware_dir().join("target")
+}
+
+/// A cargo command run inside `firmware/` (where its `.cargo/config.toml` sets the target and
+/// the linker scripts).
+pub fn firmware_cargo(subcommand: &str) -> Command {
+    let mut cmd = cargo();
+    cmd.current_dir(firmware_dir())
+        .arg(subcommand)
+        .arg("--target-dir")
+        .arg(firmware_target_dir())
+        // RUSTFLAGS in the environment would replace the config's linker arguments.
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET");
+    cmd
+}
+
+pub fn build() -> Result<PathBuf> {
+    let mut cmd = firmware_cargo("build");
+    cmd.args(["--release", "-p", PACKAGE]);
+    run(locked(&mut cmd))?;
+    let elf = firmware_target_dir()
+        .join(FIRMWARE_TARGET)
+        .join("release")
+        .join(PACKAGE);
+    if !elf.is_file() {
+        bail!("the build did not produce {}", elf.display());
+    }
+    Ok(elf)
+}
+
+/// Builds and runs the firmware; returns its summary line.
+pub fn build_and_run() -> Result<String> {
+    let elf = build()?;
+    size_report(&elf)?;
+    run_on_qemu(&elf)
+}
+
+fn timeout() -> Duration {
+    let secs = std::env::var("XTASK_QEMU_TIMEOUT")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(120);
+    Duration::from_secs(secs)
+}
+
+pub fn run_on_qemu(elf: &Path) -> Result<String> {
+    let image = fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
+    let table = Table::parse(&image)
+        .context("cannot read the defmt table")?
+        .context("the ELF has no .defmt section")?;
+    // Locations need the debug info; without it the log still decodes.
+    let locations = table.get_locations(&image).unwrap_or_default();
+
+    let mut cmd = Command::new(QEMU);
+    cmd.args(["-cpu", "cortex-m7", "-machine", "mps2-an500", "-nographic"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        // One virtual nanosecond per instruction: SysTick then counts instructions (see
+        // firmware/README.md), and runs are deterministic.
+        .args(["-icount", "shift=0"])
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    let shown = crate::util::show(&cmd);
+    println!("$ {shown}");
+    let mut child = cmd
+        .spawn()
+        .with_context(|| format!("cannot start {QEMU} (run `cargo xtask setup`)"))?;
+    let mut stdout = child.stdout.take().context("no stdout")?;
+    let mut stderr = child.stderr.take().context("no stderr")?;
+    let out_reader = thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = stdout.read_to_end(&mut v);
+        v
+    });
+    let err_reader = thread::spawn(move || {
+        let mut v = Vec::new();
+        let _ = stderr.read_to_end(&mut v);
+        v
+    });
+
+    let limit = timeout();
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait()? {
+            break Some(status);
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        thread::sleep(Duration::from_millis(20));
+    };
+    let bytes = out_reader.join().unwrap_or_default();
+    let errors = err_reader.join().unwrap_or_default();
+
+    // Decode whatever arrived, also when the run failed: the log says why.
+    let mut decoder = table.new_stream_decoder();
+    decoder.received(&bytes);
+    let mut summary = None;
+    let (mut lines, mut malformed, mut error_logs) = (0usize, 0usize, 0usize);
+    println!("---- firmware log (defmt) ----");
+    loop {
+        match decoder.decode() {
+            Ok(frame) => {
+                lines += 1;
+                let level = frame.level().map_or("", |l| l.as_str());
+                let message = frame.display_message().to_string();
+                let location = locations.get(&frame.index()).map(|l| {
+                    let file = l.file.file_name().map(|f| f.to_string_lossy().into_owned());
+                    format!("{}:{}", file.unwrap_or_default(), l.line)
+                });
+                match (level, location) {
+                    ("warn" | "error", Some(loc)) => {
+                        println!("{:<5} {message}  ({loc})", level.to_uppercase())
+                    }
+                    _ => println!("{:<5} {message}", level.to_uppercase()),
+                }
+                if level == "error" {
+                    error_logs += 1;
+                }
+                if message.starts_with(SUMMARY) && message.contains(SUMMARY_REST) {
+                    summary = Some(message);
+                }
+            }
+            Err(DecodeError::UnexpectedEof) => break,
+            Err(DecodeError::Malformed) => malformed += 1,
+        }
+    }
+    println!(
+        "---- end of log ({lines} frames, {} bytes) ----",
+        bytes.len()
+    );
+    let errors = String::from_utf8_lossy(&errors);
+    if !errors.trim().is_empty() {
+        println!("---- {QEMU} stderr ----\n{}", errors.trim_end());
+    }
+
+    let Some(status) = status else {
+        bail!("{QEMU} did not finish within {} s", limit.as_secs());
+    };
+    if !status.success() {
+        bail!("the firmware failed: {QEMU} exited with {status}");
+    }
+    if malformed > 0 {
+        bail!("{malformed} defmt frame(s) could not be decoded: the log is corrupted");
+    }
+    if error_logs > 0 {
+        bail!("the firmware logged {error_logs} error(s)");
+    }
+    let Some(summary) = summary else {
+        bail!("the log has no summary line (`{SUMMARY}N{SUMMARY_REST}...`)");
+    };
+    println!("firmware run OK: {summary}");
+    Ok(summary)
+}
+
+/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections).
+fn size_report(elf: &Path) -> Result<()> {
+    let image = fs::read(elf)?;
+    let file = object::File::parse(&*image).context("cannot parse the ELF")?;
+    let (mut flash, mut ram) = (0u64, 0u64);
+    let mut rows = Vec::new();
+    for s in file.sections() {
+        let SectionFlags::Elf { sh_flags } = s.flags() else {
+            continue;
+        };
+        if sh_flags & u64::from(elf::SHF_ALLOC) == 0 || s.size() == 0 {
+            continue;
+        }
+        let in_ram = s.address() >= RAM_ORIGIN;
+        // NOBITS (.bss, .uninit) has no bytes in the image; .data is in both.
+        let has_bytes = s.file_range().is_some();
+        if in_ram {
+            ram += s.size();
+        }
+        if !in_ram || has_bytes {
+            flash += s.size();
+        }
+        rows.push(format!("{}={}", s.name().unwrap_or("?"), s.size()));
+    }
+    println!(
+        "firmware size: flash {flash} B of {} KiB ({:.1}%), static RAM {ram} B of {} KiB, \
+         the rest of RAM is stack [{}]",
+        FLASH_LEN / 1024,
+        100.0 * flash as f64 / FLASH_LEN as f64,
+        RAM_LEN / 1024,
+        rows.join(" ")
+    );
+    Ok(())
+}
