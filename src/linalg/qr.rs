@@ -1,0 +1,212 @@
+//! Streaming QR: the `R` factor of a tall matrix absorbed one row at a time.
+//!
+//! For `A = Q R` (`A` is `m x C`, `m` unbounded), each new row `aᵀ` is folded into the upper
+//! triangular `R` by `C` Givens rotations that zero it left to right:
+//!
+//! `[R; aᵀ] = G₁ … G_C [R'; 0]`,  with `G_k` rotating row `k` of `R` against `a` in the plane
+//! that zeroes `a_k`:  `r = hypot(R_kk, a_k)`, `c = R_kk / r`, `s = a_k / r`.
+//!
+//! Because only orthogonal transforms touch the data, `RᵀR = AᵀA` holds to rounding while the
+//! condition number of `R` is that of `A`, not `cond(A)²` as with the normal equations. `A` and
+//! `R` share their singular values and right singular vectors, so the least-squares null vector
+//! of an arbitrarily tall `A` is the last right singular vector of the `C x C` matrix `R`
+//! ([`StreamingQr::svd`]), computed in `C² + 1` words of memory.
+
+use nalgebra::{SMatrix, SVector};
+
+use super::hypot;
+use super::svd::{Svd, svd_jacobi};
+use crate::Result;
+use crate::scalar::{Real, check_finite};
+
+/// The upper-triangular `R` (`C x C`) of all rows pushed so far, `RᵀR = AᵀA`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StreamingQr<T: Real, const C: usize> {
+    r: SMatrix<T, C, C>,
+    rows: usize,
+}
+
+impl<T: Real, const C: usize> Default for StreamingQr<T, C> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Real, const C: usize> StreamingQr<T, C> {
+    /// No rows yet: `R = 0`.
+    pub fn new() -> Self {
+        Self {
+            r: SMatrix::zeros(),
+            rows: 0,
+        }
+    }
+
+    /// Forgets all rows.
+    pub fn reset(&mut self) {
+        *self = Self::new();
+    }
+
+    /// Absorbs the row `aᵀ` (`C` Givens rotations, `~2C²` multiplications).
+    ///
+    /// Errors with [`crate::Error::NonFinite`] (and leaves `R` unchanged) when the row holds
+    /// NaN or an infinity.
+    pub fn push_row(&mut self, row: &[T; C]) -> Result<()> {
+        check_finite(row)?;
+        let mut a = *row;
+        for (k, mut rk) in self.r.row_iter_mut().enumerate() {
+            // Entries of `a` left of `k` are already zero; those of row `k` of `R` too.
+            let (Some(&ak), Some(&rkk)) = (a.get(k), rk.get(k)) else {
+                continue;
+            };
+            if ak == T::zero() {
+                continue;
+            }
+            let h = hypot(rkk, ak);
+            let (c, s) = (rkk / h, ak / h);
+            for (r, x) in rk.iter_mut().zip(a.iter_mut()).skip(k) {
+                let (rv, xv) = (*r, *x);
+                *r = c * rv + s * xv;
+                *x = c * xv - s * rv;
+            }
+        }
+        self.rows = self.rows.saturating_add(1);
+        Ok(())
+    }
+
+    /// Absorbs the row `w aᵀ`: the row's squared residual is weighted by `w²`.
+    pub fn push_row_weighted(&mut self, row: &[T; C], w: T) -> Result<()> {
+        let mut a = *row;
+        for x in a.iter_mut() {
+            *x *= w;
+        }
+        self.push_row(&a)
+    }
+
+    /// Absorbs every row pushed into `other` (its `R`'s rows), as if they had been pushed here:
+    /// QR of separately accumulated blocks.
+    pub fn absorb(&mut self, other: &Self) -> Result<()> {
+        let before = self.rows;
+        for row in other.r.row_iter() {
+            let mut a = [T::zero(); C];
+            for (x, v) in a.iter_mut().zip(row.iter()) {
+                *x = *v;
+            }
+            self.push_row(&a)?;
+        }
+        // The pushes above counted `C` rows; count the rows `other` really holds.
+        self.rows = before.saturating_add(other.rows);
+        Ok(())
+    }
+
+    /// Rows pushed so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// `R`, upper triangular.
+    pub fn r(&self) -> &SMatrix<T, C, C> {
+        &self.r
+    }
+
+    /// `AᵀA = RᵀR` (for tests and diagnostics; solving with it squares the condition number).
+    pub fn gram(&self) -> SMatrix<T, C, C> {
+        self.r.transpose() * self.r
+    }
+
+    /// The SVD of `R`: the singular values and right singular vectors of every row pushed.
+    pub fn svd(&self) -> Result<Svd<T, C, C>> {
+        svd_jacobi(&self.r)
+    }
+
+    /// The unit `x` minimising `|A x|` (last right singular vector), with `σ_min = |A x|`.
+    pub fn null_vector(&self) -> Result<(SVector<T, C>, T)> {
+        let s = self.svd()?;
+        let smin = s.singular_values.min();
+        Ok((s.null_vector(), smin))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Error;
+    use crate::rng::Pcg32;
+
+    #[test]
+    fn r_matches_gram_and_householder_qr() {
+        let mut g = Pcg32::new(11);
+        let a = SMatrix::<f64, 40, 9>::from_fn(|_, _| g.uniform(-1.0, 1.0));
+        let mut qr = StreamingQr::<f64, 9>::new();
+        for row in a.row_iter() {
+            let mut r = [0.0; 9];
+            r.iter_mut().zip(row.iter()).for_each(|(x, v)| *x = *v);
+            qr.push_row(&r).unwrap();
+        }
+        assert_eq!(qr.rows(), 40);
+        let gram = a.transpose() * a;
+        assert!((gram - qr.gram()).amax() < 1e-12 * gram.amax());
+        for i in 0..9 {
+            for j in 0..i {
+                assert_eq!(qr.r()[(i, j)], 0.0);
+            }
+        }
+        // Same R as Householder QR up to the signs of its rows.
+        let reference = a.qr().r();
+        for i in 0..9 {
+            let sign = reference[(i, i)].signum() * qr.r()[(i, i)].signum();
+            for j in 0..9 {
+                assert!((reference[(i, j)] - sign * qr.r()[(i, j)]).abs() < 1e-12);
+            }
+        }
+        // Singular values of R are those of A.
+        let mut sv_a = [0.0; 9];
+        sv_a.iter_mut()
+            .zip(a.singular_values().iter())
+            .for_each(|(o, s)| *o = *s);
+        sv_a.sort_by(|x, y| y.partial_cmp(x).unwrap());
+        let s = qr.svd().unwrap();
+        for (x, y) in s.singular_values.iter().zip(sv_a.iter()) {
+            assert!((x - y).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn absorb_equals_pushing_everything() {
+        let mut g = Pcg32::new(12);
+        let rows: [[f64; 4]; 13] =
+            core::array::from_fn(|_| core::array::from_fn(|_| g.uniform(-3.0, 3.0)));
+        let mut all = StreamingQr::<f64, 4>::new();
+        rows.iter().for_each(|r| all.push_row(r).unwrap());
+        let mut a = StreamingQr::<f64, 4>::new();
+        let mut b = StreamingQr::<f64, 4>::new();
+        rows[..5].iter().for_each(|r| a.push_row(r).unwrap());
+        rows[5..].iter().for_each(|r| b.push_row(r).unwrap());
+        a.absorb(&b).unwrap();
+        assert_eq!(a.rows(), 13);
+        assert!((a.gram() - all.gram()).amax() < 1e-12);
+    }
+
+    #[test]
+    fn fewer_rows_than_columns_and_bad_rows() {
+        let mut qr = StreamingQr::<f32, 3>::new();
+        qr.push_row(&[0.0, 2.0, 0.0]).unwrap();
+        qr.push_row(&[0.0, 0.0, 0.0]).unwrap();
+        assert_eq!(qr.rows(), 2);
+        let before = qr;
+        assert_eq!(qr.push_row(&[1.0, f32::NAN, 0.0]), Err(Error::NonFinite));
+        assert_eq!(qr, before);
+        // Rank 1: a 2-dimensional null space, spanned by the last two columns of V.
+        let s = qr.svd().unwrap();
+        assert_eq!(s.rank(1e-6), 1);
+        assert!((s.singular_values[0] - 2.0).abs() < 1e-6);
+        let (v, smin) = qr.null_vector().unwrap();
+        assert_eq!(smin, 0.0);
+        assert!(v[1].abs() < 1e-6);
+        qr.push_row_weighted(&[1.0, 0.0, 0.0], 3.0).unwrap();
+        assert!((qr.r()[(0, 0)].abs() - 3.0).abs() < 1e-6);
+        qr.reset();
+        assert_eq!(qr.rows(), 0);
+        assert_eq!(*qr.r(), SMatrix::<f32, 3, 3>::zeros());
+    }
+}
