@@ -32,6 +32,9 @@ pub enum Error {
     TooFewPoints,
     /// A parameter is outside its documented range.
     InvalidParameter,
+    /// Image geometry that cannot be used: a zero or too large size, a stride shorter than the
+    /// width, a buffer too short for the geometry, or images whose sizes must match and do not.
+    InvalidImage,
 }
 
 impl fmt::Display for Error {
@@ -47,6 +50,7 @@ impl fmt::Display for Error {
             Error::LengthMismatch => "slice lengths do not match",
             Error::TooFewPoints => "too few points",
             Error::InvalidParameter => "parameter out of range",
+            Error::InvalidImage => "invalid image geometry",
         })
     }
 }

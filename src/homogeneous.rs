@@ -195,6 +195,47 @@ impl<T: Real> Line2h<T> {
     }
 }
 
+/// The vanishing point of image lines that should be concurrent (images of parallel 3D
+/// lines), in the least-squares sense: the unit `v` minimising `Σᵢ (l̂ᵢᵀ v)²`, where `l̂ᵢ` is
+/// `lᵢ` with `(aᵢ, bᵢ)` of unit length after the coordinates are scaled by the lines' mean
+/// distance from the origin (so each residual is a point-to-line distance and the system is
+/// well conditioned). Solved by streaming QR and a Jacobi SVD, without forming `Σ l lᵀ`.
+///
+/// Returns an ideal point when the lines are parallel in the image. Errors:
+/// [`Error::TooFewPoints`] for fewer than two lines, [`Error::Degenerate`] when the lines do
+/// not determine a point (all the same line, or lines at infinity).
+pub fn vanishing_point<T: Real>(lines: &[Line2h<T>]) -> Result<Point2h<T>> {
+    if lines.len() < 2 {
+        return Err(Error::TooFewPoints);
+    }
+    // Lines with (a, b) ~ 0 are the line at infinity: they carry no constraint on a finite
+    // vanishing point and would dominate the scale.
+    let mut sum_dist = T::zero();
+    for l in lines {
+        if l.is_at_infinity() {
+            return Err(Error::Degenerate);
+        }
+        let n = l.normalized().0;
+        sum_dist += n.z.abs();
+    }
+    let mean = sum_dist / T::lit(lines.len() as f64);
+    let s = if mean > T::EPSILON { mean } else { T::one() };
+    let mut qr = crate::linalg::StreamingQr::<T, 3>::new();
+    for l in lines {
+        let n = l.normalized().0;
+        qr.push_row(&[n.x, n.y, n.z / s])?;
+    }
+    let svd = qr.svd()?;
+    let sv = &svd.singular_values;
+    // A second singular value near zero means a two-dimensional solution set: every line is
+    // (numerically) the same line, so no single point is determined.
+    if sv.y <= T::lit(64.0) * T::EPSILON * sv.x {
+        return Err(Error::Degenerate);
+    }
+    let v = svd.null_vector();
+    Point2h::new(v.x * s, v.y * s, v.z)
+}
+
 /// The vanishing line of a plane from two of its vanishing points (two directions in the
 /// plane): `l = v₁ × v₂`.
 pub fn vanishing_line<T: Real>(v1: &Point2h<T>, v2: &Point2h<T>) -> Result<Line2h<T>> {
@@ -287,6 +328,54 @@ mod tests {
             huge.to_euclidean().unwrap(),
             Point2::new(1e4, 1e4),
             epsilon = 1e-2
+        );
+    }
+
+    #[test]
+    fn vanishing_point_least_squares() {
+        // Noisy images of lines through (400, -300): each line passes within ~0.5 px of it.
+        let v = (400.0, -300.0);
+        let mut lines = std::vec::Vec::new();
+        for (k, angle) in [0.3f64, 0.5, 0.8, 1.1, 1.4].iter().enumerate() {
+            let off = if k % 2 == 0 { 0.5 } else { -0.5 };
+            let (dx, dy) = (angle.cos(), angle.sin());
+            let a = p(v.0 + off * -dy, v.1 + off * dx);
+            let b = p(v.0 + 200.0 * dx, v.1 + 200.0 * dy);
+            lines.push(a.join(&b).unwrap());
+        }
+        let vp = vanishing_point(&lines).unwrap().to_euclidean().unwrap();
+        // The residuals are ±0.5 px in alternating directions: the fit lands within 0.5 px.
+        assert!((vp - Point2::new(v.0, v.1)).norm() < 0.5, "{vp}");
+        // Exactly concurrent lines give the exact point, in f32 too.
+        let lf: std::vec::Vec<Line2h<f32>> = [(1.0f32, 0.0f32), (0.0, 1.0), (1.0, 1.0)]
+            .iter()
+            .map(|&(dx, dy)| {
+                let a = Point2h::from_euclidean(&Point2::new(100.0f32, 50.0)).unwrap();
+                let b = Point2h::from_euclidean(&Point2::new(100.0 + 30.0 * dx, 50.0 + 30.0 * dy))
+                    .unwrap();
+                a.join(&b).unwrap()
+            })
+            .collect();
+        let vf = vanishing_point(&lf).unwrap().to_euclidean().unwrap();
+        assert!((vf - Point2::new(100.0, 50.0)).norm() < 1e-3);
+        // Parallel image lines: the vanishing point is ideal, in their direction.
+        let par = [
+            Line2h::new(2.0, -1.0, 1.0).unwrap(),
+            Line2h::new(2.0, -1.0, -3.0).unwrap(),
+            Line2h::new(2.0, -1.0, 7.0).unwrap(),
+        ];
+        let vi = vanishing_point(&par).unwrap();
+        assert!(vi.is_ideal());
+        assert!(same(vi.coords(), &Vector3::new(1.0, 2.0, 0.0), 1e-9));
+        // Degenerate sets are typed errors.
+        assert_eq!(vanishing_point(&par[..1]), Err(Error::TooFewPoints));
+        assert_eq!(
+            vanishing_point(&[par[0], par[0], par[0]]),
+            Err(Error::Degenerate)
+        );
+        assert_eq!(
+            vanishing_point(&[par[0], Line2h::at_infinity()]),
+            Err(Error::Degenerate)
         );
     }
 

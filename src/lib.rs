@@ -9,7 +9,13 @@
 //! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
+//! | [`image`] | borrowed grayscale views with a stride, validated once |
+//! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
 //! | [`fixed`] | Q16.16 projective transfer (homography, projection) without floating point |
+//! | [`linalg`] | one-sided Jacobi SVD and streaming (row-by-row) QR of small static matrices |
+//! | [`homography`] | plane homographies: 4-point solver, normalised DLT, LM refinement, RANSAC |
+//! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
+//! | [`rng`] | PCG32, a small deterministic generator for sampling |
 #![no_std]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
@@ -35,6 +41,12 @@ pub mod camera;
 mod error;
 pub mod fixed;
 pub mod homogeneous;
+pub mod homography;
+pub mod image;
+pub mod linalg;
+pub mod pyramid;
+pub mod ransac;
+pub mod rng;
 mod scalar;
 pub mod transform;
 

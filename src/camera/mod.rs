@@ -233,8 +233,9 @@ mod tests {
                     .unwrap()
             };
             let other = Vector3::new(axis.y, axis.x, 0.0);
-            let (l1, l2) = (line(other * 0.1), line(other * 0.6));
-            *vp = l1.meet(&l2).unwrap();
+            // Five grid lines of the family, 10 cm apart: their least-squares common point.
+            let family: [Line2h<f64>; 5] = core::array::from_fn(|i| line(other * (0.1 * i as f64)));
+            *vp = crate::homogeneous::vanishing_point(&family).unwrap();
             let expected = k * pose.apply_vector(axis);
             let (a, b) = (vp.normalized().coords().normalize(), expected.normalize());
             assert!((a - b).amax() < 1e-9 || (a + b).amax() < 1e-9, "{a} vs {b}");

@@ -1,0 +1,272 @@
+//! Borrowed grayscale images with a row stride, validated once at construction.
+//!
+//! Pixel `(x, y)` of a view is `data[y * stride + x]`, for `x < width`, `y < height`. The
+//! constructors check the sizes once (non-zero, within [`MAX_DIM`], `stride >= width`, buffer
+//! long enough), so kernels can walk rows without any further failure path: [`ImageView::row`]
+//! cannot miss for `y < height`.
+
+use crate::{Error, Result};
+
+/// Largest width or height accepted (2¹³): keeps every pixel sum of the integer kernels
+/// (up to `255 · 2¹⁶` per window, times `x, y < 2¹³`) inside `i32`/`i64` with margin.
+pub const MAX_DIM: usize = 8192;
+
+/// Number of elements a buffer needs for a `width x height` image with row `stride`:
+/// `stride (height - 1) + width` (the last row need not be padded).
+pub const fn buffer_len(width: usize, height: usize, stride: usize) -> usize {
+    if width == 0 || height == 0 {
+        0
+    } else {
+        stride
+            .saturating_mul(height.saturating_sub(1))
+            .saturating_add(width)
+    }
+}
+
+fn validate(len: usize, width: usize, height: usize, stride: usize) -> Result<()> {
+    if width == 0 || height == 0 || width > MAX_DIM || height > MAX_DIM {
+        return Err(Error::InvalidImage);
+    }
+    if stride < width || stride > MAX_DIM.saturating_mul(4) {
+        return Err(Error::InvalidImage);
+    }
+    if len < buffer_len(width, height, stride) {
+        return Err(Error::InvalidImage);
+    }
+    Ok(())
+}
+
+/// A read-only `width x height` image of `P` (`u8` pixels, `i16` gradients, ...).
+#[derive(Debug, Clone, Copy)]
+pub struct ImageView<'a, P = u8> {
+    data: &'a [P],
+    width: usize,
+    height: usize,
+    stride: usize,
+}
+
+/// A mutable `width x height` image of `P`.
+#[derive(Debug)]
+pub struct ImageMut<'a, P = u8> {
+    data: &'a mut [P],
+    width: usize,
+    height: usize,
+    stride: usize,
+}
+
+impl<'a, P: Copy> ImageView<'a, P> {
+    /// A view of `data` with the given geometry. Errors with [`Error::InvalidImage`] for zero
+    /// or over-[`MAX_DIM`] sizes, `stride < width`, or a buffer shorter than
+    /// [`buffer_len`]`(width, height, stride)`.
+    pub fn new(data: &'a [P], width: usize, height: usize, stride: usize) -> Result<Self> {
+        validate(data.len(), width, height, stride)?;
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// A tightly packed view (`stride = width`).
+    pub fn packed(data: &'a [P], width: usize, height: usize) -> Result<Self> {
+        Self::new(data, width, height, width)
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Elements from one row to the next.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Row `y` (exactly `width` pixels), `None` when `y >= height`.
+    #[inline]
+    pub fn row(&self, y: usize) -> Option<&'a [P]> {
+        if y >= self.height {
+            return None;
+        }
+        let start = y.checked_mul(self.stride)?;
+        self.data.get(start..start.checked_add(self.width)?)
+    }
+
+    /// Row `y` clamped into `0..height` (replicated border for kernels).
+    #[inline]
+    pub fn row_clamped(&self, y: isize) -> &'a [P] {
+        let y = y.clamp(0, self.height as isize - 1) as usize;
+        // Validated at construction: every y < height has a full row.
+        self.row(y).unwrap_or(&[])
+    }
+
+    /// Pixel `(x, y)`, `None` outside the image.
+    #[inline]
+    pub fn get(&self, x: usize, y: usize) -> Option<P> {
+        if x >= self.width {
+            return None;
+        }
+        self.row(y)?.get(x).copied()
+    }
+
+    /// Iterator over the rows, top to bottom.
+    pub fn rows(&self) -> impl Iterator<Item = &'a [P]> + '_ {
+        (0..self.height).filter_map(move |y| self.row(y))
+    }
+
+    /// The sub-image `[x, x + w) x [y, y + h)`; [`Error::InvalidImage`] when it does not fit.
+    pub fn sub(&self, x: usize, y: usize, w: usize, h: usize) -> Result<Self> {
+        let x_end = x.checked_add(w).ok_or(Error::InvalidImage)?;
+        let y_end = y.checked_add(h).ok_or(Error::InvalidImage)?;
+        if x_end > self.width || y_end > self.height {
+            return Err(Error::InvalidImage);
+        }
+        let start = y.saturating_mul(self.stride).saturating_add(x);
+        let data = self.data.get(start..).ok_or(Error::InvalidImage)?;
+        Self::new(data, w, h, self.stride)
+    }
+}
+
+impl<'a, P: Copy> ImageMut<'a, P> {
+    /// A mutable view, validated as [`ImageView::new`].
+    pub fn new(data: &'a mut [P], width: usize, height: usize, stride: usize) -> Result<Self> {
+        validate(data.len(), width, height, stride)?;
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// A tightly packed mutable view (`stride = width`).
+    pub fn packed(data: &'a mut [P], width: usize, height: usize) -> Result<Self> {
+        Self::new(data, width, height, width)
+    }
+
+    /// Width in pixels.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+    /// Height in pixels.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+    /// Elements from one row to the next.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// A read-only view of the same pixels.
+    pub fn as_view(&self) -> ImageView<'_, P> {
+        ImageView {
+            data: self.data,
+            width: self.width,
+            height: self.height,
+            stride: self.stride,
+        }
+    }
+
+    /// Mutable row `y` (exactly `width` pixels), `None` when `y >= height`.
+    #[inline]
+    pub fn row_mut(&mut self, y: usize) -> Option<&mut [P]> {
+        if y >= self.height {
+            return None;
+        }
+        let start = y.checked_mul(self.stride)?;
+        let end = start.checked_add(self.width)?;
+        self.data.get_mut(start..end)
+    }
+
+    /// Sets pixel `(x, y)`; returns `false` (and writes nothing) outside the image.
+    #[inline]
+    pub fn set(&mut self, x: usize, y: usize, v: P) -> bool {
+        if x >= self.width {
+            return false;
+        }
+        match self.row_mut(y).and_then(|r| r.get_mut(x)) {
+            Some(p) => {
+                *p = v;
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Fills the image with `v`.
+    pub fn fill(&mut self, v: P) {
+        for y in 0..self.height {
+            if let Some(r) = self.row_mut(y) {
+                r.fill(v);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation() {
+        let buf = [0u8; 100];
+        assert!(ImageView::new(&buf, 10, 10, 10).is_ok());
+        // The last row need not be padded to the stride.
+        assert!(ImageView::new(&buf[..94], 4, 10, 10).is_ok());
+        assert_eq!(
+            ImageView::new(&buf[..93], 4, 10, 10).err(),
+            Some(Error::InvalidImage)
+        );
+        assert_eq!(
+            ImageView::new(&buf, 0, 10, 10).err(),
+            Some(Error::InvalidImage)
+        );
+        assert_eq!(
+            ImageView::new(&buf, 10, 0, 10).err(),
+            Some(Error::InvalidImage)
+        );
+        assert_eq!(
+            ImageView::new(&buf, 11, 5, 10).err(),
+            Some(Error::InvalidImage)
+        );
+        assert_eq!(
+            ImageView::new(&buf, 10, 11, 10).err(),
+            Some(Error::InvalidImage)
+        );
+        assert_eq!(
+            ImageView::new(&buf, MAX_DIM + 1, 1, MAX_DIM + 1).err(),
+            Some(Error::InvalidImage)
+        );
+        // Overflowing geometry is rejected, not wrapped.
+        assert_eq!(
+            ImageView::new(&buf, 1, usize::MAX, usize::MAX).err(),
+            Some(Error::InvalidImage)
+        );
+    }
+
+    #[test]
+    fn rows_sub_and_access() {
+        let buf: [u8; 30] = core::array::from_fn(|i| i as u8);
+        let v = ImageView::new(&buf, 4, 3, 10).unwrap();
+        assert_eq!(v.row(1), Some(&buf[10..14]));
+        assert_eq!(v.row(3), None);
+        assert_eq!(v.get(3, 2), Some(23));
+        assert_eq!(v.get(4, 0), None);
+        assert_eq!(v.row_clamped(-5), &buf[0..4]);
+        assert_eq!(v.row_clamped(99), &buf[20..24]);
+        assert_eq!(v.rows().count(), 3);
+        let s = v.sub(1, 1, 3, 2).unwrap();
+        assert_eq!(s.get(0, 0), Some(11));
+        assert_eq!(s.get(2, 1), Some(23));
+        assert_eq!(v.sub(2, 0, 3, 1).err(), Some(Error::InvalidImage));
+        let mut m = [0u8; 12];
+        let mut im = ImageMut::packed(&mut m, 4, 3).unwrap();
+        assert!(im.set(3, 2, 7));
+        assert!(!im.set(4, 2, 7));
+        assert_eq!(im.as_view().get(3, 2), Some(7));
+    }
+}

@@ -1,0 +1,253 @@
+//! Gaussian image pyramids into caller-provided buffers.
+//!
+//! One level down is OpenCV's `pyrDown`, bit for bit: a 5x5 Gaussian `g gᵀ / 256` with
+//! `g = [1 4 6 4 1]`, evaluated at every second pixel, borders reflected without repeating the
+//! edge pixel (`BORDER_REFLECT_101`: `-1 → 1`, `n → n - 2`), rounded as `(Σ + 128) >> 8`:
+//!
+//! `out(x, y) = (Σᵢⱼ gᵢ gⱼ in(2x + i - 2, 2y + j - 2) + 128) >> 8`, size `(⌈w/2⌉, ⌈h/2⌉)`.
+//!
+//! Integer only. The work runs in tiles of [`TILE`] output pixels with the vertical sums in a
+//! fixed stack array, so there is no scratch to provide and no size limit beyond
+//! [`crate::image::MAX_DIM`].
+
+use heapless::Vec;
+
+use crate::image::{ImageMut, ImageView};
+use crate::{Error, Result};
+
+/// The most levels a [`Pyramid`] holds, the frame itself included.
+pub const MAX_LEVELS: usize = 8;
+
+/// Output pixels per tile of the horizontal pass (stack use: `2 TILE + 3` `u16`).
+pub const TILE: usize = 64;
+
+/// Size after one reduction: `(⌈w/2⌉, ⌈h/2⌉)`.
+pub const fn down_size(width: usize, height: usize) -> (usize, usize) {
+    (width.div_ceil(2), height.div_ceil(2))
+}
+
+/// Size of level `level` of a `width x height` frame (level 0 is the frame).
+pub const fn level_size(width: usize, height: usize, level: usize) -> (usize, usize) {
+    let (mut w, mut h, mut l) = (width, height, 0);
+    while l < level {
+        (w, h) = down_size(w, h);
+        l += 1;
+    }
+    (w, h)
+}
+
+/// Bytes the caller's buffer needs for a `levels`-level pyramid of a `width x height` frame
+/// (levels `1..levels`, tightly packed; level 0 is the caller's frame and is not copied).
+pub const fn buffer_len(width: usize, height: usize, levels: usize) -> usize {
+    let (mut total, mut l) = (0, 1);
+    while l < levels {
+        let (w, h) = level_size(width, height, l);
+        total += w * h;
+        l += 1;
+    }
+    total
+}
+
+/// `BORDER_REFLECT_101` index into `0..n` (`n >= 1`).
+#[inline]
+fn reflect101(i: isize, n: usize) -> usize {
+    let n = n as isize;
+    if n == 1 {
+        return 0;
+    }
+    let mut i = i;
+    // One reflection suffices for |i| < n, which holds for taps at most 2 outside (n >= 2:
+    // -2 → 2 needs n >= 3; for n = 2 the reflected index is clamped below).
+    if i < 0 {
+        i = -i;
+    }
+    if i >= n {
+        i = 2 * n - 2 - i;
+    }
+    i.clamp(0, n - 1) as usize
+}
+
+/// One level down: `dst` must be exactly [`down_size`] of `src`, else [`Error::InvalidImage`].
+pub fn pyr_down(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
+    let (w, h) = (src.width(), src.height());
+    if (dst.width(), dst.height()) != down_size(w, h) {
+        return Err(Error::InvalidImage);
+    }
+    let mut vsum = [0u16; 2 * TILE + 3];
+    for y in 0..dst.height() {
+        let cy = 2 * y as isize;
+        let rows: [&[u8]; 5] =
+            core::array::from_fn(|j| src.row(reflect101(cy + j as isize - 2, h)).unwrap_or(&[]));
+        let Some(out) = dst.row_mut(y) else { break };
+        for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
+            let x0 = tile * TILE;
+            // Vertical sums for source columns 2 x0 - 2 ..= 2 (x0 + n - 1) + 2.
+            let first = 2 * x0 as isize - 2;
+            let ncols = 2 * out_tile.len() + 3;
+            for (k, v) in vsum.iter_mut().take(ncols).enumerate() {
+                let c = reflect101(first + k as isize, w);
+                let px =
+                    |j: usize| u16::from(rows.get(j).and_then(|r| r.get(c)).copied().unwrap_or(0));
+                *v = px(0) + 4 * px(1) + 6 * px(2) + 4 * px(3) + px(4);
+            }
+            for (i, o) in out_tile.iter_mut().enumerate() {
+                let v = |k: usize| u32::from(vsum.get(2 * i + k).copied().unwrap_or(0));
+                let s = v(0) + 4 * v(1) + 6 * v(2) + 4 * v(3) + v(4);
+                // s <= 256 * 255, so the rounded quotient fits u8.
+                *o = ((s + 128) >> 8) as u8;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A Gaussian pyramid: level 0 is the caller's frame, levels `1..` live in the caller's buffer.
+#[derive(Debug, Clone)]
+pub struct Pyramid<'a> {
+    levels: Vec<ImageView<'a, u8>, MAX_LEVELS>,
+}
+
+impl<'a> Pyramid<'a> {
+    /// Builds `levels` levels (1 to [`MAX_LEVELS`]) of `frame` into `buf`, which must hold at
+    /// least [`buffer_len`] bytes. Errors: [`Error::InvalidParameter`] for a level count out of
+    /// range, [`Error::InvalidImage`] when the buffer is too short.
+    pub fn build(frame: ImageView<'a, u8>, buf: &'a mut [u8], levels: usize) -> Result<Self> {
+        if levels == 0 || levels > MAX_LEVELS {
+            return Err(Error::InvalidParameter);
+        }
+        if buf.len() < buffer_len(frame.width(), frame.height(), levels) {
+            return Err(Error::InvalidImage);
+        }
+        let mut out = Vec::new();
+        out.push(frame).map_err(|_| Error::InvalidParameter)?;
+        let mut prev = frame;
+        let mut rest = buf;
+        for _ in 1..levels {
+            let (w, h) = down_size(prev.width(), prev.height());
+            let (cur, tail) = rest.split_at_mut(w * h);
+            let mut dst = ImageMut::packed(cur, w, h)?;
+            pyr_down(&prev, &mut dst)?;
+            let done: &'a [u8] = cur;
+            prev = ImageView::packed(done, w, h)?;
+            out.push(prev).map_err(|_| Error::InvalidParameter)?;
+            rest = tail;
+        }
+        Ok(Self { levels: out })
+    }
+
+    /// Number of levels.
+    pub fn len(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Always `false`: a pyramid has at least its base level.
+    pub fn is_empty(&self) -> bool {
+        self.levels.is_empty()
+    }
+
+    /// Level `l` (0 = the frame), `None` beyond the last.
+    pub fn level(&self, l: usize) -> Option<ImageView<'a, u8>> {
+        self.levels.get(l).copied()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Straight 5x5 evaluation of the definition, independent of the tiled code.
+    fn reference(src: &[u8], w: usize, h: usize) -> std::vec::Vec<u8> {
+        let g = [1u32, 4, 6, 4, 1];
+        let (ow, oh) = down_size(w, h);
+        let refl = |i: isize, n: usize| -> usize {
+            let n = n as isize;
+            if n == 1 {
+                return 0;
+            }
+            let r = i.abs();
+            let r = if r >= n { 2 * n - 2 - r } else { r };
+            r.clamp(0, n - 1) as usize
+        };
+        let mut out = std::vec![0u8; ow * oh];
+        for y in 0..oh {
+            for x in 0..ow {
+                let mut s = 0u32;
+                for j in 0..5 {
+                    for i in 0..5 {
+                        let sx = refl(2 * x as isize + i as isize - 2, w);
+                        let sy = refl(2 * y as isize + j as isize - 2, h);
+                        s += g[i] * g[j] * src[sy * w + sx] as u32;
+                    }
+                }
+                out[y * ow + x] = ((s + 128) >> 8) as u8;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn matches_direct_definition_on_odd_and_tiny_sizes() {
+        let mut seed = 12345u32;
+        for &(w, h) in &[
+            (1, 1),
+            (2, 1),
+            (1, 2),
+            (2, 2),
+            (3, 3),
+            (5, 7),
+            (17, 9),
+            (131, 67),
+            (320, 240),
+        ] {
+            let src: std::vec::Vec<u8> = (0..w * h)
+                .map(|_| {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (seed >> 24) as u8
+                })
+                .collect();
+            let (ow, oh) = down_size(w, h);
+            let mut dst = std::vec![0u8; ow * oh];
+            let view = ImageView::packed(&src, w, h).unwrap();
+            pyr_down(&view, &mut ImageMut::packed(&mut dst, ow, oh).unwrap()).unwrap();
+            assert_eq!(dst, reference(&src, w, h), "{w}x{h}");
+        }
+    }
+
+    #[test]
+    fn pyramid_levels_and_sizes() {
+        let src = [200u8; 320 * 240];
+        let mut buf = [0u8; buffer_len(320, 240, 4)];
+        assert_eq!(buf.len(), 160 * 120 + 80 * 60 + 40 * 30);
+        let p = Pyramid::build(ImageView::packed(&src, 320, 240).unwrap(), &mut buf, 4).unwrap();
+        assert_eq!(p.len(), 4);
+        let l3 = p.level(3).unwrap();
+        assert_eq!((l3.width(), l3.height()), (40, 30));
+        // A constant image stays constant at every level (the kernel sums to 256).
+        assert!(l3.rows().all(|r| r.iter().all(|&v| v == 200)));
+        assert!(p.level(4).is_none());
+        assert_eq!(level_size(641, 481, 2), (161, 121));
+    }
+
+    #[test]
+    fn bad_sizes_are_errors() {
+        let src = [0u8; 64];
+        let v = ImageView::packed(&src, 8, 8).unwrap();
+        let mut small = [0u8; 10];
+        assert_eq!(
+            Pyramid::build(v, &mut small, 3).err(),
+            Some(Error::InvalidImage)
+        );
+        let mut buf = [0u8; 64];
+        assert_eq!(
+            Pyramid::build(v, &mut buf, 0).err(),
+            Some(Error::InvalidParameter)
+        );
+        assert_eq!(
+            Pyramid::build(v, &mut buf, MAX_LEVELS + 1).err(),
+            Some(Error::InvalidParameter)
+        );
+        let mut d = [0u8; 25];
+        let mut wrong = ImageMut::packed(&mut d, 5, 5).unwrap();
+        assert_eq!(pyr_down(&v, &mut wrong), Err(Error::InvalidImage));
+    }
+}

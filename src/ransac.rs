@@ -1,0 +1,435 @@
+//! A generic, allocation-free RANSAC loop (MSAC scoring, adaptive stopping, local optimisation).
+//!
+//! A problem plugs in through [`Estimator`]: a minimal solver over index samples, a squared
+//! residual per data point, and optional least-squares refits. [`ransac`] then runs
+//!
+//! 1. draw a minimal sample of `s` distinct indices (Floyd's algorithm, seeded [`Pcg32`]),
+//! 2. reject it if [`Estimator::is_sample_valid`] says so, else solve it,
+//! 3. score each model by MSAC (Torr & Zisserman 2000): `C = Σᵢ min(rᵢ², t²)`, lower is better,
+//! 4. on a new best model, locally optimise it (Chum et al., LO-RANSAC 2003): refit on its
+//!    inliers with [`Estimator::refit`] while the score improves, and lower the iteration
+//!    budget to `N = ⌈log(1 - p) / log(1 - wˢ)⌉` for inlier ratio `w` and confidence `p`,
+//! 5. stop after `min(N, max_iterations)` samples, then polish the best model once with
+//!    [`Estimator::refine`] (e.g. Levenberg-Marquardt) and write its inlier mask.
+//!
+//! The same loop serves homographies ([`crate::homography::find_homography`]) and, later,
+//! fundamental and essential matrices: only the [`Estimator`] changes.
+
+use crate::rng::Pcg32;
+use crate::scalar::Real;
+use crate::{Error, Result};
+
+/// Largest minimal sample an [`Estimator`] may ask for (the 8-point algorithm).
+pub const MAX_SAMPLE_SIZE: usize = 8;
+
+/// Most models a minimal solver may return per sample (the 5-point essential solver's 10);
+/// extra models are ignored.
+pub const MAX_MODELS_PER_SAMPLE: usize = 10;
+
+/// A model-fitting problem over `num_points` data points addressed by index.
+pub trait Estimator {
+    /// The estimated model (e.g. a homography and its inverse).
+    type Model: Clone;
+    /// Scalar type of residuals.
+    type Scalar: Real;
+
+    /// Number of data points.
+    fn num_points(&self) -> usize;
+
+    /// Size `s` of a minimal sample, `1..=MAX_SAMPLE_SIZE`.
+    fn sample_size(&self) -> usize;
+
+    /// Cheap test run before [`Self::fit_minimal`] (degenerate samples); default: accept all.
+    fn is_sample_valid(&self, _sample: &[usize]) -> bool {
+        true
+    }
+
+    /// Solves the minimal sample (`sample.len() == sample_size()`), passing every solution to
+    /// `emit` (none if the sample is degenerate).
+    fn fit_minimal(&self, sample: &[usize], emit: &mut dyn FnMut(Self::Model));
+
+    /// Squared residual of point `i` under `model`, in the units of the threshold squared;
+    /// `None` when it cannot be evaluated (e.g. the point maps to infinity): an outlier.
+    fn residual_sq(&self, model: &Self::Model, i: usize) -> Option<Self::Scalar>;
+
+    /// Non-minimal least-squares fit on the points with `inliers[i]` (local optimisation);
+    /// `None` to skip. Default: none.
+    fn refit(&self, _model: &Self::Model, _inliers: &[bool]) -> Option<Self::Model> {
+        None
+    }
+
+    /// Final polish of the best model on its inliers (e.g. nonlinear least squares); `None`
+    /// to keep it. Default: none.
+    fn refine(&self, _model: &Self::Model, _inliers: &[bool]) -> Option<Self::Model> {
+        None
+    }
+}
+
+/// Parameters of [`ransac`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RansacConfig<T: Real = f32> {
+    /// Inlier threshold `t` on the residual (`r² < t²`), in data units (pixels), `> 0`.
+    pub threshold: T,
+    /// Probability `p` of having drawn at least one all-inlier sample when the loop stops
+    /// early, in `(0, 1)`.
+    pub confidence: T,
+    /// Hard cap on the samples drawn (degenerate ones included), `≥ 1`. Bounds the run time.
+    pub max_iterations: u32,
+    /// Refit rounds of local optimisation per new best model (0 disables it).
+    pub local_optimization: u8,
+    /// Whether to apply [`Estimator::refine`] to the final model.
+    pub refine: bool,
+    /// Seed of the sampler: the same seed and data give the same result on every target.
+    pub seed: u64,
+}
+
+impl<T: Real> Default for RansacConfig<T> {
+    /// `t = 3` px (OpenCV's default), `p = 0.995`, at most 2000 samples, 4 refit rounds,
+    /// refinement on.
+    fn default() -> Self {
+        Self {
+            threshold: T::lit(3.0),
+            confidence: T::lit(0.995),
+            max_iterations: 2000,
+            local_optimization: 4,
+            refine: true,
+            seed: 0x5eed_ca4e_0000_0001,
+        }
+    }
+}
+
+/// What [`ransac`] found besides the model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RansacReport<T: Real = f32> {
+    /// Number of inliers of the returned model (`true` entries of the mask).
+    pub inliers: usize,
+    /// MSAC cost `Σ min(r², t²)` of the returned model.
+    pub cost: T,
+    /// Samples drawn.
+    pub iterations: u32,
+}
+
+/// Runs RANSAC (see the module docs) and writes the returned model's inlier mask into `mask`.
+///
+/// Errors: [`Error::LengthMismatch`] if `mask.len() != num_points()`,
+/// [`Error::InvalidParameter`] for a threshold that is not finite and positive, a confidence
+/// outside `(0, 1)`, `max_iterations == 0` or a sample size outside `1..=MAX_SAMPLE_SIZE`,
+/// [`Error::TooFewPoints`] with fewer points than a sample, [`Error::Degenerate`] when no
+/// sample produced a model.
+pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
+    estimator: &E,
+    config: &RansacConfig<T>,
+    mask: &mut [bool],
+) -> Result<(E::Model, RansacReport<T>)> {
+    let n = estimator.num_points();
+    let s = estimator.sample_size();
+    let zero = T::zero();
+    let one = T::one();
+    if mask.len() != n {
+        return Err(Error::LengthMismatch);
+    }
+    let threshold_ok = config.threshold.finite() && config.threshold > zero;
+    let confidence_ok = config.confidence > zero && config.confidence < one;
+    if !threshold_ok
+        || !confidence_ok
+        || config.max_iterations == 0
+        || s == 0
+        || s > MAX_SAMPLE_SIZE
+    {
+        return Err(Error::InvalidParameter);
+    }
+    if n < s {
+        return Err(Error::TooFewPoints);
+    }
+    let t2 = config.threshold * config.threshold;
+    let mut rng = Pcg32::new(config.seed);
+    let mut best: Option<(E::Model, T, usize)> = None;
+    let mut budget = config.max_iterations;
+    let mut iterations = 0u32;
+    let mut sample_buf = [0usize; MAX_SAMPLE_SIZE];
+
+    while iterations < budget {
+        iterations += 1;
+        let Some(sample) = sample_buf
+            .get_mut(..s)
+            .and_then(|buf| draw_sample(&mut rng, n, buf))
+        else {
+            return Err(Error::InvalidParameter);
+        };
+        if !estimator.is_sample_valid(sample) {
+            continue;
+        }
+        let mut models: heapless::Vec<E::Model, MAX_MODELS_PER_SAMPLE> = heapless::Vec::new();
+        estimator.fit_minimal(sample, &mut |m| {
+            // A full buffer drops the extra solutions: documented on the constant.
+            let _ = models.push(m);
+        });
+        for model in models {
+            let (cost, count) = score(estimator, &model, t2);
+            if best.as_ref().is_some_and(|b| b.1 <= cost) {
+                continue;
+            }
+            let mut current = (model, cost, count);
+            // Local optimisation: refit on the inliers while that lowers the cost.
+            for _ in 0..config.local_optimization {
+                write_mask(estimator, &current.0, t2, mask);
+                let Some(refit) = estimator.refit(&current.0, mask) else {
+                    break;
+                };
+                let (c, k) = score(estimator, &refit, t2);
+                if c < current.1 {
+                    current = (refit, c, k);
+                } else {
+                    break;
+                }
+            }
+            budget = budget.min(iterations_needed(
+                current.2,
+                n,
+                s,
+                config.confidence,
+                config.max_iterations,
+            ));
+            best = Some(current);
+        }
+    }
+
+    let Some((mut model, mut cost, _)) = best else {
+        mask.iter_mut().for_each(|m| *m = false);
+        return Err(Error::Degenerate);
+    };
+    write_mask(estimator, &model, t2, mask);
+    if config.refine
+        && let Some(polished) = estimator.refine(&model, mask)
+    {
+        let (c, _) = score(estimator, &polished, t2);
+        if c <= cost {
+            model = polished;
+            cost = c;
+        }
+    }
+    let inliers = write_mask(estimator, &model, t2, mask);
+    Ok((
+        model,
+        RansacReport {
+            inliers,
+            cost,
+            iterations,
+        },
+    ))
+}
+
+/// `⌈log(1 - p) / log(1 - wˢ)⌉` samples for inlier ratio `w = inliers / n`, capped at `cap`.
+pub fn iterations_needed<T: Real>(inliers: usize, n: usize, s: usize, p: T, cap: u32) -> u32 {
+    if n == 0 || inliers == 0 {
+        return cap;
+    }
+    let w = T::lit(inliers as f64) / T::lit(n as f64);
+    let ws = w.powi(i32::try_from(s).unwrap_or(i32::MAX));
+    if ws >= T::one() {
+        return 1.min(cap);
+    }
+    let denom = (T::one() - ws).ln();
+    if denom >= T::zero() {
+        // 1 - wˢ rounds to 1: no finite number of samples reaches the confidence.
+        return cap;
+    }
+    let k = ((T::one() - p).ln() / denom).ceil().to_f64();
+    // `as` saturates: NaN → 0 (then at least one sample), huge → u32::MAX.
+    (k as u32).clamp(1, cap.max(1))
+}
+
+/// MSAC cost and inlier count of a model.
+fn score<T: Real, E: Estimator<Scalar = T>>(e: &E, model: &E::Model, t2: T) -> (T, usize) {
+    let mut cost = T::zero();
+    let mut count = 0;
+    for i in 0..e.num_points() {
+        match e.residual_sq(model, i) {
+            Some(r) if r < t2 => {
+                cost += r;
+                count += 1;
+            }
+            _ => cost += t2,
+        }
+    }
+    (cost, count)
+}
+
+/// Writes `mask[i] = r_i² < t²`; returns the number of inliers.
+fn write_mask<E: Estimator>(e: &E, model: &E::Model, t2: E::Scalar, mask: &mut [bool]) -> usize {
+    let mut count = 0;
+    for (i, m) in mask.iter_mut().enumerate() {
+        *m = e.residual_sq(model, i).is_some_and(|r| r < t2);
+        count += usize::from(*m);
+    }
+    count
+}
+
+/// `out.len()` distinct uniform indices in `0..n` by Floyd's algorithm: exactly `out.len()`
+/// draws, no rejection of repeats. `None` if `out` is longer than `n` or `n` exceeds `u32`.
+fn draw_sample<'a>(rng: &mut Pcg32, n: usize, out: &'a mut [usize]) -> Option<&'a [usize]> {
+    let k = out.len();
+    if k > n {
+        return None;
+    }
+    // For j = n-k .. n-1: pick t uniform in 0..=j; take t unless already taken, else take j.
+    for (filled, j) in ((n - k)..n).enumerate() {
+        let t = rng.below(u32::try_from(j + 1).ok()?) as usize;
+        let pick = if out.get(..filled)?.contains(&t) {
+            j
+        } else {
+            t
+        };
+        *out.get_mut(filled)? = pick;
+    }
+    Some(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// 1-D "line through the origin" toy problem: y = a x, minimal sample of one point.
+    struct Slope<'a> {
+        x: &'a [f64],
+        y: &'a [f64],
+    }
+
+    impl Estimator for Slope<'_> {
+        type Model = f64;
+        type Scalar = f64;
+        fn num_points(&self) -> usize {
+            self.x.len()
+        }
+        fn sample_size(&self) -> usize {
+            1
+        }
+        fn is_sample_valid(&self, s: &[usize]) -> bool {
+            self.x[s[0]] != 0.0
+        }
+        fn fit_minimal(&self, s: &[usize], emit: &mut dyn FnMut(f64)) {
+            emit(self.y[s[0]] / self.x[s[0]]);
+        }
+        fn residual_sq(&self, a: &f64, i: usize) -> Option<f64> {
+            let r = self.y[i] - a * self.x[i];
+            Some(r * r)
+        }
+        fn refit(&self, _: &f64, inliers: &[bool]) -> Option<f64> {
+            let (mut sxy, mut sxx) = (0.0, 0.0);
+            for ((x, y), _) in self.x.iter().zip(self.y).zip(inliers).filter(|(_, m)| **m) {
+                sxy += x * y;
+                sxx += x * x;
+            }
+            (sxx > 0.0).then(|| sxy / sxx)
+        }
+    }
+
+    #[test]
+    fn finds_the_slope_among_outliers() {
+        let mut g = Pcg32::new(99);
+        let x: [f64; 100] = core::array::from_fn(|i| i as f64 - 50.0);
+        let y: [f64; 100] = core::array::from_fn(|i| {
+            if i % 3 == 0 {
+                g.uniform(-100.0, 100.0)
+            } else {
+                2.5 * x[i] + 0.01 * g.normal()
+            }
+        });
+        let est = Slope { x: &x, y: &y };
+        let mut mask = [false; 100];
+        let cfg = RansacConfig {
+            threshold: 0.1,
+            ..Default::default()
+        };
+        let (a, report) = ransac(&est, &cfg, &mut mask).unwrap();
+        assert!((a - 2.5).abs() < 1e-3, "{a}");
+        assert!(report.inliers >= 66 && report.inliers == mask.iter().filter(|m| **m).count());
+        assert!(report.iterations < 50, "{}", report.iterations);
+        // Deterministic.
+        let mut mask2 = [false; 100];
+        assert_eq!(ransac(&est, &cfg, &mut mask2).unwrap(), (a, report));
+        assert_eq!(mask, mask2);
+    }
+
+    #[test]
+    fn parameters_are_validated() {
+        let x = [1.0, 2.0];
+        let y = [2.0, 4.0];
+        let est = Slope { x: &x, y: &y };
+        let mut mask = [false; 2];
+        let ok = RansacConfig::<f64>::default();
+        assert!(ransac(&est, &ok, &mut mask).is_ok());
+        assert_eq!(
+            ransac(&est, &ok, &mut [false; 3]).unwrap_err(),
+            Error::LengthMismatch
+        );
+        for bad in [
+            RansacConfig {
+                threshold: 0.0,
+                ..ok
+            },
+            RansacConfig {
+                threshold: f64::NAN,
+                ..ok
+            },
+            RansacConfig {
+                confidence: 1.0,
+                ..ok
+            },
+            RansacConfig {
+                max_iterations: 0,
+                ..ok
+            },
+        ] {
+            assert_eq!(
+                ransac(&est, &bad, &mut mask).unwrap_err(),
+                Error::InvalidParameter
+            );
+        }
+        // Every sample degenerate.
+        let zeros = [0.0, 0.0];
+        let est = Slope { x: &zeros, y: &y };
+        assert_eq!(ransac(&est, &ok, &mut mask).unwrap_err(), Error::Degenerate);
+        let est = Slope { x: &[], y: &[] };
+        assert_eq!(ransac(&est, &ok, &mut []).unwrap_err(), Error::TooFewPoints);
+    }
+
+    #[test]
+    fn iteration_count_formula() {
+        // w = 0.5, s = 4, p = 0.99: log(0.01) / log(1 - 1/16) = 71.4 -> 72.
+        assert_eq!(iterations_needed(50, 100, 4, 0.99f64, 10_000), 72);
+        assert_eq!(iterations_needed(50, 100, 4, 0.99f32, 10_000), 72);
+        assert_eq!(iterations_needed(100, 100, 4, 0.99f64, 10_000), 1);
+        assert_eq!(iterations_needed(0, 100, 4, 0.99f64, 500), 500);
+        // w = 1e-3: 1 - w⁴ rounds to 1 in f32.
+        assert_eq!(iterations_needed(1, 1000, 4, 0.99f32, 777), 777);
+        assert_eq!(iterations_needed(10, 100, 8, 0.999f64, 300), 300);
+    }
+
+    #[test]
+    fn samples_are_distinct_and_uniform() {
+        let mut g = Pcg32::new(5);
+        let mut counts = [0u32; 10];
+        let mut buf = [0usize; 4];
+        for _ in 0..10_000 {
+            let s = draw_sample(&mut g, 10, &mut buf).unwrap();
+            for (i, a) in s.iter().enumerate() {
+                assert!(*a < 10);
+                assert!(!s[..i].contains(a));
+                counts[*a] += 1;
+            }
+        }
+        // Each index appears in 40% of the samples: 4000 ± 4.5σ (σ ≈ 49).
+        for c in counts {
+            assert!((3780..4220).contains(&c), "{c}");
+        }
+        assert!(draw_sample(&mut g, 3, &mut buf).is_none());
+        let all = draw_sample(&mut g, 4, &mut buf).unwrap();
+        let mut sorted = [0usize; 4];
+        sorted.copy_from_slice(all);
+        sorted.sort_unstable();
+        assert_eq!(sorted, [0, 1, 2, 3]);
+    }
+}
