@@ -4,7 +4,7 @@ use nalgebra::{Matrix3, Point2, SVector, Vector2, Vector3};
 
 use super::normalize::Normalization;
 use super::{Homography, adjugate, determinant};
-use crate::linalg::StreamingQr;
+use crate::linalg::{StreamingQr, lm};
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
@@ -205,73 +205,46 @@ where
         return Err(Error::Degenerate);
     }
     let hn = hn / hn.m33;
-    let mut p = SVector::<T, 8>::from_iterator(hn.transpose().iter().copied().take(8));
-    let Some(mut cost) = problem.cost(&Problem::matrix(&p), pairs.clone()) else {
-        return Err(Error::AtInfinity);
-    };
+    let start = SVector::<T, 8>::from_iterator(hn.transpose().iter().copied().take(8));
     let count = T::lit(pairs.clone().count() as f64);
     let rms = |c: T| (c / (count + count)).sqrt();
-    let initial_rms = rms(cost);
-    let tol = T::EPSILON.sqrt();
-    let mut lambda = T::lit(1e-3);
-    let mut iterations = 0u8;
-
-    for _ in 0..max_iterations {
-        let Some(base) = problem.linearise(&Problem::matrix(&p), pairs.clone()) else {
-            break;
-        };
-        // Marquardt scaling: the column norms of J (= those of R's first 8 columns).
-        let scale: [T; 8] = core::array::from_fn(|k| base.r().column(k).norm());
-        let mut accepted = None;
-        for _ in 0..8 {
-            let mut damped = base;
-            let sl = lambda.sqrt();
-            for (k, d) in scale.iter().enumerate() {
-                let mut row = [T::zero(); 9];
-                if let Some(x) = row.get_mut(k) {
-                    *x = sl * *d;
-                }
-                if damped.push_row(&row).is_err() {
-                    break;
-                }
-            }
-            let r = damped.r();
-            let step = r
-                .fixed_view::<8, 8>(0, 0)
-                .solve_upper_triangular(&r.fixed_view::<8, 1>(0, 8));
-            let candidate = step.map(|d| p + d);
-            let new_cost = candidate
-                .as_ref()
-                .filter(|c| c.iter().all(|v| v.finite()))
-                .and_then(|c| problem.cost(&Problem::matrix(c), pairs.clone()));
-            match (candidate, new_cost) {
-                (Some(c), Some(nc)) if nc < cost => {
-                    accepted = Some((c, nc));
-                    lambda = (lambda * T::lit(0.1)).max(T::lit(1e-12));
-                    break;
-                }
-                _ => lambda *= T::lit(10.0),
-            }
-        }
-        let Some((np, nc)) = accepted else {
-            break;
-        };
-        let decrease = cost - nc;
-        p = np;
-        cost = nc;
-        iterations += 1;
-        if decrease <= tol * cost {
-            break;
-        }
-    }
-    let homography =
-        Homography::from_matrix(&(nd.inverse_matrix() * Problem::matrix(&p) * ns.matrix()))?;
+    let ls = Transfer { problem, pairs };
+    let Some(m) = lm::minimise(&ls, start, max_iterations)? else {
+        return Err(Error::AtInfinity);
+    };
+    let homography = Homography::from_matrix(
+        &(ls.problem.nd.inverse_matrix() * Problem::matrix(&m.params) * ls.problem.ns.matrix()),
+    )?;
     Ok(Refinement {
         homography,
-        initial_rms,
-        final_rms: rms(cost),
-        iterations,
+        initial_rms: rms(m.initial_cost),
+        final_rms: rms(m.final_cost),
+        iterations: m.iterations,
     })
+}
+
+/// The symmetric transfer problem over a set of pairs, for [`lm::minimise`].
+struct Transfer<T: Real, I> {
+    problem: Problem<T>,
+    pairs: I,
+}
+
+impl<T, I> lm::LeastSquares<T, 8, 9> for Transfer<T, I>
+where
+    T: Real,
+    I: Iterator<Item = (Point2<T>, Point2<T>)> + Clone,
+{
+    type Params = SVector<T, 8>;
+    fn cost(&self, p: &Self::Params) -> Option<T> {
+        self.problem.cost(&Problem::matrix(p), self.pairs.clone())
+    }
+    fn linearise(&self, p: &Self::Params) -> Option<StreamingQr<T, 9>> {
+        self.problem
+            .linearise(&Problem::matrix(p), self.pairs.clone())
+    }
+    fn step(&self, p: &Self::Params, delta: &SVector<T, 8>) -> Option<Self::Params> {
+        Some(p + delta)
+    }
 }
 
 #[cfg(test)]

@@ -5,10 +5,13 @@
 //! - [`StreamingQr`]: the `R` of `A = Q R` for a tall `A` absorbed row by row, so that
 //!   `AᵀA = RᵀR` without forming `AᵀA` (whose condition number is `cond(A)²`).
 //!
+//! - [`lm`]: a bounded Levenberg-Marquardt driver on top of the streaming QR.
+//!
 //! Together they give least-squares null vectors of arbitrarily many equations in constant
 //! memory: push the rows into a [`StreamingQr`], then take [`Svd::null_vector`] of `R`. That is
 //! how [`crate::homography`] solves the DLT.
 
+pub mod lm;
 mod qr;
 mod svd;
 
