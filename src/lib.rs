@@ -14,6 +14,8 @@
 //! | [`fixed`] | Q16.16 projective transfer (homography, projection) without floating point |
 //! | [`linalg`] | one-sided Jacobi SVD and streaming (row-by-row) QR of small static matrices |
 //! | [`homography`] | plane homographies: 4-point solver, normalised DLT, LM refinement, RANSAC |
+//! | [`pose`] | pose from a homography, IPPE (both planar solutions), LM refinement on reprojection |
+//! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
 #![no_std]
@@ -38,12 +40,14 @@
 extern crate std;
 
 pub mod camera;
+pub mod draw;
 mod error;
 pub mod fixed;
 pub mod homogeneous;
 pub mod homography;
 pub mod image;
 pub mod linalg;
+pub mod pose;
 pub mod pyramid;
 pub mod ransac;
 pub mod rng;

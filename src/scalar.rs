@@ -57,3 +57,10 @@ pub(crate) fn check_finite<T: Real>(values: &[T]) -> crate::Result<()> {
         Err(crate::Error::NonFinite)
     }
 }
+
+/// `x > bound`, false for NaN: the form of every "not degenerate" test, so that NaN is always
+/// degenerate.
+#[inline]
+pub(crate) fn above<T: Real>(x: T, bound: T) -> bool {
+    x > bound
+}

@@ -151,7 +151,7 @@ impl<T: Real> Distortion<T> {
     }
 
     /// `∂(x_d, y_d)/∂(x, y)`.
-    fn jacobian(&self, x: T, y: T) -> Matrix2<T> {
+    pub(crate) fn jacobian(&self, x: T, y: T) -> Matrix2<T> {
         let two = T::lit(2.0);
         let r2 = x * x + y * y;
         let a = T::one() + r2 * (self.k1 + r2 * (self.k2 + r2 * self.k3));

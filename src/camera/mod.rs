@@ -12,7 +12,7 @@ mod intrinsics;
 pub use distortion::{Distortion, UndistortConfig};
 pub use intrinsics::Intrinsics;
 
-use nalgebra::{Point2, Point3, Unit, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, Unit, Vector3};
 
 use crate::scalar::{Real, check_finite};
 use crate::transform::Pose;
@@ -59,6 +59,24 @@ impl<T: Real> Camera<T> {
         let u = self.intrinsics.normalized_to_pixel(&d);
         check_finite(&[u.x, u.y])?;
         Ok(u)
+    }
+
+    /// [`Self::project_camera_point`] with its Jacobian `∂u/∂X_c` (2x3):
+    /// `K₂ ∂distort/∂x_n [1/Z 0 -X/Z²; 0 1/Z -Y/Z²]`, `K₂` the upper-left 2x2 of `K`.
+    pub fn project_with_jacobian(&self, xc: &Point3<T>) -> Result<(Point2<T>, Matrix2x3<T>)> {
+        let u = self.project_camera_point(xc)?;
+        let iz = T::one() / xc.z;
+        let (x, y) = (xc.x * iz, xc.y * iz);
+        let dn = Matrix2x3::new(iz, T::zero(), -x * iz, T::zero(), iz, -y * iz);
+        let k = &self.intrinsics;
+        let k2 = Matrix2::new(k.fx(), k.skew(), T::zero(), k.fy());
+        let j = if self.distortion.is_none() {
+            k2 * dn
+        } else {
+            k2 * self.distortion.jacobian(x, y) * dn
+        };
+        check_finite(j.as_slice())?;
+        Ok((u, j))
     }
 
     /// Projects a world point through the world-to-camera `pose`: `u = K distort(π(R X + t))`.

@@ -129,12 +129,7 @@ impl<T: Real> Homography<T> {
     }
 }
 
-/// `x > bound`, false for NaN: the form of every "not degenerate" test here, so that NaN
-/// is always degenerate.
-#[inline]
-pub(crate) fn above<T: Real>(x: T, bound: T) -> bool {
-    x > bound
-}
+pub(crate) use crate::scalar::above;
 
 /// `det M = r₁ · (r₂ × r₃)`.
 pub(crate) fn determinant<T: Real>(m: &Matrix3<T>) -> T {

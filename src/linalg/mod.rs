@@ -18,7 +18,26 @@ mod svd;
 pub use qr::StreamingQr;
 pub use svd::{MAX_SWEEPS, Svd, svd_jacobi};
 
+use nalgebra::{Matrix3, Rotation3};
+
+use crate::Result;
 use crate::scalar::Real;
+
+/// The rotation closest to `m` in the Frobenius norm (orthogonal Procrustes):
+/// `R = U diag(1, 1, det(U Vᵀ)) Vᵀ` for `m = U Σ Vᵀ`.
+///
+/// Errors: as [`svd_jacobi`] (NaN/inf input, no convergence).
+pub fn closest_rotation<T: Real>(m: &Matrix3<T>) -> Result<Rotation3<T>> {
+    let svd = svd_jacobi(m)?;
+    let d = if (svd.u * svd.v.transpose()).determinant() < T::zero() {
+        -T::one()
+    } else {
+        T::one()
+    };
+    let mut u = svd.u;
+    u.column_mut(2).scale_mut(d);
+    Ok(Rotation3::from_matrix_unchecked(u * svd.v.transpose()))
+}
 
 /// `√(a² + b²)` without intermediate overflow or underflow, computed in `T`.
 ///
@@ -38,6 +57,33 @@ pub(crate) fn hypot<T: Real>(a: T, b: T) -> T {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn closest_rotation_projects_onto_so3() {
+        use nalgebra::{Matrix3, Rotation3, Vector3};
+        let r = Rotation3::new(Vector3::new(0.3f64, -1.2, 2.0));
+        // A rotation is its own closest rotation.
+        let back = super::closest_rotation(r.matrix()).unwrap();
+        assert!((back.matrix() - r.matrix()).amax() < 1e-14);
+        // A perturbed and scaled rotation comes back orthonormal with det +1.
+        let m =
+            r.matrix() * 1.7 + Matrix3::new(0.01, -0.02, 0.0, 0.0, 0.03, 0.01, -0.01, 0.0, 0.02);
+        let q = super::closest_rotation(&m).unwrap();
+        assert!((q.matrix().transpose() * q.matrix() - Matrix3::identity()).amax() < 1e-14);
+        assert!((q.matrix().determinant() - 1.0).abs() < 1e-14);
+        assert!(q.angle_to(&r) < 0.05);
+        // A reflection maps to a proper rotation, not to itself.
+        let refl = Matrix3::from_diagonal(&Vector3::new(1.0f64, 1.0, -1.0));
+        assert!(
+            (super::closest_rotation(&refl)
+                .unwrap()
+                .matrix()
+                .determinant()
+                - 1.0)
+                .abs()
+                < 1e-14
+        );
+    }
+
     #[test]
     fn hypot_is_safe() {
         use super::hypot;
