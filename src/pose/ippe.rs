@@ -39,7 +39,12 @@ impl Default for PlanarConfig {
     }
 }
 
-/// Both poses of a planar target, `best.rms_px <= alternative.rms_px`.
+/// Two refined solutions closer than this (degrees of rotation) are one local minimum.
+const MERGED_DEG: f64 = 0.5;
+
+/// Both poses of a planar target, `best.rms_px <= alternative.rms_px`. The alternative is the
+/// second local minimum of the reprojection error when there is one, else the unrefined second
+/// IPPE solution.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct PlanarPose<T: Real = f32> {
@@ -237,6 +242,20 @@ pub fn solve_planar<T: Real>(
     let lifted = |i: usize| model.get(i).map(|p| Point3::new(p.x, p.y, T::zero()));
     let estimate = |p: Pose<T>| refine_pose_with(camera, &p, pixels, cfg.refine_iterations, lifted);
     let (a, b) = (estimate(p0)?, estimate(p1)?);
-    let (best, alternative) = if a.rms_px <= b.rms_px { (a, b) } else { (b, a) };
+    let (best, mut alternative) = if a.rms_px <= b.rms_px { (a, b) } else { (b, a) };
+    // When the second solution is not a local minimum of its own, refinement carries it into
+    // the first one; the planar ambiguity is then resolved, and the alternative reported is the
+    // unrefined IPPE solution (with its own, larger, error) rather than a copy of the best.
+    let merged = (best.pose.isometry().rotation.inverse() * alternative.pose.isometry().rotation)
+        .angle()
+        < T::lit(MERGED_DEG.to_radians());
+    if merged {
+        // `ippe` sorts its solutions, so p1 is the second one.
+        let rms = super::refine::rms_with(camera, &p1, pixels, lifted)?;
+        alternative = PoseEstimate {
+            pose: p1,
+            rms_px: rms,
+        };
+    }
     Ok(PlanarPose { best, alternative })
 }

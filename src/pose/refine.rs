@@ -23,11 +23,7 @@ pub fn reprojection_rms<T: Real>(
     if world.is_empty() {
         return Err(Error::TooFewPoints);
     }
-    let mut sum = T::zero();
-    for (x, u) in world.iter().zip(pixels) {
-        sum += (camera.project(pose, x)? - u).norm_squared();
-    }
-    Ok((sum / T::lit(world.len() as f64)).sqrt())
+    rms_with(camera, pose, pixels, |i| world.get(i).copied())
 }
 
 /// Minimises `Σ |u(R Xᵢ + t) - uᵢ|²` (pixels, through the full camera model with distortion)
@@ -87,6 +83,28 @@ where
         pose: m.params,
         rms_px: (m.final_cost / n).sqrt(),
     })
+}
+
+/// RMS reprojection error with the world points given by index, as [`refine_pose_with`].
+pub(crate) fn rms_with<T, W>(
+    camera: &Camera<T>,
+    pose: &Pose<T>,
+    pixels: &[Point2<T>],
+    world: W,
+) -> Result<T>
+where
+    T: Real,
+    W: Fn(usize) -> Option<Point3<T>>,
+{
+    if pixels.is_empty() {
+        return Err(Error::TooFewPoints);
+    }
+    let mut sum = T::zero();
+    for (i, u) in pixels.iter().enumerate() {
+        let x = world(i).ok_or(Error::LengthMismatch)?;
+        sum += (camera.project(pose, &x)? - u).norm_squared();
+    }
+    Ok((sum / T::lit(pixels.len() as f64)).sqrt())
 }
 
 struct Reprojection<'a, T: Real, W> {
