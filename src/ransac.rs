@@ -6,9 +6,10 @@
 //! 1. draw a minimal sample of `s` distinct indices (Floyd's algorithm, seeded [`Pcg32`]),
 //! 2. reject it if [`Estimator::is_sample_valid`] says so, else solve it,
 //! 3. score each model by MSAC (Torr & Zisserman 2000): `C = Σᵢ min(rᵢ², t²)`, lower is better,
-//! 4. on a new best model, locally optimise it (Chum et al., LO-RANSAC 2003): refit on its
-//!    inliers with [`Estimator::refit`] while the score improves, and lower the iteration
-//!    budget to `N = ⌈log(1 - p) / log(1 - wˢ)⌉` for inlier ratio `w` and confidence `p`,
+//! 4. on a new best model, locally optimise it (Chum et al., LO-RANSAC 2003, with the iterated
+//!    least squares of Lebeda et al. 2012): refit with [`Estimator::refit`] on its inliers at a
+//!    threshold shrinking from `m t` to `t`, keeping refits that lower the cost, and lower the
+//!    iteration budget to `N = ⌈log(1 - p) / log(1 - wˢ)⌉` for inlier ratio `w` and confidence `p`,
 //! 5. stop after `min(N, max_iterations)` samples, then polish the best model once with
 //!    [`Estimator::refine`] (e.g. Levenberg-Marquardt) and write its inlier mask.
 //!
@@ -72,12 +73,15 @@ pub struct RansacConfig<T: Real = f32> {
     /// Inlier threshold `t` on the residual (`r² < t²`), in data units (pixels), `> 0`.
     pub threshold: T,
     /// Probability `p` of having drawn at least one all-inlier sample when the loop stops
-    /// early, in `(0, 1)`.
+    /// early, in `(0, 1]` (`1`: never stop early, run `max_iterations` samples).
     pub confidence: T,
     /// Hard cap on the samples drawn (degenerate ones included), `≥ 1`. Bounds the run time.
     pub max_iterations: u32,
     /// Refit rounds of local optimisation per new best model (0 disables it).
     pub local_optimization: u8,
+    /// Local optimisation starts refitting on the inliers at `multiplier · threshold` and
+    /// shrinks to `threshold` over its rounds; `≥ 1` (1: always at the threshold).
+    pub lo_threshold_multiplier: T,
     /// Whether to apply [`Estimator::refine`] to the final model.
     pub refine: bool,
     /// Seed of the sampler: the same seed and data give the same result on every target.
@@ -85,14 +89,15 @@ pub struct RansacConfig<T: Real = f32> {
 }
 
 impl<T: Real> Default for RansacConfig<T> {
-    /// `t = 3` px (OpenCV's default), `p = 0.995`, at most 2000 samples, 4 refit rounds,
-    /// refinement on.
+    /// `t = 3` px (OpenCV's default), `p = 0.995`, at most 2000 samples, 4 refit rounds from
+    /// `3 t` down to `t`, refinement on.
     fn default() -> Self {
         Self {
             threshold: T::lit(3.0),
             confidence: T::lit(0.995),
             max_iterations: 2000,
             local_optimization: 4,
+            lo_threshold_multiplier: T::lit(3.0),
             refine: true,
             seed: 0x5eed_ca4e_0000_0001,
         }
@@ -115,7 +120,7 @@ pub struct RansacReport<T: Real = f32> {
 ///
 /// Errors: [`Error::LengthMismatch`] if `mask.len() != num_points()`,
 /// [`Error::InvalidParameter`] for a threshold that is not finite and positive, a confidence
-/// outside `(0, 1)`, `max_iterations == 0` or a sample size outside `1..=MAX_SAMPLE_SIZE`,
+/// outside `(0, 1]`, a local-optimisation multiplier below 1, `max_iterations == 0` or a sample size outside `1..=MAX_SAMPLE_SIZE`,
 /// [`Error::TooFewPoints`] with fewer points than a sample, [`Error::Degenerate`] when no
 /// sample produced a model.
 pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
@@ -131,9 +136,11 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
         return Err(Error::LengthMismatch);
     }
     let threshold_ok = config.threshold.finite() && config.threshold > zero;
-    let confidence_ok = config.confidence > zero && config.confidence < one;
+    let confidence_ok = config.confidence > zero && config.confidence <= one;
+    let lo_ok = config.lo_threshold_multiplier.finite() && config.lo_threshold_multiplier >= one;
     if !threshold_ok
         || !confidence_ok
+        || !lo_ok
         || config.max_iterations == 0
         || s == 0
         || s > MAX_SAMPLE_SIZE
@@ -172,17 +179,26 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
                 continue;
             }
             let mut current = (model, cost, count);
-            // Local optimisation: refit on the inliers while that lowers the cost.
-            for _ in 0..config.local_optimization {
-                write_mask(estimator, &current.0, t2, mask);
+            // Local optimisation by iterated least squares (Lebeda, Matas & Chum 2012): refit
+            // on the inliers at a threshold shrinking from `m t` to `t`, so noisy true inliers
+            // just beyond `t` still pull the fit; keep a refit only if its MSAC cost at `t`
+            // is lower.
+            let rounds = config.local_optimization;
+            for k in 0..rounds {
+                let m = config.lo_threshold_multiplier;
+                let frac = if rounds > 1 {
+                    T::lit(f64::from(k)) / T::lit(f64::from(rounds - 1))
+                } else {
+                    one
+                };
+                let tk = config.threshold * (m - (m - one) * frac);
+                write_mask(estimator, &current.0, tk * tk, mask);
                 let Some(refit) = estimator.refit(&current.0, mask) else {
                     break;
                 };
                 let (c, k) = score(estimator, &refit, t2);
                 if c < current.1 {
                     current = (refit, c, k);
-                } else {
-                    break;
                 }
             }
             budget = budget.min(iterations_needed(
@@ -375,7 +391,11 @@ mod tests {
                 ..ok
             },
             RansacConfig {
-                confidence: 1.0,
+                confidence: 1.5,
+                ..ok
+            },
+            RansacConfig {
+                lo_threshold_multiplier: 0.5,
                 ..ok
             },
             RansacConfig {
@@ -388,6 +408,17 @@ mod tests {
                 Error::InvalidParameter
             );
         }
+        // Confidence 1 means "never stop early" once there is an outlier: exactly
+        // max_iterations samples.
+        let (x3, y3) = ([1.0, 2.0, 3.0], [2.0, 4.0, 100.0]);
+        let est3 = Slope { x: &x3, y: &y3 };
+        let all = RansacConfig {
+            confidence: 1.0,
+            max_iterations: 37,
+            ..ok
+        };
+        let mut mask3 = [false; 3];
+        assert_eq!(ransac(&est3, &all, &mut mask3).unwrap().1.iterations, 37);
         // Every sample degenerate.
         let zeros = [0.0, 0.0];
         let est = Slope { x: &zeros, y: &y };

@@ -7,15 +7,25 @@
 //!   the closest rotation;
 //! - [`ippe`], [`solve_planar`]: IPPE (Collins & Bartoli 2014), both solutions of the planar
 //!   ambiguity, sorted by reprojection error, refined;
+//! - [`p3p`]: Lambda Twist (Persson & Nordberg 2018), the up to four poses from three points;
+//! - [`epnp`]: EPnP (Lepetit et al. 2009) for `N ≥ 4` non-coplanar points;
+//! - [`solve_pnp`], [`solve_pnp_ransac`]: EPnP + refinement, and RANSAC over P3P samples
+//!   ([`PnpEstimator`]) with EPnP local optimisation (OpenCV's `solvePnP`, `solvePnPRansac`);
 //! - [`refine_pose`]: Levenberg-Marquardt on the reprojection error in pixels (lens
 //!   distortion included), rotation updated as `exp([δω]ₓ) R`.
 
+mod epnp;
 mod from_homography;
 mod ippe;
+mod p3p;
+mod pnp;
 mod refine;
 
+pub use epnp::{BETA_GAUSS_NEWTON_ITERATIONS, epnp};
 pub use from_homography::pose_from_homography;
 pub use ippe::{PlanarConfig, PlanarPose, ippe, solve_planar};
+pub use p3p::{LAMBDA_REFINE_ITERATIONS, MAX_P3P_SOLUTIONS, p3p};
+pub use pnp::{PNP_REFINE_ITERATIONS, PnpEstimator, solve_pnp, solve_pnp_ransac};
 pub use refine::{refine_pose, reprojection_rms};
 
 use crate::scalar::Real;
