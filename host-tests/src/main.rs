@@ -19,6 +19,8 @@ use camgeom_host::{load_camera, status_name};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+mod homography_cmd;
+
 /// Exit status of a usage or input error (as clap uses for usage errors).
 const EXIT_INPUT: u8 = 2;
 /// Exit status when the output cannot be written.
@@ -49,6 +51,12 @@ enum Command {
     Project(ProjectArgs),
     /// Read a camera file in any supported format and print it in camgeom's JSON (or TOML) form.
     Camera(CameraArgs),
+    /// Plane homography of point correspondences (OpenCV's findHomography with RANSAC).
+    ///
+    /// Reads rows `x1,y1,x2,y2` (CSV) and prints JSON `{"H": [9 numbers, row-major], "inliers":
+    /// N, "inlier_mask": [..], "method": .., "iterations": ..}` with `x2 ~ H x1`, `h33 = 1`.
+    /// Exactly 4 rows: the exact 4-point solver (getPerspectiveTransform); more: RANSAC.
+    Homography(homography_cmd::HomographyArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -161,6 +169,10 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Project(a) => project(a),
         Command::Camera(a) => camera(a),
+        Command::Homography(a) => homography_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
     };
     match result.and_then(|out| write_stdout(&out)) {
         Ok(()) => ExitCode::SUCCESS,

@@ -219,7 +219,7 @@ fn normalized_rms<T: Real>(
 /// sorted by reprojection error.
 ///
 /// `scratch` holds the undistorted normalised points and must have at least `model.len()`
-/// entries. Errors: as [`ippe`] and [`refine_pose`]; [`Error::LengthMismatch`] when
+/// entries. Errors: as [`ippe`] and [`super::refine_pose`]; [`Error::LengthMismatch`] when
 /// `scratch` is too short.
 pub fn solve_planar<T: Real>(
     camera: &Camera<T>,

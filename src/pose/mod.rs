@@ -26,7 +26,7 @@ pub use from_homography::pose_from_homography;
 pub use ippe::{PlanarConfig, PlanarPose, ippe, solve_planar};
 pub use p3p::{LAMBDA_REFINE_ITERATIONS, MAX_P3P_SOLUTIONS, p3p};
 pub use pnp::{PNP_REFINE_ITERATIONS, PnpEstimator, solve_pnp, solve_pnp_ransac};
-pub use refine::{refine_pose, reprojection_rms};
+pub use refine::{refine_pose, refine_pose_masked, reprojection_rms};
 
 use crate::scalar::Real;
 use crate::transform::Pose;

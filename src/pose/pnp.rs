@@ -1,14 +1,13 @@
 //! Pose from `N` 3D-2D correspondences through a calibrated camera: EPnP + Levenberg-Marquardt
 //! ([`solve_pnp`]) and its robust counterpart on the generic RANSAC loop ([`solve_pnp_ransac`]).
 
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, SVector, Vector3};
+use nalgebra::{Point2, Point3, Vector3};
 
 use super::PoseEstimate;
 use super::epnp::{epnp, epnp_with};
 use super::p3p::p3p;
-use super::refine::refine_pose;
+use super::refine::{refine_pose, refine_pose_masked};
 use crate::camera::Camera;
-use crate::linalg::{StreamingQr, lm};
 use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
 use crate::scalar::{Real, above};
 use crate::transform::Pose;
@@ -103,17 +102,16 @@ impl<'a, T: Real> PnpEstimator<'a, T> {
 
     /// Levenberg-Marquardt on the reprojection error of the points with `inliers[i]`.
     fn polish(&self, pose: &Pose<T>, inliers: &[bool], iterations: u8) -> Option<Pose<T>> {
-        let problem = MaskedReprojection {
-            camera: self.camera,
-            world: self.world,
-            pixels: self.pixels,
-            mask: inliers,
-        };
-        if problem.pairs().count() < 3 {
-            return None;
-        }
-        let m = lm::minimise(&problem, *pose, iterations).ok()??;
-        Some(m.params)
+        refine_pose_masked(
+            self.camera,
+            pose,
+            self.world,
+            self.pixels,
+            inliers,
+            iterations,
+        )
+        .ok()
+        .map(|e| e.pose)
     }
 }
 
@@ -227,64 +225,6 @@ pub fn solve_pnp_ransac<T: Real>(
         T::zero()
     };
     Ok((PoseEstimate { pose, rms_px }, report))
-}
-
-/// The reprojection problem of [`refine_pose`] restricted to the points with `mask[i]`.
-struct MaskedReprojection<'a, T: Real> {
-    camera: &'a Camera<T>,
-    world: &'a [Point3<T>],
-    pixels: &'a [Point2<T>],
-    mask: &'a [bool],
-}
-
-impl<T: Real> MaskedReprojection<'_, T> {
-    fn pairs(&self) -> impl Iterator<Item = (&Point3<T>, &Point2<T>)> + '_ {
-        self.world
-            .iter()
-            .zip(self.pixels)
-            .zip(self.mask)
-            .filter_map(|(p, m)| m.then_some(p))
-    }
-}
-
-impl<T: Real> lm::LeastSquares<T, 6, 7> for MaskedReprojection<'_, T> {
-    type Params = Pose<T>;
-
-    fn cost(&self, p: &Pose<T>) -> Option<T> {
-        let mut c = T::zero();
-        for (x, u) in self.pairs() {
-            c += (self.camera.project(p, x).ok()? - u).norm_squared();
-        }
-        c.finite().then_some(c)
-    }
-
-    fn linearise(&self, p: &Pose<T>) -> Option<StreamingQr<T, 7>> {
-        let mut qr = StreamingQr::new();
-        let z = T::zero();
-        for (x, u) in self.pairs() {
-            let rx = p.apply_vector(&x.coords);
-            let xc = Point3::from(rx + p.translation());
-            let (proj, jp) = self.camera.project_with_jacobian(&xc).ok()?;
-            let r = proj - u;
-            // ∂u/∂δω = J_π (-[R X]ₓ).
-            let skew = Matrix3::new(z, -rx.z, rx.y, rx.z, z, -rx.x, -rx.y, rx.x, z);
-            let jw = jp * (-skew);
-            let rows = [
-                [jw.m11, jw.m12, jw.m13, jp.m11, jp.m12, jp.m13, -r.x],
-                [jw.m21, jw.m22, jw.m23, jp.m21, jp.m22, jp.m23, -r.y],
-            ];
-            for row in &rows {
-                qr.push_row(row).ok()?;
-            }
-        }
-        Some(qr)
-    }
-
-    fn step(&self, p: &Pose<T>, d: &SVector<T, 6>) -> Option<Pose<T>> {
-        let [w1, w2, w3, t1, t2, t3]: [T; 6] = (*d).into();
-        let r = Rotation3::new(Vector3::new(w1, w2, w3)) * p.rotation();
-        Pose::new(r, p.translation() + Vector3::new(t1, t2, t3)).ok()
-    }
 }
 
 #[cfg(test)]

@@ -50,8 +50,32 @@ pub fn refine_pose<T: Real>(
     })
 }
 
-/// [`refine_pose`] with the world points given by index (`world(i)` for `i < pixels.len()`),
-/// so callers can lift or transform points on the fly without storing them.
+/// [`refine_pose`] on the points with `mask[i]` only (e.g. RANSAC inliers), without copying.
+///
+/// Errors: as [`refine_pose`], counting only the selected points.
+pub fn refine_pose_masked<T: Real>(
+    camera: &Camera<T>,
+    pose: &Pose<T>,
+    world: &[Point3<T>],
+    pixels: &[Point2<T>],
+    mask: &[bool],
+    max_iterations: u8,
+) -> Result<PoseEstimate<T>> {
+    if world.len() != pixels.len() || mask.len() != pixels.len() {
+        return Err(Error::LengthMismatch);
+    }
+    refine_pose_with(camera, pose, pixels, max_iterations, |i| {
+        mask.get(i)
+            .copied()
+            .unwrap_or(false)
+            .then(|| world.get(i).copied())
+            .flatten()
+    })
+}
+
+/// [`refine_pose`] with the world points given by index: `world(i)` for `i < pixels.len()`,
+/// `None` to leave point `i` out. Callers lift, transform or select points on the fly without
+/// storing them.
 pub(crate) fn refine_pose_with<T, W>(
     camera: &Camera<T>,
     pose: &Pose<T>,
@@ -63,19 +87,20 @@ where
     T: Real,
     W: Fn(usize) -> Option<Point3<T>>,
 {
-    if pixels.len() < 3 {
-        return Err(Error::TooFewPoints);
-    }
-    for (i, u) in pixels.iter().enumerate() {
-        let x = world(i).ok_or(Error::LengthMismatch)?;
-        check_finite(&[x.x, x.y, x.z, u.x, u.y])?;
-    }
     let problem = Reprojection {
         camera,
         world,
         pixels,
     };
-    let n = T::lit(pixels.len() as f64);
+    let mut used = 0usize;
+    for (x, u) in problem.pairs() {
+        check_finite(&[x.x, x.y, x.z, u.x, u.y])?;
+        used += 1;
+    }
+    if used < 3 {
+        return Err(Error::TooFewPoints);
+    }
+    let n = T::lit(used as f64);
     let Some(m) = lm::minimise(&problem, *pose, max_iterations)? else {
         return Err(Error::BehindCamera);
     };
@@ -96,15 +121,17 @@ where
     T: Real,
     W: Fn(usize) -> Option<Point3<T>>,
 {
-    if pixels.is_empty() {
+    let (mut sum, mut used) = (T::zero(), 0usize);
+    for (i, u) in pixels.iter().enumerate() {
+        if let Some(x) = world(i) {
+            sum += (camera.project(pose, &x)? - u).norm_squared();
+            used += 1;
+        }
+    }
+    if used == 0 {
         return Err(Error::TooFewPoints);
     }
-    let mut sum = T::zero();
-    for (i, u) in pixels.iter().enumerate() {
-        let x = world(i).ok_or(Error::LengthMismatch)?;
-        sum += (camera.project(pose, &x)? - u).norm_squared();
-    }
-    Ok((sum / T::lit(pixels.len() as f64)).sqrt())
+    Ok((sum / T::lit(used as f64)).sqrt())
 }
 
 struct Reprojection<'a, T: Real, W> {

@@ -18,9 +18,16 @@ use crate::setup::{FIRMWARE_TARGET, QEMU};
 use crate::util::{cargo, locked, root, run};
 
 const PACKAGE: &str = "camgeom-fw-emulated";
+/// The main firmware binary (`cargo xtask run`).
+const MAIN_BIN: &str = "camgeom-fw-emulated";
+/// The homography benchmark binary (`cargo xtask bench-fw`).
+const BENCH_BIN: &str = "camgeom-fw-bench";
 /// The line the firmware logs when it has done all its work; the run fails without it.
 const SUMMARY: &str = "projected ";
 const SUMMARY_REST: &str = " points, cost ";
+/// The bench binary's summary line.
+const BENCH_SUMMARY: &str = "homography bench: ";
+const BENCH_SUMMARY_REST: &str = " instructions";
 
 /// RAM starts here on the emulated board (see `memory.x`): sections at or above it take RAM.
 const RAM_ORIGIN: u64 = 0x2000_0000;
@@ -53,13 +60,20 @@ pub fn firmware_cargo(subcommand: &str) -> Command {
 }
 
 pub fn build() -> Result<PathBuf> {
+    build_bin(MAIN_BIN, &[])
+}
+
+/// Builds binary `bin` of the firmware package (release) with extra cargo arguments; returns
+/// its ELF.
+fn build_bin(bin: &str, extra: &[&str]) -> Result<PathBuf> {
     let mut cmd = firmware_cargo("build");
-    cmd.args(["--release", "-p", PACKAGE]);
+    cmd.args(["--release", "-p", PACKAGE, "--bin", bin])
+        .args(extra);
     run(locked(&mut cmd))?;
     let elf = firmware_target_dir()
         .join(FIRMWARE_TARGET)
         .join("release")
-        .join(PACKAGE);
+        .join(bin);
     if !elf.is_file() {
         bail!("the build did not produce {}", elf.display());
     }
@@ -73,6 +87,28 @@ pub fn build_and_run() -> Result<String> {
     run_on_qemu(&elf)
 }
 
+/// `cargo xtask bench-fw`: builds the homography bench binary with the `size-baseline`
+/// feature (no solver calls) and without it, reports the flash the homography code adds, then
+/// runs the full one on QEMU and prints its decoded cost table.
+pub fn bench() -> Result<()> {
+    let baseline = build_bin(BENCH_BIN, &["--features", "size-baseline"])?;
+    let (base_flash, _) = size_report(&baseline)?;
+    // The same path: copy the baseline away before the second build replaces it.
+    let kept = baseline.with_file_name(format!("{BENCH_BIN}-size-baseline"));
+    fs::copy(&baseline, &kept)?;
+    let elf = build_bin(BENCH_BIN, &[])?;
+    let (flash, _) = size_report(&elf)?;
+    println!(
+        "homography code: {} B of flash ({flash} B with the solver calls, {base_flash} B without; \
+         the baseline ELF is {})",
+        flash as i64 - base_flash as i64,
+        kept.display()
+    );
+    let summary = run_on_qemu_checked(&elf, BENCH_SUMMARY, BENCH_SUMMARY_REST)?;
+    println!("bench-fw: {summary}");
+    Ok(())
+}
+
 fn timeout() -> Duration {
     let secs = std::env::var("XTASK_QEMU_TIMEOUT")
         .ok()
@@ -82,6 +118,12 @@ fn timeout() -> Duration {
 }
 
 pub fn run_on_qemu(elf: &Path) -> Result<String> {
+    run_on_qemu_checked(elf, SUMMARY, SUMMARY_REST)
+}
+
+/// Runs `elf` on QEMU and checks its log; its summary line starts with `summary` and contains
+/// `summary_rest`.
+pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) -> Result<String> {
     let image = fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let table = Table::parse(&image)
         .context("cannot read the defmt table")?
@@ -159,7 +201,7 @@ pub fn run_on_qemu(elf: &Path) -> Result<String> {
                 if level == "error" {
                     error_logs += 1;
                 }
-                if message.starts_with(SUMMARY) && message.contains(SUMMARY_REST) {
+                if message.starts_with(summary_start) && message.contains(summary_rest) {
                     summary = Some(message);
                 }
             }
@@ -189,14 +231,15 @@ pub fn run_on_qemu(elf: &Path) -> Result<String> {
         bail!("the firmware logged {error_logs} error(s)");
     }
     let Some(summary) = summary else {
-        bail!("the log has no summary line (`{SUMMARY}N{SUMMARY_REST}...`)");
+        bail!("the log has no summary line (`{summary_start}...{summary_rest}...`)");
     };
     println!("firmware run OK: {summary}");
     Ok(summary)
 }
 
-/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections).
-fn size_report(elf: &Path) -> Result<()> {
+/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections);
+/// returns `(flash, static RAM)` in bytes.
+fn size_report(elf: &Path) -> Result<(u64, u64)> {
     let image = fs::read(elf)?;
     let file = object::File::parse(&*image).context("cannot parse the ELF")?;
     let (mut flash, mut ram) = (0u64, 0u64);
@@ -227,5 +270,5 @@ fn size_report(elf: &Path) -> Result<()> {
         RAM_LEN / 1024,
         rows.join(" ")
     );
-    Ok(())
+    Ok((flash, ram))
 }
