@@ -11,13 +11,20 @@
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
 //! | [`image`] | borrowed grayscale views with a stride, validated once |
 //! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
+//! | [`gradient`] | Scharr derivatives in `i16`, per level or per window |
+//! | [`corners`] | Shi-Tomasi corners (good features to track), integer, streaming, replenishment |
+//! | [`klt`] | pyramidal Lucas-Kanade flow (fixed-point and `f32`), multi-frame tracker |
 //! | [`fixed`] | Q16.16 projective transfer (homography, projection) without floating point |
 //! | [`linalg`] | one-sided Jacobi SVD and streaming (row-by-row) QR of small static matrices |
 //! | [`homography`] | plane homographies: 4-point solver, normalised DLT, LM refinement, RANSAC |
 //! | [`pose`] | pose from a homography, IPPE (both planar solutions), LM refinement on reprojection |
 //! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
+//! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
+//! | [`resize`] | bilinear resizing with aligned pixel centres, in integers |
+//! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
+//! | [`features`] | FAST corners, ORB (oriented FAST + steered BRIEF) descriptors, Hamming matching |
 #![no_std]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
@@ -40,20 +47,28 @@
 extern crate std;
 
 pub mod camera;
+pub mod corners;
 pub mod draw;
 mod error;
+pub mod features;
 pub mod fixed;
+pub mod gradient;
 pub mod homogeneous;
 pub mod homography;
 pub mod image;
+pub mod klt;
 pub mod linalg;
 pub mod pose;
 pub mod pyramid;
 pub mod ransac;
+pub mod resize;
 pub mod rng;
 mod scalar;
+pub mod target;
 pub mod transform;
+pub mod warp;
 
 pub use error::{Error, Result};
+pub use heapless;
 pub use nalgebra;
 pub use scalar::Real;

@@ -135,6 +135,31 @@ impl<'a> Pyramid<'a> {
         Ok(Self { levels: out })
     }
 
+    /// Re-wraps a pyramid already built into `buf` by [`Pyramid::build`] with the same frame
+    /// geometry and level count, without computing anything (for keeping the previous frame's
+    /// pyramid while the next one is built into another buffer). Same errors as
+    /// [`Pyramid::build`].
+    pub fn from_buffer(frame: ImageView<'a, u8>, buf: &'a [u8], levels: usize) -> Result<Self> {
+        if levels == 0 || levels > MAX_LEVELS {
+            return Err(Error::InvalidParameter);
+        }
+        if buf.len() < buffer_len(frame.width(), frame.height(), levels) {
+            return Err(Error::InvalidImage);
+        }
+        let mut out = Vec::new();
+        out.push(frame).map_err(|_| Error::InvalidParameter)?;
+        let (mut w, mut h) = (frame.width(), frame.height());
+        let mut rest = buf;
+        for _ in 1..levels {
+            (w, h) = down_size(w, h);
+            let (cur, tail) = rest.split_at_checked(w * h).ok_or(Error::InvalidImage)?;
+            out.push(ImageView::packed(cur, w, h)?)
+                .map_err(|_| Error::InvalidParameter)?;
+            rest = tail;
+        }
+        Ok(Self { levels: out })
+    }
+
     /// Number of levels.
     pub fn len(&self) -> usize {
         self.levels.len()
@@ -225,6 +250,13 @@ mod tests {
         // A constant image stays constant at every level (the kernel sums to 256).
         assert!(l3.rows().all(|r| r.iter().all(|&v| v == 200)));
         assert!(p.level(4).is_none());
+        drop(p);
+        let q = Pyramid::from_buffer(ImageView::packed(&src, 320, 240).unwrap(), &buf, 4).unwrap();
+        assert_eq!(q.level(3).unwrap().get(5, 5), Some(200));
+        assert_eq!(
+            Pyramid::from_buffer(ImageView::packed(&src, 320, 240).unwrap(), &buf[..10], 4).err(),
+            Some(Error::InvalidImage)
+        );
         assert_eq!(level_size(641, 481, 2), (161, 121));
     }
 

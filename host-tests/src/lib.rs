@@ -6,12 +6,16 @@
 //! | [`storage`] | OpenCV `FileStorage` (YAML and XML) parser, plain-text matrices |
 //! | [`intrinsics`] | camera files (OpenCV calibration YAML/XML, camgeom JSON/TOML) to a [`intrinsics::CameraSpec`] |
 //! | [`points`] | point lists as CSV, the CLI's number formatting |
+//! | [`images`] | grayscale PNG/JPEG images to and from camgeom views |
+//! | [`klt`] | camgeom's KLT flow and tracker on owned images (tests, benches, `flow`/`track`) |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod error;
+pub mod images;
 pub mod intrinsics;
+pub mod klt;
 pub mod points;
 pub mod storage;
 

@@ -20,6 +20,8 @@ use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
 mod homography_cmd;
+mod klt_cmd;
+mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
 const EXIT_INPUT: u8 = 2;
@@ -53,10 +55,26 @@ enum Command {
     Camera(CameraArgs),
     /// Plane homography of point correspondences (OpenCV's findHomography with RANSAC).
     ///
-    /// Reads rows `x1,y1,x2,y2` (CSV) and prints JSON `{"H": [9 numbers, row-major], "inliers":
-    /// N, "inlier_mask": [..], "method": .., "iterations": ..}` with `x2 ~ H x1`, `h33 = 1`.
+    /// Reads rows `x1,y1,x2,y2` (CSV) and prints JSON `{"H": [[..], [..], [..]], "inliers": N,
+    /// "inlier_mask": [..], "method": .., "iterations": ..}` with `x2 ~ H x1`, `h33 = 1`.
     /// Exactly 4 rows: the exact 4-point solver (getPerspectiveTransform); more: RANSAC.
     Homography(homography_cmd::HomographyArgs),
+    /// Paste a logo into a frame inside a quadrilateral (OpenCV's warpPerspective).
+    ///
+    /// Inverse mapping with bilinear interpolation, clipped to the frame. Reads the logo and the
+    /// frame (PNG/JPEG, converted to grey) and 4 corner rows `x,y` (CSV); writes the frame to
+    /// --out and prints JSON `{"H": .., "written": N, "arithmetic": ..}`.
+    Warp(warp_cmd::WarpArgs),
+    /// Track points from one frame to the next (pyramidal Lucas-Kanade, OpenCV's
+    /// calcOpticalFlowPyrLK).
+    ///
+    /// Reads rows `x,y` (CSV) and writes `x,y,status` per input point: status `ok`, or
+    /// `out_of_bounds`, `small_eigenvalue`, `inconsistent` (with `--fb`), and x, y `nan`.
+    Flow(klt_cmd::FlowArgs),
+    /// Track features through a folder of frames (Shi-Tomasi detection, KLT, replenishment).
+    ///
+    /// Writes rows `frame,id,x,y` to --out (optionally overlay PNGs) and prints a JSON summary.
+    Track(klt_cmd::TrackArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -170,6 +188,18 @@ fn main() -> ExitCode {
         Command::Project(a) => project(a),
         Command::Camera(a) => camera(a),
         Command::Homography(a) => homography_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Warp(a) => warp_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Flow(a) => klt_cmd::run_flow(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Track(a) => klt_cmd::run_track(a).map_err(|message| Failure {
             code: EXIT_INPUT,
             message,
         }),

@@ -313,7 +313,7 @@ fn usage_and_input_errors_exit_2_with_one_line() {
         &camgeom(&["project", "--intrinsics", yml], None),
         "--points",
     );
-    assert_usage_error(&camgeom(&["warp"], None), "warp");
+    assert_usage_error(&camgeom(&["frobnicate"], None), "frobnicate"); // an unknown subcommand (`warp` exists now)
     assert_usage_error(&camgeom(&[], None), "subcommand");
 }
 

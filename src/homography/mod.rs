@@ -240,9 +240,14 @@ mod tests {
                     let scale = 1.0 + q.coords.amax();
                     prop_assert!((back - p).amax() < 1e-9 * scale, "{p} -> {q} -> {back}");
                     // f32 too, with its own tolerance.
-                    let h32 = h.cast::<f32>().unwrap();
-                    let hi32 = h32.inverse().unwrap();
-                    if let Ok(b32) = h32.transfer(&p.cast()).and_then(|q| hi32.transfer(&q)) {
+                    // (An ill-conditioned H may be singular at f32 precision: then a typed
+                    // error is the right answer, and there is nothing to round-trip.)
+                    let h32 = h.cast::<f32>();
+                    let b32 = h32.and_then(|h32| {
+                        let hi32 = h32.inverse()?;
+                        h32.transfer(&p.cast()).and_then(|q| hi32.transfer(&q))
+                    });
+                    if let Ok(b32) = b32 {
                         prop_assert!((b32.cast::<f64>() - p).amax() < 2e-3 * scale);
                     }
                 }

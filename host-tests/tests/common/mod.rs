@@ -26,10 +26,15 @@ pub fn bundled_poses() -> Vec<[f64; 6]> {
 }
 
 /// Writes `content` to a fresh file `name` under the test's scratch directory.
+///
+/// The file name is made unique per process and call, so tests running at the same time (in
+/// one binary, or in two checkouts sharing a target directory) never read each other's files.
 pub fn scratch_file(name: &str, content: &str) -> PathBuf {
+    static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("camgeom-host-tests");
     std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
+    let path = dir.join(format!("{}-{n}-{name}", std::process::id()));
     std::fs::write(&path, content).unwrap();
     path
 }

@@ -1,0 +1,101 @@
+//! Features, matching and warp timings (compare with `host-tests/scripts/bench_features.py`,
+//! OpenCV with one thread on the same inputs).
+//!
+//! `cargo bench -p camgeom-host --bench features`
+
+use std::hint::black_box;
+
+use camgeom::features::orb::{self, Feature, OrbConfig};
+use camgeom::features::{Descriptor, Match, MatchConfig, fast, match_descriptors, matching};
+use camgeom::heapless::Vec as HVec;
+use camgeom::nalgebra::Point2;
+use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+use camgeom_host::images::{GrayImage, load_gray};
+use criterion::{Criterion, criterion_group, criterion_main};
+
+fn graf1() -> GrayImage {
+    load_gray(camgeom_host::data_dir().join("oxford-graf/graf1.png")).unwrap()
+}
+
+fn bench_features(c: &mut Criterion) {
+    let img = graf1();
+    let view = img.view().unwrap();
+    let mut fscratch = vec![0u8; fast::scratch_len(img.width)];
+    c.bench_function("fast_t20_nonmax_graf1_800x640", |b| {
+        b.iter(|| {
+            let mut n = 0usize;
+            fast::fast_detect(&view, &fast::FastConfig::default(), &mut fscratch, |_| {
+                n += 1
+            })
+            .unwrap();
+            black_box(n)
+        })
+    });
+    let config = OrbConfig::default();
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let mut out: Box<HVec<Feature, 500>> = Box::default();
+    c.bench_function("orb_500_graf1_800x640", |b| {
+        b.iter(|| {
+            orb::orb_detect(&view, &config, &mut scratch, &mut out).unwrap();
+            black_box(out.len())
+        })
+    });
+
+    let mut g = camgeom::rng::Pcg32::new(7);
+    let a: Vec<Descriptor> = (0..500)
+        .map(|_| Descriptor(core::array::from_fn(|_| g.next_u32())))
+        .collect();
+    let t: Vec<Descriptor> = (0..500)
+        .map(|_| Descriptor(core::array::from_fn(|_| g.next_u32())))
+        .collect();
+    let mut ms = vec![Match::default(); 500];
+    let mut mscratch = vec![0u32; matching::scratch_len(500)];
+    c.bench_function("match_500x500_crosscheck", |b| {
+        b.iter(|| {
+            black_box(
+                match_descriptors(&a, &t, &MatchConfig::default(), &mut mscratch, &mut ms).unwrap(),
+            )
+        })
+    });
+
+    let mut logo = GrayImage::filled(128, 128, 0);
+    for (i, p) in logo.data.iter_mut().enumerate() {
+        *p = if ((i % 128) / 16 + (i / 128) / 16) % 2 == 0 {
+            230
+        } else {
+            30
+        };
+    }
+    let quad = [
+        (60.3f32, 40.7f32),
+        (250.2, 62.9),
+        (231.6, 205.1),
+        (41.8, 180.4),
+    ]
+    .map(|(x, y)| Point2::new(x, y));
+    let mut frame = GrayImage::filled(320, 240, 100);
+    for (name, arithmetic) in [
+        ("warp_128_into_320x240_f32", Arithmetic::Float),
+        ("warp_128_into_320x240_fixed", Arithmetic::Fixed),
+    ] {
+        let cfg = WarpConfig {
+            alpha: 255,
+            arithmetic,
+        };
+        c.bench_function(name, |b| {
+            b.iter(|| {
+                let r = warp_into_quad(
+                    &logo.view().unwrap(),
+                    &mut frame.view_mut().unwrap(),
+                    &quad,
+                    &cfg,
+                )
+                .unwrap();
+                black_box(r.written)
+            })
+        });
+    }
+}
+
+criterion_group!(benches, bench_features);
+criterion_main!(benches);

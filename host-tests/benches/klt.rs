@@ -1,0 +1,77 @@
+//! KLT speed per tracked feature on the host: basketball1 → basketball2 (640x480), 21x21
+//! windows, maxLevel 3 (4 levels), 30 iterations / 0.01, pyramids built beforehand (OpenCV's
+//! side does the same with `buildOpticalFlowPyramid`, see `scripts/bench_klt_opencv.py`).
+//! Paths: fixed and f32, derivatives per window and per level; plus the pyramid build and
+//! the Shi-Tomasi detection.
+//!
+//! `cargo bench -p camgeom-host --bench klt`
+
+use std::hint::black_box;
+
+use camgeom::corners::CornerConfig;
+use camgeom::klt::LkConfig;
+use camgeom_host::data_dir;
+use camgeom_host::images::load_gray;
+use camgeom_host::klt::{Path, corners, flow_pyramids, levels, pyramid};
+use camgeom_host::points::read_csv;
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+
+fn bench(c: &mut Criterion) {
+    let mb = data_dir().join("middlebury");
+    let a = load_gray(mb.join("basketball1.png")).unwrap();
+    let b = load_gray(mb.join("basketball2.png")).unwrap();
+    let pts: Vec<[f64; 2]> = read_csv(
+        data_dir().join("fixtures/klt/basketball_bench_pts.csv"),
+        &["x", "y"],
+    )
+    .unwrap()
+    .rows
+    .iter()
+    .map(|r| [r[0], r[1]])
+    .collect();
+    let cfg = LkConfig::default();
+    let l = levels(&cfg);
+    let (mut ba, mut bb) = (Vec::new(), Vec::new());
+    let pa = pyramid(&a, &mut ba, l);
+    let pb = pyramid(&b, &mut bb, l);
+
+    let mut g = c.benchmark_group("klt_flow");
+    g.sample_size(20);
+    for n in [100usize, 1000] {
+        let p = &pts[..n.min(pts.len())];
+        g.throughput(Throughput::Elements(p.len() as u64));
+        for (name, path, per_level) in [
+            ("fixed_window", Path::Fixed, false),
+            ("f32_window", Path::F32, false),
+            ("fixed_level", Path::Fixed, true),
+            ("f32_level", Path::F32, true),
+        ] {
+            g.bench_with_input(BenchmarkId::new(name, n), &p, |bn, p| {
+                bn.iter(|| flow_pyramids(&pa, &pb, black_box(p), &cfg, path, per_level).unwrap())
+            });
+        }
+    }
+    g.finish();
+
+    let mut g = c.benchmark_group("klt_setup");
+    g.sample_size(20);
+    g.bench_function("pyramid_640x480_4_levels", |bn| {
+        let mut buf = Vec::new();
+        bn.iter(|| {
+            let p = pyramid(black_box(&a), &mut buf, 4);
+            black_box(p.len())
+        })
+    });
+    let ccfg = CornerConfig {
+        quality: 0.01,
+        min_distance: 10,
+        max_corners: 0,
+    };
+    g.bench_function("good_features_640x480_400", |bn| {
+        bn.iter(|| corners(black_box(&a), &ccfg, 400).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

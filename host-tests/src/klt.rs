@@ -1,0 +1,279 @@
+//! camgeom's KLT on owned images: the buffers a board would hold, allocated once, for the
+//! tests, the benchmarks and the `flow` / `track` subcommands.
+
+use camgeom::corners::{Corner, CornerConfig};
+use camgeom::image::ImageView;
+use camgeom::klt::{
+    Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Tracker, TrackerConfig, calc_flow,
+    forward_backward, scratch_len,
+};
+use camgeom::pyramid::{Pyramid, buffer_len};
+
+use crate::images::GrayImage;
+
+/// Which arithmetic path to run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Path {
+    /// Q16.16 coordinates and the integer solve ([`Fixed`]).
+    Fixed,
+    /// `f32` (as OpenCV).
+    F32,
+}
+
+/// One tracked point in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FlowPoint {
+    /// Column in the next frame.
+    pub x: f64,
+    /// Row in the next frame.
+    pub y: f64,
+    /// Outcome.
+    pub status: FlowStatus,
+    /// Mean absolute difference of the windows (grey levels).
+    pub err: f64,
+}
+
+/// Levels a pyramid needs for `cfg.max_level`.
+pub fn levels(cfg: &LkConfig) -> usize {
+    (cfg.max_level + 1).min(camgeom::pyramid::MAX_LEVELS)
+}
+
+/// Builds the pyramid of `img` into `buf` (resized as needed).
+pub fn pyramid<'a>(img: &'a GrayImage, buf: &'a mut Vec<u8>, levels: usize) -> Pyramid<'a> {
+    buf.resize(buffer_len(img.width, img.height, levels), 0);
+    let view = img.view().expect("image size camgeom accepts");
+    Pyramid::build(view, buf, levels).expect("pyramid")
+}
+
+/// Runs `calc_flow` (and the forward-backward check when `cfg.fb_threshold` is set) on
+/// pyramids already built.
+pub fn flow_pyramids(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    pts: &[[f64; 2]],
+    cfg: &LkConfig,
+    path: Path,
+    per_level: bool,
+) -> camgeom::Result<Vec<FlowPoint>> {
+    fn go<A: FlowArith>(
+        prev: &Pyramid<'_>,
+        next: &Pyramid<'_>,
+        pts: Vec<[A::Coord; 2]>,
+        cfg: &LkConfig,
+        per_level: bool,
+    ) -> camgeom::Result<Vec<FlowPoint>> {
+        let mut scratch = vec![0i16; scratch_len(cfg.win)];
+        let l0 = prev.level(0).ok_or(camgeom::Error::InvalidImage)?;
+        let mut grad = vec![
+            [0i16; 2];
+            if per_level {
+                l0.width() * l0.height()
+            } else {
+                0
+            }
+        ];
+        let mut flows = vec![Flow::<A::Coord>::default(); pts.len()];
+        fn g(grad: &mut [[i16; 2]], per_level: bool) -> Gradients<'_> {
+            if per_level {
+                Gradients::PerLevel(grad)
+            } else {
+                Gradients::PerWindow
+            }
+        }
+        calc_flow::<A>(
+            prev,
+            next,
+            &pts,
+            &mut flows,
+            cfg,
+            g(&mut grad, per_level),
+            &mut scratch,
+        )?;
+        if cfg.fb_threshold.is_some() {
+            let mut back = flows.clone();
+            forward_backward::<A>(
+                prev,
+                next,
+                &pts,
+                &mut flows,
+                &mut back,
+                cfg,
+                g(&mut grad, per_level),
+                &mut scratch,
+            )?;
+        }
+        Ok(flows
+            .iter()
+            .map(|f| FlowPoint {
+                x: f64::from(A::to_f32(f.x)),
+                y: f64::from(A::to_f32(f.y)),
+                status: f.status,
+                err: f64::from(A::to_f32(f.err)),
+            })
+            .collect())
+    }
+    match path {
+        Path::Fixed => go::<Fixed>(
+            prev,
+            next,
+            pts.iter()
+                .map(|p| [Fixed::from_f32(p[0] as f32), Fixed::from_f32(p[1] as f32)])
+                .collect(),
+            cfg,
+            per_level,
+        ),
+        Path::F32 => go::<f32>(
+            prev,
+            next,
+            pts.iter().map(|p| [p[0] as f32, p[1] as f32]).collect(),
+            cfg,
+            per_level,
+        ),
+    }
+}
+
+/// Tracks `pts` from `a` to `b` (same size) with the given path.
+pub fn flow(
+    a: &GrayImage,
+    b: &GrayImage,
+    pts: &[[f64; 2]],
+    cfg: &LkConfig,
+    path: Path,
+) -> camgeom::Result<Vec<FlowPoint>> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(camgeom::Error::InvalidImage);
+    }
+    let l = levels(cfg);
+    let (mut ba, mut bb) = (Vec::new(), Vec::new());
+    let pa = pyramid(a, &mut ba, l);
+    let pb = pyramid(b, &mut bb, l);
+    flow_pyramids(&pa, &pb, pts, cfg, path, false)
+}
+
+/// Shi-Tomasi corners of `img` (up to `max`), strongest first, as pixel positions.
+pub fn corners(img: &GrayImage, cfg: &CornerConfig, max: usize) -> camgeom::Result<Vec<[u16; 2]>> {
+    let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
+    let mut out: camgeom::heapless::Vec<Corner, 4096> = camgeom::heapless::Vec::new();
+    let mut cands = vec![Corner::default(); 16384];
+    let mut scratch = vec![0u32; camgeom::corners::scratch_len(img.width)];
+    let mut c = *cfg;
+    c.max_corners = max.min(4096);
+    camgeom::corners::good_features(
+        &view,
+        &c,
+        std::iter::empty(),
+        &mut out,
+        &mut cands,
+        &mut scratch,
+    )?;
+    Ok(out.iter().map(|c| [c.x, c.y]).collect())
+}
+
+/// One row of a track file: frame index, track id, position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackRow {
+    /// Frame index (0-based).
+    pub frame: usize,
+    /// Track id.
+    pub id: u32,
+    /// Column.
+    pub x: f64,
+    /// Row.
+    pub y: f64,
+    /// Frames since detection.
+    pub age: u32,
+}
+
+/// Tracks features through `frames` with at most 1024 tracks (`cfg.max_tracks` fewer): detection on the first
+/// frame, then flow + removal + replenishment on every frame. `on_frame(k, rows)` is called
+/// after frame `k` with that frame's tracks.
+pub fn track_sequence(
+    frames: &[GrayImage],
+    cfg: &TrackerConfig,
+    path: Path,
+    mut on_frame: impl FnMut(usize, &[TrackRow]),
+) -> camgeom::Result<Vec<TrackRow>> {
+    fn go<A: FlowArith>(
+        frames: &[GrayImage],
+        cfg: &TrackerConfig,
+        on_frame: &mut dyn FnMut(usize, &[TrackRow]),
+    ) -> camgeom::Result<Vec<TrackRow>> {
+        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new());
+        let l = levels(&cfg.lk);
+        let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
+        let mut cands = vec![Corner::default(); 8192];
+        let mut cs = Vec::new();
+        // Ping-pong pyramid buffers: the previous frame's pyramid is re-wrapped, never rebuilt.
+        let mut bufs = [Vec::new(), Vec::new()];
+        let mut rows = Vec::new();
+        for (k, img) in frames.iter().enumerate() {
+            let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
+            let (b0, b1) = bufs.split_at_mut(1);
+            let (cur, old) = if k % 2 == 0 {
+                (&mut b0[0], &b1[0])
+            } else {
+                (&mut b1[0], &b0[0])
+            };
+            cur.resize(buffer_len(img.width, img.height, l), 0);
+            let next = Pyramid::build(view, cur, l)?;
+            if k > 0 {
+                let pview = frames[k - 1].view().ok_or(camgeom::Error::InvalidImage)?;
+                let prev = Pyramid::from_buffer(pview, old, l)?;
+                tracker.update(&prev, &next, cfg, &mut scratch)?;
+            }
+            cs.resize(camgeom::corners::scratch_len(img.width), 0);
+            tracker.replenish(&view, cfg, &mut cands, &mut cs)?;
+            let start = rows.len();
+            for t in tracker.tracks() {
+                rows.push(TrackRow {
+                    frame: k,
+                    id: t.id,
+                    x: f64::from(A::to_f32(t.x)),
+                    y: f64::from(A::to_f32(t.y)),
+                    age: t.age,
+                });
+            }
+            on_frame(k, &rows[start..]);
+        }
+        Ok(rows)
+    }
+    match path {
+        Path::Fixed => go::<Fixed>(frames, cfg, &mut on_frame),
+        Path::F32 => go::<f32>(frames, cfg, &mut on_frame),
+    }
+}
+
+/// Draws tracks onto a copy of `img`: a 5x5 cross at each position and a line to the
+/// position `trail` frames before (from `history`, rows of earlier frames).
+pub fn overlay(img: &GrayImage, now: &[TrackRow], history: &[TrackRow]) -> GrayImage {
+    let mut out = img.clone();
+    let mut put = |x: i64, y: i64, v: u8| {
+        if x >= 0 && y >= 0 && (x as usize) < out.width && (y as usize) < out.height {
+            let i = y as usize * out.width + x as usize;
+            out.data[i] = v;
+        }
+    };
+    for r in now {
+        let (cx, cy) = (r.x.round() as i64, r.y.round() as i64);
+        if let Some(h) = history.iter().find(|h| h.id == r.id) {
+            let n = ((h.x - r.x).abs().max((h.y - r.y).abs()).ceil() as i64).clamp(1, 400);
+            for s in 0..=n {
+                let t = s as f64 / n as f64;
+                let x = (r.x + (h.x - r.x) * t).round() as i64;
+                let y = (r.y + (h.y - r.y) * t).round() as i64;
+                put(x, y, 255);
+            }
+        }
+        for d in -2..=2 {
+            put(cx + d, cy, 0);
+            put(cx, cy + d, 0);
+        }
+        put(cx, cy, 255);
+    }
+    out
+}
+
+/// The view of an owned image (panics on a size camgeom rejects; tests and tools only).
+pub fn view(img: &GrayImage) -> ImageView<'_, u8> {
+    img.view().expect("image size camgeom accepts")
+}

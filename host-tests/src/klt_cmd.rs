@@ -1,0 +1,306 @@
+//! `camgeom flow` and `camgeom track`: camgeom's KLT on image files.
+
+use std::path::PathBuf;
+
+use camgeom::corners::CornerConfig;
+use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
+use camgeom_host::images::{GrayImage, load_gray, save_gray};
+use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_sequence};
+use camgeom_host::points::{format_float, read_csv};
+use clap::Args;
+use serde::Serialize;
+
+/// Flow options shared by `flow` and `track` (OpenCV's calcOpticalFlowPyrLK parameters).
+#[derive(Args, Debug)]
+pub struct LkOpt {
+    /// Window side in pixels (3..63).
+    #[arg(long, default_value_t = 21)]
+    win: usize,
+    /// Coarsest pyramid level (OpenCV's maxLevel; 0 = no pyramid).
+    #[arg(long, default_value_t = 3)]
+    max_level: usize,
+    /// Iteration cap per level (1..100).
+    #[arg(long, default_value_t = 30)]
+    iters: u32,
+    /// Stop when the update is at most this many pixels.
+    #[arg(long, default_value_t = 0.01)]
+    eps: f32,
+    /// Minimum-eigenvalue threshold (OpenCV's minEigThreshold).
+    #[arg(long, default_value_t = 1e-4)]
+    min_eig: f32,
+    /// Forward-backward check: drop points that do not track back within this many pixels.
+    #[arg(long, value_name = "PX")]
+    fb: Option<f32>,
+    /// Run the fixed-point (integer) path instead of f32.
+    #[arg(long)]
+    fixed: bool,
+}
+
+impl LkOpt {
+    fn config(&self) -> Result<LkConfig, String> {
+        if !(3..=camgeom::klt::MAX_WIN).contains(&self.win) {
+            return Err(format!(
+                "--win must be 3..={}, got {}",
+                camgeom::klt::MAX_WIN,
+                self.win
+            ));
+        }
+        if !(1..=100).contains(&self.iters) {
+            return Err(format!("--iters must be 1..=100, got {}", self.iters));
+        }
+        if !(self.eps.is_finite() && self.eps >= 0.0 && self.min_eig.is_finite()) {
+            return Err("--eps and --min-eig must be finite, --eps >= 0".into());
+        }
+        Ok(LkConfig {
+            win: self.win,
+            max_level: self.max_level.min(camgeom::pyramid::MAX_LEVELS - 1),
+            max_iter: self.iters,
+            epsilon: self.eps,
+            min_eigenvalue: self.min_eig,
+            use_initial_flow: false,
+            fb_threshold: self.fb,
+        })
+    }
+    fn path(&self) -> Path {
+        if self.fixed { Path::Fixed } else { Path::F32 }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct FlowArgs {
+    /// The first frame (PNG or JPEG; colour is converted to grey).
+    #[arg(long, value_name = "A.png")]
+    from: PathBuf,
+    /// The second frame, same size.
+    #[arg(long, value_name = "B.png")]
+    to: PathBuf,
+    /// Points of the first frame, CSV rows `x,y` (optional header); `-` reads stdin.
+    #[arg(long, value_name = "P.csv")]
+    points: PathBuf,
+    #[command(flatten)]
+    lk: LkOpt,
+    /// Print JSON (`{"points": [{"x": .., "y": .., "err": .., "status": "ok"}, ...]}`).
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args, Debug)]
+pub struct TrackArgs {
+    /// Folder of frames (PNG/JPEG, tracked in file-name order).
+    #[arg(long, value_name = "DIR")]
+    frames: PathBuf,
+    /// Output CSV, rows `frame,id,x,y` (frame = 0-based index in name order).
+    #[arg(long, value_name = "tracks.csv")]
+    out: PathBuf,
+    /// Also write one PNG per frame with the tracks drawn (crosses and 10-frame trails).
+    #[arg(long, value_name = "DIR")]
+    overlay: Option<PathBuf>,
+    /// Most tracks kept (1..1024).
+    #[arg(long, default_value_t = 300)]
+    max_tracks: usize,
+    /// Detect new features when fewer tracks than this remain (default: --max-tracks).
+    #[arg(long)]
+    replenish_below: Option<usize>,
+    /// Corner quality level (goodFeaturesToTrack's qualityLevel).
+    #[arg(long, default_value_t = 0.01)]
+    quality: f32,
+    /// Minimum distance between features, pixels.
+    #[arg(long, default_value_t = 10)]
+    min_distance: u32,
+    #[command(flatten)]
+    lk: LkOpt,
+}
+
+#[derive(Serialize)]
+struct JsonPoint {
+    x: Option<f64>,
+    y: Option<f64>,
+    err: Option<f64>,
+    status: &'static str,
+}
+
+#[derive(Serialize)]
+struct JsonPoints {
+    points: Vec<JsonPoint>,
+}
+
+/// `ok` for tracked points, else the status in snake case (CLI.md).
+fn status(s: FlowStatus) -> &'static str {
+    match s {
+        FlowStatus::Tracked => "ok",
+        other => other.name(),
+    }
+}
+
+fn load(path: &std::path::Path) -> Result<GrayImage, String> {
+    load_gray(path).map_err(|e| e.to_string())
+}
+
+/// `camgeom flow`.
+pub fn run_flow(a: &FlowArgs) -> Result<String, String> {
+    let cfg = a.lk.config()?;
+    let pts = read_csv(&a.points, &["x", "y"]).map_err(|e| e.to_string())?;
+    let pts: Vec<[f64; 2]> = pts.rows.iter().map(|r| [r[0], r[1]]).collect();
+    let from = load(&a.from)?;
+    let to = load(&a.to)?;
+    if (from.width, from.height) != (to.width, to.height) {
+        return Err(format!(
+            "{}: {}x{} does not match {}: {}x{}",
+            a.to.display(),
+            to.width,
+            to.height,
+            a.from.display(),
+            from.width,
+            from.height
+        ));
+    }
+    let res = flow(&from, &to, &pts, &cfg, a.lk.path()).map_err(|e| e.to_string())?;
+    let f32_out = a.lk.path() == Path::F32;
+    let num = |v: f64| {
+        if f32_out {
+            format_float(v as f32)
+        } else {
+            format_float(v)
+        }
+    };
+    if a.json {
+        let points = res
+            .iter()
+            .map(|p| {
+                let ok = p.status == FlowStatus::Tracked;
+                JsonPoint {
+                    x: ok.then_some(p.x),
+                    y: ok.then_some(p.y),
+                    err: ok.then_some(p.err),
+                    status: status(p.status),
+                }
+            })
+            .collect();
+        let mut s = serde_json::to_string_pretty(&JsonPoints { points }).unwrap_or_default();
+        s.push('\n');
+        return Ok(s);
+    }
+    let mut out = String::from("x,y,status\n");
+    for p in &res {
+        if p.status == FlowStatus::Tracked {
+            out.push_str(&format!("{},{},ok\n", num(p.x), num(p.y)));
+        } else {
+            out.push_str(&format!("nan,nan,{}\n", status(p.status)));
+        }
+    }
+    Ok(out)
+}
+
+#[derive(Serialize)]
+struct TrackSummary {
+    frames: usize,
+    tracks: usize,
+    rows: usize,
+    out: String,
+}
+
+/// `camgeom track`: writes the CSV (and overlays), prints a JSON summary.
+pub fn run_track(a: &TrackArgs) -> Result<String, String> {
+    let lk = a.lk.config()?;
+    if !(1..=1024).contains(&a.max_tracks) {
+        return Err(format!(
+            "--max-tracks must be 1..=1024, got {}",
+            a.max_tracks
+        ));
+    }
+    if !(a.quality > 0.0 && a.quality <= 1.0) {
+        return Err(format!("--quality must be in (0, 1], got {}", a.quality));
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&a.frames)
+        .map_err(|e| format!("{}: {e}", a.frames.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("{}: no PNG or JPEG frames", a.frames.display()));
+    }
+    let bar = indicatif::ProgressBar::new(files.len() as u64 * 2);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar.set_message("loading");
+    let mut frames = Vec::with_capacity(files.len());
+    for f in &files {
+        let img = load(f)?;
+        if let Some(first) = frames.first() {
+            let first: &GrayImage = first;
+            if (first.width, first.height) != (img.width, img.height) {
+                return Err(format!(
+                    "{}: frame size differs from the first frame",
+                    f.display()
+                ));
+            }
+        }
+        frames.push(img);
+        bar.inc(1);
+    }
+    let cfg = TrackerConfig {
+        lk,
+        corners: CornerConfig {
+            quality: a.quality,
+            min_distance: a.min_distance,
+            max_corners: a.max_tracks,
+        },
+        replenish_below: a.replenish_below.unwrap_or(a.max_tracks),
+        max_tracks: a.max_tracks,
+    };
+    if let Some(dir) = &a.overlay {
+        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+    }
+    bar.set_message("tracking");
+    let mut history: Vec<Vec<TrackRow>> = Vec::new();
+    let mut overlay_err = None;
+    let rows = track_sequence(&frames, &cfg, a.lk.path(), |k, now| {
+        bar.inc(1);
+        let Some(dir) = &a.overlay else { return };
+        history.push(now.to_vec());
+        let old = history.len().saturating_sub(11);
+        let past = history.get(old).cloned().unwrap_or_default();
+        let img = overlay(&frames[k], now, &past);
+        let name = files[k]
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| k.to_string());
+        if let Err(e) = save_gray(&img, dir.join(format!("{name}.png"))) {
+            overlay_err.get_or_insert(e.to_string());
+        }
+    })
+    .map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    if let Some(e) = overlay_err {
+        return Err(e);
+    }
+    let mut csv = String::from("frame,id,x,y\n");
+    for r in &rows {
+        csv.push_str(&format!(
+            "{},{},{},{}\n",
+            r.frame,
+            r.id,
+            format_float(r.x),
+            format_float(r.y)
+        ));
+    }
+    std::fs::write(&a.out, csv).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.id).collect();
+    let mut s = serde_json::to_string_pretty(&TrackSummary {
+        frames: frames.len(),
+        tracks: ids.len(),
+        rows: rows.len(),
+        out: a.out.display().to_string(),
+    })
+    .unwrap_or_default();
+    s.push('\n');
+    Ok(s)
+}

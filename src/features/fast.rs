@@ -1,0 +1,460 @@
+//! FAST-9 corners (Rosten and Drummond, "Machine learning for high-speed corner detection",
+//! 2006) with OpenCV's score and 3x3 non-maximum suppression, and the integer Harris response
+//! ORB ranks them by.
+//!
+//! Pixel `p` with intensity `I_p` is a corner for threshold `t` when 9 contiguous pixels of the
+//! 16-pixel Bresenham circle of radius 3 ([`CIRCLE`]) are all brighter than `I_p + t` or all
+//! darker than `I_p - t`. Its score is the largest threshold for which it stays a corner:
+//!
+//! `score = max over the 16 arcs A of 9 pixels of max(min_{q∈A}(I_p - I_q), min_{q∈A}(I_q - I_p)) - 1`,
+//!
+//! which is OpenCV's `cornerScore<16>` (so a corner has `score >= t`). With non-maximum
+//! suppression a corner is kept when its score is strictly above the scores of its 8 neighbours
+//! (non-corners score 0), as in `cv::FAST(..., nonmaxSuppression = true)`.
+//!
+//! Work: one quick test (4 circle pixels) per pixel, the full 16-pixel score only for pixels
+//! that pass it; memory: [`scratch_len`] bytes (three rows of scores).
+
+use crate::image::ImageView;
+use crate::{Error, Result};
+
+/// The 16 circle offsets `(dx, dy)`, clockwise from straight below (OpenCV's order).
+pub const CIRCLE: [(i8, i8); 16] = [
+    (0, 3),
+    (1, 3),
+    (2, 2),
+    (3, 1),
+    (3, 0),
+    (3, -1),
+    (2, -2),
+    (1, -3),
+    (0, -3),
+    (-1, -3),
+    (-2, -2),
+    (-3, -1),
+    (-3, 0),
+    (-3, 1),
+    (-2, 2),
+    (-1, 3),
+];
+
+/// Length of the contiguous arc that makes a corner (FAST-9).
+pub const ARC: usize = 9;
+
+/// Radius of the circle: corners are never closer than this to the image border.
+pub const RADIUS: usize = 3;
+
+/// Parameters of [`fast_detect`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FastConfig {
+    /// Intensity threshold `t` (OpenCV's `threshold`, default 20).
+    pub threshold: u8,
+    /// 3x3 non-maximum suppression on the score (default on).
+    pub nonmax: bool,
+    /// Corners closer than this to the border are not reported (raised to [`RADIUS`]).
+    pub border: u16,
+}
+
+impl Default for FastConfig {
+    fn default() -> Self {
+        Self {
+            threshold: 20,
+            nonmax: true,
+            border: RADIUS as u16,
+        }
+    }
+}
+
+/// A FAST corner at pixel `(x, y)` with its score (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Corner {
+    /// Column.
+    pub x: u16,
+    /// Row.
+    pub y: u16,
+    /// FAST score, `>= threshold`.
+    pub score: u8,
+}
+
+/// Bytes of scratch [`fast_detect`] needs for an image `width` pixels wide: `3 width`.
+pub const fn scratch_len(width: usize) -> usize {
+    3 * width
+}
+
+/// The 16 circle pixels around column `x` of the middle row of `rows` (rows `y-3 ..= y+3`).
+#[inline]
+fn ring(rows: &[&[u8]; 7], x: usize) -> [u8; 16] {
+    CIRCLE.map(|(dx, dy)| {
+        let r = rows.get((3 + dy) as usize).copied().unwrap_or(&[]);
+        r.get(x.wrapping_add_signed(dx as isize))
+            .copied()
+            .unwrap_or(0)
+    })
+}
+
+/// The FAST score of a pixel of intensity `v` with circle `ring` (module docs), `-1` when no
+/// arc differs at all.
+#[inline]
+pub fn score(v: u8, ring: &[u8; 16]) -> i16 {
+    let d: [i16; 16] = ring.map(|q| i16::from(v) - i16::from(q));
+    let mut best = i16::MIN;
+    for k in 0..16 {
+        let (mut lo, mut hi) = (i16::MAX, i16::MIN);
+        for j in 0..ARC {
+            let dj = d.get((k + j) % 16).copied().unwrap_or(0);
+            lo = lo.min(dj);
+            hi = hi.max(dj);
+        }
+        best = best.max(lo).max(-hi);
+    }
+    best - 1
+}
+
+/// Quick rejection: a 9-arc holds at least two of the four compass pixels (0, 4, 8, 12), all
+/// brighter or all darker. `false` means "certainly not a corner".
+#[inline]
+fn may_be_corner(rows: &[&[u8]; 7], x: usize, v: u8, t: u8) -> bool {
+    let px = |dx: isize, dy: usize| {
+        rows.get(dy)
+            .and_then(|r| r.get(x.wrapping_add_signed(dx)))
+            .copied()
+            .unwrap_or(0)
+    };
+    let c = [px(0, 6), px(3, 3), px(0, 0), px(-3, 3)];
+    let hi = v.saturating_add(t);
+    let lo = v.saturating_sub(t);
+    // Saturation makes the tests impossible, not wrong: nothing is above 255 or below 0.
+    let bright = c.iter().filter(|&&q| q > hi).count();
+    let dark = c.iter().filter(|&&q| q < lo).count();
+    bright >= 2 || dark >= 2
+}
+
+/// The segment test itself: 9 contiguous circle pixels all above `v + t` or all below `v - t`,
+/// on 16-bit masks (a run of 9 set bits in the mask doubled to 32 bits). The score is only
+/// computed for pixels that pass.
+#[inline]
+fn segment_test(v: u8, ring: &[u8; 16], t: u8) -> bool {
+    let (hi, lo) = (v.saturating_add(t), v.saturating_sub(t));
+    let (mut bright, mut dark) = (0u32, 0u32);
+    for (k, &q) in ring.iter().enumerate() {
+        bright |= u32::from(q > hi) << k;
+        dark |= u32::from(q < lo) << k;
+    }
+    let run9 = |m: u32| {
+        let mut r = m | (m << 16);
+        for _ in 0..ARC - 1 {
+            r &= r >> 1;
+        }
+        r & 0xffff != 0
+    };
+    run9(bright) || run9(dark)
+}
+
+/// FAST-9 corners of `img`, reported through `emit` in row-major order.
+///
+/// Corners lie in `b <= x < width - b`, `b <= y < height - b` with
+/// `b = max(config.border, 3)`. `scratch` must hold [`scratch_len`]`(width)` bytes.
+///
+/// Errors: [`Error::InvalidParameter`] when `scratch` is too short or `threshold == 0`.
+pub fn fast_detect(
+    img: &ImageView<'_, u8>,
+    config: &FastConfig,
+    scratch: &mut [u8],
+    mut emit: impl FnMut(Corner),
+) -> Result<()> {
+    let (w, h) = (img.width(), img.height());
+    if scratch.len() < scratch_len(w) || config.threshold == 0 {
+        return Err(Error::InvalidParameter);
+    }
+    let b = usize::from(config.border).max(RADIUS);
+    if w <= 2 * b || h <= 2 * b {
+        return Ok(());
+    }
+    let t = config.threshold;
+    let (x0, x1) = (b, w - b);
+    let (s0, rest) = scratch.split_at_mut(w);
+    let (s1, rest) = rest.split_at_mut(w);
+    let s2 = rest.get_mut(..w).ok_or(Error::InvalidParameter)?;
+    let mut bufs: [&mut [u8]; 3] = [s0, s1, s2];
+    for buf in bufs.iter_mut() {
+        buf.fill(0);
+    }
+    // Scores of row y go to bufs[y % 3]; row y - 1 is decided once row y is scored.
+    for y in b..=h - b {
+        let scoring = y < h - b;
+        if scoring {
+            let rows: [&[u8]; 7] =
+                core::array::from_fn(|j| img.row_clamped(y as isize + j as isize - 3));
+            let centre = rows[3];
+            let cur = bufs.get_mut(y % 3).ok_or(Error::InvalidParameter)?;
+            cur.fill(0);
+            for x in x0..x1 {
+                let v = centre.get(x).copied().unwrap_or(0);
+                if !may_be_corner(&rows, x, v, t) {
+                    continue;
+                }
+                let circle = ring(&rows, x);
+                if !segment_test(v, &circle, t) {
+                    continue;
+                }
+                let s = score(v, &circle);
+                if s >= i16::from(t)
+                    && let Some(c) = cur.get_mut(x)
+                {
+                    // s <= 254: the differences are at most 255.
+                    *c = s.clamp(1, 255) as u8;
+                }
+            }
+        } else if let Some(cur) = bufs.get_mut(y % 3) {
+            cur.fill(0);
+        }
+        if !config.nonmax {
+            if scoring && let Some(cur) = bufs.get(y % 3) {
+                for (x, &s) in cur.iter().enumerate().take(x1).skip(x0) {
+                    if s > 0 {
+                        emit(Corner {
+                            x: x as u16,
+                            y: y as u16,
+                            score: s,
+                        });
+                    }
+                }
+            }
+            continue;
+        }
+        // Decide row y - 1 (rows before b were never scored: all zero).
+        let yd = y - 1;
+        if yd < b {
+            continue;
+        }
+        let prev = bufs.get((yd + 2) % 3).map(|r| &**r).unwrap_or(&[]);
+        let mid = bufs.get(yd % 3).map(|r| &**r).unwrap_or(&[]);
+        let next = bufs.get(y % 3).map(|r| &**r).unwrap_or(&[]);
+        for x in x0..x1 {
+            let s = mid.get(x).copied().unwrap_or(0);
+            if s == 0 {
+                continue;
+            }
+            let n = |r: &[u8], dx: isize| r.get(x.wrapping_add_signed(dx)).copied().unwrap_or(0);
+            let is_max = s > n(mid, -1)
+                && s > n(mid, 1)
+                && (-1..=1).all(|dx| s > n(prev, dx) && s > n(next, dx));
+            if is_max {
+                emit(Corner {
+                    x: x as u16,
+                    y: yd as u16,
+                    score: s,
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Harris block size of [`harris_response`] (OpenCV ORB's `HARRIS_BLOCK_SIZE`).
+pub const HARRIS_BLOCK: usize = 7;
+
+/// Harris `k` in Q10: `41 / 1024 = 0.0400` (OpenCV ORB uses 0.04).
+pub const HARRIS_K_Q10: i64 = 41;
+
+/// The Harris corner response at `(x, y)`, in integers:
+///
+/// `R = a b - c² - k (a + b)²`, `a = Σ Ix²`, `b = Σ Iy²`, `c = Σ Ix Iy` over the 7x7 block
+/// centred on the pixel, `Ix`, `Iy` the 3x3 Sobel derivatives (OpenCV ORB's `HarrisResponses`
+/// before its constant scale factor `(4 · 7 · 255)⁻⁴`). `|R| < 2⁶⁰`.
+///
+/// `None` unless the block and its Sobel taps fit in the image (`4 <= x < width - 4`, same in y).
+pub fn harris_response(img: &ImageView<'_, u8>, x: usize, y: usize) -> Option<i64> {
+    let r = HARRIS_BLOCK / 2 + 1;
+    if x < r || y < r || x + r >= img.width() || y + r >= img.height() {
+        return None;
+    }
+    let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
+    for yy in y - 3..=y + 3 {
+        let up = img.row(yy - 1)?;
+        let mid = img.row(yy)?;
+        let dn = img.row(yy + 1)?;
+        for xx in x - 3..=x + 3 {
+            let p = |row: &[u8], col: usize| i32::from(row.get(col).copied().unwrap_or(0));
+            let ix = (p(mid, xx + 1) - p(mid, xx - 1)) * 2
+                + (p(up, xx + 1) - p(up, xx - 1))
+                + (p(dn, xx + 1) - p(dn, xx - 1));
+            let iy = (p(dn, xx) - p(up, xx)) * 2
+                + (p(dn, xx - 1) - p(up, xx - 1))
+                + (p(dn, xx + 1) - p(up, xx + 1));
+            a += i64::from(ix * ix);
+            b += i64::from(iy * iy);
+            c += i64::from(ix * iy);
+        }
+    }
+    Some(a * b - c * c - ((HARRIS_K_Q10 * (a + b) * (a + b)) >> 10))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    fn detect(img: &ImageView<'_, u8>, cfg: &FastConfig) -> Vec<Corner> {
+        let mut scratch = std::vec![0u8; scratch_len(img.width())];
+        let mut out = Vec::new();
+        fast_detect(img, cfg, &mut scratch, |c| out.push(c)).unwrap();
+        out
+    }
+
+    /// Brute force from the definition: every arc, every pixel.
+    fn reference(img: &ImageView<'_, u8>, t: u8) -> Vec<(usize, usize, u8)> {
+        let mut out = Vec::new();
+        for y in 3..img.height() - 3 {
+            for x in 3..img.width() - 3 {
+                let v = i16::from(img.get(x, y).unwrap());
+                let ring: Vec<i16> = CIRCLE
+                    .iter()
+                    .map(|&(dx, dy)| {
+                        i16::from(
+                            img.get(
+                                (x as isize + dx as isize) as usize,
+                                (y as isize + dy as isize) as usize,
+                            )
+                            .unwrap(),
+                        )
+                    })
+                    .collect();
+                let mut best = 0i16;
+                for k in 0..16 {
+                    let arc: Vec<i16> = (0..9).map(|j| ring[(k + j) % 16]).collect();
+                    best = best.max(arc.iter().map(|q| q - v).min().unwrap());
+                    best = best.max(arc.iter().map(|q| v - q).min().unwrap());
+                }
+                if best > i16::from(t) {
+                    out.push((x, y, (best - 1) as u8));
+                }
+            }
+        }
+        out
+    }
+
+    fn noise(w: usize, h: usize, seed: u32) -> Vec<u8> {
+        let mut s = seed;
+        (0..w * h)
+            .map(|i| {
+                s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                // Blocky noise so that corners exist at every threshold.
+                if (i / w / 3 + i % w / 3).is_multiple_of(2) {
+                    (s >> 24) as u8
+                } else {
+                    (s >> 26) as u8
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn matches_the_definition_without_nonmax() {
+        let (w, h) = (61, 43);
+        let data = noise(w, h, 3);
+        let img = ImageView::packed(&data, w, h).unwrap();
+        for t in [1u8, 10, 20, 40, 80] {
+            let cfg = FastConfig {
+                threshold: t,
+                nonmax: false,
+                border: 3,
+            };
+            let got: Vec<(usize, usize, u8)> = detect(&img, &cfg)
+                .iter()
+                .map(|c| (c.x as usize, c.y as usize, c.score))
+                .collect();
+            assert_eq!(got, reference(&img, t), "t = {t}");
+        }
+    }
+
+    #[test]
+    fn nonmax_keeps_strict_local_maxima() {
+        let (w, h) = (50, 40);
+        let data = noise(w, h, 11);
+        let img = ImageView::packed(&data, w, h).unwrap();
+        let all = reference(&img, 15);
+        let score_at =
+            |x: usize, y: usize| all.iter().find(|c| c.0 == x && c.1 == y).map_or(0, |c| c.2);
+        let expected: Vec<(usize, usize, u8)> = all
+            .iter()
+            .copied()
+            .filter(|&(x, y, s)| {
+                (-1isize..=1).all(|dy| {
+                    (-1isize..=1).all(|dx| {
+                        (dx == 0 && dy == 0)
+                            || s > score_at((x as isize + dx) as usize, (y as isize + dy) as usize)
+                    })
+                })
+            })
+            .collect();
+        let got: Vec<(usize, usize, u8)> = detect(
+            &img,
+            &FastConfig {
+                threshold: 15,
+                ..Default::default()
+            },
+        )
+        .iter()
+        .map(|c| (c.x as usize, c.y as usize, c.score))
+        .collect();
+        assert_eq!(got, expected);
+        assert!(!got.is_empty());
+    }
+
+    #[test]
+    fn border_tiny_images_and_errors() {
+        let data = noise(40, 30, 5);
+        let img = ImageView::packed(&data, 40, 30).unwrap();
+        let cfg = FastConfig {
+            threshold: 10,
+            nonmax: true,
+            border: 12,
+        };
+        assert!(
+            detect(&img, &cfg)
+                .iter()
+                .all(|c| (12..28).contains(&c.x) && (12..18).contains(&c.y))
+        );
+        let tiny = ImageView::packed(&data[..36], 6, 6).unwrap();
+        assert!(detect(&tiny, &FastConfig::default()).is_empty());
+        let mut short = [0u8; 10];
+        assert_eq!(
+            fast_detect(&img, &FastConfig::default(), &mut short, |_| {}),
+            Err(Error::InvalidParameter)
+        );
+        let mut s = [0u8; 120];
+        let zero = FastConfig {
+            threshold: 0,
+            ..Default::default()
+        };
+        assert_eq!(
+            fast_detect(&img, &zero, &mut s, |_| {}),
+            Err(Error::InvalidParameter)
+        );
+    }
+
+    #[test]
+    fn harris_prefers_corners_to_edges() {
+        // A bright square on dark: its corner beats the middle of its edge, flat is zero.
+        let (w, h) = (40, 40);
+        let mut data = std::vec![20u8; w * h];
+        for y in 10..30 {
+            for x in 10..30 {
+                data[y * w + x] = 200;
+            }
+        }
+        let img = ImageView::packed(&data, w, h).unwrap();
+        let corner = harris_response(&img, 10, 10).unwrap();
+        let edge = harris_response(&img, 20, 10).unwrap();
+        let flat = harris_response(&img, 20, 20).unwrap();
+        assert!(
+            corner > 0 && edge < 0 && flat == 0,
+            "{corner} {edge} {flat}"
+        );
+        assert_eq!(harris_response(&img, 3, 20), None);
+        assert_eq!(harris_response(&img, 20, 36), None);
+    }
+}

@@ -1,0 +1,315 @@
+//! Brute-force descriptor matching under the Hamming distance.
+//!
+//! `d(a, b) = popcount(a ⊕ b)` over the 256 bits of a [`Descriptor`] (8 `u32` words).
+//!
+//! [`match_descriptors`] compares every query descriptor with every train descriptor — exactly
+//! `n_query · n_train` distance computations, whatever the options — and keeps, per query `i`,
+//! its nearest train descriptor `j` (the first one on ties) when:
+//!
+//! - `d₁ <= max_distance`;
+//! - Lowe's ratio test: `d₁ < ratio · d₂` with `d₂` the second-nearest distance (skipped when
+//!   `ratio >= 1` or there is a single train descriptor);
+//! - cross-check: `i` is also the nearest query of `j` (the first one on ties), as
+//!   `cv::BFMatcher(NORM_HAMMING, crossCheck = true)`.
+//!
+//! The reverse nearest neighbours of the cross-check are found in the same pass and kept in
+//! caller scratch ([`scratch_len`] `u32` words: distance and index packed), so there is no
+//! second pass over the pairs.
+
+use crate::{Error, Result};
+
+/// A 256-bit binary descriptor: bit `i` is bit `i % 32` of word `i / 32`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Descriptor(pub [u32; 8]);
+
+/// Hamming distance `popcount(a ⊕ b)`, `0..=256`.
+#[inline]
+pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
+    a.0.iter()
+        .zip(b.0.iter())
+        .map(|(x, y)| (x ^ y).count_ones())
+        .sum()
+}
+
+/// Parameters of [`match_descriptors`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MatchConfig {
+    /// Lowe's ratio `r`: keep when `d₁ < r d₂`; `>= 1` disables the test. Default 0.8.
+    pub ratio: f32,
+    /// Keep only mutual nearest neighbours. Default `true`.
+    pub cross_check: bool,
+    /// Largest accepted distance. Default 256 (no limit).
+    pub max_distance: u16,
+}
+
+impl Default for MatchConfig {
+    fn default() -> Self {
+        Self {
+            ratio: 0.8,
+            cross_check: true,
+            max_distance: 256,
+        }
+    }
+}
+
+/// A match: `query[query]` ↔ `train[train]` at Hamming distance `distance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Match {
+    /// Index into the query descriptors.
+    pub query: u16,
+    /// Index into the train descriptors.
+    pub train: u16,
+    /// Hamming distance.
+    pub distance: u16,
+}
+
+/// `u32` words of scratch [`match_descriptors`] needs for `n_train` train descriptors (one per
+/// train descriptor; none without cross-check, but passing them is harmless).
+pub const fn scratch_len(n_train: usize) -> usize {
+    n_train
+}
+
+/// Most descriptors on either side (indices are `u16`).
+pub const MAX_DESCRIPTORS: usize = u16::MAX as usize;
+
+/// Matches `query` against `train` (module docs), writing the matches in query order into
+/// `out` and returning how many there are.
+///
+/// `out` must hold `query.len()` matches (the most there can be); `scratch` must hold
+/// [`scratch_len`]`(train.len())` words when `config.cross_check`.
+///
+/// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a side,
+/// a short `scratch`, or a NaN ratio; [`Error::LengthMismatch`] when `out` is shorter than
+/// `query`.
+pub fn match_descriptors(
+    query: &[Descriptor],
+    train: &[Descriptor],
+    config: &MatchConfig,
+    scratch: &mut [u32],
+    out: &mut [Match],
+) -> Result<usize> {
+    if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS || config.ratio.is_nan() {
+        return Err(Error::InvalidParameter);
+    }
+    if out.len() < query.len() {
+        return Err(Error::LengthMismatch);
+    }
+    let reverse: &mut [u32] = if config.cross_check {
+        let r = scratch
+            .get_mut(..scratch_len(train.len()))
+            .ok_or(Error::InvalidParameter)?;
+        r.fill(u32::MAX);
+        r
+    } else {
+        &mut []
+    };
+    let use_ratio = config.ratio < 1.0;
+    let mut n = 0usize;
+    for (i, q) in query.iter().enumerate() {
+        let (mut d1, mut d2, mut j1) = (u32::MAX, u32::MAX, 0usize);
+        for (j, t) in train.iter().enumerate() {
+            let d = hamming(q, t);
+            if d < d1 {
+                d2 = d1;
+                d1 = d;
+                j1 = j;
+            } else if d < d2 {
+                d2 = d;
+            }
+            // Reverse nearest query of j: (distance, index) packed, smallest wins.
+            if let Some(r) = reverse.get_mut(j) {
+                *r = (*r).min((d << 16) | i as u32);
+            }
+        }
+        if d1 == u32::MAX || d1 > u32::from(config.max_distance) {
+            continue;
+        }
+        if use_ratio && d2 != u32::MAX && (d1 as f32) >= config.ratio * d2 as f32 {
+            continue;
+        }
+        if let Some(slot) = out.get_mut(n) {
+            *slot = Match {
+                query: i as u16,
+                train: j1 as u16,
+                distance: d1 as u16,
+            };
+            n += 1;
+        }
+    }
+    if config.cross_check {
+        let mut kept = 0usize;
+        for k in 0..n {
+            let Some(m) = out.get(k).copied() else { break };
+            let mutual = reverse
+                .get(usize::from(m.train))
+                .is_some_and(|r| r & 0xffff == u32::from(m.query));
+            if mutual {
+                if let Some(slot) = out.get_mut(kept) {
+                    *slot = m;
+                }
+                kept += 1;
+            }
+        }
+        n = kept;
+    }
+    Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    fn random(n: usize, seed: u64) -> Vec<Descriptor> {
+        let mut g = crate::rng::Pcg32::new(seed);
+        (0..n)
+            .map(|_| Descriptor(core::array::from_fn(|_| g.next_u32())))
+            .collect()
+    }
+
+    fn flip(d: &Descriptor, bits: &[usize]) -> Descriptor {
+        let mut o = *d;
+        for &b in bits {
+            o.0[b / 32] ^= 1 << (b % 32);
+        }
+        o
+    }
+
+    /// The definition, written plainly.
+    fn reference(q: &[Descriptor], t: &[Descriptor], cfg: &MatchConfig) -> Vec<Match> {
+        let best = |d: &Descriptor, set: &[Descriptor]| -> (usize, u32, u32) {
+            let mut ds: Vec<(u32, usize)> = set
+                .iter()
+                .enumerate()
+                .map(|(j, s)| (hamming(d, s), j))
+                .collect();
+            ds.sort();
+            (ds[0].1, ds[0].0, ds.get(1).map_or(u32::MAX, |x| x.0))
+        };
+        let mut out = Vec::new();
+        for (i, d) in q.iter().enumerate() {
+            let (j, d1, d2) = best(d, t);
+            if d1 > u32::from(cfg.max_distance) {
+                continue;
+            }
+            if cfg.ratio < 1.0 && d2 != u32::MAX && d1 as f32 >= cfg.ratio * d2 as f32 {
+                continue;
+            }
+            if cfg.cross_check && best(&t[j], q).0 != i {
+                continue;
+            }
+            out.push(Match {
+                query: i as u16,
+                train: j as u16,
+                distance: d1 as u16,
+            });
+        }
+        out
+    }
+
+    #[test]
+    fn hamming_counts_bits() {
+        let a = Descriptor([0; 8]);
+        assert_eq!(hamming(&a, &a), 0);
+        assert_eq!(hamming(&a, &Descriptor([u32::MAX; 8])), 256);
+        assert_eq!(hamming(&a, &flip(&a, &[0, 31, 32, 255])), 4);
+    }
+
+    #[test]
+    fn agrees_with_the_definition() {
+        let train = random(60, 1);
+        // Half the queries are noisy copies of train descriptors, half are random.
+        let mut query: Vec<Descriptor> = train
+            .iter()
+            .step_by(2)
+            .enumerate()
+            .map(|(k, d)| flip(d, &[k, 40 + 3 * k, 200 - k]))
+            .collect();
+        query.extend(random(30, 2));
+        for cfg in [
+            MatchConfig::default(),
+            MatchConfig {
+                ratio: 1.0,
+                cross_check: false,
+                max_distance: 256,
+            },
+            MatchConfig {
+                ratio: 0.7,
+                cross_check: false,
+                max_distance: 256,
+            },
+            MatchConfig {
+                ratio: 1.0,
+                cross_check: true,
+                max_distance: 100,
+            },
+        ] {
+            let mut out = std::vec![Match::default(); query.len()];
+            let mut scratch = std::vec![0u32; scratch_len(train.len())];
+            let n = match_descriptors(&query, &train, &cfg, &mut scratch, &mut out).unwrap();
+            assert_eq!(out[..n], reference(&query, &train, &cfg)[..], "{cfg:?}");
+        }
+        // The noisy copies all match their original with the defaults.
+        let mut out = std::vec![Match::default(); query.len()];
+        let mut scratch = std::vec![0u32; train.len()];
+        let n = match_descriptors(
+            &query,
+            &train,
+            &MatchConfig::default(),
+            &mut scratch,
+            &mut out,
+        )
+        .unwrap();
+        assert_eq!(n, 30);
+        assert!(
+            out[..n]
+                .iter()
+                .all(|m| usize::from(m.train) == 2 * usize::from(m.query) && m.distance == 3)
+        );
+    }
+
+    #[test]
+    fn edge_cases() {
+        let d = random(3, 5);
+        let mut out = [Match::default(); 3];
+        let mut s = [0u32; 3];
+        // Empty sides.
+        assert_eq!(
+            match_descriptors(&[], &d, &MatchConfig::default(), &mut s, &mut out),
+            Ok(0)
+        );
+        assert_eq!(
+            match_descriptors(&d, &[], &MatchConfig::default(), &mut s, &mut out),
+            Ok(0)
+        );
+        // One train descriptor: the ratio test is skipped.
+        let cfg = MatchConfig {
+            cross_check: false,
+            ..Default::default()
+        };
+        assert_eq!(
+            match_descriptors(&d, &d[..1], &cfg, &mut s, &mut out),
+            Ok(3)
+        );
+        // Errors.
+        assert_eq!(
+            match_descriptors(&d, &d, &MatchConfig::default(), &mut s, &mut out[..2]),
+            Err(Error::LengthMismatch)
+        );
+        assert_eq!(
+            match_descriptors(&d, &d, &MatchConfig::default(), &mut s[..2], &mut out),
+            Err(Error::InvalidParameter)
+        );
+        let nan = MatchConfig {
+            ratio: f32::NAN,
+            ..Default::default()
+        };
+        assert_eq!(
+            match_descriptors(&d, &d, &nan, &mut s, &mut out),
+            Err(Error::InvalidParameter)
+        );
+    }
+}

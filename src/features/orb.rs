@@ -1,0 +1,618 @@
+//! ORB features (Rublee, Rabaud, Konolige and Bradski, "ORB: an efficient alternative to SIFT
+//! or SURF", ICCV 2011): FAST corners ranked by their Harris response on every level of a
+//! Gaussian pyramid, an orientation from the intensity centroid, and a 256-bit BRIEF descriptor
+//! steered by that orientation.
+//!
+//! Per pyramid level `l` (level 0 is the frame; level `l + 1` is level `l` shrunk by the scale
+//! step `s`: bilinearly for OpenCV's `s = 1.2`, or by the Gaussian [`crate::pyramid`] for
+//! `s = 2`):
+//!
+//! 1. FAST-9 corners with non-maximum suppression ([`super::fast`]) at least `border` pixels
+//!    from the level's edge; each is ranked by its integer Harris response and the best
+//!    `quota_l` are kept (a bounded min-heap in the output vector). The quotas split
+//!    `max_features` in proportion `s⁻ˡ` (OpenCV's split); what a level does not use passes to
+//!    the next.
+//! 2. Orientation `θ = atan2(m₀₁, m₁₀)`, `m_pq = Σ xᵖ yq I(x, y)` over the disc of radius 15
+//!    ([`PATCH_RADIUS`]) around the corner, on the unsmoothed level (OpenCV's `ICAngles`).
+//! 3. The level is smoothed by a 7-tap Gaussian `[9 17 24 28 24 17 9] / 128` (σ ≈ 2, as
+//!    OpenCV's 7x7 σ = 2 blur) in both directions, and bit `i` of the descriptor is
+//!    `S(R_θ pᵢ) < S(R_θ qᵢ)` for the `i`-th pair of [`PATTERN`], rotated by `θ` (Q14 sine and
+//!    cosine, offsets rounded to the nearest pixel).
+//!
+//! Keypoint coordinates are mapped to level 0 through the pixel-centre-aligned maps of the
+//! reductions: `x_prev = (x + ½) w_prev / w - ½` for the bilinear levels, `x_prev = 2x` for the
+//! Gaussian pyramid (whose output pixel `x` is centred on input pixel `2x`).
+//!
+//! The sampling pattern is this crate's own, not the learned pattern of the paper: 256 pairs of
+//! points drawn from an isotropic Gaussian of σ = 31/5 px (BRIEF's "G II" sampling for a 31-px
+//! patch), each point rounded to the pixel grid and kept only inside the disc of radius
+//! [`PATTERN_RADIUS`] (so every rotation stays inside the smoothed patch), pairs of equal
+//! points rejected. The generator is SplitMix64 seeded with [`PATTERN_SEED`]; the Gaussian is
+//! the sum of twelve 16-bit uniforms (Irwin-Hall, variance 1 after centring). It is evaluated
+//! at compile time: the pattern is the same on every target and in every build.
+//!
+//! Memory: [`scratch_len`] bytes of caller scratch (levels 1 and 2, which odd and even levels
+//! reuse in turn, one smoothed level, three rows of FAST scores): 2.2 frames for `s = 1.2`. Work: bounded by the pixel count of the pyramid (FAST and
+//! smoothing) plus, per FAST corner, one 7x7 Harris sum, plus per kept feature a 31x31 centroid
+//! and 512 samples.
+
+use heapless::Vec;
+
+use super::fast::{self, Corner, FastConfig, harris_response};
+use super::matching::Descriptor;
+use super::offer_best;
+use crate::image::{ImageMut, ImageView};
+use crate::pyramid;
+use crate::resize::resize_bilinear;
+use crate::{Error, Result};
+
+/// Radius of the orientation disc (ORB's 31-pixel patch).
+pub const PATCH_RADIUS: usize = 15;
+/// Radius of the disc holding every point of [`PATTERN`].
+pub const PATTERN_RADIUS: i32 = 13;
+/// Smallest distance of a keypoint to its level's border: the orientation disc fits, and so do
+/// the rotated pattern points.
+pub const MIN_BORDER: u16 = PATCH_RADIUS as u16 + 1;
+/// Seed of the SplitMix64 generator that draws [`PATTERN`].
+pub const PATTERN_SEED: u64 = 0x0c47_6e0b_2024_0001;
+
+/// Half-widths of the orientation disc per row offset `|v|` (OpenCV's symmetric `umax`).
+const UMAX: [i32; PATCH_RADIUS + 1] = [15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 11, 10, 9, 8, 6, 3];
+
+/// The 7 smoothing taps, summing to 128.
+const BLUR: [u32; 7] = [9, 17, 24, 28, 24, 17, 9];
+/// Output pixels per tile of the horizontal smoothing pass.
+const TILE: usize = 64;
+
+const fn splitmix64(state: &mut u64) -> u64 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// One Gaussian coordinate of σ = 31/5, rounded to the nearest integer.
+const fn gaussian_coordinate(state: &mut u64) -> i32 {
+    // Twelve 16-bit uniforms: mean 6 · 2¹⁶ (minus the half-step), variance ≈ 2³².
+    let mut sum: i64 = 0;
+    let mut k = 0;
+    while k < 3 {
+        let r = splitmix64(state);
+        sum += ((r & 0xffff) + ((r >> 16) & 0xffff) + ((r >> 32) & 0xffff) + (r >> 48)) as i64;
+        k += 1;
+    }
+    let centred = 2 * sum - 12 * 65535; // 2 (sum - 6 · 65535 / 2): N(0, (2¹⁷)²)
+    let num = centred * 31;
+    let den = 5 * 131_072;
+    // Round half away from zero.
+    (if num >= 0 {
+        (num + den / 2) / den
+    } else {
+        (num - den / 2) / den
+    }) as i32
+}
+
+// `n < 256` is the loop condition: the one index cannot miss (and a miss would be a
+// compile-time error, the function only runs in const evaluation).
+#[allow(clippy::indexing_slicing)]
+const fn make_pattern() -> [[i8; 4]; 256] {
+    let mut out = [[0i8; 4]; 256];
+    let mut state = PATTERN_SEED;
+    let r2 = PATTERN_RADIUS * PATTERN_RADIUS;
+    let mut n = 0;
+    while n < 256 {
+        let x1 = gaussian_coordinate(&mut state);
+        let y1 = gaussian_coordinate(&mut state);
+        let x2 = gaussian_coordinate(&mut state);
+        let y2 = gaussian_coordinate(&mut state);
+        if x1 * x1 + y1 * y1 <= r2 && x2 * x2 + y2 * y2 <= r2 && (x1 != x2 || y1 != y2) {
+            out[n] = [x1 as i8, y1 as i8, x2 as i8, y2 as i8];
+            n += 1;
+        }
+    }
+    out
+}
+
+/// The 256 BRIEF test pairs `[x₁, y₁, x₂, y₂]` (pixels, relative to the keypoint, y down); see
+/// the module docs for how they are drawn.
+pub const PATTERN: [[i8; 4]; 256] = make_pattern();
+
+/// Parameters of [`orb_detect`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OrbConfig {
+    /// Features to keep over all levels (further capped by the output capacity). Default 500.
+    pub max_features: u16,
+    /// Pyramid levels, 1 to [`MAX_LEVELS`]. Default 8 (OpenCV's `nlevels`).
+    pub levels: u8,
+    /// Scale step between levels in Q8, `s = scale_q8 / 256`, in `272..=512` (1.0625 to 2).
+    /// Default 307 (1.199, OpenCV's `scaleFactor` 1.2): each level is the previous one resized
+    /// bilinearly ([`crate::resize`]). 512 selects the Gaussian pyramid
+    /// ([`crate::pyramid::pyr_down`], smoothed, 1/3 of the memory of the default).
+    pub scale_q8: u16,
+    /// FAST threshold. Default 20 (OpenCV's `fastThreshold`).
+    pub fast_threshold: u8,
+    /// Distance of keypoints to the border of their level, raised to [`MIN_BORDER`].
+    /// Default [`MIN_BORDER`] (OpenCV's `edgeThreshold` is 31).
+    pub border: u16,
+}
+
+impl Default for OrbConfig {
+    fn default() -> Self {
+        Self {
+            max_features: 500,
+            levels: 8,
+            scale_q8: 307,
+            fast_threshold: 20,
+            border: MIN_BORDER,
+        }
+    }
+}
+
+/// Most pyramid levels.
+pub const MAX_LEVELS: usize = 12;
+
+/// An oriented keypoint.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Keypoint {
+    /// Column in level-0 pixels: `x₀ = a x_l + b` for the level's pixel-centre-aligned map
+    /// (`a = 2ˡ`, `b = 0` for the Gaussian pyramid).
+    pub x: f32,
+    /// Row in level-0 pixels.
+    pub y: f32,
+    /// Pyramid level it was detected on.
+    pub level: u8,
+    /// Level-0 pixels per pixel of its level (`≈ sˡ`): its patch covers `31 scale` pixels.
+    pub scale: f32,
+    /// Orientation `θ = atan2(m₀₁, m₁₀)` in radians, `(-π, π]`, y down (clockwise on screen).
+    pub angle: f32,
+    /// Harris response ([`super::fast::harris_response`]) on its level.
+    pub response: i64,
+    /// FAST score on its level.
+    pub score: u8,
+}
+
+/// A keypoint with its descriptor.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Feature {
+    /// Where.
+    pub keypoint: Keypoint,
+    /// Steered BRIEF bits: bit `i` (word `i / 32`, bit `i % 32`) is test `i` of [`PATTERN`].
+    pub descriptor: Descriptor,
+}
+
+/// Size of level `level` for scale step `scale_q8`: each level is
+/// `(⌈256 w / scale_q8⌉, ⌈256 h / scale_q8⌉)` of the previous one (so `(⌈w/2⌉, ⌈h/2⌉)` for
+/// 512, as [`crate::pyramid::down_size`]).
+pub const fn level_size(
+    width: usize,
+    height: usize,
+    scale_q8: u16,
+    level: usize,
+) -> (usize, usize) {
+    let (mut w, mut h, mut l) = (width, height, 0);
+    let q = if scale_q8 == 0 { 1 } else { scale_q8 as usize };
+    while l < level {
+        w = (w * 256).div_ceil(q);
+        h = (h * 256).div_ceil(q);
+        l += 1;
+    }
+    (w, h)
+}
+
+/// Bytes of scratch [`orb_detect`] needs for a `width x height` frame and scale step
+/// `scale_q8` (any number of levels): levels 1 and 2 (odd and even levels take turns in
+/// them), one smoothed frame and three rows of FAST scores:
+/// `|level 1| + |level 2| + width height + 3 width`.
+pub const fn scratch_len(width: usize, height: usize, scale_q8: u16) -> usize {
+    let (w1, h1) = level_size(width, height, scale_q8, 1);
+    let (w2, h2) = level_size(width, height, scale_q8, 2);
+    w1 * h1 + w2 * h2 + width * height + fast::scratch_len(width)
+}
+
+/// Level-`l` pixel `x` is level-0 pixel `a x + b` (per axis).
+#[derive(Debug, Clone, Copy)]
+struct LevelMap {
+    ax: f32,
+    bx: f32,
+    ay: f32,
+    by: f32,
+}
+
+impl LevelMap {
+    /// The map of the next level, reduced from `prev` to `cur` pixels by `pyr_down` (`gauss`)
+    /// or by [`resize_bilinear`] (`x_prev = (x + ½) prev / cur - ½`).
+    fn next(self, gauss: bool, prev: (usize, usize), cur: (usize, usize)) -> Self {
+        if gauss {
+            return Self {
+                ax: 2.0 * self.ax,
+                ay: 2.0 * self.ay,
+                ..self
+            };
+        }
+        let rx = prev.0 as f32 / cur.0 as f32;
+        let ry = prev.1 as f32 / cur.1 as f32;
+        Self {
+            ax: self.ax * rx,
+            bx: self.ax * (0.5 * rx - 0.5) + self.bx,
+            ay: self.ay * ry,
+            by: self.ay * (0.5 * ry - 0.5) + self.by,
+        }
+    }
+}
+
+/// ORB features of `frame` into `out` (cleared first), strongest Harris response first.
+///
+/// `scratch` must hold [`scratch_len`]`(width, height, config.scale_q8)` bytes. At most
+/// `min(config.max_features, N)` features; levels get shares in proportion `s⁻ˡ` (OpenCV's
+/// split), what a level does not fill passes to the next.
+///
+/// Errors: [`Error::InvalidParameter`] for `levels` outside `1..=MAX_LEVELS`, `scale_q8`
+/// outside `272..=512`, a zero FAST threshold or a short `scratch`.
+pub fn orb_detect<const N: usize>(
+    frame: &ImageView<'_, u8>,
+    config: &OrbConfig,
+    scratch: &mut [u8],
+    out: &mut Vec<Feature, N>,
+) -> Result<()> {
+    out.clear();
+    let levels = usize::from(config.levels);
+    let q = config.scale_q8;
+    if levels == 0 || levels > MAX_LEVELS || config.fast_threshold == 0 || !(272..=512).contains(&q)
+    {
+        return Err(Error::InvalidParameter);
+    }
+    let (w, h) = (frame.width(), frame.height());
+    if scratch.len() < scratch_len(w, h, q) {
+        return Err(Error::InvalidParameter);
+    }
+    let gauss = q == 512;
+    let (w1, h1) = level_size(w, h, q, 1);
+    let (w2, h2) = level_size(w, h, q, 2);
+    let (buf_odd, rest) = scratch.split_at_mut(w1 * h1);
+    let (buf_even, rest) = rest.split_at_mut(w2 * h2);
+    let (blur_buf, fast_buf) = rest.split_at_mut(w * h);
+    let fast_config = FastConfig {
+        threshold: config.fast_threshold,
+        nonmax: true,
+        border: config.border.max(MIN_BORDER),
+    };
+    // Level shares in proportion (256/q)^l, as Q16 weights.
+    let mut weights = [0u64; MAX_LEVELS];
+    let mut wl = 1u64 << 16;
+    for weight in weights.iter_mut().take(levels) {
+        *weight = wl.max(1);
+        wl = wl * 256 / u64::from(q);
+    }
+    let mut weight_left: u64 = weights.iter().sum();
+    let mut budget = usize::from(config.max_features).min(N);
+    let mut map = LevelMap {
+        ax: 1.0,
+        bx: 0.0,
+        ay: 1.0,
+        by: 0.0,
+    };
+    let mut size = (w, h);
+    for l in 0..levels {
+        // Level l: the frame, or the previous level reduced into the buffer of its parity.
+        let level = if l == 0 {
+            *frame
+        } else {
+            let cur = level_size(size.0, size.1, q, 1);
+            let (src, dst): (&[u8], &mut [u8]) = if l % 2 == 1 {
+                (if l == 1 { &[] } else { &*buf_even }, &mut *buf_odd)
+            } else {
+                (&*buf_odd, &mut *buf_even)
+            };
+            let prev = if l == 1 {
+                *frame
+            } else {
+                ImageView::packed(src, size.0, size.1)?
+            };
+            let dst = dst
+                .get_mut(..cur.0 * cur.1)
+                .ok_or(Error::InvalidParameter)?;
+            let mut dst_img = ImageMut::packed(dst, cur.0, cur.1)?;
+            if gauss {
+                pyramid::pyr_down(&prev, &mut dst_img)?;
+            } else {
+                resize_bilinear(&prev, &mut dst_img)?;
+            }
+            map = map.next(gauss, size, cur);
+            size = cur;
+            // Re-borrow the finished level immutably.
+            let done: &[u8] = if l % 2 == 1 { &*buf_odd } else { &*buf_even };
+            ImageView::packed(done.get(..cur.0 * cur.1).unwrap_or(&[]), cur.0, cur.1)?
+        };
+        let weight = weights.get(l).copied().unwrap_or(1);
+        let quota = if l + 1 == levels {
+            budget
+        } else {
+            ((budget as u64 * weight + weight_left / 2) / weight_left.max(1)) as usize
+        };
+        weight_left = weight_left.saturating_sub(weight);
+        let start = out.len();
+        while out.len() < start + quota && out.push(Feature::default()).is_ok() {}
+        let heap = out.get_mut(start..).unwrap_or(&mut []);
+        let mut kept = 0usize;
+        fast::fast_detect(&level, &fast_config, fast_buf, |c: Corner| {
+            let (x, y) = (usize::from(c.x), usize::from(c.y));
+            if let Some(response) = harris_response(&level, x, y) {
+                let keypoint = Keypoint {
+                    x: f32::from(c.x),
+                    y: f32::from(c.y),
+                    level: l as u8,
+                    scale: map.ax,
+                    angle: 0.0,
+                    response,
+                    score: c.score,
+                };
+                let f = Feature {
+                    keypoint,
+                    descriptor: Descriptor::default(),
+                };
+                offer_best(heap, &mut kept, f, |f| f.keypoint.response);
+            }
+        })?;
+        out.truncate(start + kept);
+        budget -= kept.min(budget);
+        if kept == 0 {
+            continue;
+        }
+        let (lw, lh) = (level.width(), level.height());
+        let blur_slice = blur_buf.get_mut(..lw * lh).ok_or(Error::InvalidParameter)?;
+        smooth(&level, &mut ImageMut::packed(blur_slice, lw, lh)?)?;
+        let smoothed = ImageView::packed(blur_slice, lw, lh)?;
+        for f in out.get_mut(start..).unwrap_or(&mut []) {
+            let (x, y) = (f.keypoint.x as usize, f.keypoint.y as usize);
+            let angle = orientation(&level, x, y);
+            f.keypoint.angle = angle;
+            f.descriptor = steered_brief(&smoothed, x, y, angle);
+            f.keypoint.x = map.ax * f.keypoint.x + map.bx;
+            f.keypoint.y = map.ay * f.keypoint.y + map.by;
+        }
+    }
+    out.sort_unstable_by_key(|f| core::cmp::Reverse(f.keypoint.response));
+    Ok(())
+}
+
+/// `atan2(m₀₁, m₁₀)` over the disc of radius [`PATCH_RADIUS`] around `(x, y)`; pixels outside
+/// the image count as 0 (they never are for keypoints at least [`MIN_BORDER`] inside).
+pub fn orientation(img: &ImageView<'_, u8>, x: usize, y: usize) -> f32 {
+    let (mut m01, mut m10) = (0i32, 0i32);
+    for (dv, &umax) in (-(PATCH_RADIUS as i32)..=PATCH_RADIUS as i32)
+        .zip(UMAX.iter().rev().chain(UMAX.iter().skip(1)))
+    {
+        let Some(row) = img.row(y.wrapping_add_signed(dv as isize)) else {
+            continue;
+        };
+        let (mut sum, mut moment) = (0i32, 0i32);
+        for du in -umax..=umax {
+            let p = i32::from(
+                row.get(x.wrapping_add_signed(du as isize))
+                    .copied()
+                    .unwrap_or(0),
+            );
+            sum += p;
+            moment += du * p;
+        }
+        m10 += moment;
+        m01 += dv * sum;
+    }
+    libm::atan2f(m01 as f32, m10 as f32)
+}
+
+/// The steered BRIEF descriptor at `(x, y)` of the smoothed level for orientation `angle`.
+pub fn steered_brief(smoothed: &ImageView<'_, u8>, x: usize, y: usize, angle: f32) -> Descriptor {
+    let (s, c) = libm::sincosf(angle);
+    let (sq, cq) = (
+        libm::roundf(s * 16384.0) as i32,
+        libm::roundf(c * 16384.0) as i32,
+    );
+    let sample = |px: i8, py: i8| -> u8 {
+        let (px, py) = (i32::from(px), i32::from(py));
+        let rx = (px * cq - py * sq + 8192) >> 14;
+        let ry = (px * sq + py * cq + 8192) >> 14;
+        smoothed
+            .get(
+                x.wrapping_add_signed(rx as isize),
+                y.wrapping_add_signed(ry as isize),
+            )
+            .unwrap_or(0)
+    };
+    let mut bits = [0u32; 8];
+    for (i, [x1, y1, x2, y2]) in PATTERN.iter().copied().enumerate() {
+        if sample(x1, y1) < sample(x2, y2)
+            && let Some(word) = bits.get_mut(i / 32)
+        {
+            *word |= 1 << (i % 32);
+        }
+    }
+    Descriptor(bits)
+}
+
+/// Separable smoothing with the taps `BLUR` / 128 in x and y, borders replicated. `dst`
+/// must have `src`'s size.
+pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
+    let (w, h) = (src.width(), src.height());
+    if (dst.width(), dst.height()) != (w, h) {
+        return Err(Error::InvalidImage);
+    }
+    let mut vs = [0u16; TILE + 6];
+    for y in 0..h {
+        let rows: [&[u8]; 7] =
+            core::array::from_fn(|j| src.row_clamped(y as isize + j as isize - 3));
+        let Some(out) = dst.row_mut(y) else { break };
+        for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
+            let first = (tile * TILE) as isize - 3;
+            for (k, v) in vs.iter_mut().take(out_tile.len() + 6).enumerate() {
+                let col = (first + k as isize).clamp(0, w as isize - 1) as usize;
+                let s: u32 = rows
+                    .iter()
+                    .zip(BLUR)
+                    .map(|(r, g)| g * u32::from(r.get(col).copied().unwrap_or(0)))
+                    .sum();
+                // s <= 128 · 255 fits u16.
+                *v = s as u16;
+            }
+            for (i, o) in out_tile.iter_mut().enumerate() {
+                let s: u32 = vs
+                    .iter()
+                    .skip(i)
+                    .zip(BLUR)
+                    .map(|(v, g)| g * u32::from(*v))
+                    .sum();
+                // s <= 128² · 255: the rounded quotient fits u8.
+                *o = ((s + 8192) >> 14) as u8;
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::features::hamming;
+
+    #[test]
+    fn pattern_is_inside_the_disc_and_varied() {
+        let r2 = PATTERN_RADIUS * PATTERN_RADIUS;
+        let mut sum = [0i64; 2];
+        let mut sq = 0i64;
+        for p in PATTERN {
+            let [x1, y1, x2, y2] = p.map(i32::from);
+            assert!(x1 * x1 + y1 * y1 <= r2 && x2 * x2 + y2 * y2 <= r2);
+            assert!((x1, y1) != (x2, y2));
+            sum[0] += i64::from(x1 + x2);
+            sum[1] += i64::from(y1 + y2);
+            sq += i64::from(x1 * x1 + y1 * y1 + x2 * x2 + y2 * y2);
+        }
+        // Centred, with a spread close to σ = 6.2 (truncated to the disc).
+        assert!(sum[0].abs() < 400 && sum[1].abs() < 400, "{sum:?}"); // ~3σ of a sum of 512
+        let sigma = (sq as f64 / (2.0 * 512.0)).sqrt();
+        assert!((4.5..6.5).contains(&sigma), "{sigma}");
+        let distinct: std::collections::BTreeSet<[i8; 4]> = PATTERN.iter().copied().collect();
+        assert!(distinct.len() > 250);
+    }
+
+    #[test]
+    fn smoothing_keeps_constants_and_matches_the_taps() {
+        let data = [77u8; 100 * 9];
+        let mut out = [0u8; 100 * 9];
+        let img = ImageView::packed(&data, 100, 9).unwrap();
+        smooth(&img, &mut ImageMut::packed(&mut out, 100, 9).unwrap()).unwrap();
+        assert!(out.iter().all(|&v| v == 77));
+        // An impulse gives the outer product of the taps.
+        let mut imp = [0u8; 150 * 15];
+        imp[7 * 150 + 70] = 255;
+        let img = ImageView::packed(&imp, 150, 15).unwrap();
+        let mut out = [0u8; 150 * 15];
+        smooth(&img, &mut ImageMut::packed(&mut out, 150, 15).unwrap()).unwrap();
+        for dy in 0..7 {
+            for dx in 0..7 {
+                let want = (255 * BLUR[dy] * BLUR[dx] + 8192) >> 14;
+                assert_eq!(u32::from(out[(4 + dy) * 150 + 67 + dx]), want);
+            }
+        }
+    }
+
+    fn textured(w: usize, h: usize) -> std::vec::Vec<u8> {
+        let mut s = 99u32;
+        let mut blobs = std::vec::Vec::new();
+        for _ in 0..60 {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let cx = (s >> 8) as usize % w;
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            let cy = (s >> 8) as usize % h;
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            blobs.push((cx, cy, 4 + (s >> 8) as usize % 12, (s >> 24) as u8));
+        }
+        let mut img = std::vec![90u8; w * h];
+        for (cx, cy, r, v) in blobs {
+            for y in cy.saturating_sub(r)..(cy + r).min(h) {
+                for x in cx.saturating_sub(r)..(cx + r).min(w) {
+                    img[y * w + x] = v;
+                }
+            }
+        }
+        img
+    }
+
+    #[test]
+    fn detects_sorted_features_inside_the_border() {
+        let (w, h) = (200, 160);
+        let data = textured(w, h);
+        let img = ImageView::packed(&data, w, h).unwrap();
+        let cfg = OrbConfig {
+            max_features: 100,
+            ..Default::default()
+        };
+        let mut scratch = std::vec![0u8; scratch_len(w, h, cfg.scale_q8)];
+        let mut out: Vec<Feature, 128> = Vec::new();
+        orb_detect(&img, &cfg, &mut scratch, &mut out).unwrap();
+        assert!(out.len() > 30 && out.len() <= 100, "{}", out.len());
+        assert!(
+            out.windows(2)
+                .all(|p| p[0].keypoint.response >= p[1].keypoint.response)
+        );
+        for f in &out {
+            let k = f.keypoint;
+            let b = f32::from(MIN_BORDER) * k.scale - k.scale;
+            assert!(
+                k.x >= b && k.y >= b && k.x < w as f32 - b && k.y < h as f32 - b,
+                "{k:?}"
+            );
+            assert!(k.angle.abs() <= core::f32::consts::PI);
+        }
+        // The capacity caps the count.
+        let mut small: Vec<Feature, 10> = Vec::new();
+        orb_detect(&img, &cfg, &mut scratch, &mut small).unwrap();
+        assert_eq!(small.len(), 10);
+        // Errors.
+        let bad = OrbConfig { levels: 0, ..cfg };
+        assert_eq!(
+            orb_detect(&img, &bad, &mut scratch, &mut out),
+            Err(Error::InvalidParameter)
+        );
+        assert_eq!(
+            orb_detect(&img, &cfg, &mut scratch[..100], &mut out),
+            Err(Error::InvalidParameter)
+        );
+    }
+
+    #[test]
+    fn descriptor_is_rotation_invariant_for_a_rotated_patch() {
+        // Rotating the image by 90° (exact, no resampling) should rotate the angle by 90° and
+        // keep the descriptor close.
+        let n = 64;
+        let data = textured(n, n);
+        let mut rot = std::vec![0u8; n * n];
+        for y in 0..n {
+            for x in 0..n {
+                // (x, y) -> (n - 1 - y, x): a 90° clockwise turn on screen (y down).
+                rot[x * n + (n - 1 - y)] = data[y * n + x];
+            }
+        }
+        let a = ImageView::packed(&data, n, n).unwrap();
+        let b = ImageView::packed(&rot, n, n).unwrap();
+        let (mut sa, mut sb) = ([0u8; 64 * 64], [0u8; 64 * 64]);
+        smooth(&a, &mut ImageMut::packed(&mut sa, n, n).unwrap()).unwrap();
+        smooth(&b, &mut ImageMut::packed(&mut sb, n, n).unwrap()).unwrap();
+        let (x, y) = (30, 33);
+        let (xr, yr) = (n - 1 - y, x);
+        let ta = orientation(&a, x, y);
+        let tb = orientation(&b, xr, yr);
+        let diff = libm::remainderf(
+            tb - ta - core::f32::consts::FRAC_PI_2,
+            2.0 * core::f32::consts::PI,
+        );
+        assert!(diff.abs() < 1e-4, "{ta} {tb}");
+        let da = steered_brief(&ImageView::packed(&sa, n, n).unwrap(), x, y, ta);
+        let db = steered_brief(&ImageView::packed(&sb, n, n).unwrap(), xr, yr, tb);
+        assert!(hamming(&da, &db) < 40, "{}", hamming(&da, &db));
+    }
+}

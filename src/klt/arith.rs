@@ -1,0 +1,491 @@
+//! The two arithmetic paths of the tracker: [`Fixed`] (Q16.16 points, integer solve) and `f32`.
+//!
+//! Both share the integer inner loops (14-bit bilinear weights, `i16` patches and derivatives,
+//! `i64` sums); they differ in how a point is represented, how the bilinear weights are derived
+//! from it, and how the 2x2 system `G δ = -b` is solved.
+
+use super::{FlowStatus, LkConfig};
+
+/// Bits of the bilinear weights: `w00 + w01 + w10 + w11 = 2¹⁴`.
+pub const W_BITS: u32 = 14;
+/// One in Q16.16.
+pub const Q16: i32 = 1 << 16;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Fixed {}
+    impl Sealed for f32 {}
+}
+
+/// Marker type of the fixed-point path: coordinates are Q16.16 `i32` (`x_px = c / 2¹⁶`), the
+/// 2x2 solve and every threshold are integers. For cores without an FPU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Fixed;
+
+impl Fixed {
+    /// `round(v · 2¹⁶)`, saturated (host-side conversion helper).
+    pub fn from_f32(v: f32) -> i32 {
+        let s = v * Q16 as f32;
+        if s.is_nan() {
+            0
+        } else {
+            // `as` saturates.
+            libm::roundf(s) as i32
+        }
+    }
+    /// `c / 2¹⁶`.
+    pub fn to_f32(c: i32) -> f32 {
+        c as f32 / Q16 as f32
+    }
+}
+
+/// Bilinear weights of a sub-pixel position: integer corner `(x, y)` and
+/// `[w00, w01, w10, w11]` summing to `2¹⁴` (`w01` is the right neighbour, `w10` the one below).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Bilinear {
+    /// `⌊x⌋`.
+    pub x: i32,
+    /// `⌊y⌋`.
+    pub y: i32,
+    /// The four weights, Q14.
+    pub w: [i32; 4],
+}
+
+/// The arithmetic of one tracking path (sealed: implemented for [`Fixed`] and `f32`).
+pub trait FlowArith: sealed::Sealed {
+    /// A point coordinate.
+    type Coord: Copy + PartialEq + core::fmt::Debug + Default;
+    /// Per-call constants derived from the [`LkConfig`] (thresholds in this path's units).
+    type Params: Copy;
+    /// The inverted gradient matrix of one window.
+    type Gram: Copy;
+
+    /// Prepares the thresholds of `cfg` for windows of `area` pixels.
+    fn params(cfg: &LkConfig, area: u32) -> Self::Params;
+    /// `v` as a coordinate (`v` pixels, may be fractional: `(win - 1) / 2`).
+    fn from_half_px(halves: i32) -> Self::Coord;
+    /// `a + b`.
+    fn add(a: Self::Coord, b: Self::Coord) -> Self::Coord;
+    /// `a - b`.
+    fn sub(a: Self::Coord, b: Self::Coord) -> Self::Coord;
+    /// `c / 2^level`.
+    fn down(c: Self::Coord, level: u32) -> Self::Coord;
+    /// `2 c`.
+    fn twice(c: Self::Coord) -> Self::Coord;
+    /// `c / 2`.
+    fn half(c: Self::Coord) -> Self::Coord;
+    /// Integer corner and bilinear weights of `(x, y)`; `None` when not finite or far out of
+    /// range.
+    fn bilinear(x: Self::Coord, y: Self::Coord) -> Option<Bilinear>;
+    /// Inverts the gradient matrix `G = [a11 a12; a12 a22]` (sums of `Ix Iy` products, `Ix` in
+    /// Scharr units), or rejects the window: [`FlowStatus::SmallEigenvalue`] when
+    /// `λ_min(G) / (2²⁰ area) < min_eigenvalue` or `det G / 2⁴⁰ < 2⁻²³` (OpenCV's tests).
+    fn gram(a11: i64, a12: i64, a22: i64, p: &Self::Params) -> Result<Self::Gram, FlowStatus>;
+    /// The update `δ = -G⁻¹ b`.
+    fn step(g: &Self::Gram, b1: i64, b2: i64) -> [Self::Coord; 2];
+    /// `|δ|² <= ε²`.
+    fn converged(d: [Self::Coord; 2], p: &Self::Params) -> bool;
+    /// `|δ + δ_prev| < 0.01` in both coordinates (the iteration oscillates).
+    fn oscillates(d: [Self::Coord; 2], prev: [Self::Coord; 2]) -> bool;
+    /// The error measure `Σ |J - I| / (32 area)` (mean absolute difference, grey levels) from
+    /// the sum in `1/32` grey levels.
+    fn error(sum_abs: u64, area: u32) -> Self::Coord;
+    /// `|a - b|² > t²` with `t` the forward-backward threshold of the parameters.
+    fn beyond(a: [Self::Coord; 2], b: [Self::Coord; 2], p: &Self::Params) -> bool;
+    /// The coordinate in pixels (reporting).
+    fn to_f32(c: Self::Coord) -> f32;
+    /// A pixel position as a coordinate.
+    fn from_px(v: i32) -> Self::Coord;
+    /// `⌊c + 1/2⌋`, saturated (nearest pixel).
+    fn round(c: Self::Coord) -> i32;
+}
+
+/// `round(n · 2^shift / d)` for `d > 0`, with at least 31 significant bits, saturated to
+/// `±limit`. Integer only (one `u64` division).
+fn mul_div_pow2(n: i64, shift: i32, d: i64, limit: i64) -> i64 {
+    if n == 0 || d <= 0 {
+        return 0;
+    }
+    let an = n.unsigned_abs();
+    let lz = an.leading_zeros() as i32;
+    let nn = an << lz; // in [2⁶³, 2⁶⁴)
+    let ud = d as u64;
+    let rd = (64 - ud.leading_zeros() as i32 - 32).max(0);
+    let dn = (ud >> rd).max(1); // < 2³²
+    let q = nn / dn; // >= 2³¹
+    let e = shift - lz - rd;
+    let mag: u64 = if e >= 0 {
+        if e >= 63 || q > (u64::MAX >> e) {
+            u64::MAX
+        } else {
+            q << e
+        }
+    } else if -e >= 64 {
+        0
+    } else {
+        let s = (-e) as u32;
+        (q >> s) + ((q >> (s - 1)) & 1)
+    };
+    let mag = mag.min(limit as u64) as i64;
+    if n < 0 { -mag } else { mag }
+}
+
+/// `⌊√v⌋`, bit by bit (32 rounds).
+fn isqrt(v: u64) -> u64 {
+    let mut rem = v;
+    let mut root = 0u64;
+    let mut bit = 1u64 << 62;
+    while bit > rem {
+        bit >>= 2;
+    }
+    while bit != 0 {
+        if rem >= root + bit {
+            rem -= root + bit;
+            root = (root >> 1) + bit;
+        } else {
+            root >>= 1;
+        }
+        bit >>= 2;
+    }
+    root
+}
+
+fn bit_len(v: u64) -> u32 {
+    64 - v.leading_zeros()
+}
+
+/// Largest step accepted in one iteration (Q16: 2¹² px), so points cannot overflow.
+const MAX_STEP_Q16: i64 = 1 << 28;
+
+/// Thresholds of the fixed path.
+#[derive(Debug, Clone, Copy)]
+pub struct FixedParams {
+    /// `min_eigenvalue · 2²⁰ · area`.
+    min_eig: u64,
+    /// `ε² · 2³²`.
+    eps2: i64,
+    /// `(fb threshold)² · 2³²`.
+    fb2: i64,
+}
+
+/// `G` normalised by `2^s` (entries below 2³⁰) with its determinant.
+#[derive(Debug, Clone, Copy)]
+pub struct FixedGram {
+    a11: i64,
+    a12: i64,
+    a22: i64,
+    det: i64,
+    shift: i32,
+}
+
+impl FlowArith for Fixed {
+    type Coord = i32;
+    type Params = FixedParams;
+    type Gram = FixedGram;
+
+    fn params(cfg: &LkConfig, area: u32) -> FixedParams {
+        let sq = |v: f32| {
+            let q = f64::from(v) * f64::from(Q16);
+            (q * q).min(i64::MAX as f64) as i64
+        };
+        FixedParams {
+            min_eig: (f64::from(cfg.min_eigenvalue.max(0.0))
+                * (1u64 << 20) as f64
+                * f64::from(area)) as u64,
+            eps2: sq(cfg.epsilon.clamp(0.0, 10.0)),
+            fb2: cfg.fb_threshold.map_or(i64::MAX, |t| sq(t.max(0.0))),
+        }
+    }
+    fn from_half_px(halves: i32) -> i32 {
+        halves.saturating_mul(Q16 / 2)
+    }
+    fn add(a: i32, b: i32) -> i32 {
+        a.saturating_add(b)
+    }
+    fn sub(a: i32, b: i32) -> i32 {
+        a.saturating_sub(b)
+    }
+    fn down(c: i32, level: u32) -> i32 {
+        c >> level.min(31)
+    }
+    fn twice(c: i32) -> i32 {
+        c.saturating_mul(2)
+    }
+    fn half(c: i32) -> i32 {
+        c >> 1
+    }
+    fn bilinear(x: i32, y: i32) -> Option<Bilinear> {
+        let (a, b) = (i64::from(x & 0xFFFF), i64::from(y & 0xFFFF));
+        let one = i64::from(Q16);
+        // (2¹⁶ - a)(2¹⁶ - b) / 2¹⁸, rounded: Q32 → Q14.
+        let r = |p: i64| ((p + (1 << 17)) >> 18) as i32;
+        let w00 = r((one - a) * (one - b));
+        let w01 = r(a * (one - b));
+        let w10 = r((one - a) * b);
+        Some(Bilinear {
+            x: x >> 16,
+            y: y >> 16,
+            w: [w00, w01, w10, (1 << W_BITS) - w00 - w01 - w10],
+        })
+    }
+    fn gram(a11: i64, a12: i64, a22: i64, p: &FixedParams) -> Result<FixedGram, FlowStatus> {
+        let m = a11
+            .unsigned_abs()
+            .max(a12.unsigned_abs())
+            .max(a22.unsigned_abs());
+        let shift = bit_len(m).saturating_sub(30) as i32;
+        let (a11, a12, a22) = (a11 >> shift, a12 >> shift, a22 >> shift);
+        let diff = (a11 - a22).unsigned_abs();
+        let disc = diff * diff + 4 * a12.unsigned_abs() * a12.unsigned_abs();
+        let lmin2 = (a11 + a22).max(0) as u64; // 2 λ_min = a11 + a22 - √disc
+        let lmin2 = lmin2.saturating_sub(isqrt(disc));
+        // λ_min · 2^shift < min_eig  ⇔  2 λ_min · 2^shift < 2 min_eig.
+        if lmin2.saturating_mul(1u64 << shift.clamp(0, 62)) < p.min_eig.saturating_mul(2) {
+            return Err(FlowStatus::SmallEigenvalue);
+        }
+        let det = a11 * a22 - a12 * a12;
+        // OpenCV: det / 2⁴⁰ < 2⁻²³  ⇔  det' · 2^(2 shift) < 2¹⁷.
+        let small = if 2 * shift >= 17 {
+            det < 1
+        } else {
+            det < (1i64 << (17 - 2 * shift))
+        };
+        if small {
+            return Err(FlowStatus::SmallEigenvalue);
+        }
+        Ok(FixedGram {
+            a11,
+            a12,
+            a22,
+            det,
+            shift,
+        })
+    }
+    fn step(g: &FixedGram, b1: i64, b2: i64) -> [i32; 2] {
+        let m = b1.unsigned_abs().max(b2.unsigned_abs());
+        let sb = bit_len(m).saturating_sub(31) as i32;
+        let (b1, b2) = (b1 >> sb, b2 >> sb);
+        // δ = -adj(G) b / det, adj(G) = [a22 -a12; -a12 a11].
+        let nx = g.a12 * b2 - g.a22 * b1;
+        let ny = g.a12 * b1 - g.a11 * b2;
+        let e = 16 + sb - g.shift;
+        [
+            mul_div_pow2(nx, e, g.det, MAX_STEP_Q16) as i32,
+            mul_div_pow2(ny, e, g.det, MAX_STEP_Q16) as i32,
+        ]
+    }
+    fn converged(d: [i32; 2], p: &FixedParams) -> bool {
+        let (x, y) = (i64::from(d[0]), i64::from(d[1]));
+        x * x + y * y <= p.eps2
+    }
+    fn oscillates(d: [i32; 2], prev: [i32; 2]) -> bool {
+        let s = |a: i32, b: i32| (i64::from(a) + i64::from(b)).abs() * 100 < i64::from(Q16);
+        s(d[0], prev[0]) && s(d[1], prev[1])
+    }
+    fn error(sum_abs: u64, area: u32) -> i32 {
+        // Σ / (32 area) in Q16 = (Σ << 11) / area.
+        ((sum_abs << 11) / u64::from(area.max(1))).min(i32::MAX as u64) as i32
+    }
+    fn beyond(a: [i32; 2], b: [i32; 2], p: &FixedParams) -> bool {
+        let dx = i64::from(a[0]) - i64::from(b[0]);
+        let dy = i64::from(a[1]) - i64::from(b[1]);
+        dx * dx + dy * dy > p.fb2
+    }
+    fn to_f32(c: i32) -> f32 {
+        Fixed::to_f32(c)
+    }
+    fn from_px(v: i32) -> i32 {
+        v.saturating_mul(Q16)
+    }
+    fn round(c: i32) -> i32 {
+        c.saturating_add(Q16 / 2) >> 16
+    }
+}
+
+/// Thresholds of the `f32` path.
+#[derive(Debug, Clone, Copy)]
+pub struct FloatParams {
+    min_eig: f32,
+    eps2: f32,
+    fb2: f32,
+    area: f32,
+}
+
+/// `G` scaled by `2⁻²⁰` and `1 / det`.
+#[derive(Debug, Clone, Copy)]
+pub struct FloatGram {
+    a11: f32,
+    a12: f32,
+    a22: f32,
+    inv_det: f32,
+}
+
+/// OpenCV's `FLT_SCALE`.
+const FLT_SCALE: f32 = 1.0 / (1u32 << 20) as f32;
+
+impl FlowArith for f32 {
+    type Coord = f32;
+    type Params = FloatParams;
+    type Gram = FloatGram;
+
+    fn params(cfg: &LkConfig, area: u32) -> FloatParams {
+        let e = cfg.epsilon.clamp(0.0, 10.0);
+        let fb = cfg.fb_threshold.map_or(f32::INFINITY, |t| t.max(0.0));
+        FloatParams {
+            min_eig: cfg.min_eigenvalue,
+            eps2: e * e,
+            fb2: fb * fb,
+            area: area as f32,
+        }
+    }
+    fn from_half_px(halves: i32) -> f32 {
+        halves as f32 * 0.5
+    }
+    fn add(a: f32, b: f32) -> f32 {
+        a + b
+    }
+    fn sub(a: f32, b: f32) -> f32 {
+        a - b
+    }
+    fn down(c: f32, level: u32) -> f32 {
+        c * (1.0 / (1u32 << level.min(31)) as f32)
+    }
+    fn twice(c: f32) -> f32 {
+        c * 2.0
+    }
+    fn half(c: f32) -> f32 {
+        c * 0.5
+    }
+    fn bilinear(x: f32, y: f32) -> Option<Bilinear> {
+        // Far outside every image (MAX_DIM = 2¹³) or NaN: not a position.
+        let lim = 1.0e6;
+        if !(x.abs() < lim && y.abs() < lim) {
+            return None;
+        }
+        let (fx, fy) = (libm::floorf(x), libm::floorf(y));
+        let (a, b) = (x - fx, y - fy);
+        let s = (1u32 << W_BITS) as f32;
+        // cvRound: nearest, ties to even.
+        let r = |v: f32| libm::rintf(v) as i32;
+        let w00 = r((1.0 - a) * (1.0 - b) * s);
+        let w01 = r(a * (1.0 - b) * s);
+        let w10 = r((1.0 - a) * b * s);
+        Some(Bilinear {
+            x: fx as i32,
+            y: fy as i32,
+            w: [w00, w01, w10, (1 << W_BITS) - w00 - w01 - w10],
+        })
+    }
+    fn gram(a11: i64, a12: i64, a22: i64, p: &FloatParams) -> Result<FloatGram, FlowStatus> {
+        let (a11, a12, a22) = (
+            a11 as f32 * FLT_SCALE,
+            a12 as f32 * FLT_SCALE,
+            a22 as f32 * FLT_SCALE,
+        );
+        let det = a11 * a22 - a12 * a12;
+        let min_eig =
+            (a22 + a11 - libm::sqrtf((a11 - a22) * (a11 - a22) + 4.0 * a12 * a12)) / (2.0 * p.area);
+        if min_eig.partial_cmp(&p.min_eig).is_none_or(|o| o.is_lt())
+            || det.partial_cmp(&f32::EPSILON).is_none_or(|o| o.is_lt())
+        {
+            return Err(FlowStatus::SmallEigenvalue);
+        }
+        Ok(FloatGram {
+            a11,
+            a12,
+            a22,
+            inv_det: 1.0 / det,
+        })
+    }
+    fn step(g: &FloatGram, b1: i64, b2: i64) -> [f32; 2] {
+        let (b1, b2) = (b1 as f32 * FLT_SCALE, b2 as f32 * FLT_SCALE);
+        let lim = 4096.0;
+        [
+            ((g.a12 * b2 - g.a22 * b1) * g.inv_det).clamp(-lim, lim),
+            ((g.a12 * b1 - g.a11 * b2) * g.inv_det).clamp(-lim, lim),
+        ]
+    }
+    fn converged(d: [f32; 2], p: &FloatParams) -> bool {
+        d[0] * d[0] + d[1] * d[1] <= p.eps2
+    }
+    fn oscillates(d: [f32; 2], prev: [f32; 2]) -> bool {
+        (d[0] + prev[0]).abs() < 0.01 && (d[1] + prev[1]).abs() < 0.01
+    }
+    fn error(sum_abs: u64, area: u32) -> f32 {
+        sum_abs as f32 / (32.0 * area.max(1) as f32)
+    }
+    fn beyond(a: [f32; 2], b: [f32; 2], p: &FloatParams) -> bool {
+        let (dx, dy) = (a[0] - b[0], a[1] - b[1]);
+        (dx * dx + dy * dy)
+            .partial_cmp(&p.fb2)
+            .is_none_or(|o| o.is_gt())
+    }
+    fn to_f32(c: f32) -> f32 {
+        c
+    }
+    fn from_px(v: i32) -> f32 {
+        v as f32
+    }
+    fn round(c: f32) -> i32 {
+        libm::floorf(c + 0.5) as i32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mul_div() {
+        assert_eq!(mul_div_pow2(3, 16, 4, i64::MAX), 3 << 14);
+        assert_eq!(mul_div_pow2(-1, 0, 3, i64::MAX), 0);
+        assert_eq!(mul_div_pow2(-2, 0, 3, i64::MAX), -1);
+        assert_eq!(mul_div_pow2(1 << 60, 20, 1, 1000), 1000);
+        let (n, d) = (123_456_789_012_345i64, 987_654_321_987i64);
+        let want = ((n as f64) * 65536.0 / d as f64).round() as i64;
+        assert!((mul_div_pow2(n, 16, d, i64::MAX) - want).abs() <= 1);
+        assert!((mul_div_pow2(-n, -3, d, i64::MAX) + (n / d + 4) / 8).abs() <= 1);
+    }
+
+    #[test]
+    fn sqrt() {
+        for v in [
+            0u64,
+            1,
+            2,
+            3,
+            4,
+            15,
+            16,
+            17,
+            1 << 40,
+            u64::MAX,
+            999_999_999_999,
+        ] {
+            let r = isqrt(v);
+            assert!(
+                r * r <= v && (r + 1).checked_mul(r + 1).is_none_or(|s| s > v),
+                "{v}"
+            );
+        }
+    }
+
+    #[test]
+    fn weights_sum_and_match_float() {
+        for &(x, y) in &[
+            (0.0f32, 0.0f32),
+            (1.25, 2.5),
+            (-0.75, 3.999),
+            (100.5, -7.125),
+        ] {
+            let f = <f32 as FlowArith>::bilinear(x, y).unwrap();
+            let q = Fixed::bilinear(Fixed::from_f32(x), Fixed::from_f32(y)).unwrap();
+            assert_eq!((f.x, f.y), (q.x, q.y));
+            for k in 0..4 {
+                assert!((f.w[k] - q.w[k]).abs() <= 1, "{x},{y}: {:?} {:?}", f.w, q.w);
+            }
+            assert_eq!(q.w.iter().sum::<i32>(), 1 << W_BITS);
+        }
+    }
+}

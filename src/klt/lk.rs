@@ -1,0 +1,665 @@
+//! The Lucas-Kanade iteration of one point on one level, and the pyramid driver.
+
+use super::arith::{Bilinear, FlowArith, W_BITS};
+use super::{Flow, FlowStatus, Gradients, LkConfig, MAX_WIN, scratch_len};
+use crate::gradient::{reflect101, scharr_window};
+use crate::image::{ImageMut, ImageView};
+use crate::pyramid::Pyramid;
+use crate::{Error, Result};
+
+/// Shift from Q14-weighted pixels to the template's 1/32 grey levels.
+const PIX_SHIFT: u32 = W_BITS - 5;
+
+#[inline]
+fn descale(v: i32, n: u32) -> i32 {
+    (v + (1 << (n - 1))) >> n
+}
+
+/// Copies the `n x n` pixels at `(x0, y0)` of `img` into `out`, reflecting outside the image.
+fn fetch_patch(img: &ImageView<'_, u8>, x0: i32, y0: i32, n: usize, out: &mut [i16]) {
+    let (w, h) = (img.width() as i32, img.height() as i32);
+    let inside = x0 >= 0 && y0 >= 0 && x0 + n as i32 <= w && y0 + n as i32 <= h;
+    for (j, row) in out.chunks_exact_mut(n).take(n).enumerate() {
+        let y = y0 as isize + j as isize;
+        let src = img.row_clamped(reflect101(y, img.height()) as isize);
+        if inside {
+            let seg = src.iter().skip(x0 as usize);
+            for (o, &p) in row.iter_mut().zip(seg) {
+                *o = i16::from(p);
+            }
+        } else {
+            for (i, o) in row.iter_mut().enumerate() {
+                let x = reflect101(x0 as isize + i as isize, img.width());
+                *o = i16::from(src.get(x).copied().unwrap_or(0));
+            }
+        }
+    }
+}
+
+/// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside.
+fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
+    for (j, row) in out.chunks_exact_mut(n).take(n).enumerate() {
+        let y = y0 + j as i32;
+        let src = if y >= 0 { g.row(y as usize) } else { None };
+        for (i, o) in row.iter_mut().enumerate() {
+            let x = x0 + i as i32;
+            *o = match src {
+                Some(r) if x >= 0 => r.get(x as usize).copied().unwrap_or([0, 0]),
+                _ => [0, 0],
+            };
+        }
+    }
+}
+
+/// `true` when the window at integer corner `(x, y)` still touches the image (OpenCV's test).
+#[inline]
+fn in_range(b: &Bilinear, win: usize, w: usize, h: usize) -> bool {
+    let win = win as i32;
+    b.x >= -win && b.x < w as i32 && b.y >= -win && b.y < h as i32
+}
+
+/// The per-call state shared by every point of a level.
+struct Level<'a, 'g, A: FlowArith> {
+    i: ImageView<'a, u8>,
+    j: ImageView<'a, u8>,
+    grad: Option<ImageView<'g, [i16; 2]>>,
+    level: u32,
+    top: bool,
+    win: usize,
+    max_iter: u32,
+    use_initial: bool,
+    params: A::Params,
+}
+
+/// The scratch split into its parts.
+struct Scratch<'s> {
+    gwin: &'s mut [[i16; 2]],
+    patch: &'s mut [i16],
+    iwin: &'s mut [i16],
+    dwin: &'s mut [[i16; 2]],
+}
+
+fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
+    let n2 = (win + 1) * (win + 1);
+    let w2 = win * win;
+    let (g, rest) = scratch
+        .split_at_mut_checked(2 * n2)
+        .ok_or(Error::InvalidParameter)?;
+    let (patch, rest) = rest
+        .split_at_mut_checked(n2)
+        .ok_or(Error::InvalidParameter)?;
+    let (iwin, rest) = rest
+        .split_at_mut_checked(w2)
+        .ok_or(Error::InvalidParameter)?;
+    let d = rest.get_mut(..2 * w2).ok_or(Error::InvalidParameter)?;
+    let (gwin, _) = g.as_chunks_mut::<2>();
+    let (dwin, _) = d.as_chunks_mut::<2>();
+    Ok(Scratch {
+        gwin,
+        patch,
+        iwin,
+        dwin,
+    })
+}
+
+/// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` from `s.patch`.
+fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
+    let n = win + 1;
+    let (mut b1, mut b2) = (0i64, 0i64);
+    let rows0 = s.patch.chunks_exact(n);
+    let rows1 = s.patch.chunks_exact(n).skip(1);
+    let irows = s.iwin.chunks_exact(win);
+    let drows = s.dwin.chunks_exact(win);
+    for (((r0, r1), ir), dr) in rows0.zip(rows1).zip(irows).zip(drows) {
+        let top = r0.iter().zip(r0.iter().skip(1));
+        let bot = r1.iter().zip(r1.iter().skip(1));
+        for (((t, b), &iv), d) in top.zip(bot).zip(ir).zip(dr) {
+            let v = i32::from(*t.0) * w[0]
+                + i32::from(*t.1) * w[1]
+                + i32::from(*b.0) * w[2]
+                + i32::from(*b.1) * w[3];
+            let diff = descale(v, PIX_SHIFT) - i32::from(iv);
+            if abs {
+                b1 += i64::from(diff.abs());
+            } else {
+                b1 += i64::from(diff * i32::from(d[0]));
+                b2 += i64::from(diff * i32::from(d[1]));
+            }
+        }
+    }
+    (b1, b2)
+}
+
+/// Interpolates the template and its derivatives at weights `w` and returns `G`'s sums.
+fn template(s: &mut Scratch<'_>, win: usize, w: [i32; 4]) -> (i64, i64, i64) {
+    let n = win + 1;
+    let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
+    let rows = s
+        .patch
+        .chunks_exact(n)
+        .zip(s.patch.chunks_exact(n).skip(1))
+        .zip(s.gwin.chunks_exact(n).zip(s.gwin.chunks_exact(n).skip(1)));
+    for (((r0, r1), (g0, g1)), (iout, dout)) in rows.zip(
+        s.iwin
+            .chunks_exact_mut(win)
+            .zip(s.dwin.chunks_exact_mut(win)),
+    ) {
+        let px = r0
+            .iter()
+            .zip(r0.iter().skip(1))
+            .zip(r1.iter().zip(r1.iter().skip(1)));
+        let gr = g0
+            .iter()
+            .zip(g0.iter().skip(1))
+            .zip(g1.iter().zip(g1.iter().skip(1)));
+        for (((p, g), io), dout) in px.zip(gr).zip(iout.iter_mut()).zip(dout.iter_mut()) {
+            let ((p00, p01), (p10, p11)) = p;
+            let v = i32::from(*p00) * w[0]
+                + i32::from(*p01) * w[1]
+                + i32::from(*p10) * w[2]
+                + i32::from(*p11) * w[3];
+            *io = descale(v, PIX_SHIFT) as i16;
+            let ((g00, g01), (g10, g11)) = g;
+            let c = |k: usize| {
+                let at = |q: &[i16; 2]| i32::from(q.get(k).copied().unwrap_or(0));
+                descale(
+                    at(g00) * w[0] + at(g01) * w[1] + at(g10) * w[2] + at(g11) * w[3],
+                    W_BITS,
+                )
+            };
+            let (ix, iy) = (c(0), c(1));
+            *dout = [ix as i16, iy as i16];
+            a11 += i64::from(ix * ix);
+            a12 += i64::from(ix * iy);
+            a22 += i64::from(iy * iy);
+        }
+    }
+    (a11, a12, a22)
+}
+
+/// One point on one level (OpenCV's `LKTrackerInvoker` body).
+fn track_point<A: FlowArith>(
+    lv: &Level<'_, '_, A>,
+    s: &mut Scratch<'_>,
+    prev_pt: [A::Coord; 2],
+    f: &mut Flow<A::Coord>,
+) {
+    let win = lv.win;
+    let area = (win * win) as u32;
+    let half = A::from_half_px(win as i32 - 1);
+    let last = lv.level == 0;
+    let p = [A::down(prev_pt[0], lv.level), A::down(prev_pt[1], lv.level)];
+    let mut next = if lv.top {
+        if lv.use_initial {
+            [A::down(f.x, lv.level), A::down(f.y, lv.level)]
+        } else {
+            p
+        }
+    } else {
+        [A::twice(f.x), A::twice(f.y)]
+    };
+    f.x = next[0];
+    f.y = next[1];
+    let (iw, ih) = (lv.i.width(), lv.i.height());
+    let Some(bi) = A::bilinear(A::sub(p[0], half), A::sub(p[1], half)) else {
+        f.status = FlowStatus::OutOfBounds;
+        return;
+    };
+    if !in_range(&bi, win, iw, ih) {
+        if last {
+            f.status = FlowStatus::OutOfBounds;
+            f.err = A::Coord::default();
+        }
+        return;
+    }
+    let n = win + 1;
+    fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
+    match &lv.grad {
+        Some(g) => fetch_grad(g, bi.x, bi.y, n, s.gwin),
+        None => {
+            let _ = scharr_window(&lv.i, bi.x as isize, bi.y as isize, n, n, s.gwin);
+        }
+    }
+    let (a11, a12, a22) = template(s, win, bi.w);
+    let gram = match A::gram(a11, a12, a22, &lv.params) {
+        Ok(g) => g,
+        Err(status) => {
+            if last {
+                f.status = status;
+            }
+            return;
+        }
+    };
+    next = [A::sub(next[0], half), A::sub(next[1], half)];
+    let mut prev_delta = [A::Coord::default(); 2];
+    for it in 0..lv.max_iter {
+        let Some(bj) = A::bilinear(next[0], next[1]) else {
+            f.status = FlowStatus::OutOfBounds;
+            return;
+        };
+        if !in_range(&bj, win, iw, ih) {
+            if last {
+                f.status = FlowStatus::OutOfBounds;
+            }
+            break;
+        }
+        fetch_patch(&lv.j, bj.x, bj.y, n, s.patch);
+        let (b1, b2) = mismatch(s, win, bj.w, false);
+        let delta = A::step(&gram, b1, b2);
+        next = [A::add(next[0], delta[0]), A::add(next[1], delta[1])];
+        f.x = A::add(next[0], half);
+        f.y = A::add(next[1], half);
+        if A::converged(delta, &lv.params) {
+            break;
+        }
+        if it > 0 && A::oscillates(delta, prev_delta) {
+            f.x = A::sub(f.x, A::half(delta[0]));
+            f.y = A::sub(f.y, A::half(delta[1]));
+            break;
+        }
+        prev_delta = delta;
+    }
+    if last && f.status == FlowStatus::Tracked {
+        let Some(bj) = A::bilinear(A::sub(f.x, half), A::sub(f.y, half)) else {
+            f.status = FlowStatus::OutOfBounds;
+            return;
+        };
+        if !in_range(&bj, win, iw, ih) {
+            f.status = FlowStatus::OutOfBounds;
+            return;
+        }
+        fetch_patch(&lv.j, bj.x, bj.y, n, s.patch);
+        let (sum, _) = mismatch(s, win, bj.w, true);
+        f.err = A::error(sum.unsigned_abs(), area);
+    }
+}
+
+/// The coarsest level OpenCV would use: `cfg.max_level`, capped by both pyramids and by the
+/// rule that a level above 0 must be larger than the window in both directions.
+fn usable_levels(prev: &Pyramid<'_>, next: &Pyramid<'_>, cfg: &LkConfig) -> usize {
+    let mut top = 0;
+    while top < cfg.max_level {
+        let l = top + 1;
+        match (prev.level(l), next.level(l)) {
+            (Some(a), Some(_)) if a.width() > cfg.win && a.height() > cfg.win => top = l,
+            _ => break,
+        }
+    }
+    top
+}
+
+fn check(cfg: &LkConfig, scratch: &[i16]) -> Result<()> {
+    if cfg.win < 3 || cfg.win > MAX_WIN || cfg.max_iter == 0 || cfg.max_iter > 100 {
+        return Err(Error::InvalidParameter);
+    }
+    if cfg.epsilon.is_nan() || cfg.epsilon < 0.0 || !cfg.min_eigenvalue.is_finite() {
+        return Err(Error::InvalidParameter);
+    }
+    if scratch.len() < scratch_len(cfg.win) {
+        return Err(Error::InvalidParameter);
+    }
+    Ok(())
+}
+
+/// The driver: every level from the coarsest down, every point on each level.
+fn run<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    pts: impl Fn(usize) -> Option<[A::Coord; 2]>,
+    flows: &mut [Flow<A::Coord>],
+    cfg: &LkConfig,
+    grads: &mut Gradients<'_>,
+    scratch: &mut [i16],
+) -> Result<()> {
+    check(cfg, scratch)?;
+    let mut s = split_scratch(scratch, cfg.win)?;
+    let top = usable_levels(prev, next, cfg);
+    let params = A::params(cfg, (cfg.win * cfg.win) as u32);
+    for f in flows.iter_mut() {
+        f.status = FlowStatus::Tracked;
+        f.err = A::Coord::default();
+    }
+    for level in (0..=top).rev() {
+        let (Some(i), Some(j)) = (prev.level(level), next.level(level)) else {
+            return Err(Error::InvalidImage);
+        };
+        if (i.width(), i.height()) != (j.width(), j.height()) {
+            return Err(Error::InvalidImage);
+        }
+        let grad = match grads {
+            Gradients::PerWindow => None,
+            Gradients::PerLevel(buf) => {
+                let len = i.width() * i.height();
+                let b = buf.get_mut(..len).ok_or(Error::InvalidParameter)?;
+                crate::gradient::scharr_level(
+                    &i,
+                    &mut ImageMut::packed(b, i.width(), i.height())?,
+                )?;
+                Some(ImageView::packed(&*b, i.width(), i.height())?)
+            }
+        };
+        let lv = Level::<A> {
+            i,
+            j,
+            grad,
+            level: level as u32,
+            top: level == top,
+            win: cfg.win,
+            max_iter: cfg.max_iter,
+            use_initial: cfg.use_initial_flow,
+            params,
+        };
+        for (k, f) in flows.iter_mut().enumerate() {
+            match pts(k) {
+                Some(p) => track_point(&lv, &mut s, p, f),
+                None => f.status = FlowStatus::OutOfBounds,
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Tracks `prev_pts` from `prev` to `next` (OpenCV's `calcOpticalFlowPyrLK`).
+///
+/// `flows[k]` receives the position of `prev_pts[k]` in `next` with its status and error
+/// (with [`LkConfig::use_initial_flow`] it must hold the initial guesses on entry). Points are
+/// full-resolution pixel coordinates, `(0, 0)` the centre of the top-left pixel.
+///
+/// Errors: [`Error::LengthMismatch`] when the slices differ in length,
+/// [`Error::InvalidParameter`] for a configuration out of range or scratch shorter than
+/// [`scratch_len`]`(cfg.win)` (or a [`Gradients::PerLevel`] buffer too short),
+/// [`Error::InvalidImage`] when the pyramids' levels differ in size.
+pub fn calc_flow<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    prev_pts: &[[A::Coord; 2]],
+    flows: &mut [Flow<A::Coord>],
+    cfg: &LkConfig,
+    mut grads: Gradients<'_>,
+    scratch: &mut [i16],
+) -> Result<()> {
+    if prev_pts.len() != flows.len() {
+        return Err(Error::LengthMismatch);
+    }
+    run::<A>(
+        prev,
+        next,
+        |k| prev_pts.get(k).copied(),
+        flows,
+        cfg,
+        &mut grads,
+        scratch,
+    )
+}
+
+/// Forward-backward check: tracks the results `flows` back from `next` to `prev` into `back`
+/// and marks [`FlowStatus::Inconsistent`] every tracked point that does not come back within
+/// [`LkConfig::fb_threshold`] of `prev_pts` (`|back - prev| > t`). Does nothing when the
+/// threshold is `None`. Same errors as [`calc_flow`].
+#[allow(clippy::too_many_arguments)]
+pub fn forward_backward<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    prev_pts: &[[A::Coord; 2]],
+    flows: &mut [Flow<A::Coord>],
+    back: &mut [Flow<A::Coord>],
+    cfg: &LkConfig,
+    mut grads: Gradients<'_>,
+    scratch: &mut [i16],
+) -> Result<()> {
+    if prev_pts.len() != flows.len() || back.len() != flows.len() {
+        return Err(Error::LengthMismatch);
+    }
+    if cfg.fb_threshold.is_none() {
+        return Ok(());
+    }
+    let mut bcfg = *cfg;
+    bcfg.use_initial_flow = false;
+    {
+        let fw: &[Flow<A::Coord>] = flows;
+        run::<A>(
+            next,
+            prev,
+            |k| fw.get(k).map(|f| [f.x, f.y]),
+            back,
+            &bcfg,
+            &mut grads,
+            scratch,
+        )?;
+    }
+    let params = A::params(cfg, (cfg.win * cfg.win) as u32);
+    for ((f, b), p) in flows.iter_mut().zip(back.iter()).zip(prev_pts) {
+        if f.status == FlowStatus::Tracked
+            && (b.status != FlowStatus::Tracked || A::beyond([b.x, b.y], *p, &params))
+        {
+            f.status = FlowStatus::Inconsistent;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Fixed, Q16};
+    use super::*;
+    use std::vec::Vec;
+
+    /// A smooth textured image: sum of sinusoids, exact at sub-pixel shifts.
+    fn scene(w: usize, h: usize, dx: f64, dy: f64) -> Vec<u8> {
+        let mut v = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                let (u, t) = (x as f64 - dx, y as f64 - dy);
+                let s = 128.0
+                    + 50.0 * (u * 0.21).sin() * (t * 0.17).cos()
+                    + 40.0 * (u * 0.07 + t * 0.11).sin()
+                    + 20.0 * ((u - t) * 0.31).cos();
+                v.push(s.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+        v
+    }
+
+    fn run_both(dx: f64, dy: f64) -> (Vec<Flow<f32>>, Vec<Flow<i32>>) {
+        let (w, h) = (160, 120);
+        let a = scene(w, h, 0.0, 0.0);
+        let b = scene(w, h, dx, dy);
+        let mut ba = std::vec![0u8; crate::pyramid::buffer_len(w, h, 3)];
+        let mut bb = std::vec![0u8; crate::pyramid::buffer_len(w, h, 3)];
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut ba, 3).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut bb, 3).unwrap();
+        let cfg = LkConfig {
+            max_level: 2,
+            ..LkConfig::default()
+        };
+        let pts: Vec<[f32; 2]> = (0..5)
+            .flat_map(|j| (0..5).map(move |i| [25.0 + 22.0 * i as f32, 20.0 + 20.0 * j as f32]))
+            .collect();
+        let mut scratch = std::vec![0i16; scratch_len(cfg.win)];
+        let mut ff = std::vec![Flow::<f32>::default(); pts.len()];
+        calc_flow::<f32>(
+            &pa,
+            &pb,
+            &pts,
+            &mut ff,
+            &cfg,
+            Gradients::PerWindow,
+            &mut scratch,
+        )
+        .unwrap();
+        let qpts: Vec<[i32; 2]> = pts
+            .iter()
+            .map(|p| [Fixed::from_f32(p[0]), Fixed::from_f32(p[1])])
+            .collect();
+        let mut fq = std::vec![Flow::<i32>::default(); pts.len()];
+        let mut lvl = std::vec![[0i16; 2]; w * h];
+        calc_flow::<Fixed>(
+            &pa,
+            &pb,
+            &qpts,
+            &mut fq,
+            &cfg,
+            Gradients::PerLevel(&mut lvl),
+            &mut scratch,
+        )
+        .unwrap();
+        for ((p, f), q) in pts.iter().zip(&ff).zip(&fq) {
+            assert_eq!(f.status, FlowStatus::Tracked, "{p:?}");
+            assert_eq!(q.status, FlowStatus::Tracked, "{p:?}");
+            let e =
+                |x: f32, y: f32| (x as f64 - p[0] as f64 - dx).hypot(y as f64 - p[1] as f64 - dy);
+            assert!(e(f.x, f.y) < 0.15, "f32 {p:?} -> {f:?}");
+            assert!(
+                e(Fixed::to_f32(q.x), Fixed::to_f32(q.y)) < 0.15,
+                "fixed {p:?} -> {q:?}"
+            );
+        }
+        (ff, fq)
+    }
+
+    #[test]
+    fn recovers_known_translations() {
+        run_both(0.0, 0.0);
+        run_both(1.3, -0.6);
+        run_both(-4.7, 3.2);
+        run_both(9.5, 7.25);
+    }
+
+    #[test]
+    fn per_level_and_per_window_agree_bit_for_bit() {
+        let (w, h) = (64, 48);
+        let a = scene(w, h, 0.0, 0.0);
+        let b = scene(w, h, 1.7, 0.4);
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+        let cfg = LkConfig {
+            win: 9,
+            max_level: 0,
+            ..LkConfig::default()
+        };
+        // Including points near and past the border.
+        let pts = [
+            [0, 0],
+            [3 * Q16, 40 * Q16],
+            [63 * Q16 + 5, 47 * Q16],
+            [30 * Q16, 20 * Q16 + 999],
+        ];
+        let mut s = std::vec![0i16; scratch_len(9)];
+        let mut f1 = [Flow::<i32>::default(); 4];
+        let mut f2 = [Flow::<i32>::default(); 4];
+        calc_flow::<Fixed>(&pa, &pb, &pts, &mut f1, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        let mut g = std::vec![[0i16; 2]; w * h];
+        calc_flow::<Fixed>(
+            &pa,
+            &pb,
+            &pts,
+            &mut f2,
+            &cfg,
+            Gradients::PerLevel(&mut g),
+            &mut s,
+        )
+        .unwrap();
+        assert_eq!(f1, f2);
+    }
+
+    #[test]
+    fn far_points_are_lost_and_bad_inputs_are_errors() {
+        let (w, h) = (64, 48);
+        let a = scene(w, h, 0.0, 0.0);
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let cfg = LkConfig {
+            win: 7,
+            max_level: 0,
+            ..LkConfig::default()
+        };
+        let pts = [[-50.0f32, 3.0], [f32::NAN, 1.0], [10.0, 1e30]];
+        let mut f = [Flow::<f32>::default(); 3];
+        let mut s = std::vec![0i16; scratch_len(7)];
+        calc_flow::<f32>(&pa, &pa, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        assert!(f.iter().all(|f| f.status == FlowStatus::OutOfBounds));
+        let mut short = [0i16; 10];
+        assert_eq!(
+            calc_flow::<f32>(
+                &pa,
+                &pa,
+                &pts,
+                &mut f,
+                &cfg,
+                Gradients::PerWindow,
+                &mut short
+            ),
+            Err(Error::InvalidParameter)
+        );
+        assert_eq!(
+            calc_flow::<f32>(
+                &pa,
+                &pa,
+                &pts[..2],
+                &mut f,
+                &cfg,
+                Gradients::PerWindow,
+                &mut s
+            ),
+            Err(Error::LengthMismatch)
+        );
+        let bad = LkConfig { win: 2, ..cfg };
+        assert_eq!(
+            calc_flow::<f32>(&pa, &pa, &pts, &mut f, &bad, Gradients::PerWindow, &mut s),
+            Err(Error::InvalidParameter)
+        );
+        // A flat image has no texture.
+        let flat = [77u8; 64 * 48];
+        let pf = Pyramid::build(ImageView::packed(&flat, w, h).unwrap(), &mut [], 1).unwrap();
+        let mut g = [Flow::<f32>::default(); 1];
+        calc_flow::<f32>(
+            &pf,
+            &pf,
+            &[[30.0, 20.0]],
+            &mut g,
+            &cfg,
+            Gradients::PerWindow,
+            &mut s,
+        )
+        .unwrap();
+        assert_eq!(g[0].status, FlowStatus::SmallEigenvalue);
+    }
+
+    #[test]
+    fn forward_backward_flags_occlusion() {
+        let (w, h) = (96, 72);
+        let a = scene(w, h, 0.0, 0.0);
+        let mut b = scene(w, h, 2.0, 1.0);
+        // Paint a flat occluder over the second point in the next frame.
+        for y in 40..72 {
+            for x in 60..96 {
+                b[y * w + x] = ((x * 37 + y * 91) % 256) as u8;
+            }
+        }
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+        let cfg = LkConfig {
+            win: 11,
+            max_level: 0,
+            fb_threshold: Some(0.5),
+            ..LkConfig::default()
+        };
+        let pts = [[30.0f32, 20.0], [78.0, 56.0]];
+        let mut f = [Flow::<f32>::default(); 2];
+        let mut back = [Flow::<f32>::default(); 2];
+        let mut s = std::vec![0i16; scratch_len(11)];
+        calc_flow::<f32>(&pa, &pb, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        forward_backward::<f32>(
+            &pa,
+            &pb,
+            &pts,
+            &mut f,
+            &mut back,
+            &cfg,
+            Gradients::PerWindow,
+            &mut s,
+        )
+        .unwrap();
+        assert_eq!(f[0].status, FlowStatus::Tracked);
+        assert_ne!(f[1].status, FlowStatus::Tracked);
+    }
+}

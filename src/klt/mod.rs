@@ -1,0 +1,133 @@
+//! Pyramidal Lucas-Kanade tracking (KLT), coarse to fine, allocation-free.
+//!
+//! For a point `u` of the previous frame `I`, find `v` in the next frame `J` minimising
+//! `Σ_w (J(v + w) - I(u + w))²` over a `win x win` window. Each Gauss-Newton step solves
+//!
+//! `G δ = -b`, `G = Σ [Ix² IxIy; IxIy Iy²]`, `b = Σ (J - I) [Ix Iy]ᵀ`,
+//!
+//! on pyramid levels from coarsest to finest, the estimate doubling between levels. This is
+//! OpenCV's `calcOpticalFlowPyrLK` scheme: Scharr derivatives in `i16` ([`crate::gradient`]),
+//! window samples by bilinear interpolation with 14-bit integer weights (`I` kept in 1/32 grey
+//! levels), the same stopping rules (`|δ| <= ε`, iteration cap, oscillation halving), the
+//! minimum-eigenvalue test `λ_min(G) / (2²⁰ win²) < min_eigenvalue` and the error measure
+//! (mean absolute difference). Borders as OpenCV: images reflected (`BORDER_REFLECT_101`) and
+//! derivatives zero outside, so a point is only lost when its window leaves the image entirely.
+//!
+//! The arithmetic is chosen by type ([`FlowArith`]): [`Fixed`] (Q16.16 coordinates and an
+//! integer 2x2 solve; for cores without an FPU) or `f32` (as OpenCV). Sums are exact `i64` in
+//! both. [`Tracker`] keeps tracks across frames.
+//!
+//! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
+
+mod arith;
+mod lk;
+pub mod synthetic;
+mod tracker;
+
+pub use arith::{Bilinear, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16};
+pub use lk::{calc_flow, forward_backward};
+pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
+
+/// Largest window side accepted.
+pub const MAX_WIN: usize = 63;
+
+/// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows:
+/// `3 (win + 1)² + 3 win²` (derivatives and pixels at integer positions, the interpolated
+/// template and its derivatives). 2 775 (5.4 KB) for 21x21.
+pub const fn scratch_len(win: usize) -> usize {
+    3 * (win + 1) * (win + 1) + 3 * win * win
+}
+
+/// `[Ix, Iy]` elements a [`Gradients::PerLevel`] buffer needs for a `width x height` frame
+/// (level 0 is the largest).
+pub const fn level_gradient_len(width: usize, height: usize) -> usize {
+    width * height
+}
+
+/// Parameters of [`calc_flow`] (OpenCV's names in parentheses).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LkConfig {
+    /// Window side in pixels, 3 ..= [`MAX_WIN`] (OpenCV `winSize`). Default 21.
+    pub win: usize,
+    /// Coarsest pyramid level used (0 = no pyramid) (`maxLevel`). Levels whose size is not
+    /// larger than the window are skipped, as OpenCV does. Default 3.
+    pub max_level: usize,
+    /// Iteration cap per level, 1 ..= 100 (`criteria.maxCount`). Default 30.
+    pub max_iter: u32,
+    /// Stop when `|δ| <= epsilon` pixels, clamped to 0 ..= 10 (`criteria.epsilon`). Default 0.01.
+    pub epsilon: f32,
+    /// Reject windows with `λ_min(G) / (2²⁰ win²)` below this (`minEigThreshold`). Default 1e-4.
+    pub min_eigenvalue: f32,
+    /// Start the coarsest level from the positions already in the output
+    /// (`OPTFLOW_USE_INITIAL_FLOW`). Default `false`.
+    pub use_initial_flow: bool,
+    /// Forward-backward threshold in pixels for [`forward_backward`]; `None` disables it.
+    pub fb_threshold: Option<f32>,
+}
+
+impl Default for LkConfig {
+    fn default() -> Self {
+        Self {
+            win: 21,
+            max_level: 3,
+            max_iter: 30,
+            epsilon: 0.01,
+            min_eigenvalue: 1e-4,
+            use_initial_flow: false,
+            fb_threshold: None,
+        }
+    }
+}
+
+/// What happened to one point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FlowStatus {
+    /// Tracked: the position and error are valid.
+    #[default]
+    Tracked,
+    /// The window left the image (or the input point was not finite).
+    OutOfBounds,
+    /// The window has too little texture: `λ_min(G)` below the threshold, or `G` singular.
+    SmallEigenvalue,
+    /// Tracking back from the result did not return within the forward-backward threshold.
+    Inconsistent,
+}
+
+impl FlowStatus {
+    /// The status in snake case (`tracked`, `out_of_bounds`, ...).
+    pub const fn name(self) -> &'static str {
+        match self {
+            FlowStatus::Tracked => "tracked",
+            FlowStatus::OutOfBounds => "out_of_bounds",
+            FlowStatus::SmallEigenvalue => "small_eigenvalue",
+            FlowStatus::Inconsistent => "inconsistent",
+        }
+    }
+}
+
+/// The result for one point: its position `(x, y)` in the next frame (full resolution), the
+/// status, and the error `Σ |J - I| / win²` (grey levels; 0 unless tracked).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Flow<C> {
+    /// Column.
+    pub x: C,
+    /// Row.
+    pub y: C,
+    /// Outcome.
+    pub status: FlowStatus,
+    /// Mean absolute difference of the two windows.
+    pub err: C,
+}
+
+/// Where the window derivatives come from (same numbers either way, see [`crate::gradient`]).
+#[derive(Debug)]
+pub enum Gradients<'a> {
+    /// Computed per window from the previous frame: no buffer; the board default.
+    PerWindow,
+    /// Computed once per level into this buffer of at least
+    /// [`level_gradient_len`]`(w, h)` elements of the level-0 size.
+    PerLevel(&'a mut [[i16; 2]]),
+}

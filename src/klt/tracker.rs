@@ -1,0 +1,318 @@
+//! Tracks across frames: ids, ages, removal of lost tracks, replenishment from new corners.
+//!
+//! The tracker holds no image. Each frame the caller builds the new pyramid into one of two
+//! buffers and re-wraps the previous frame's (already built) pyramid with
+//! [`Pyramid::from_buffer`](crate::pyramid::Pyramid::from_buffer), swapping the two buffers
+//! after the update: nothing is copied or recomputed. [`pipeline_ram`] gives the whole memory.
+
+use heapless::Vec;
+
+use super::arith::FlowArith;
+use super::lk::{calc_flow, forward_backward};
+use super::{Flow, FlowStatus, Gradients, LkConfig};
+use crate::corners::{Corner, CornerConfig, good_features};
+use crate::image::ImageView;
+use crate::pyramid::Pyramid;
+use crate::{Error, Result};
+
+/// One tracked feature.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Track<C> {
+    /// Unique id, increasing from 0 in order of creation.
+    pub id: u32,
+    /// Column in the latest frame.
+    pub x: C,
+    /// Row in the latest frame.
+    pub y: C,
+    /// Frames tracked since detection (0 in the frame it was detected in).
+    pub age: u32,
+    /// Error of the last flow step (mean absolute difference, grey levels).
+    pub err: C,
+}
+
+/// Parameters of a [`Tracker`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackerConfig {
+    /// The flow between consecutive frames (its `fb_threshold` enables the
+    /// forward-backward check).
+    pub lk: LkConfig,
+    /// Detection of new features.
+    pub corners: CornerConfig,
+    /// Detect new features when fewer tracks than this remain.
+    pub replenish_below: usize,
+    /// Never hold more tracks than this (0: the capacity `N`).
+    pub max_tracks: usize,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            lk: LkConfig::default(),
+            corners: CornerConfig::default(),
+            replenish_below: usize::MAX,
+            max_tracks: 0,
+        }
+    }
+}
+
+/// What one frame did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackerStats {
+    /// Tracks carried into the new frame.
+    pub tracked: usize,
+    /// Tracks removed (lost, textureless, inconsistent).
+    pub lost: usize,
+    /// New tracks from detection.
+    pub added: usize,
+}
+
+/// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is in
+/// [`pipeline_ram`]).
+#[derive(Debug, Clone)]
+pub struct Tracker<A: FlowArith, const N: usize> {
+    tracks: Vec<Track<A::Coord>, N>,
+    pts: [[A::Coord; 2]; N],
+    flows: [Flow<A::Coord>; N],
+    back: [Flow<A::Coord>; N],
+    next_id: u32,
+}
+
+impl<A: FlowArith, const N: usize> Default for Tracker<A, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<A: FlowArith, const N: usize> Tracker<A, N> {
+    /// An empty tracker.
+    pub fn new() -> Self {
+        Self {
+            tracks: Vec::new(),
+            pts: [[A::Coord::default(); 2]; N],
+            flows: [Flow::default(); N],
+            back: [Flow::default(); N],
+            next_id: 0,
+        }
+    }
+
+    /// The live tracks.
+    pub fn tracks(&self) -> &[Track<A::Coord>] {
+        &self.tracks
+    }
+
+    /// Forgets every track (ids keep increasing).
+    pub fn clear(&mut self) {
+        self.tracks.clear();
+    }
+
+    /// Moves every track from `prev` to `next`; removes those not [`FlowStatus::Tracked`].
+    /// `scratch`: [`super::scratch_len`]`(cfg.lk.win)` `i16`. Errors as [`calc_flow`].
+    pub fn update(
+        &mut self,
+        prev: &Pyramid<'_>,
+        next: &Pyramid<'_>,
+        cfg: &TrackerConfig,
+        scratch: &mut [i16],
+    ) -> Result<TrackerStats> {
+        let n = self.tracks.len();
+        let (Some(pts), Some(flows), Some(back)) = (
+            self.pts.get_mut(..n),
+            self.flows.get_mut(..n),
+            self.back.get_mut(..n),
+        ) else {
+            return Err(Error::LengthMismatch);
+        };
+        for (p, t) in pts.iter_mut().zip(self.tracks.iter()) {
+            *p = [t.x, t.y];
+        }
+        let lk = LkConfig {
+            use_initial_flow: false,
+            ..cfg.lk
+        };
+        calc_flow::<A>(prev, next, pts, flows, &lk, Gradients::PerWindow, scratch)?;
+        if lk.fb_threshold.is_some() {
+            forward_backward::<A>(
+                prev,
+                next,
+                pts,
+                flows,
+                back,
+                &lk,
+                Gradients::PerWindow,
+                scratch,
+            )?;
+        }
+        let mut k = 0;
+        self.tracks.retain_mut(|t| {
+            let f = flows.get(k).copied().unwrap_or_default();
+            k += 1;
+            if f.status != FlowStatus::Tracked {
+                return false;
+            }
+            t.x = f.x;
+            t.y = f.y;
+            t.err = f.err;
+            t.age = t.age.saturating_add(1);
+            true
+        });
+        Ok(TrackerStats {
+            tracked: self.tracks.len(),
+            lost: n - self.tracks.len(),
+            added: 0,
+        })
+    }
+
+    /// When fewer than `cfg.replenish_below` tracks remain, detects corners of `frame` away
+    /// from the live tracks (`cfg.corners.min_distance`) and adds them as new tracks, up to
+    /// `cfg.corners.max_corners` per call and `cfg.max_tracks` (at most `N`) in all. `candidates` and `scratch` as [`good_features`]. Returns the number added.
+    pub fn replenish(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        cfg: &TrackerConfig,
+        candidates: &mut [Corner],
+        scratch: &mut [u32],
+    ) -> Result<usize> {
+        let cap = if cfg.max_tracks == 0 {
+            N
+        } else {
+            cfg.max_tracks.min(N)
+        };
+        if self.tracks.len() >= cfg.replenish_below.min(cap) {
+            return Ok(0);
+        }
+        let mut found: Vec<Corner, N> = Vec::new();
+        let mut ccfg = cfg.corners;
+        let free = cap - self.tracks.len();
+        ccfg.max_corners = if ccfg.max_corners == 0 {
+            free
+        } else {
+            ccfg.max_corners.min(free)
+        };
+        let existing = self.tracks.iter().map(|t| [A::round(t.x), A::round(t.y)]);
+        good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
+        let mut added = 0;
+        for c in &found {
+            let t = Track {
+                id: self.next_id,
+                x: A::from_px(i32::from(c.x)),
+                y: A::from_px(i32::from(c.y)),
+                age: 0,
+                err: A::Coord::default(),
+            };
+            if self.tracks.push(t).is_err() {
+                break;
+            }
+            self.next_id = self.next_id.wrapping_add(1);
+            added += 1;
+        }
+        Ok(added)
+    }
+}
+
+/// Bytes of RAM a two-frame tracking pipeline needs for `width x height` frames: both frames,
+/// both pyramid buffers (`levels` levels), the flow scratch for `win`, the corner scratch and
+/// `candidates` candidates, and a [`Tracker`] of `N` tracks with arithmetic `A`.
+/// (Stack frames of the calls are not included; they are small and fixed.)
+pub const fn pipeline_ram<A: FlowArith, const N: usize>(
+    width: usize,
+    height: usize,
+    levels: usize,
+    win: usize,
+    candidates: usize,
+) -> usize {
+    2 * width * height
+        + 2 * crate::pyramid::buffer_len(width, height, levels)
+        + 2 * super::scratch_len(win)
+        + 4 * crate::corners::scratch_len(width)
+        + candidates * core::mem::size_of::<Corner>()
+        + core::mem::size_of::<Tracker<A, N>>()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::Fixed;
+    use super::*;
+
+    #[test]
+    fn tracks_a_shifting_scene_and_replenishes() {
+        let (w, h) = (120usize, 90usize);
+        let frame = |dx: f64| -> std::vec::Vec<u8> {
+            (0..w * h)
+                .map(|i| {
+                    let (x, y) = ((i % w) as f64 - dx, (i / w) as f64);
+                    let v = 128.0
+                        + 60.0 * (x * 0.3).sin() * (y * 0.25).cos()
+                        + 40.0 * ((x + y) * 0.13).sin();
+                    v.round() as u8
+                })
+                .collect()
+        };
+        let f0 = frame(0.0);
+        let f1 = frame(1.5);
+        let cfg = TrackerConfig {
+            lk: LkConfig {
+                win: 11,
+                max_level: 1,
+                fb_threshold: Some(1.0),
+                ..LkConfig::default()
+            },
+            corners: CornerConfig {
+                quality: 0.05,
+                min_distance: 8,
+                max_corners: 0,
+            },
+            replenish_below: 20,
+            max_tracks: 0,
+        };
+        let mut t: Tracker<Fixed, 32> = Tracker::new();
+        let mut cands = [Corner::default(); 256];
+        let mut cs = std::vec![0u32; crate::corners::scratch_len(w)];
+        let v0 = ImageView::packed(&f0, w, h).unwrap();
+        let added = t.replenish(&v0, &cfg, &mut cands, &mut cs).unwrap();
+        assert!(added >= 20, "{added}");
+        let before: std::vec::Vec<_> = t.tracks().to_vec();
+        let mut b0 = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
+        let mut b1 = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
+        Pyramid::build(v0, &mut b0, 2).unwrap();
+        let p1 = Pyramid::build(ImageView::packed(&f1, w, h).unwrap(), &mut b1, 2).unwrap();
+        let p0 = Pyramid::from_buffer(v0, &b0, 2).unwrap();
+        let mut s = std::vec![0i16; super::super::scratch_len(11)];
+        let st = t.update(&p0, &p1, &cfg, &mut s).unwrap();
+        assert_eq!(st.tracked + st.lost, before.len());
+        assert!(st.tracked * 10 >= before.len() * 8, "{st:?}");
+        for tr in t.tracks() {
+            let b = before.iter().find(|b| b.id == tr.id).unwrap();
+            assert_eq!(tr.age, 1);
+            let dx = Fixed::to_f32(tr.x - b.x);
+            let dy = Fixed::to_f32(tr.y - b.y);
+            // Content enters at the right edge: judge only windows inside the frame.
+            let bx = Fixed::to_f32(b.x);
+            if bx > 8.0 && bx < (w - 10) as f32 {
+                assert!((dx - 1.5).abs() < 0.1 && dy.abs() < 0.1, "{b:?}: {dx} {dy}");
+            }
+        }
+        assert!(pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) < 512 * 1024);
+    }
+}
+
+#[cfg(test)]
+mod ram {
+    use super::super::Fixed;
+    use super::*;
+
+    /// The 320x240 two-frame pipeline of the board (4 levels, 21x21, 200 tracks, 512
+    /// candidates): the number quoted in BENCHMARKS.md.
+    #[test]
+    fn ram_of_the_320x240_pipeline() {
+        let n = pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512);
+        std::println!("pipeline_ram 320x240 fixed N=200: {n} bytes");
+        std::println!("tracker: {}", core::mem::size_of::<Tracker<Fixed, 200>>());
+        assert_eq!(
+            n,
+            2 * 76_800 + 2 * 25_200 + 2 * 2_775 + 4 * 1_920 + 512 * 8 + 12_016
+        );
+    }
+}

@@ -1,0 +1,80 @@
+//! Bilinear image resizing with pixel centres aligned, in integers.
+//!
+//! Destination pixel `(x, y)` samples the source at
+//!
+//! `x_s = (x + ½) w_s / w_d - ½`,  `y_s = (y + ½) h_s / h_d - ½`
+//!
+//! (clamped into the image), bilinearly with 8-bit weights:
+//! `out = Σ w_ij I(x₀ + i, y₀ + j)` rounded, `w = (1 - f_x, f_x) ⊗ (1 - f_y, f_y)` with
+//! `f = frac(x_s)` quantised to 1/256 — OpenCV's `resize(..., INTER_LINEAR)` up to that
+//! quantisation (±1 grey level). No smoothing first: for reductions by more than about 1.5
+//! use [`crate::pyramid`] instead.
+
+use crate::image::{ImageMut, ImageView};
+use crate::{Error, Result};
+
+/// Source coordinate of destination index `i` in Q8 (`256 x_s`), clamped to `[0, n_s - 1]`.
+#[inline]
+fn source_q8(i: usize, n_src: usize, n_dst: usize) -> u32 {
+    // 256 ((2i + 1) n_s / (2 n_d) - ½), all in u64: n <= MAX_DIM = 2^13.
+    let num = (2 * i as u64 + 1) * n_src as u64 * 256;
+    let den = 2 * n_dst as u64;
+    let v = (num + den / 2) / den;
+    let v = v.saturating_sub(128);
+    v.min((n_src as u64 - 1) * 256) as u32
+}
+
+/// Resizes `src` into `dst` (any sizes) by bilinear interpolation (module docs).
+///
+/// Never fails for valid views; the `Result` is for API symmetry with the other kernels.
+pub fn resize_bilinear(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
+    let (ws, hs) = (src.width(), src.height());
+    let (wd, hd) = (dst.width(), dst.height());
+    if ws == 0 || hs == 0 {
+        return Err(Error::InvalidImage);
+    }
+    for y in 0..hd {
+        let sy = source_q8(y, hs, hd);
+        let (y0, fy) = ((sy >> 8) as usize, sy & 255);
+        let r0 = src.row(y0).unwrap_or(&[]);
+        let r1 = src.row((y0 + 1).min(hs - 1)).unwrap_or(&[]);
+        let Some(out) = dst.row_mut(y) else { break };
+        for (x, o) in out.iter_mut().enumerate() {
+            let sx = source_q8(x, ws, wd);
+            let (x0, fx) = ((sx >> 8) as usize, sx & 255);
+            let x1 = (x0 + 1).min(ws - 1);
+            let p = |r: &[u8], c: usize| u32::from(r.get(c).copied().unwrap_or(0));
+            let top = p(r0, x0) * (256 - fx) + p(r0, x1) * fx;
+            let bot = p(r1, x0) * (256 - fx) + p(r1, x1) * fx;
+            // <= 255 · 2^16: the rounded quotient fits u8.
+            *o = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identity_constant_and_ramp() {
+        let src: [u8; 40] = core::array::from_fn(|i| (i * 6) as u8);
+        let v = ImageView::packed(&src, 8, 5).unwrap();
+        let mut out = [0u8; 40];
+        resize_bilinear(&v, &mut ImageMut::packed(&mut out, 8, 5).unwrap()).unwrap();
+        assert_eq!(out, src);
+        // A horizontal ramp 0, 10, .., 90 halved: x_s = 2x + ½, the mean of two neighbours.
+        let ramp: [u8; 10] = core::array::from_fn(|i| (10 * i) as u8);
+        let v = ImageView::packed(&ramp, 10, 1).unwrap();
+        let mut half = [0u8; 5];
+        resize_bilinear(&v, &mut ImageMut::packed(&mut half, 5, 1).unwrap()).unwrap();
+        assert_eq!(half, [5, 25, 45, 65, 85]);
+        // Upscaling a single pixel, and a constant stays constant.
+        let one = [77u8];
+        let mut big = [0u8; 12];
+        let v = ImageView::packed(&one, 1, 1).unwrap();
+        resize_bilinear(&v, &mut ImageMut::packed(&mut big, 4, 3).unwrap()).unwrap();
+        assert!(big.iter().all(|&b| b == 77));
+    }
+}
