@@ -17,6 +17,8 @@
 //! | [`fixed`] | Q16.16 projective transfer (homography, projection) without floating point |
 //! | [`linalg`] | one-sided Jacobi SVD and streaming (row-by-row) QR of small static matrices |
 //! | [`homography`] | plane homographies: 4-point solver, normalised DLT, LM refinement, RANSAC |
+//! | [`twoview`] | epipolar geometry: 7/8-point `F`, 5-point `E`, RANSAC, Sampson LM, relative pose, triangulation |
+//! | [`sfm`] | three-view structure from motion (E, triangulation, PnP) and a small Schur-complement bundle adjustment |
 //! | [`pose`] | pose from a homography, IPPE (both planar solutions), LM refinement on reprojection |
 //! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
 //! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
@@ -64,8 +66,10 @@ pub mod ransac;
 pub mod resize;
 pub mod rng;
 mod scalar;
+pub mod sfm;
 pub mod target;
 pub mod transform;
+pub mod twoview;
 pub mod warp;
 
 pub use error::{Error, Result};

@@ -1,0 +1,331 @@
+//! Three-view structure from motion with a small bundle adjustment, in fixed capacity.
+//!
+//! [`reconstruct_three_views`] runs the classic incremental pipeline on point tracks seen by
+//! one calibrated camera from three positions:
+//!
+//! 1. views 1-2: [`find_essential`] (5-point RANSAC) and [`recover_pose`] (cheirality), so
+//!    `X₂ = R X₁ + t` with `|t| = 1` (the scale is not observable; the 1-2 baseline is the unit);
+//! 2. triangulate the inlier tracks ([`triangulate_optimal`]), keeping points in front of
+//!    both views, with enough parallax and a reprojection error below the bound;
+//! 3. register view 3 by PnP on the triangulated points ([`solve_pnp_ransac`]: P3P + RANSAC +
+//!    LM);
+//! 4. triangulate the tracks seen by view 3 and one of views 1, 2 but not yet reconstructed;
+//! 5. [`bundle_adjust`] every pose but the first and every point (Schur complement).
+//!
+//! The world frame is view 1's camera frame. Observations are raw pixels: lens distortion is
+//! removed for the minimal solvers and modelled by the bundle adjustment. Every buffer lives
+//! in a caller-owned [`SfmWorkspace`] of capacity `N` tracks (e.g. 256).
+
+mod bundle;
+
+pub use bundle::{BundleReport, PointBlock, bundle_adjust};
+
+use nalgebra::{Point2, Point3};
+
+use crate::camera::Camera;
+use crate::pose::solve_pnp_ransac;
+use crate::ransac::RansacConfig;
+use crate::scalar::{Real, above};
+use crate::transform::Pose;
+use crate::twoview::{find_essential, recover_pose, triangulate_optimal};
+use crate::{Error, Result};
+
+/// The observations of one scene point in the three views (`None`: not seen), raw pixels.
+pub type Track<T = f32> = [Option<Point2<T>>; 3];
+
+/// Parameters of [`reconstruct_three_views`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SfmConfig<T: Real = f32> {
+    /// RANSAC of the essential matrix of views 1-2 (threshold: Sampson distance, pixels).
+    pub essential: RansacConfig<T>,
+    /// RANSAC of the PnP registration of view 3 (threshold: reprojection error, pixels).
+    pub pnp: RansacConfig<T>,
+    /// Largest reprojection error of a newly triangulated point in either view, pixels.
+    pub max_reprojection_px: T,
+    /// Largest depth of a point, in 1-2 baselines (also the cheirality bound of
+    /// [`recover_pose`]).
+    pub max_depth: T,
+    /// Smallest angle between the two rays of a triangulated point, radians.
+    pub min_parallax: T,
+    /// Levenberg-Marquardt steps of the bundle adjustment (0 skips it).
+    pub bundle_iterations: u8,
+}
+
+impl<T: Real> Default for SfmConfig<T> {
+    /// 1 px Sampson threshold for `E`, 2 px for PnP, 2 px reprojection bound, depth ≤ 50
+    /// baselines, parallax ≥ 1°, 20 bundle steps.
+    fn default() -> Self {
+        Self {
+            essential: RansacConfig {
+                threshold: T::one(),
+                confidence: T::lit(0.999),
+                ..RansacConfig::default()
+            },
+            pnp: RansacConfig {
+                threshold: T::lit(2.0),
+                confidence: T::lit(0.999),
+                ..RansacConfig::default()
+            },
+            max_reprojection_px: T::lit(2.0),
+            max_depth: T::lit(50.0),
+            min_parallax: T::lit(1.0f64.to_radians()),
+            bundle_iterations: 20,
+        }
+    }
+}
+
+/// The caller-owned memory of [`reconstruct_three_views`] for up to `N` tracks: the outputs
+/// ([`Self::points`], [`Self::used`]) and the scratch of every stage: about 100 scalars and
+/// a few words per track (~110 KB for `N = 256` in `f32`; put it in a `static` on a board).
+#[derive(Debug, Clone)]
+pub struct SfmWorkspace<T: Real, const N: usize> {
+    /// The reconstructed point of each track (world = view 1's frame), `None` if not.
+    pub points: [Option<Point3<T>>; N],
+    /// The observations the reconstruction used (inliers), per track and view.
+    pub used: [[bool; 3]; N],
+    normalized: [[Option<Point2<T>>; 3]; N],
+    a: [Point2<T>; N],
+    b: [Point2<T>; N],
+    world: [Point3<T>; N],
+    index: [usize; N],
+    mask: [bool; N],
+    blocks: [PointBlock<T>; N],
+}
+
+impl<T: Real, const N: usize> Default for SfmWorkspace<T, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T: Real, const N: usize> SfmWorkspace<T, N> {
+    /// Capacity in tracks.
+    pub const CAPACITY: usize = N;
+
+    /// An empty workspace.
+    pub fn new() -> Self {
+        Self {
+            points: [None; N],
+            used: [[false; 3]; N],
+            normalized: [[None; 3]; N],
+            a: [Point2::origin(); N],
+            b: [Point2::origin(); N],
+            world: [Point3::origin(); N],
+            index: [0; N],
+            mask: [false; N],
+            blocks: core::array::from_fn(|_| PointBlock::default()),
+        }
+    }
+}
+
+/// What [`reconstruct_three_views`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ThreeViewReconstruction<T: Real = f32> {
+    /// World-to-camera poses of the three views; `poses[0]` is the identity and
+    /// `|poses[1].translation()| = 1`.
+    pub poses: [Pose<T>; 3],
+    /// Tracks with a reconstructed point.
+    pub points: usize,
+    /// Inliers of the views 1-2 essential matrix (after cheirality).
+    pub initial_inliers: usize,
+    /// Inliers of the PnP registration of view 3.
+    pub pnp_inliers: usize,
+    /// Points added from view 3 (step 4).
+    pub new_points: usize,
+    /// The bundle adjustment (RMS before and after, over every used observation).
+    pub bundle: BundleReport<T>,
+}
+
+/// Runs the three-view pipeline of the module docs on `tracks` (at most `N`), writing the
+/// points and the used observations into `ws`.
+///
+/// Errors: [`Error::LengthMismatch`] for more tracks than `N`; [`Error::TooFewPoints`] when
+/// fewer than 5 tracks link views 1-2 or fewer than 4 reconstructed points are seen by view 3;
+/// otherwise those of [`find_essential`], [`recover_pose`], [`solve_pnp_ransac`] and
+/// [`bundle_adjust`].
+pub fn reconstruct_three_views<T: Real, const N: usize>(
+    camera: &Camera<T>,
+    tracks: &[Track<T>],
+    config: &SfmConfig<T>,
+    ws: &mut SfmWorkspace<T, N>,
+) -> Result<ThreeViewReconstruction<T>> {
+    let n = tracks.len();
+    if n > N {
+        return Err(Error::LengthMismatch);
+    }
+    let k = camera.intrinsics;
+    ws.points.iter_mut().for_each(|p| *p = None);
+    ws.used.iter_mut().for_each(|u| *u = [false; 3]);
+    for (norm, track) in ws.normalized.iter_mut().zip(tracks.iter()) {
+        for (o, t) in norm.iter_mut().zip(track.iter()) {
+            *o = t.and_then(|p| camera.undistort_to_normalized(&p).ok());
+        }
+    }
+
+    // 1. Views 1-2: undistorted pixels of the tracks seen by both.
+    let mut m = 0usize;
+    for (i, norm) in ws.normalized.iter().enumerate().take(n) {
+        if let [Some(p), Some(q), _] = norm
+            && let (Some(a), Some(b), Some(idx)) =
+                (ws.a.get_mut(m), ws.b.get_mut(m), ws.index.get_mut(m))
+        {
+            *a = k.normalized_to_pixel(p);
+            *b = k.normalized_to_pixel(q);
+            *idx = i;
+            m += 1;
+        }
+    }
+    if m < 5 {
+        return Err(Error::TooFewPoints);
+    }
+    let (a, b, mask) = (
+        ws.a.get(..m).ok_or(Error::LengthMismatch)?,
+        ws.b.get(..m).ok_or(Error::LengthMismatch)?,
+        ws.mask.get_mut(..m).ok_or(Error::LengthMismatch)?,
+    );
+    let (e, _) = find_essential(&k, &k, a, b, &config.essential, mask)?;
+    let rel = recover_pose(&e, &k, &k, a, b, config.max_depth, mask)?;
+    let p1 = Pose::identity();
+    let p2 = Pose::from_isometry(*rel.pose.isometry());
+
+    // 2. Triangulate the 1-2 inliers.
+    let mut initial_inliers = 0usize;
+    for (idx, _) in ws
+        .index
+        .iter()
+        .zip(ws.mask.iter())
+        .take(m)
+        .filter(|(_, m)| **m)
+    {
+        initial_inliers += 1;
+        let (Some(norm), Some(track)) = (ws.normalized.get(*idx), tracks.get(*idx)) else {
+            continue;
+        };
+        if let Some(x) = triangulate_checked(camera, config, [(&p1, 0), (&p2, 1)], norm, track)
+            && let (Some(pt), Some(used)) = (ws.points.get_mut(*idx), ws.used.get_mut(*idx))
+        {
+            *pt = Some(x);
+            used[0] = true;
+            used[1] = true;
+        }
+    }
+
+    // 3. Register view 3 by PnP on the reconstructed points it sees.
+    let mut m = 0usize;
+    for (i, (point, track)) in ws.points.iter().zip(tracks.iter()).enumerate() {
+        if let (Some(x), [_, _, Some(u)]) = (point, track)
+            && let (Some(w), Some(a), Some(idx)) =
+                (ws.world.get_mut(m), ws.a.get_mut(m), ws.index.get_mut(m))
+        {
+            *w = *x;
+            *a = *u;
+            *idx = i;
+            m += 1;
+        }
+    }
+    if m < 4 {
+        return Err(Error::TooFewPoints);
+    }
+    let (world, pixels, scratch, mask) = (
+        ws.world.get(..m).ok_or(Error::LengthMismatch)?,
+        ws.a.get(..m).ok_or(Error::LengthMismatch)?,
+        ws.b.get_mut(..m).ok_or(Error::LengthMismatch)?,
+        ws.mask.get_mut(..m).ok_or(Error::LengthMismatch)?,
+    );
+    let (est, report) = solve_pnp_ransac(camera, world, pixels, scratch, &config.pnp, mask)?;
+    let p3 = est.pose;
+    for (idx, _) in ws
+        .index
+        .iter()
+        .zip(ws.mask.iter())
+        .take(m)
+        .filter(|(_, m)| **m)
+    {
+        if let Some(used) = ws.used.get_mut(*idx) {
+            used[2] = true;
+        }
+    }
+
+    // 4. New points between view 3 and view 1 (the longer baseline, usually), else view 2.
+    let mut new_points = 0usize;
+    for ((point, used), (norm, track)) in ws
+        .points
+        .iter_mut()
+        .zip(ws.used.iter_mut())
+        .zip(ws.normalized.iter().zip(tracks.iter()))
+    {
+        if point.is_some() {
+            continue;
+        }
+        let pairs = [[(&p1, 0), (&p3, 2)], [(&p2, 1), (&p3, 2)]];
+        for pair in pairs {
+            if let Some(x) = triangulate_checked(camera, config, pair, norm, track) {
+                *point = Some(x);
+                let [(_, va), _] = pair;
+                if let Some(u) = used.get_mut(va) {
+                    *u = true;
+                }
+                used[2] = true;
+                new_points += 1;
+                break;
+            }
+        }
+    }
+
+    // 5. Bundle adjustment.
+    let mut poses = [p1, p2, p3];
+    let bundle = bundle_adjust(
+        camera,
+        &mut poses,
+        ws.points.get_mut(..n).ok_or(Error::LengthMismatch)?,
+        tracks,
+        ws.used.get(..n).ok_or(Error::LengthMismatch)?,
+        ws.blocks.get_mut(..n).ok_or(Error::LengthMismatch)?,
+        config.bundle_iterations,
+    )?;
+    let points = ws.points.iter().filter(|p| p.is_some()).count();
+    Ok(ThreeViewReconstruction {
+        poses,
+        points,
+        initial_inliers,
+        pnp_inliers: report.inliers,
+        new_points,
+        bundle,
+    })
+}
+
+/// Triangulates a track between two views (optimal method) and accepts the point when it is
+/// in front of both, nearer than `max_depth`, with parallax ≥ `min_parallax` and a pixel
+/// reprojection error ≤ `max_reprojection_px` in both views (through the distortion model).
+fn triangulate_checked<T: Real>(
+    camera: &Camera<T>,
+    config: &SfmConfig<T>,
+    views: [(&Pose<T>, usize); 2],
+    normalized: &[Option<Point2<T>>; 3],
+    track: &Track<T>,
+) -> Option<Point3<T>> {
+    let [(pa, va), (pb, vb)] = views;
+    let (na, nb) = (normalized.get(va)?.as_ref()?, normalized.get(vb)?.as_ref()?);
+    let (ua, ub) = (track.get(va)?.as_ref()?, track.get(vb)?.as_ref()?);
+    let t = triangulate_optimal(pa, pb, na, nb).ok()?;
+    if !above(config.max_depth, t.depth1.max(t.depth2)) {
+        return None;
+    }
+    // Parallax: the angle between the two rays at the point.
+    let ca = pa.inverse().origin_in_target_frame();
+    let cb = pb.inverse().origin_in_target_frame();
+    let (ra, rb) = (t.point - ca, t.point - cb);
+    let cos = ra.dot(&rb) / (ra.norm() * rb.norm());
+    if !above(config.min_parallax.cos(), cos) {
+        return None;
+    }
+    for (p, u) in [(pa, ua), (pb, ub)] {
+        let e = (camera.project(p, &t.point).ok()? - u).norm();
+        if !above(config.max_reprojection_px, e) {
+            return None;
+        }
+    }
+    Some(t.point)
+}

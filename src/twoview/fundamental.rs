@@ -1,0 +1,247 @@
+//! The fundamental matrix from point correspondences: normalised 8-point, 7-point, RANSAC.
+
+use heapless::Vec;
+use nalgebra::{Matrix3, Point2, SVector};
+
+use super::Fundamental;
+use super::poly::real_roots;
+use super::refine::refine_fundamental_iter;
+use crate::homography::{Normalization, rank_tolerance};
+use crate::linalg::StreamingQr;
+use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
+use crate::scalar::{Real, above, check_finite};
+use crate::{Error, Result};
+
+/// Most fundamental matrices [`seven_point`] returns (the real roots of a cubic).
+pub const MAX_SEVEN_POINT_SOLUTIONS: usize = 3;
+
+/// The epipolar row of a pair: `x₂ᵀ F x₁ = r · vec(F)` with `vec` row-major,
+/// `r = (x₂x₁, x₂y₁, x₂, y₂x₁, y₂y₁, y₂, x₁, y₁, 1)`.
+pub(crate) fn epipolar_row<T: Real>(x1: &Point2<T>, x2: &Point2<T>) -> [T; 9] {
+    [
+        x2.x * x1.x,
+        x2.x * x1.y,
+        x2.x,
+        x2.y * x1.x,
+        x2.y * x1.y,
+        x2.y,
+        x1.x,
+        x1.y,
+        T::one(),
+    ]
+}
+
+/// The 3x3 matrix of a row-major 9-vector.
+pub(crate) fn unvec<T: Real>(v: &SVector<T, 9>) -> Matrix3<T> {
+    let [a, b, c, d, e, f, g, h, i]: [T; 9] = (*v).into();
+    Matrix3::new(a, b, c, d, e, f, g, h, i)
+}
+
+/// The normalised 8-point algorithm (Hartley 1997) on `N ≥ 8` pairs `x₁ᵢ ↔ x₂ᵢ`:
+///
+/// `min |A f|`, `|f| = 1`, one row `(x₂x₁, x₂y₁, x₂, y₂x₁, y₂y₁, y₂, x₁, y₁, 1)` per
+/// Hartley-normalised pair, streamed through a [`StreamingQr`]; then rank 2 by zeroing the
+/// smallest singular value, and `F = T₂ᵀ F̂ T₁`.
+///
+/// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 8 pairs;
+/// [`Error::NonFinite`]; [`Error::Degenerate`] when the system has rank below 8
+/// (`σ₈ ≤ √ε σ₁`: e.g. every point on a plane, or coincident points).
+pub fn eight_point<T: Real>(x1: &[Point2<T>], x2: &[Point2<T>]) -> Result<Fundamental<T>> {
+    if x1.len() != x2.len() {
+        return Err(Error::LengthMismatch);
+    }
+    solve(x1.iter().zip(x2.iter()).map(|(a, b)| (*a, *b)))
+}
+
+/// [`eight_point`] on the pairs with `mask[i] == true` (e.g. RANSAC inliers).
+pub fn eight_point_masked<T: Real>(
+    x1: &[Point2<T>],
+    x2: &[Point2<T>],
+    mask: &[bool],
+) -> Result<Fundamental<T>> {
+    if x1.len() != x2.len() || x1.len() != mask.len() {
+        return Err(Error::LengthMismatch);
+    }
+    solve(
+        x1.iter()
+            .zip(x2.iter())
+            .zip(mask.iter())
+            .filter(|(_, m)| **m)
+            .map(|((a, b), _)| (*a, *b)),
+    )
+}
+
+pub(crate) fn solve<T, I>(pairs: I) -> Result<Fundamental<T>>
+where
+    T: Real,
+    I: Iterator<Item = (Point2<T>, Point2<T>)> + Clone,
+{
+    if pairs.clone().take(8).count() < 8 {
+        return Err(Error::TooFewPoints);
+    }
+    let n1 = Normalization::from_points_iter(pairs.clone().map(|(a, _)| a))?;
+    let n2 = Normalization::from_points_iter(pairs.clone().map(|(_, b)| b))?;
+    let mut qr = StreamingQr::<T, 9>::new();
+    for (a, b) in pairs {
+        qr.push_row(&epipolar_row(&n1.apply(&a), &n2.apply(&b)))?;
+    }
+    let svd = qr.svd()?;
+    let sv = svd.singular_values.as_slice();
+    let (Some(&s1), Some(&s8)) = (sv.first(), sv.get(7)) else {
+        return Err(Error::Degenerate);
+    };
+    if !above(s8, rank_tolerance::<T>() * s1) {
+        return Err(Error::Degenerate);
+    }
+    let fhat = Fundamental::from_matrix(&unvec(&svd.null_vector()))?;
+    Fundamental::from_matrix(&(n2.matrix().transpose() * fhat.matrix() * n1.matrix()))
+}
+
+/// The 7-point algorithm: every rank-2 `F` through 7 pairs.
+///
+/// The 7 epipolar rows (Hartley-normalised) leave a 2-dimensional null space `F̂₁, F̂₂` (the
+/// last two right singular vectors); `det(α F̂₁ + (1 - α) F̂₂) = 0` is a cubic in `α` whose
+/// coefficients come from its values at `α = -1, 0, 1, 2`; each real root gives one `F`
+/// (between one and [`MAX_SEVEN_POINT_SOLUTIONS`]).
+///
+/// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when the rows have rank below 7 or no
+/// root gives a rank-2 matrix.
+pub fn seven_point<T: Real>(
+    x1: &[Point2<T>; 7],
+    x2: &[Point2<T>; 7],
+) -> Result<Vec<Fundamental<T>, MAX_SEVEN_POINT_SOLUTIONS>> {
+    for p in x1.iter().chain(x2.iter()) {
+        check_finite(&[p.x, p.y])?;
+    }
+    let n1 = Normalization::from_points(x1)?;
+    let n2 = Normalization::from_points(x2)?;
+    let mut qr = StreamingQr::<T, 9>::new();
+    for (a, b) in x1.iter().zip(x2.iter()) {
+        qr.push_row(&epipolar_row(&n1.apply(a), &n2.apply(b)))?;
+    }
+    let svd = qr.svd()?;
+    let sv = svd.singular_values.as_slice();
+    let (Some(&s1), Some(&s7)) = (sv.first(), sv.get(6)) else {
+        return Err(Error::Degenerate);
+    };
+    if !above(s7, rank_tolerance::<T>() * s1) {
+        return Err(Error::Degenerate);
+    }
+    let f1 = unvec(&svd.v.column(7).into_owned());
+    let f2 = unvec(&svd.v.column(8).into_owned());
+    // p(α) = det(α F₁ + (1 - α) F₂) = c₀ + c₁ α + c₂ α² + c₃ α³ from four samples.
+    let d = |a: T| (f1 * a + f2 * (T::one() - a)).determinant();
+    let (dm1, d0, d1, d2) = (d(-T::one()), d(T::zero()), d(T::one()), d(T::lit(2.0)));
+    let six = T::lit(6.0);
+    let two = T::lit(2.0);
+    let c0 = d0;
+    let c2 = (d1 + dm1) / two - d0;
+    // Third difference: d(2) - 3 d(1) + 3 d(0) - d(-1) = 6 c₃.
+    let c3 = (d2 - T::lit(3.0) * d1 + T::lit(3.0) * d0 - dm1) / six;
+    let c1 = d1 - c0 - c2 - c3;
+    let mut out = Vec::new();
+    for a in real_roots(&[c0, c1, c2, c3]) {
+        let fhat = f1 * a + f2 * (T::one() - a);
+        if let Ok(f) = Fundamental::from_matrix(&(n2.matrix().transpose() * fhat * n1.matrix())) {
+            let _ = out.push(f);
+        }
+    }
+    if out.is_empty() {
+        return Err(Error::Degenerate);
+    }
+    Ok(out)
+}
+
+/// Fundamental-matrix estimation as a RANSAC [`Estimator`]: 7-point minimal samples (up to
+/// three models each), Sampson residuals in pixels², 8-point refits, Sampson LM polish.
+#[derive(Debug, Clone, Copy)]
+pub struct FundamentalEstimator<'a, T: Real = f32> {
+    x1: &'a [Point2<T>],
+    x2: &'a [Point2<T>],
+    /// Levenberg-Marquardt steps of [`Estimator::refine`].
+    pub refine_iterations: u8,
+}
+
+impl<'a, T: Real> FundamentalEstimator<'a, T> {
+    /// Pairs `(x1[i], x2[i])`; errors with [`Error::LengthMismatch`].
+    pub fn new(x1: &'a [Point2<T>], x2: &'a [Point2<T>]) -> Result<Self> {
+        if x1.len() != x2.len() {
+            return Err(Error::LengthMismatch);
+        }
+        Ok(Self {
+            x1,
+            x2,
+            refine_iterations: 10,
+        })
+    }
+}
+
+impl<T: Real> Estimator for FundamentalEstimator<'_, T> {
+    type Model = Fundamental<T>;
+    type Scalar = T;
+
+    fn num_points(&self) -> usize {
+        self.x1.len()
+    }
+
+    fn sample_size(&self) -> usize {
+        7
+    }
+
+    fn fit_minimal(&self, sample: &[usize], emit: &mut dyn FnMut(Self::Model)) {
+        let mut a = [Point2::origin(); 7];
+        let mut b = [Point2::origin(); 7];
+        if sample.len() != 7 {
+            return;
+        }
+        for ((i, pa), pb) in sample.iter().zip(a.iter_mut()).zip(b.iter_mut()) {
+            match (self.x1.get(*i), self.x2.get(*i)) {
+                (Some(p), Some(q)) => {
+                    *pa = *p;
+                    *pb = *q;
+                }
+                _ => return,
+            }
+        }
+        if let Ok(models) = seven_point(&a, &b) {
+            models.into_iter().for_each(emit);
+        }
+    }
+
+    fn residual_sq(&self, f: &Self::Model, i: usize) -> Option<T> {
+        f.sampson_sq(self.x1.get(i)?, self.x2.get(i)?)
+    }
+
+    fn refit(&self, _: &Self::Model, inliers: &[bool]) -> Option<Self::Model> {
+        eight_point_masked(self.x1, self.x2, inliers).ok()
+    }
+
+    fn refine(&self, f: &Self::Model, inliers: &[bool]) -> Option<Self::Model> {
+        let pairs = self
+            .x1
+            .iter()
+            .zip(self.x2.iter())
+            .zip(inliers.iter())
+            .filter(|(_, m)| **m)
+            .map(|((a, b), _)| (*a, *b));
+        refine_fundamental_iter(f, pairs, self.refine_iterations)
+            .ok()
+            .map(|r| r.model)
+    }
+}
+
+/// Robust `F` from correspondences with outliers (OpenCV's
+/// `findFundamentalMat(x1, x2, FM_RANSAC)` counterpart), writing the inlier mask.
+///
+/// 7-point samples, MSAC on the Sampson distance in pixels (`config.threshold`), 8-point
+/// local optimisation, Sampson Levenberg-Marquardt polish ([`super::refine_fundamental`]),
+/// on the generic [`ransac`] loop. Errors: see [`ransac`].
+pub fn find_fundamental<T: Real>(
+    x1: &[Point2<T>],
+    x2: &[Point2<T>],
+    config: &RansacConfig<T>,
+    inliers: &mut [bool],
+) -> Result<(Fundamental<T>, RansacReport<T>)> {
+    let est = FundamentalEstimator::new(x1, x2)?;
+    ransac(&est, config, inliers)
+}
