@@ -3,7 +3,10 @@
 //! `getPerspectiveTransform`).
 //!
 //! Input: CSV rows `x1,y1,x2,y2` (a point in the first image and its match in the second;
-//! optional header). Output: `{"H": [h11, h12, h13, h21, .., h33], "inliers": N,
+//! optional header), or two images (`--images A.png B.png`): ORB features of both
+//! ([`camgeom::features::orb_detect`], default settings) matched with cross-check
+//! (OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`), the matched keypoints being the
+//! correspondences (always RANSAC, and the output adds `"matches": M`). Output: `{"H": [h11, h12, h13, h21, .., h33], "inliers": N,
 //! "inlier_mask": [true, ...], "method": "ransac" | "four_point", "iterations": K}` with
 //! `x2 ~ H x1` and `h33 = 1` (unless the origin maps to, or near, infinity: then `|H|_F = 1`).
 //!
@@ -13,12 +16,15 @@
 //! collinear or coincident points, a parameter out of range) is an input error: status 2 and one
 //! line naming the error (`degenerate`, `too_few_points`, `invalid_parameter`, ...).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use camgeom::Real;
+use camgeom::features::orb::{self, Feature, OrbConfig};
+use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
+use camgeom_host::images::load_gray;
 use camgeom_host::points::read_csv;
 use camgeom_host::status_name;
 use clap::Args;
@@ -32,8 +38,17 @@ pub struct HomographyArgs {
     /// Correspondences, CSV rows `x1,y1,x2,y2` (a point in the first image, its match in the
     /// second; optional header); `-` reads stdin. Exactly 4 rows: the exact 4-point solver;
     /// more: RANSAC.
-    #[arg(long, value_name = "FILE.csv")]
-    pub matches: PathBuf,
+    #[arg(long, value_name = "FILE.csv", required_unless_present = "images")]
+    pub matches: Option<PathBuf>,
+    /// Two images (PNG, JPEG; read as grey) instead of `--matches`: ORB features of both,
+    /// matched with cross-check, then RANSAC on the matched keypoints.
+    #[arg(
+        long,
+        num_args = 2,
+        value_names = ["A.png", "B.png"],
+        conflicts_with = "matches"
+    )]
+    pub images: Option<Vec<PathBuf>>,
     /// RANSAC inlier threshold in pixels, on camgeom's symmetric transfer error
     /// `sqrt((|x2 - H x1|² + |x1 - H⁻¹ x2|²) / 2)`.
     #[arg(long, value_name = "PX", default_value_t = 3.0)]
@@ -67,6 +82,74 @@ pub struct HomographyOutput<T> {
     /// RANSAC samples drawn (absent for the 4-point solver).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub iterations: Option<u32>,
+    /// Feature matches found between the images (`--images` only; the mask is per match).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub matches: Option<usize>,
+}
+
+/// Point correspondences `(x1, y1) -> (x2, y2)`.
+pub type Correspondences = Vec<(Point2<f64>, Point2<f64>)>;
+
+/// Most ORB features per image (`OrbConfig::default().max_features`).
+const MAX_FEATURES: usize = 500;
+
+/// Cross-check only, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)` (the settings of
+/// the graf1 -> graf3 feature tests).
+const CROSS_CHECK: MatchConfig = MatchConfig {
+    ratio: 1.0,
+    cross_check: true,
+    max_distance: 256,
+};
+
+/// ORB features of an image file.
+fn orb_features(path: &Path) -> Result<Vec<Feature>, String> {
+    let img = load_gray(path).map_err(|e| e.to_string())?;
+    let view = img.view().ok_or_else(|| {
+        format!(
+            "{}: unsupported image size {}x{}",
+            path.display(),
+            img.width,
+            img.height
+        )
+    })?;
+    let config = OrbConfig::default();
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
+    orb::orb_detect(&view, &config, &mut scratch, &mut out).map_err(|e| {
+        format!(
+            "{}: orb_detect failed: {} ({e})",
+            path.display(),
+            status_name(&e)
+        )
+    })?;
+    Ok(out.to_vec())
+}
+
+/// Correspondences of two images: their ORB keypoints matched with cross-check.
+pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences, String> {
+    let (fa, fb) = (orb_features(a)?, orb_features(b)?);
+    let da: Vec<Descriptor> = fa.iter().map(|f| f.descriptor).collect();
+    let db: Vec<Descriptor> = fb.iter().map(|f| f.descriptor).collect();
+    let mut ms = vec![Match::default(); da.len()];
+    let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
+    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms).map_err(|e| {
+        format!(
+            "{} -> {}: match_descriptors failed: {} ({e})",
+            a.display(),
+            b.display(),
+            status_name(&e)
+        )
+    })?;
+    let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
+    Ok(ms[..n]
+        .iter()
+        .map(|m| {
+            (
+                point(&fa[usize::from(m.query)]),
+                point(&fb[usize::from(m.train)]),
+            )
+        })
+        .collect())
 }
 
 /// Reads the correspondences `(x1, y1) -> (x2, y2)` of a CSV file (`-`: stdin).
@@ -80,35 +163,53 @@ pub fn read_matches(path: &PathBuf) -> camgeom_host::Result<Vec<(Point2<f64>, Po
 
 /// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
 pub fn run(a: &HomographyArgs) -> Result<String, String> {
-    let matches = read_matches(&a.matches).map_err(|e| e.to_string())?;
+    let (source, matches, from_images) = match (&a.images, &a.matches) {
+        (Some(images), _) => {
+            let [ia, ib] = images.as_slice() else {
+                return Err("--images takes two files".into());
+            };
+            let source = format!("{} -> {}", ia.display(), ib.display());
+            (source, match_images(ia, ib)?, true)
+        }
+        (None, Some(path)) => (
+            path.display().to_string(),
+            read_matches(path).map_err(|e| e.to_string())?,
+            false,
+        ),
+        (None, None) => return Err("one of --matches and --images is required".into()),
+    };
     let json = if a.f32 {
-        to_json(&estimate::<f32>(a, &matches)?)
+        to_json(&estimate::<f32>(a, &source, &matches, from_images)?)
     } else {
-        to_json(&estimate::<f64>(a, &matches)?)
+        to_json(&estimate::<f64>(a, &source, &matches, from_images)?)
     };
     Ok(json)
 }
 
-/// The homography in `T` (f64, or f32 as on the firmware).
+/// The homography in `T` (f64, or f32 as on the firmware) of the correspondences read from
+/// `source` (named in error messages). `from_images`: feature matches, always RANSAC (never the
+/// 4-point solver), and the output counts them.
 pub fn estimate<T: Real>(
     a: &HomographyArgs,
+    source: &str,
     matches: &[(Point2<f64>, Point2<f64>)],
+    from_images: bool,
 ) -> Result<HomographyOutput<T>, String> {
     let cast = |p: &Point2<f64>| Point2::new(T::lit(p.x), T::lit(p.y));
     let src: Vec<Point2<T>> = matches.iter().map(|m| cast(&m.0)).collect();
     let dst: Vec<Point2<T>> = matches.iter().map(|m| cast(&m.1)).collect();
     let fail = |what: &str, e: camgeom::Error| {
         format!(
-            "{}: {what} failed: {} ({e}), {} correspondences",
-            a.matches.display(),
+            "{source}: {what} failed: {} ({e}), {} correspondences",
             status_name(&e),
             matches.len()
         )
     };
-    let (h, mask, method, iterations) = if let (Ok(s4), Ok(d4)) = (
-        <[Point2<T>; 4]>::try_from(src.as_slice()),
-        <[Point2<T>; 4]>::try_from(dst.as_slice()),
-    ) {
+    let four = <[Point2<T>; 4]>::try_from(src.as_slice())
+        .ok()
+        .zip(<[Point2<T>; 4]>::try_from(dst.as_slice()).ok())
+        .filter(|_| !from_images);
+    let (h, mask, method, iterations) = if let Some((s4, d4)) = four {
         let h = Homography::from_four_points(&s4, &d4).map_err(|e| fail("from_four_points", e))?;
         (h, vec![true; 4], "four_point", None)
     } else {
@@ -133,6 +234,7 @@ pub fn estimate<T: Real>(
         inlier_mask: mask,
         method,
         iterations,
+        matches: from_images.then_some(matches.len()),
     })
 }
 

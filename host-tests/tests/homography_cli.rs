@@ -1,5 +1,7 @@
 //! `camgeom homography`: the 4-point solver against OpenCV's `getPerspectiveTransform`, RANSAC on
-//! correspondences with outliers, and input errors (status 2, one line naming the camgeom error).
+//! correspondences with outliers, ORB features + matching + RANSAC on two images
+//! (`--images`, against the Oxford graf ground truth), and input errors (status 2, one line
+//! naming the camgeom error).
 
 mod common;
 
@@ -187,5 +189,76 @@ fn input_errors_name_the_camgeom_error() {
     assert_input_error(
         &homography("outliers.csv", &csv, &["--max-iters", "0"]),
         "invalid_parameter",
+    );
+}
+
+fn graf(name: &str) -> String {
+    let path = camgeom_host::data_dir().join("oxford-graf").join(name);
+    path.to_str().unwrap().to_string()
+}
+
+/// `--images graf1.png graf3.png`: ORB + cross-check + RANSAC, the same pipeline as
+/// `tests/features.rs::graf_homography_from_features_and_ransac`. The printed H maps a 40-px
+/// grid of graf1 points (those whose true image lies inside graf3) within a mean of 2 px and a
+/// max of 5 px of the ground truth H1to3p (measured 0.49 px mean, 1.35 px max over 311 points;
+/// the features test 0.52 px, 1.4 px).
+#[test]
+fn images_give_the_graf_homography() {
+    let (g1, g3) = (graf("graf1.png"), graf("graf3.png"));
+    let v = json(&camgeom(&["homography", "--images", &g1, &g3]));
+    assert_eq!(v["method"], "ransac");
+    assert!(v["iterations"].as_u64().unwrap() >= 1);
+    let m = v["matches"].as_u64().unwrap() as usize;
+    let mask = mask(&v);
+    assert_eq!(mask.len(), m);
+    let inliers = v["inliers"].as_u64().unwrap() as usize;
+    assert_eq!(inliers, mask.iter().filter(|b| **b).count());
+    // Measured 87 inliers of 163 matches.
+    assert!(inliers >= 40 && m >= 100, "{inliers} of {m}");
+    let h = matrix(&v);
+    assert_eq!(h[2][2], 1.0);
+    let fs = camgeom_host::FileStorage::open(graf("H1to3p.xml")).unwrap();
+    let t = fs.matrix("H13").unwrap().to_matrix3().unwrap();
+    let truth: [[f64; 3]; 3] = core::array::from_fn(|i| core::array::from_fn(|j| t[(i, j)]));
+    // graf1 and graf3 are 800 x 640.
+    let (w, hgt) = (800.0, 640.0);
+    let mut errors = Vec::new();
+    for y in (0..640).step_by(40) {
+        for x in (0..800).step_by(40) {
+            let (x, y) = (f64::from(x), f64::from(y));
+            let q = apply(&truth, x, y);
+            if q.0 >= 0.0 && q.0 <= w - 1.0 && q.1 >= 0.0 && q.1 <= hgt - 1.0 {
+                let p = apply(&h, x, y);
+                errors.push((p.0 - q.0).hypot(p.1 - q.1));
+            }
+        }
+    }
+    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
+    let max = errors.iter().cloned().fold(0.0, f64::max);
+    assert!(errors.len() >= 100, "{}", errors.len());
+    assert!(mean < 2.0 && max < 5.0, "mean {mean} px, max {max} px");
+    // The same options as `--matches` reach RANSAC.
+    let few = camgeom(&["homography", "--images", &g1, &g3, "--max-iters", "1"]);
+    assert_eq!(json(&few)["iterations"], 1);
+}
+
+#[test]
+fn image_input_errors() {
+    let g1 = graf("graf1.png");
+    let missing = graf("no-such-image.png");
+    assert_input_error(
+        &camgeom(&["homography", "--images", &g1, &missing]),
+        "no-such-image.png",
+    );
+    // Not an image.
+    assert_input_error(
+        &camgeom(&["homography", "--images", &graf("H1to3p.xml"), &g1]),
+        "H1to3p.xml",
+    );
+    // `--images` takes two files and excludes `--matches`.
+    assert_input_error(&camgeom(&["homography", "--images", &g1]), "--images");
+    assert_input_error(
+        &camgeom(&["homography", "--images", &g1, &g1, "--matches", "x.csv"]),
+        "cannot be used with",
     );
 }
