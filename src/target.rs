@@ -24,7 +24,7 @@ use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
-use crate::klt::{Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow, forward_backward};
+use crate::klt::{FlowArith, FlowBuffers, FlowStatus, LkConfig};
 use crate::pose::{PlanarConfig, PlanarPose, solve_planar};
 use crate::pyramid::Pyramid;
 use crate::ransac::RansacConfig;
@@ -119,9 +119,7 @@ struct Feature<C> {
 pub struct PlanarTarget<A: FlowArith, const N: usize> {
     size: [f32; 2],
     features: Vec<Feature<A::Coord>, N>,
-    pts: [[A::Coord; 2]; N],
-    flows: [Flow<A::Coord>; N],
-    back: [Flow<A::Coord>; N],
+    buffers: FlowBuffers<A, N>,
     model: [Point2<f32>; N],
     pixels: [Point2<f32>; N],
     scratch: [Point2<f32>; N],
@@ -137,13 +135,10 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         if !(width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0) {
             return Err(Error::InvalidParameter);
         }
-        let z = A::Coord::default();
         Ok(Self {
             size: [width, height],
             features: Vec::new(),
-            pts: [[z; 2]; N],
-            flows: [Flow::default(); N],
-            back: [Flow::default(); N],
+            buffers: FlowBuffers::new(),
             model: [Point2::origin(); N],
             pixels: [Point2::origin(); N],
             scratch: [Point2::origin(); N],
@@ -288,35 +283,10 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         scratch: &mut [i16],
     ) -> Result<usize> {
         let n = self.features.len();
-        let (Some(pts), Some(flows), Some(back)) = (
-            self.pts.get_mut(..n),
-            self.flows.get_mut(..n),
-            self.back.get_mut(..n),
-        ) else {
-            return Err(Error::LengthMismatch);
-        };
-        for (p, f) in pts.iter_mut().zip(self.features.iter()) {
-            *p = f.pos;
-        }
-        calc_flow::<A>(
-            prev,
-            next,
-            pts,
-            flows,
-            &cfg.lk,
-            Gradients::PerWindow,
-            scratch,
-        )?;
-        forward_backward::<A>(
-            prev,
-            next,
-            pts,
-            flows,
-            back,
-            &cfg.lk,
-            Gradients::PerWindow,
-            scratch,
-        )?;
+        let positions = self.features.iter().map(|f| f.pos);
+        let flows = self
+            .buffers
+            .run(prev, next, n, positions, &cfg.lk, scratch)?;
         let mut k = 0usize;
         self.features.retain(|_| {
             let keep = flows

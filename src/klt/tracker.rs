@@ -69,14 +69,79 @@ pub struct TrackerStats {
     pub added: usize,
 }
 
+/// The per-point work arrays of one multi-point flow step, for up to `N` points: their start
+/// positions, the forward flows and, for the forward-backward check, the backward flows.
+#[derive(Debug, Clone)]
+pub struct FlowBuffers<A: FlowArith, const N: usize> {
+    pts: [[A::Coord; 2]; N],
+    flows: [Flow<A::Coord>; N],
+    back: [Flow<A::Coord>; N],
+}
+
+impl<A: FlowArith, const N: usize> Default for FlowBuffers<A, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
+    /// Zeroed buffers.
+    pub fn new() -> Self {
+        Self {
+            pts: [[A::Coord::default(); 2]; N],
+            flows: [Flow::default(); N],
+            back: [Flow::default(); N],
+        }
+    }
+
+    /// Tracks `points` (the first `n`) from `prev` to `next` with [`calc_flow`] (from the
+    /// points themselves: `use_initial_flow` is ignored), then the forward-backward check when
+    /// `lk.fb_threshold` is set; returns one flow per point. Errors:
+    /// [`Error::LengthMismatch`] when `n > N`; as [`calc_flow`].
+    pub fn run(
+        &mut self,
+        prev: &Pyramid<'_>,
+        next: &Pyramid<'_>,
+        n: usize,
+        points: impl Iterator<Item = [A::Coord; 2]>,
+        lk: &LkConfig,
+        scratch: &mut [i16],
+    ) -> Result<&[Flow<A::Coord>]> {
+        let (Some(pts), Some(flows), Some(back)) = (
+            self.pts.get_mut(..n),
+            self.flows.get_mut(..n),
+            self.back.get_mut(..n),
+        ) else {
+            return Err(Error::LengthMismatch);
+        };
+        for (p, q) in pts.iter_mut().zip(points) {
+            *p = q;
+        }
+        let lk = LkConfig {
+            use_initial_flow: false,
+            ..*lk
+        };
+        calc_flow::<A>(prev, next, pts, flows, &lk, Gradients::PerWindow, scratch)?;
+        forward_backward::<A>(
+            prev,
+            next,
+            pts,
+            flows,
+            back,
+            &lk,
+            Gradients::PerWindow,
+            scratch,
+        )?;
+        Ok(flows)
+    }
+}
+
 /// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is in
 /// [`pipeline_ram`]).
 #[derive(Debug, Clone)]
 pub struct Tracker<A: FlowArith, const N: usize> {
     tracks: Vec<Track<A::Coord>, N>,
-    pts: [[A::Coord; 2]; N],
-    flows: [Flow<A::Coord>; N],
-    back: [Flow<A::Coord>; N],
+    buffers: FlowBuffers<A, N>,
     next_id: u32,
 }
 
@@ -91,9 +156,7 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     pub fn new() -> Self {
         Self {
             tracks: Vec::new(),
-            pts: [[A::Coord::default(); 2]; N],
-            flows: [Flow::default(); N],
-            back: [Flow::default(); N],
+            buffers: FlowBuffers::new(),
             next_id: 0,
         }
     }
@@ -118,33 +181,14 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
         scratch: &mut [i16],
     ) -> Result<TrackerStats> {
         let n = self.tracks.len();
-        let (Some(pts), Some(flows), Some(back)) = (
-            self.pts.get_mut(..n),
-            self.flows.get_mut(..n),
-            self.back.get_mut(..n),
-        ) else {
-            return Err(Error::LengthMismatch);
-        };
-        for (p, t) in pts.iter_mut().zip(self.tracks.iter()) {
-            *p = [t.x, t.y];
-        }
-        let lk = LkConfig {
-            use_initial_flow: false,
-            ..cfg.lk
-        };
-        calc_flow::<A>(prev, next, pts, flows, &lk, Gradients::PerWindow, scratch)?;
-        if lk.fb_threshold.is_some() {
-            forward_backward::<A>(
-                prev,
-                next,
-                pts,
-                flows,
-                back,
-                &lk,
-                Gradients::PerWindow,
-                scratch,
-            )?;
-        }
+        let flows = self.buffers.run(
+            prev,
+            next,
+            n,
+            self.tracks.iter().map(|t| [t.x, t.y]),
+            &cfg.lk,
+            scratch,
+        )?;
         let mut k = 0;
         self.tracks.retain_mut(|t| {
             let f = flows.get(k).copied().unwrap_or_default();
