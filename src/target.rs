@@ -218,7 +218,8 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
     /// `flow_scratch`: [`crate::klt::scratch_len`]`(cfg.lk.win)` `i16`; `candidates`,
     /// `scratch`: as [`good_features`] for the re-detection. A frame with too few inliers is
     /// not an error: it returns [`TargetState::Lost`]. Errors: [`Error::InvalidParameter`]
-    /// before [`Self::init`]; as [`calc_flow`] for mismatched pyramids or bad configuration.
+    /// before [`Self::init`]; as [`crate::klt::calc_flow`] for mismatched pyramids or bad
+    /// configuration.
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
