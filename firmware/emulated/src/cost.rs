@@ -41,6 +41,24 @@ pub struct Calibration {
     pub per_tick: u32,
 }
 
+/// Board start-up shared by every binary: takes the core peripherals, starts and calibrates
+/// SysTick with [`init`] and logs the calibration. Exits with failure if the peripherals were
+/// already taken.
+pub fn start() -> Calibration {
+    let Some(cp) = cortex_m::Peripherals::take() else {
+        defmt::error!("core peripherals already taken");
+        crate::board::exit_failure()
+    };
+    let cal = init(cp.SYST);
+    defmt::info!(
+        "SysTick calibrated: {=u32} instructions in {=u32} ticks, 1 tick = {=u32} instructions",
+        cal.instructions,
+        cal.ticks,
+        cal.per_tick
+    );
+    cal
+}
+
 /// Starts SysTick as a free-running counter from the core clock and calibrates it.
 pub fn init(mut syst: SYST) -> Calibration {
     syst.disable_counter();

@@ -67,17 +67,7 @@ fn check(ok: bool, what: &str) {
 
 #[entry]
 fn main() -> ! {
-    let Some(cp) = cortex_m::Peripherals::take() else {
-        defmt::error!("core peripherals already taken");
-        board::exit_failure()
-    };
-    let cal = cost::init(cp.SYST);
-    defmt::info!(
-        "SysTick calibrated: {=u32} instructions in {=u32} ticks, 1 tick = {=u32} instructions",
-        cal.instructions,
-        cal.ticks,
-        cal.per_tick
-    );
+    cost::start();
     let mut costs = CostTable::<8>::new();
 
     // Inputs through black_box: nothing may be computed before the measurement starts.

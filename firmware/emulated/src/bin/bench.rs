@@ -120,17 +120,7 @@ fn grid_gap(h: &camgeom::homography::Homography<f32>) -> f32 {
 
 #[entry]
 fn main() -> ! {
-    let Some(cp) = cortex_m::Peripherals::take() else {
-        defmt::error!("core peripherals already taken");
-        board::exit_failure()
-    };
-    let cal = cost::init(cp.SYST);
-    defmt::info!(
-        "SysTick calibrated: {=u32} instructions in {=u32} ticks, 1 tick = {=u32} instructions",
-        cal.instructions,
-        cal.ticks,
-        cal.per_tick
-    );
+    cost::start();
     let mut costs = CostTable::<16>::new();
     let mut g = Pcg32::new(0x4642_454e_4348);
 
