@@ -107,6 +107,31 @@ pub struct TargetFrame {
     pub added: usize,
 }
 
+/// The stages of one [`PlanarTarget::step`], in the order they run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stage {
+    /// KLT from the previous pyramid to the new one (and back, when checked).
+    Flow,
+    /// RANSAC homography target plane → image on the tracked features.
+    Homography,
+    /// IPPE and its refinement on the inliers.
+    Pose,
+    /// Feature detection inside the target's outline.
+    Redetect,
+}
+
+/// Told as each [`Stage`] of [`PlanarTarget::step_probed`] ends: a board reads its cycle
+/// counter here. `()` is the probe that does nothing.
+pub trait StageProbe {
+    /// `stage` has just finished.
+    fn stage_done(&mut self, stage: Stage);
+}
+
+impl StageProbe for () {
+    fn stage_done(&mut self, _stage: Stage) {}
+}
+
 #[derive(Debug, Clone, Copy)]
 struct Feature<C> {
     pos: [C; 2],
@@ -231,11 +256,39 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         candidates: &mut [Corner],
         scratch: &mut [u32],
     ) -> Result<TargetFrame> {
+        self.step_probed(
+            prev,
+            next,
+            camera,
+            cfg,
+            flow_scratch,
+            candidates,
+            scratch,
+            &mut (),
+        )
+    }
+
+    /// [`Self::step`], telling `probe` as each [`Stage`] ends (to time the stages on a
+    /// board). A stage that does not run (no re-detection needed, target lost before the
+    /// pose) is not reported.
+    #[allow(clippy::too_many_arguments)]
+    pub fn step_probed<P: StageProbe>(
+        &mut self,
+        prev: &Pyramid<'_>,
+        next: &Pyramid<'_>,
+        camera: &Camera<f32>,
+        cfg: &TargetConfig,
+        flow_scratch: &mut [i16],
+        candidates: &mut [Corner],
+        scratch: &mut [u32],
+        probe: &mut P,
+    ) -> Result<TargetFrame> {
         if self.state == TargetState::Uninitialised {
             return Err(Error::InvalidParameter);
         }
         let frame = next.level(0).ok_or(Error::InvalidImage)?;
         let tracked = self.flow(prev, next, cfg, flow_scratch)?;
+        probe.stage_done(Stage::Flow);
         let mut out = TargetFrame {
             state: TargetState::Lost,
             pose: None,
@@ -244,7 +297,9 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
             inliers: 0,
             added: 0,
         };
-        let Some(h) = self.fit(cfg) else {
+        let fitted = self.fit(cfg);
+        probe.stage_done(Stage::Homography);
+        let Some(h) = fitted else {
             self.state = TargetState::Lost;
             return Ok(out);
         };
@@ -258,6 +313,7 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         );
         // Pose from the inliers; a numerical failure loses the frame, not the tracker.
         out.pose = solve_planar(camera, model, pixels, scr, &cfg.planar).ok();
+        probe.stage_done(Stage::Pose);
         let mut outline = [Point2::origin(); 4];
         for (o, c) in outline.iter_mut().zip(self.target_corners().iter()) {
             *o = h.transfer(c)?;
@@ -265,6 +321,7 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         out.outline = Some(outline);
         if self.features.len() < cfg.min_tracks {
             out.added = self.detect(&frame, &h, cfg, candidates, scratch)?;
+            probe.stage_done(Stage::Redetect);
         }
         self.state = if out.pose.is_some() {
             TargetState::Tracking
@@ -514,6 +571,16 @@ mod tests {
         Pose::from_rodrigues(r, t_vec).unwrap()
     }
 
+    /// Records the stages a step reports.
+    #[derive(Default)]
+    struct Stages(StdVec<Stage>);
+
+    impl StageProbe for Stages {
+        fn stage_done(&mut self, stage: Stage) {
+            self.0.push(stage);
+        }
+    }
+
     #[test]
     fn tracks_a_rendered_target_with_accurate_pose() {
         let k = Intrinsics::new(200.0f64, 200.0, 79.5, 59.5).unwrap();
@@ -567,10 +634,27 @@ mod tests {
                 .unwrap();
             let next =
                 Pyramid::build(ImageView::packed(&frames[t], W, H).unwrap(), nb, levels).unwrap();
+            let mut stages = Stages::default();
             let out = target
-                .step(&prev, &next, &cam, &cfg, &mut fscr, &mut cand, &mut cscr)
+                .step_probed(
+                    &prev,
+                    &next,
+                    &cam,
+                    &cfg,
+                    &mut fscr,
+                    &mut cand,
+                    &mut cscr,
+                    &mut stages,
+                )
                 .unwrap();
             assert_eq!(out.state, TargetState::Tracking, "frame {t}: {out:?}");
+            // Every stage that ran was reported, once, in order.
+            let mut expected = vec![Stage::Flow, Stage::Homography, Stage::Pose];
+            if out.added > 0 {
+                expected.push(Stage::Redetect);
+            }
+            assert_eq!(stages.0[..expected.len()], expected[..], "frame {t}");
+            assert!(stages.0.len() <= 4, "frame {t}: {:?}", stages.0);
             let est = out.pose.unwrap().best.pose;
             let truth = pose_at(t as f64);
             let dr = (est.isometry().rotation.cast::<f64>() * truth.isometry().rotation.inverse())
