@@ -11,9 +11,12 @@
 //! any closer than `min_distance` to one already kept — or to an existing point passed in, so
 //! the same call replenishes empty regions of a frame that is already being tracked.
 //!
-//! Memory: [`scratch_len`]`(width)` `u32` of scratch (three rows of sums, three of scores) and
-//! a caller slice of candidates; no full-frame score map. Two passes (the maximum, then the
-//! candidates), each evaluating the Sobel rows three times.
+//! Memory: [`scratch_len`]`(width)` `u32` of scratch (three rows of Sobel products, three of
+//! scores) and a caller slice of candidates; no full-frame score map. One pass over the rows:
+//! each row's Sobel products are computed once, and the square root is taken only where the
+//! score can still matter (`S <= A + C`, so pixels whose trace is below the running threshold
+//! `quality · max S so far` are skipped; the threshold only rises, so nothing skipped could
+//! have been kept).
 
 use heapless::Vec;
 
@@ -55,17 +58,19 @@ impl Default for CornerConfig {
     }
 }
 
-/// `u32` elements of scratch [`good_features`] needs for frames `width` pixels wide: `6 width`.
+/// `u32` elements of scratch [`good_features`] needs for frames `width` pixels wide:
+/// `12 width`.
 pub const fn scratch_len(width: usize) -> usize {
-    6 * width
+    12 * width
 }
 
-/// `⌊√v⌋` (bit by bit).
+/// `⌊√v⌋` (bit by bit, from the highest set bit).
 fn isqrt(v: u64) -> u64 {
-    let (mut rem, mut root, mut bit) = (v, 0u64, 1u64 << 62);
-    while bit > rem {
-        bit >>= 2;
+    if v == 0 {
+        return 0;
     }
+    let (mut rem, mut root) = (v, 0u64);
+    let mut bit = 1u64 << ((63 - v.leading_zeros()) & !1);
     while bit != 0 {
         if rem >= root + bit {
             rem -= root + bit;
@@ -78,58 +83,122 @@ fn isqrt(v: u64) -> u64 {
     root
 }
 
-/// Adds the Sobel products of image row `r` into the column sums `sums = [Σdx², Σdxdy, Σdy²]`.
-fn add_sobel_products(img: &ImageView<'_, u8>, r: usize, sums: &mut [u32]) {
+/// Sobel `dx, dy` at the middle column of three-pixel windows of rows `r0, r1, r2`.
+#[inline(always)]
+fn sobel(r0: [u8; 3], r1: [u8; 3], r2: [u8; 3]) -> (i32, i32) {
+    let p = i32::from;
+    let dx = (p(r0[2]) - p(r0[0])) + 2 * (p(r1[2]) - p(r1[0])) + (p(r2[2]) - p(r2[0]));
+    let dy = (p(r2[0]) + 2 * p(r2[1]) + p(r2[2])) - (p(r0[0]) + 2 * p(r0[1]) + p(r0[2]));
+    (dx, dy)
+}
+
+/// The three pixels of `row` at columns `x - 1, x, x + 1`, reflected at the ends.
+#[inline]
+fn triple(row: &[u8], x: usize, w: usize) -> [u8; 3] {
+    let at = |c: isize| row.get(reflect101(c, w)).copied().unwrap_or(0);
+    let xi = x as isize;
+    [at(xi - 1), at(xi), at(xi + 1)]
+}
+
+/// The Sobel products of image row `r` into `out = [dx² | dx dy | dy²]` (`3 width`; `dx dy`
+/// stored two's complement).
+fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
     let (w, h) = (img.width(), img.height());
     let ri = r as isize;
     let r0 = img.row_clamped(reflect101(ri - 1, h) as isize);
     let r1 = img.row_clamped(ri);
     let r2 = img.row_clamped(reflect101(ri + 1, h) as isize);
-    let p = |row: &[u8], c: usize| i32::from(row.get(c).copied().unwrap_or(0));
-    let (sxx, rest) = sums.split_at_mut(w.min(sums.len()));
+    let (sxx, rest) = out.split_at_mut(w.min(out.len()));
     let (sxy, syy) = rest.split_at_mut(w.min(rest.len()));
-    for (x, ((a, b), c)) in sxx
+    let mut put = |x: usize, (dx, dy): (i32, i32)| {
+        // |dx|, |dy| <= 1020: the products and 9-term sums stay far inside u32 / i32.
+        if let (Some(a), Some(b), Some(c)) = (sxx.get_mut(x), sxy.get_mut(x), syy.get_mut(x)) {
+            *a = (dx * dx) as u32;
+            *b = (dx * dy) as u32;
+            *c = (dy * dy) as u32;
+        }
+    };
+    if w < 3 {
+        for x in 0..w {
+            put(
+                x,
+                sobel(triple(r0, x, w), triple(r1, x, w), triple(r2, x, w)),
+            );
+        }
+        return;
+    }
+    put(
+        0,
+        sobel(triple(r0, 0, w), triple(r1, 0, w), triple(r2, 0, w)),
+    );
+    let last = w - 1;
+    put(
+        last,
+        sobel(
+            triple(r0, last, w),
+            triple(r1, last, w),
+            triple(r2, last, w),
+        ),
+    );
+    // Interior: straight 3-wide windows, no reflection.
+    let rows = r0.windows(3).zip(r1.windows(3)).zip(r2.windows(3));
+    let outs = sxx
         .iter_mut()
-        .zip(sxy.iter_mut())
-        .zip(syy.iter_mut())
-        .enumerate()
-    {
-        let xm = reflect101(x as isize - 1, w);
-        let xp = reflect101(x as isize + 1, w);
-        let dx = (p(r0, xp) - p(r0, xm)) + 2 * (p(r1, xp) - p(r1, xm)) + (p(r2, xp) - p(r2, xm));
-        let dy = (p(r2, xm) + 2 * p(r2, x) + p(r2, xp)) - (p(r0, xm) + 2 * p(r0, x) + p(r0, xp));
-        // |dx|, |dy| <= 1020: 9 products per pixel stay far inside u32 / i32.
-        *a = a.wrapping_add((dx * dx) as u32);
-        *b = b.wrapping_add((dx * dy) as u32);
-        *c = c.wrapping_add((dy * dy) as u32);
+        .skip(1)
+        .zip(sxy.iter_mut().skip(1))
+        .zip(syy.iter_mut().skip(1));
+    for (((a, b), c), ((t, m), d)) in outs.zip(rows).take(w - 2) {
+        let (&[t0, t1, t2], &[m0, _, m2], &[d0, d1, d2]) = (t, m, d) else {
+            continue;
+        };
+        let (dx, dy) = sobel([t0, t1, t2], [m0, 0, m2], [d0, d1, d2]);
+        *a = (dx * dx) as u32;
+        *b = (dx * dy) as u32;
+        *c = (dy * dy) as u32;
     }
 }
 
-/// Scores of row `y` into `out` (`width` values), using `sums` (`3 width`) as work space.
-fn score_row(img: &ImageView<'_, u8>, y: usize, sums: &mut [u32], out: &mut [u32]) {
-    let (w, h) = (img.width(), img.height());
-    sums.fill(0);
-    for dy in [-1isize, 0, 1] {
-        add_sobel_products(img, reflect101(y as isize + dy, h), sums);
-    }
-    let (sxx, rest) = sums.split_at(w.min(sums.len()));
-    let (sxy, syy) = rest.split_at(w.min(rest.len()));
-    let at = |s: &[u32], x: isize| s.get(reflect101(x, w)).copied().unwrap_or(0);
-    for (x, o) in out.iter_mut().take(w).enumerate() {
-        let xi = x as isize;
-        let box3 = |s: &[u32]| {
-            at(s, xi - 1)
-                .wrapping_add(at(s, xi))
-                .wrapping_add(at(s, xi + 1))
+/// Scores of one row from the product rows above, at and below it (`3 width` each) into
+/// `out`: `S = A + C - √((A - C)² + 4 B²)` over 3x3 blocks (reflected at the ends), or 0
+/// where `A + C <= floor` (then `S <= floor` too). Returns the row's largest score.
+fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &mut [u32]) -> u32 {
+    let col = |x: usize| -> [u32; 3] {
+        let ch = |k: usize| {
+            let i = k * w + x;
+            let g = |s: &[u32]| s.get(i).copied().unwrap_or(0);
+            g(up).wrapping_add(g(mid)).wrapping_add(g(down))
         };
-        let a = i64::from(box3(sxx));
-        let b = i64::from(box3(sxy) as i32);
-        let c = i64::from(box3(syy));
-        let d = (a - c).unsigned_abs();
-        let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
-        let s = (a + c) as u64;
-        *o = s.saturating_sub(isqrt(disc)).min(u64::from(u32::MAX)) as u32;
+        [ch(0), ch(1), ch(2)]
+    };
+    let add = |a: [u32; 3], b: [u32; 3]| {
+        [
+            a[0].wrapping_add(b[0]),
+            a[1].wrapping_add(b[1]),
+            a[2].wrapping_add(b[2]),
+        ]
+    };
+    let floor = u64::from(floor);
+    let mut best = 0u32;
+    // Columns x - 1, x, x + 1 of the vertical sums, reflected at both ends.
+    let mut prev = col(reflect101(-1, w));
+    let mut cur = col(0);
+    for (x, o) in out.iter_mut().take(w).enumerate() {
+        let next = col(reflect101(x as isize + 1, w));
+        let [a, b, c] = add(add(prev, cur), next);
+        let (a, b, c) = (u64::from(a), i64::from(b as i32), u64::from(c));
+        let tr = a + c;
+        *o = if tr <= floor {
+            0
+        } else {
+            let d = a.abs_diff(c);
+            let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
+            tr.saturating_sub(isqrt(disc)).min(u64::from(u32::MAX)) as u32
+        };
+        best = best.max(*o);
+        prev = cur;
+        cur = next;
     }
+    best
 }
 
 /// Orders candidates strongest first; ties: later in raster order first (as OpenCV).
@@ -159,73 +228,100 @@ pub fn good_features<const K: usize>(
     let scratch = scratch
         .get_mut(..scratch_len(w))
         .ok_or(Error::InvalidParameter)?;
-    let (sums, ring) = scratch
-        .split_at_mut_checked(3 * w)
+    let (prods, ring) = scratch
+        .split_at_mut_checked(9 * w)
         .ok_or(Error::InvalidParameter)?;
-    // Pass 1: the largest score (border pixels included, as OpenCV's minMaxLoc).
+    let q = f64::from(cfg.quality);
+    let quality_of = |max: u32| (f64::from(max) * q) as u32;
+    // Rows of products and of scores live in rings of three, slot `row % 3`.
+    let pslot = |r: usize| ((r % 3) * 3 * w)..((r % 3) + 1) * 3 * w;
+    let sslot = |r: usize| ((r % 3) * w)..((r % 3) + 1) * w;
     let mut max = 0u32;
-    for y in 0..h {
-        let row = ring.get_mut(..w).unwrap_or(&mut []);
-        score_row(img, y, sums, row);
-        max = row.iter().copied().fold(max, u32::max);
-    }
-    let thr = (f64::from(max) * f64::from(cfg.quality)) as u32;
-    // Pass 2: 3x3 maxima above the threshold, rows y - 1, y, y + 1 in a ring.
+    // Scores at or below `floor` can be dropped: it never exceeds the final threshold
+    // `quality · max S` (the running maximum only grows) nor a kept candidate's score.
+    let mut floor = 0u32;
     let mut count = 0usize;
-    let mut floor = thr;
-    if h >= 3 && w >= 3 {
-        for y in 0..2 {
-            if let Some(r) = ring.get_mut(y * w..(y + 1) * w) {
-                score_row(img, y, sums, r);
+    for y in 0..h {
+        // Products of rows y - 1 (reflected), y and y + 1 (reflected) must be in the ring.
+        if y == 0 {
+            for r in 0..h.min(2) {
+                if let Some(p) = prods.get_mut(pslot(r)) {
+                    sobel_products(img, r, p);
+                }
             }
+        } else if y + 1 < h
+            && let Some(p) = prods.get_mut(pslot(y + 1))
+        {
+            sobel_products(img, y + 1, p);
         }
-        for y in 1..h - 1 {
-            let slot = |r: usize| ((r % 3) * w)..((r % 3) + 1) * w;
-            if let Some(r) = ring.get_mut(slot(y + 1)) {
-                score_row(img, y + 1, sums, r);
+        let yi = y as isize;
+        let (ru, rd) = (reflect101(yi - 1, h), reflect101(yi + 1, h));
+        let (Some(up), Some(mid), Some(down)) = (
+            prods.get(pslot(ru)),
+            prods.get(pslot(y)),
+            prods.get(pslot(rd)),
+        ) else {
+            break;
+        };
+        let Some(row) = ring.get_mut(sslot(y)) else {
+            break;
+        };
+        // Border pixels count for the maximum (as OpenCV's minMaxLoc), not as candidates.
+        let row_max = score_row(up, mid, down, w, floor, row);
+        if row_max > max {
+            max = row_max;
+            floor = floor.max(quality_of(max));
+        }
+        // Row y - 1 is complete with its neighbours: collect its 3x3 maxima above the floor.
+        if y < 2 || w < 3 {
+            continue;
+        }
+        let c = y - 1;
+        let (Some(up), Some(mid), Some(down)) = (
+            ring.get(sslot(c - 1)),
+            ring.get(sslot(c)),
+            ring.get(sslot(y)),
+        ) else {
+            break;
+        };
+        for x in 1..w - 1 {
+            let v = mid.get(x).copied().unwrap_or(0);
+            if v <= floor {
+                continue;
             }
-            let (Some(up), Some(mid), Some(down)) = (
-                ring.get(slot(y - 1)),
-                ring.get(slot(y)),
-                ring.get(slot(y + 1)),
-            ) else {
-                break;
+            let nb = |r: &[u32]| {
+                r.get(x - 1..x + 2)
+                    .map_or(0, |s| s.iter().copied().fold(0, u32::max))
             };
-            for x in 1..w - 1 {
-                let v = mid.get(x).copied().unwrap_or(0);
+            if v < nb(up) || v < nb(mid) || v < nb(down) {
+                continue;
+            }
+            if count == candidates.len() {
+                candidates.sort_unstable_by(stronger);
+                count = candidates.len() / 2;
+                floor = candidates
+                    .get(count - 1)
+                    .map_or(floor, |k| k.score.max(floor));
                 if v <= floor {
                     continue;
                 }
-                let nb = |r: &[u32]| {
-                    r.get(x - 1..x + 2)
-                        .map_or(0, |s| s.iter().copied().fold(0, u32::max))
+            }
+            if let Some(k) = candidates.get_mut(count) {
+                *k = Corner {
+                    x: x as u16,
+                    y: c as u16,
+                    score: v,
                 };
-                if v < nb(up) || v < nb(mid) || v < nb(down) {
-                    continue;
-                }
-                if count == candidates.len() {
-                    candidates.sort_unstable_by(stronger);
-                    count = candidates.len() / 2;
-                    floor = candidates
-                        .get(count - 1)
-                        .map_or(floor, |c| c.score.max(thr));
-                    if v <= floor {
-                        continue;
-                    }
-                }
-                if let Some(c) = candidates.get_mut(count) {
-                    *c = Corner {
-                        x: x as u16,
-                        y: y as u16,
-                        score: v,
-                    };
-                    count += 1;
-                }
+                count += 1;
             }
         }
     }
+    // The final threshold, from the true maximum: drop what the running one let through.
+    let thr = quality_of(max);
     let cands = candidates.get_mut(..count).unwrap_or(&mut []);
     cands.sort_unstable_by(stronger);
+    let kept = cands.iter().take_while(|k| k.score > thr).count();
+    let cands = cands.get(..kept).unwrap_or(&[]);
     let md = i64::from(cfg.min_distance);
     let md2 = md * md;
     let far = |x: i64, y: i64, px: i64, py: i64| {

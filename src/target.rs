@@ -695,7 +695,7 @@ mod tests {
         let cam = Camera::pinhole(Intrinsics::new(10.0, 10.0, 4.0, 4.0).unwrap());
         let mut f = [0i16; 4096];
         let mut c = [Corner::default(); 8];
-        let mut s = [0u32; 64];
+        let mut s = [0u32; corner_scratch_len(8)];
         assert_eq!(
             t.step(
                 &p,
