@@ -125,3 +125,81 @@ fn box_lid_is_tracked_with_a_continuous_pose() {
     );
     assert!(worst.0 < 1.0 && worst.1 < 0.02, "{worst:?}");
 }
+
+#[test]
+fn ar_cli_writes_overlays_poses_and_contact_sheet() {
+    // The first 12 frames, copied: enough for every output, cheap to run.
+    let seq = data_dir().join("sequences");
+    let tmp = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("camgeom-ar-cli-{}", std::process::id()));
+    let (frames, out) = (tmp.join("frames"), tmp.join("out"));
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..12 {
+        let name = format!("{k:04}.png");
+        std::fs::copy(seq.join("box").join(&name), frames.join(&name)).unwrap();
+    }
+    let corners = seq.join("box-top.csv");
+    let camera = seq.join("box-camera.yml");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "ar",
+            "--frames",
+            frames.to_str().unwrap(),
+            "--corners",
+            corners.to_str().unwrap(),
+            "--intrinsics",
+            camera.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_camgeom"))
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&[
+        "--size",
+        "0.258,0.189",
+        "--sheet-frames",
+        "4",
+        "--sheet-cols",
+        "2",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(summary["frames"], 12);
+    assert_eq!(summary["tracking"], 12);
+    let poses = std::fs::read_to_string(out.join("poses.csv")).unwrap();
+    let mut lines = poses.lines();
+    assert_eq!(
+        lines.next(),
+        Some("frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added")
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 12);
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r.len(), 14);
+        assert_eq!((r[0], r[1]), (k.to_string().as_str(), "tracking"));
+        // The lid is about 1.7 m away (tz), in front of the camera.
+        let tz: f64 = r[7].parse().unwrap();
+        assert!((1.0..3.0).contains(&tz), "{tz}");
+    }
+    // One colour overlay per frame, the frame's size; the sheet is 2x2 tiles of half size
+    // (160x120) with 2-px gaps.
+    let img = image::open(out.join("0011.png")).unwrap();
+    assert_eq!((img.width(), img.height()), (320, 240));
+    let sheet = image::open(out.join("contact_sheet.png")).unwrap();
+    assert_eq!((sheet.width(), sheet.height()), (2 * 160 + 6, 2 * 120 + 6));
+    // Input errors: status 2, one line.
+    for bad in [
+        &["--size", "0.258,0,1"][..],
+        &["--size", "-1"][..],
+        &["--size", "0.2", "--cube", "0"][..],
+    ] {
+        let o = run(bad);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}");
+        assert_eq!(String::from_utf8_lossy(&o.stderr).lines().count(), 1);
+    }
+    std::fs::remove_dir_all(&tmp).unwrap();
+}
