@@ -24,9 +24,17 @@ Writes into host-tests/data/fixtures/pose_sequence/:
                points; rot_deg the angle of R_est R_true^T, t_pct = |t_est - t_true| / |t_true| * 100.
 and prints OpenCV's table. camgeom's side: cargo test -p camgeom-host --test pose_sequence
 -- --nocapture (reads these files). Run from the repository root.
+
+With --camgeom PATH (the `camgeom` binary, e.g. target/debug/camgeom) and --draws N, the script
+also compares camgeom's refined planar pose (`camgeom pose`) with OpenCV's three methods over N
+independent noise draws per pose (sigma 0.5 px, seeds 100..100+N), nothing written: enough poses
+for the ranking of the methods to be a property of the methods, not of 8 frames.
 """
+import argparse
 import json
 import os
+import subprocess
+import tempfile
 
 import cv2
 import numpy as np
@@ -56,8 +64,45 @@ def rot_deg(r1, r2):
     return float(np.degrees(2.0 * np.arcsin(min(1.0, d / (2.0 * np.sqrt(2.0))))))
 
 
+def noise_study(camgeom, draws, model_all, truths):
+    """camgeom pose vs cv2.solvePnP over many noise draws; prints mean/max errors."""
+    errs = {m: [] for m in ["camgeom", "ippe", "iterative", "sqpnp"]}
+    cam = os.path.join(OUT, "camera.json")
+    with tempfile.TemporaryDirectory() as tmp:
+        path = os.path.join(tmp, "p.csv")
+        for d in range(draws):
+            rng = np.random.default_rng(100 + d)
+            for R, t, model, exact in truths:
+                u = exact + rng.normal(0.0, 0.5, exact.shape)
+                with open(path, "w") as fh:
+                    fh.write("X,Y,Z,u,v\n")
+                    for p, q in zip(model, u):
+                        fh.write(f"{float(p[0])!r},{float(p[1])!r},0,{float(q[0])!r},{float(q[1])!r}\n")
+                out = json.loads(subprocess.run([camgeom, "pose", "--intrinsics", cam, "--points", path],
+                                                check=True, capture_output=True).stdout)
+                Re = np.array(out["R"]).reshape(3, 3)
+                te = np.array(out["t"])
+                errs["camgeom"].append((rot_deg(Re, R), 100 * np.linalg.norm(te - t) / np.linalg.norm(t)))
+                for mname, flag in METHODS:
+                    _, rv, tv = cv2.solvePnP(model, u, K, None, flags=flag)
+                    errs[mname].append((rot_deg(cv2.Rodrigues(rv)[0], R),
+                                        100 * np.linalg.norm(tv.ravel() - t) / np.linalg.norm(t)))
+    n = len(errs["camgeom"])
+    print(f"\nnoise study: {n} poses ({draws} draws x {len(truths)} poses, sigma 0.5 px)")
+    print("| method | rotation mean (deg) | rotation max (deg) | translation mean (%) | translation max (%) |")
+    print("|---|---:|---:|---:|---:|")
+    for m, e in errs.items():
+        e = np.array(e)
+        print(f"| {m} | {e[:, 0].mean():.4f} | {e[:, 0].max():.4f} | {e[:, 1].mean():.4f} | {e[:, 1].max():.4f} |")
+
+
 def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--camgeom", help="the camgeom binary, for the noise study")
+    ap.add_argument("--draws", type=int, default=25, help="noise draws per pose in the noise study")
+    args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
+    truths = []
     tex = cv2.imread(os.path.join(ROOT, "data", "oxford-graf", "graf1.png"), cv2.IMREAD_GRAYSCALE)
     th, tw = tex.shape
     s = TEX_W_M / tw
@@ -83,6 +128,7 @@ def main():
         proj = (K @ (R @ model.T + t[:, None])).T
         exact = proj[:, :2] / proj[:, 2:]
         inside = (exact[:, 0] > 8) & (exact[:, 0] < W - 9) & (exact[:, 1] > 8) & (exact[:, 1] < H - 9)
+        truths.append((R, t, model[inside], exact[inside]))
         variants = {}
         variants["exact"] = (model[inside], exact[inside])
         variants["noisy"] = (model[inside], exact[inside] + rng.normal(0.0, 0.5, exact[inside].shape))
@@ -124,6 +170,8 @@ def main():
             rd = np.array([r[9] for r in rows])
             tp = np.array([r[10] for r in rows])
             print(f"{name:9} {mname:10} {rd.mean():9.2e} {rd.max():9.2e} {tp.mean():9.2e} {tp.max():9.2e}")
+    if args.camgeom:
+        noise_study(args.camgeom, args.draws, model, truths)
 
 
 if __name__ == "__main__":
