@@ -99,6 +99,7 @@ def noise_study(camgeom, draws, model_all, truths):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--camgeom", help="the camgeom binary, for the noise study")
+    ap.add_argument("--save-frames", metavar="DIR", help="also write the rendered frames (PNG) into DIR")
     ap.add_argument("--draws", type=int, default=25, help="noise draws per pose in the noise study")
     args = ap.parse_args()
     os.makedirs(OUT, exist_ok=True)
@@ -146,9 +147,8 @@ def main():
                 rms = float(np.sqrt(np.mean(np.sum((pr.reshape(-1, 2) - u) ** 2, axis=1))))
                 cv_rows.append([f, name, mname, *rv.ravel(), *tv.ravel(), rot_deg(Re, R),
                                 100.0 * np.linalg.norm(tv.ravel() - t) / np.linalg.norm(t), rms])
-        if f in (0, 6):
-            cv2.imwrite(os.path.join("/tmp" if not os.environ.get("KEEP_FRAMES") else OUT,
-                                     f"pose_sequence_{f}.png"), frame)
+        if args.save_frames:
+            cv2.imwrite(os.path.join(args.save_frames, f"pose_sequence_{f}.png"), frame)
     with open(os.path.join(OUT, "camera.json"), "w") as fh:
         json.dump({"fx": K[0, 0], "fy": K[1, 1], "cx": K[0, 2], "cy": K[1, 2], "width": W, "height": H}, fh)
         fh.write("\n")
