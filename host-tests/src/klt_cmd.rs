@@ -199,6 +199,58 @@ struct TrackSummary {
     out: String,
 }
 
+/// The PNG and JPEG files of `dir`, in file-name order.
+pub fn frame_files(dir: &std::path::Path) -> Result<Vec<PathBuf>, String> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
+        })
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err(format!("{}: no PNG or JPEG frames", dir.display()));
+    }
+    Ok(files)
+}
+
+/// The progress bar of the sequence subcommands (on stderr; hidden when it is not a terminal).
+pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} {eta}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Loads `files` as grey frames of one size, advancing `bar` by one per frame.
+pub fn load_frames(
+    files: &[PathBuf],
+    bar: &indicatif::ProgressBar,
+) -> Result<Vec<GrayImage>, String> {
+    bar.set_message("loading");
+    let mut frames: Vec<GrayImage> = Vec::with_capacity(files.len());
+    for f in files {
+        let img = load(f)?;
+        if let Some(first) = frames.first()
+            && (first.width, first.height) != (img.width, img.height)
+        {
+            return Err(format!(
+                "{}: frame size differs from the first frame",
+                f.display()
+            ));
+        }
+        frames.push(img);
+        bar.inc(1);
+    }
+    Ok(frames)
+}
+
 /// `camgeom track`: writes the CSV (and overlays), prints a JSON summary.
 pub fn run_track(a: &TrackArgs) -> Result<String, String> {
     let lk = a.lk.config()?;
@@ -211,41 +263,9 @@ pub fn run_track(a: &TrackArgs) -> Result<String, String> {
     if !(a.quality > 0.0 && a.quality <= 1.0) {
         return Err(format!("--quality must be in (0, 1], got {}", a.quality));
     }
-    let mut files: Vec<PathBuf> = std::fs::read_dir(&a.frames)
-        .map_err(|e| format!("{}: {e}", a.frames.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| {
-            p.extension()
-                .and_then(|e| e.to_str())
-                .is_some_and(|e| matches!(e.to_ascii_lowercase().as_str(), "png" | "jpg" | "jpeg"))
-        })
-        .collect();
-    files.sort();
-    if files.is_empty() {
-        return Err(format!("{}: no PNG or JPEG frames", a.frames.display()));
-    }
-    let bar = indicatif::ProgressBar::new(files.len() as u64 * 2);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{msg:>8} [{bar:40}] {pos}/{len} {eta}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-            .progress_chars("=> "),
-    );
-    bar.set_message("loading");
-    let mut frames = Vec::with_capacity(files.len());
-    for f in &files {
-        let img = load(f)?;
-        if let Some(first) = frames.first() {
-            let first: &GrayImage = first;
-            if (first.width, first.height) != (img.width, img.height) {
-                return Err(format!(
-                    "{}: frame size differs from the first frame",
-                    f.display()
-                ));
-            }
-        }
-        frames.push(img);
-        bar.inc(1);
-    }
+    let files = frame_files(&a.frames)?;
+    let bar = progress_bar(files.len() as u64 * 2);
+    let frames = load_frames(&files, &bar)?;
     let cfg = TrackerConfig {
         lk,
         corners: CornerConfig {

@@ -8,10 +8,12 @@
 //! | [`points`] | point lists as CSV, the CLI's number formatting |
 //! | [`images`] | grayscale PNG/JPEG images to and from camgeom views |
 //! | [`klt`] | camgeom's KLT flow and tracker on owned images (tests, benches, `flow`/`track`) |
+//! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence, its overlays and contact sheet (`ar`) |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod ar;
 pub mod error;
 pub mod images;
 pub mod intrinsics;

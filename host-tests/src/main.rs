@@ -19,8 +19,10 @@ use camgeom_host::{load_camera, status_name};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+mod ar_cmd;
 mod homography_cmd;
 mod klt_cmd;
+mod pose_cmd;
 mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
@@ -75,6 +77,17 @@ enum Command {
     ///
     /// Writes rows `frame,id,x,y` to --out (optionally overlay PNGs) and prints a JSON summary.
     Track(klt_cmd::TrackArgs),
+    /// Camera pose from 3D-2D correspondences (OpenCV's solvePnP / solvePnPRansac).
+    ///
+    /// Reads rows `X,Y,Z,u,v` (CSV). All Z = 0: the planar solver (IPPE, both solutions,
+    /// refined); otherwise EPnP refined by Levenberg-Marquardt; `--ransac PX`: P3P RANSAC.
+    /// Prints JSON `{"R": [9, row-major], "t": [3], "rms_px": e, "alternative": {..} or null}`.
+    Pose(pose_cmd::PoseArgs),
+    /// Track a planar target through a folder of frames and draw a cube standing on it.
+    ///
+    /// Writes overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON
+    /// summary.
+    Ar(ar_cmd::ArArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -200,6 +213,14 @@ fn main() -> ExitCode {
             message,
         }),
         Command::Track(a) => klt_cmd::run_track(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Pose(a) => pose_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Ar(a) => ar_cmd::run(a).map_err(|message| Failure {
             code: EXIT_INPUT,
             message,
         }),

@@ -1,0 +1,425 @@
+//! The AR loop on owned frames: [`camgeom::target::PlanarTarget`] over a sequence, overlays
+//! with the target outline, the tracked features and a cube standing on the target, and a
+//! contact sheet of overlays (for `camgeom ar` and the sequence tests).
+
+use camgeom::camera::Camera;
+use camgeom::corners::Corner;
+use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
+use camgeom::image::ImageMut;
+use camgeom::klt::{Fixed, FlowArith, scratch_len};
+use camgeom::nalgebra::{Point2, Point3};
+use camgeom::pose::{PlanarPose, solve_planar};
+use camgeom::pyramid::{Pyramid, buffer_len};
+use camgeom::target::{PlanarTarget, TargetConfig, TargetState};
+
+use crate::images::GrayImage;
+use crate::klt::{Path, levels};
+
+/// Most features the target tracks (the `N` of [`PlanarTarget`]).
+pub const MAX_FEATURES: usize = 128;
+
+/// What to run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArOptions {
+    /// The target's size `(w, h)` (metres): its corners are `(0, 0), (w, 0), (w, h), (0, h)`.
+    pub size: [f32; 2],
+    /// Edge of the cube drawn on the target, centred on it.
+    pub cube: f32,
+    /// Flow arithmetic.
+    pub path: Path,
+    /// The tracker's configuration.
+    pub target: TargetConfig,
+}
+
+/// The outcome of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ArFrame {
+    /// 0-based index in the sequence.
+    pub frame: usize,
+    /// Tracking state after the frame.
+    pub state: TargetState,
+    /// Both planar poses (target to camera), when tracking.
+    pub pose: Option<PlanarPose<f32>>,
+    /// The target's corners through the tracked homography, when tracking.
+    pub outline: Option<[Point2<f32>; 4]>,
+    /// Tracks that survived the flow (frame 0: features detected).
+    pub tracked: usize,
+    /// Homography inliers (frame 0: features detected).
+    pub inliers: usize,
+    /// Features added by re-detection.
+    pub added: usize,
+    /// Image positions of the features tracked after the frame.
+    pub features: Vec<Point2<f32>>,
+}
+
+impl ArFrame {
+    /// Largest distance (pixels) between the target's corners projected through the best pose
+    /// and [`Self::outline`] (the homography's corners): how well the pose explains the
+    /// homography. `None` without both.
+    pub fn outline_error_px(&self, camera: &Camera<f32>, size: [f32; 2]) -> Option<f32> {
+        let (pose, outline) = (self.pose?, self.outline?);
+        let corners = camgeom::target::corners_3d(size[0], size[1]);
+        let mut worst = 0.0f32;
+        for (c, o) in corners.iter().zip(outline.iter()) {
+            let p = camera.project(&pose.best.pose, c).ok()?;
+            worst = worst.max((p - o).norm());
+        }
+        Some(worst)
+    }
+}
+
+/// Runs the target tracker over `frames` from the target's `corners` in frame 0 (order
+/// `(0, 0), (w, 0), (w, h), (0, h)`). After a lost frame the tracker re-detects around the
+/// last outline. `on_frame` sees every frame's outcome as it is computed.
+///
+/// Errors: as [`PlanarTarget::init`] (e.g. [`camgeom::Error::TooFewPoints`] when the corners
+/// enclose too little texture) and [`PlanarTarget::step`].
+pub fn run_ar(
+    frames: &[GrayImage],
+    corners: &[Point2<f32>; 4],
+    camera: &Camera<f32>,
+    opts: &ArOptions,
+    mut on_frame: impl FnMut(&ArFrame),
+) -> camgeom::Result<Vec<ArFrame>> {
+    match opts.path {
+        Path::Fixed => go::<Fixed>(frames, corners, camera, opts, &mut on_frame),
+        Path::F32 => go::<f32>(frames, corners, camera, opts, &mut on_frame),
+    }
+}
+
+fn go<A: FlowArith>(
+    frames: &[GrayImage],
+    corners: &[Point2<f32>; 4],
+    camera: &Camera<f32>,
+    opts: &ArOptions,
+    on_frame: &mut dyn FnMut(&ArFrame),
+) -> camgeom::Result<Vec<ArFrame>> {
+    let cfg = &opts.target;
+    let first = frames.first().ok_or(camgeom::Error::TooFewPoints)?;
+    let mut target: Box<PlanarTarget<A, MAX_FEATURES>> =
+        Box::new(PlanarTarget::new(opts.size[0], opts.size[1])?);
+    let mut cands = vec![Corner::default(); 2048];
+    let mut cscr = vec![0u32; camgeom::corners::scratch_len(first.width)];
+    let mut fscr = vec![0i16; scratch_len(cfg.lk.win)];
+    let view0 = first.view().ok_or(camgeom::Error::InvalidImage)?;
+    let n0 = target.init(&view0, corners, cfg, &mut cands, &mut cscr)?;
+    // Frame 0's pose from the features just tied to the target (they satisfy the corners'
+    // homography exactly, so this is the pose of the four corners).
+    let (model, pixels): (Vec<Point2<f32>>, Vec<Point2<f32>>) =
+        target.features().map(|(p, t)| (t, p)).unzip();
+    let mut scr = vec![Point2::origin(); model.len()];
+    let pose0 = solve_planar(camera, &model, &pixels, &mut scr, &cfg.planar).ok();
+    let f0 = ArFrame {
+        frame: 0,
+        state: TargetState::Tracking,
+        pose: pose0,
+        outline: Some(*corners),
+        tracked: n0,
+        inliers: n0,
+        added: n0,
+        features: pixels,
+    };
+    on_frame(&f0);
+    let mut out = vec![f0];
+    let l = levels(&cfg.lk);
+    let mut bufs = [Vec::new(), Vec::new()];
+    for (k, pair) in frames.windows(2).enumerate() {
+        let k = k + 1;
+        let (a, b) = (&pair[0], &pair[1]);
+        if (a.width, a.height) != (b.width, b.height) {
+            return Err(camgeom::Error::InvalidImage);
+        }
+        let (b0, b1) = bufs.split_at_mut(1);
+        let (cur, old) = if k % 2 == 0 {
+            (&mut b0[0], &mut b1[0])
+        } else {
+            (&mut b1[0], &mut b0[0])
+        };
+        let len = buffer_len(a.width, a.height, l);
+        old.resize(len, 0);
+        cur.resize(len, 0);
+        let pview = a.view().ok_or(camgeom::Error::InvalidImage)?;
+        let nview = b.view().ok_or(camgeom::Error::InvalidImage)?;
+        // The previous pyramid is rebuilt rather than kept: simpler, and cheap on the host.
+        let prev = Pyramid::build(pview, old, l)?;
+        let next = Pyramid::build(nview, cur, l)?;
+        let r = target.step(&prev, &next, camera, cfg, &mut fscr, &mut cands, &mut cscr)?;
+        let mut added = r.added;
+        if r.state == TargetState::Lost {
+            added += target.relocate(&nview, cfg, &mut cands, &mut cscr)?;
+        }
+        let f = ArFrame {
+            frame: k,
+            state: r.state,
+            pose: r.pose,
+            outline: r.outline,
+            tracked: r.tracked,
+            inliers: r.inliers,
+            added,
+            features: target.features().map(|(p, _)| p).collect(),
+        };
+        on_frame(&f);
+        out.push(f);
+    }
+    Ok(out)
+}
+
+/// An RGB image, row-major, 3 bytes a pixel.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RgbImage {
+    /// Pixels `r, g, b`, row-major.
+    pub data: Vec<u8>,
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+}
+
+impl RgbImage {
+    /// The grey image in colour.
+    pub fn from_gray(g: &GrayImage) -> Self {
+        Self {
+            data: g.data.iter().flat_map(|&v| [v, v, v]).collect(),
+            width: g.width,
+            height: g.height,
+        }
+    }
+
+    /// Writes the image as PNG (best compression: contact sheets are committed).
+    pub fn save(&self, path: impl AsRef<std::path::Path>) -> crate::Result<()> {
+        use image::ImageEncoder;
+        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+        let path = path.as_ref();
+        let io = |e: std::io::Error| crate::Error::new(path, crate::ErrorKind::Io(e));
+        let file = std::fs::File::create(path).map_err(io)?;
+        let enc = PngEncoder::new_with_quality(
+            std::io::BufWriter::new(file),
+            CompressionType::Best,
+            FilterType::Adaptive,
+        );
+        enc.write_image(
+            &self.data,
+            self.width as u32,
+            self.height as u32,
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| match e {
+            image::ImageError::IoError(e) => io(e),
+            other => crate::Error::new(path, crate::ErrorKind::Unsupported(other.to_string())),
+        })
+    }
+
+    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+        if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
+            let i = 3 * (y as usize * self.width + x as usize);
+            self.data[i..i + 3].copy_from_slice(&c);
+        }
+    }
+
+    /// Paints `colour` where `mask` is set, with a dark one-pixel halo around it so thin lines
+    /// read on any background.
+    fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let on = |x: i64, y: i64| {
+            x >= 0 && y >= 0 && x < w && y < h && mask.at(x as usize, y as usize) != 0
+        };
+        for y in 0..h {
+            for x in 0..w {
+                if on(x, y) {
+                    continue;
+                }
+                let near = (-1..=1).any(|dy| (-1..=1).any(|dx| on(x + dx, y + dy)));
+                if near {
+                    let i = 3 * (y as usize * self.width + x as usize);
+                    for c in &mut self.data[i..i + 3] {
+                        *c /= 3;
+                    }
+                }
+            }
+        }
+        for y in 0..h {
+            for x in 0..w {
+                if on(x, y) {
+                    self.put(x, y, colour);
+                }
+            }
+        }
+    }
+}
+
+/// Outline colour (green), cube (yellow), features (cyan), lost-frame marker (red).
+const OUTLINE: [u8; 3] = [40, 230, 40];
+const CUBE: [u8; 3] = [255, 220, 0];
+const FEATURE: [u8; 3] = [0, 220, 255];
+const LOST: [u8; 3] = [255, 40, 40];
+
+/// The overlay of one frame: the target outline (the homography's corners), a cube of edge
+/// `opts.cube` centred on the target and standing on it (drawn with the best pose through
+/// [`draw_wireframe`]), the tracked features as small crosses, and a red frame border when the
+/// target is lost.
+pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOptions) -> RgbImage {
+    let mut out = RgbImage::from_gray(img);
+    let blank = || GrayImage::filled(img.width, img.height, 0);
+    if let Some(outline) = f.outline {
+        let mut m = blank();
+        if let Some(mut v) = m.view_mut() {
+            for (a, b) in outline.iter().zip(outline.iter().cycle().skip(1)) {
+                let _ = draw_line(&mut v, a, b, 255);
+            }
+        }
+        out.ink(&m, OUTLINE);
+    }
+    if let Some(pose) = f.pose {
+        let s = opts.cube;
+        let (x, y) = ((opts.size[0] - s) / 2.0, (opts.size[1] - s) / 2.0);
+        let (vertices, edges) = cube(x, y, s);
+        let mut m = blank();
+        if let Some(mut v) = m.view_mut() {
+            let _ = draw_cube(&mut v, camera, &pose, &vertices, &edges);
+        }
+        out.ink(&m, CUBE);
+    }
+    for p in &f.features {
+        let (cx, cy) = (p.x.round() as i64, p.y.round() as i64);
+        for d in -1..=1 {
+            out.put(cx + d, cy, FEATURE);
+            out.put(cx, cy + d, FEATURE);
+        }
+    }
+    if f.state != TargetState::Tracking {
+        for x in 0..out.width as i64 {
+            for t in 0..2 {
+                out.put(x, t, LOST);
+                out.put(x, out.height as i64 - 1 - t, LOST);
+            }
+        }
+        for y in 0..out.height as i64 {
+            for t in 0..2 {
+                out.put(t, y, LOST);
+                out.put(out.width as i64 - 1 - t, y, LOST);
+            }
+        }
+    }
+    out
+}
+
+fn draw_cube(
+    v: &mut ImageMut<'_, u8>,
+    camera: &Camera<f32>,
+    pose: &PlanarPose<f32>,
+    vertices: &[Point3<f32>],
+    edges: &[(u8, u8)],
+) -> camgeom::Result<usize> {
+    draw_wireframe(
+        v,
+        camera,
+        &pose.best.pose,
+        vertices,
+        edges,
+        &WireframeConfig::default(),
+    )
+}
+
+/// `count` frame indices evenly spaced over `0..n`, first and last included.
+pub fn evenly_spaced(n: usize, count: usize) -> Vec<usize> {
+    if n == 0 || count == 0 {
+        return Vec::new();
+    }
+    if count == 1 || n == 1 {
+        return vec![0];
+    }
+    let count = count.min(n);
+    (0..count)
+        .map(|i| (i * (n - 1) + (count - 1) / 2) / (count - 1))
+        .collect()
+}
+
+/// 3x5 bitmaps of the digits 0-9, one row a `u8` (bit 2 = left column).
+const DIGITS: [[u8; 5]; 10] = [
+    [7, 5, 5, 5, 7],
+    [2, 6, 2, 2, 7],
+    [7, 1, 7, 4, 7],
+    [7, 1, 7, 1, 7],
+    [5, 5, 7, 1, 1],
+    [7, 4, 7, 1, 7],
+    [7, 4, 7, 5, 7],
+    [7, 1, 1, 1, 1],
+    [7, 5, 7, 5, 7],
+    [7, 5, 7, 1, 7],
+];
+
+/// A grid of `tiles` (each downscaled by `factor` with a box filter), `cols` a row, each
+/// labelled with its number in the top-left corner.
+pub fn contact_sheet(tiles: &[(usize, RgbImage)], cols: usize, factor: usize) -> RgbImage {
+    let factor = factor.max(1);
+    let cols = cols.max(1);
+    let (tw, th) = tiles
+        .first()
+        .map_or((1, 1), |(_, t)| (t.width / factor, t.height / factor));
+    let rows = tiles.len().div_ceil(cols);
+    let gap = 2;
+    let (w, h) = (cols * tw + (cols + 1) * gap, rows * th + (rows + 1) * gap);
+    let mut sheet = RgbImage {
+        data: vec![32; w * h * 3],
+        width: w,
+        height: h,
+    };
+    for (k, (label, tile)) in tiles.iter().enumerate() {
+        let (ox, oy) = (gap + (k % cols) * (tw + gap), gap + (k / cols) * (th + gap));
+        for y in 0..th {
+            for x in 0..tw {
+                let mut acc = [0u32; 3];
+                for dy in 0..factor {
+                    for dx in 0..factor {
+                        let (sx, sy) = (x * factor + dx, y * factor + dy);
+                        if sx < tile.width && sy < tile.height {
+                            let i = 3 * (sy * tile.width + sx);
+                            for (a, c) in acc.iter_mut().zip(&tile.data[i..i + 3]) {
+                                *a += u32::from(*c);
+                            }
+                        }
+                    }
+                }
+                let n = (factor * factor) as u32;
+                let c = acc.map(|a| ((a + n / 2) / n) as u8);
+                sheet.put((ox + x) as i64, (oy + y) as i64, c);
+            }
+        }
+        // The label: white 3x5 digits at 2x, on a black box.
+        let text = label.to_string();
+        let (lw, lh) = (text.len() * 8 + 2, 14);
+        for y in 0..lh.min(th) {
+            for x in 0..lw.min(tw) {
+                sheet.put((ox + x) as i64, (oy + y) as i64, [0, 0, 0]);
+            }
+        }
+        for (i, ch) in text.bytes().enumerate() {
+            let d = DIGITS[usize::from(ch - b'0')];
+            for (r, bits) in d.iter().enumerate() {
+                for c in 0..3 {
+                    if bits & (4 >> c) != 0 {
+                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                            let x = ox + 2 + i * 8 + c * 2 + sx;
+                            let y = oy + 2 + r * 2 + sy;
+                            sheet.put(x as i64, y as i64, [255, 255, 255]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    sheet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn evenly_spaced_frames() {
+        assert_eq!(evenly_spaced(150, 4), vec![0, 50, 99, 149]);
+        assert_eq!(evenly_spaced(3, 16), vec![0, 1, 2]);
+        assert_eq!(evenly_spaced(1, 16), vec![0]);
+        assert!(evenly_spaced(0, 4).is_empty());
+    }
+}

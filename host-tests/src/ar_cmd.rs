@@ -1,0 +1,266 @@
+//! `camgeom ar`: track a planar target through a folder of frames and draw a cube on it.
+
+use std::path::PathBuf;
+
+use camgeom::corners::CornerConfig;
+use camgeom::klt::LkConfig;
+use camgeom::nalgebra::Point2;
+use camgeom::ransac::RansacConfig;
+use camgeom::target::{TargetConfig, TargetState};
+use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
+use camgeom_host::klt::Path;
+use camgeom_host::load_camera;
+use camgeom_host::points::{format_float, read_csv};
+use clap::Args;
+use serde::Serialize;
+
+use crate::klt_cmd::{frame_files, load_frames, progress_bar};
+
+#[derive(Args, Debug)]
+pub struct ArArgs {
+    /// Folder of frames (PNG/JPEG, in file-name order; colour is converted to grey).
+    #[arg(long, value_name = "DIR")]
+    frames: PathBuf,
+    /// The target's four corners in the first frame, CSV rows `x,y` in the order
+    /// (0,0), (w,0), (w,h), (0,h) of the target.
+    #[arg(long, value_name = "FIRST.csv")]
+    corners: PathBuf,
+    /// Camera file (see `camgeom project --help`).
+    #[arg(long, value_name = "FILE")]
+    intrinsics: PathBuf,
+    /// The target's size `W,H` (metres, or the unit the pose should use), or `S` for a square.
+    #[arg(long, value_name = "W,H")]
+    size: String,
+    /// Edge of the cube drawn on the target (default: the target's smaller side).
+    #[arg(long, value_name = "S")]
+    cube: Option<f32>,
+    /// Output folder: one overlay PNG per frame, `poses.csv`, `contact_sheet.png`.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Run the f32 flow instead of the fixed-point (integer) one.
+    #[arg(long)]
+    f32: bool,
+    /// Frames on the contact sheet (evenly spaced, first and last included).
+    #[arg(long, default_value_t = 12)]
+    sheet_frames: usize,
+    /// Contact sheet columns.
+    #[arg(long, default_value_t = 4)]
+    sheet_cols: usize,
+    /// Downscale factor of the contact sheet's tiles.
+    #[arg(long, default_value_t = 2)]
+    sheet_scale: usize,
+    /// KLT window side in pixels.
+    #[arg(long, default_value_t = 21)]
+    win: usize,
+    /// KLT coarsest pyramid level.
+    #[arg(long, default_value_t = 3)]
+    max_level: usize,
+    /// Forward-backward check threshold in pixels (0 disables it).
+    #[arg(long, default_value_t = 1.0)]
+    fb: f32,
+    /// Corner quality level for (re-)detection inside the target.
+    #[arg(long, default_value_t = 0.02)]
+    quality: f32,
+    /// Minimum distance between features, pixels.
+    #[arg(long, default_value_t = 8)]
+    min_distance: u32,
+    /// Re-detect inside the target when fewer tracks than this survive.
+    #[arg(long, default_value_t = 24)]
+    min_tracks: usize,
+    /// Fewer homography inliers than this and the target is lost.
+    #[arg(long, default_value_t = 8)]
+    min_inliers: usize,
+    /// RANSAC inlier threshold of the target homography, pixels.
+    #[arg(long, default_value_t = 2.0)]
+    threshold: f32,
+}
+
+/// `W,H` or `S`: finite and positive.
+fn parse_size(s: &str) -> Result<[f32; 2], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|f| f.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("--size: expected W,H or S, got `{s}`"))?;
+    let size = match v.as_slice() {
+        [s] => [*s, *s],
+        [w, h] => [*w, *h],
+        _ => return Err(format!("--size: expected W,H or S, got `{s}`")),
+    };
+    if !size.iter().all(|v| v.is_finite() && *v > 0.0) {
+        return Err(format!("--size must be positive, got `{s}`"));
+    }
+    Ok(size)
+}
+
+#[derive(Serialize)]
+struct Summary {
+    frames: usize,
+    tracking: usize,
+    lost: usize,
+    mean_inliers: f64,
+    worst_outline_px: Option<f32>,
+    out: String,
+    poses: String,
+    contact_sheet: String,
+}
+
+/// The options `camgeom ar` passes to the tracker.
+fn target_config(a: &ArArgs) -> Result<TargetConfig, String> {
+    if !(3..=camgeom::klt::MAX_WIN).contains(&a.win) {
+        return Err(format!("--win must be 3..={}", camgeom::klt::MAX_WIN));
+    }
+    if !(a.quality > 0.0 && a.quality <= 1.0) {
+        return Err(format!("--quality must be in (0, 1], got {}", a.quality));
+    }
+    if !(a.threshold.is_finite() && a.threshold > 0.0 && a.fb.is_finite() && a.fb >= 0.0) {
+        return Err("--threshold must be positive and --fb non-negative".into());
+    }
+    let d = TargetConfig::default();
+    Ok(TargetConfig {
+        lk: LkConfig {
+            win: a.win,
+            max_level: a.max_level.min(camgeom::pyramid::MAX_LEVELS - 1),
+            fb_threshold: (a.fb > 0.0).then_some(a.fb),
+            ..d.lk
+        },
+        corners: CornerConfig {
+            quality: a.quality,
+            min_distance: a.min_distance,
+            max_corners: 0,
+        },
+        ransac: RansacConfig {
+            threshold: a.threshold,
+            ..d.ransac
+        },
+        min_tracks: a.min_tracks,
+        min_inliers: a.min_inliers.max(4),
+        ..d
+    })
+}
+
+/// `camgeom ar`.
+pub fn run(a: &ArArgs) -> Result<String, String> {
+    let size = parse_size(&a.size)?;
+    let cube = a.cube.unwrap_or(size[0].min(size[1]));
+    if !(cube.is_finite() && cube > 0.0) {
+        return Err(format!("--cube must be positive, got {cube}"));
+    }
+    let target = target_config(a)?;
+    let spec = load_camera(&a.intrinsics).map_err(|e| e.to_string())?;
+    let camera = spec.camera_f32();
+    let table = read_csv(&a.corners, &["x", "y"]).map_err(|e| e.to_string())?;
+    if table.rows.len() != 4 {
+        return Err(format!(
+            "{}: expected the target's 4 corners (x,y rows), found {}",
+            a.corners.display(),
+            table.rows.len()
+        ));
+    }
+    let corners: [Point2<f32>; 4] =
+        std::array::from_fn(|i| Point2::new(table.rows[i][0] as f32, table.rows[i][1] as f32));
+    let files = frame_files(&a.frames)?;
+    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    let bar = progress_bar(files.len() as u64 * 2);
+    let frames = load_frames(&files, &bar)?;
+    let opts = ArOptions {
+        size,
+        cube,
+        path: if a.f32 { Path::F32 } else { Path::Fixed },
+        target,
+    };
+    bar.set_message("tracking");
+    let sheet_idx = evenly_spaced(frames.len(), a.sheet_frames);
+    let mut tiles = Vec::new();
+    let mut write_err = None;
+    let results = run_ar(&frames, &corners, &camera, &opts, |f| {
+        bar.inc(1);
+        let img = draw_ar(&frames[f.frame], &camera, f, &opts);
+        let name = files[f.frame]
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| f.frame.to_string());
+        if let Err(e) = img.save(a.out.join(format!("{name}.png"))) {
+            write_err.get_or_insert(e.to_string());
+        }
+        if sheet_idx.contains(&f.frame) {
+            tiles.push((f.frame, img));
+        }
+    })
+    .map_err(|e| {
+        format!(
+            "{}: tracking failed: {e} ({})",
+            a.frames.display(),
+            camgeom_host::status_name(&e)
+        )
+    })?;
+    bar.finish_and_clear();
+    if let Some(e) = write_err {
+        return Err(e);
+    }
+    let mut csv = String::from(
+        "frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added\n",
+    );
+    let mut worst: Option<f32> = None;
+    for f in &results {
+        let state = match f.state {
+            TargetState::Tracking => "tracking",
+            TargetState::Lost => "lost",
+            TargetState::Uninitialised => "uninitialised",
+        };
+        let nums = match f.pose {
+            Some(p) => {
+                let (r, t) = (p.best.pose.rotation_vector(), p.best.pose.translation());
+                [
+                    r.x,
+                    r.y,
+                    r.z,
+                    t.x,
+                    t.y,
+                    t.z,
+                    p.best.rms_px,
+                    p.alternative.rms_px,
+                ]
+            }
+            None => [f32::NAN; 8],
+        };
+        let outline = f.outline_error_px(&camera, size);
+        if let Some(o) = outline {
+            worst = Some(worst.map_or(o, |w| w.max(o)));
+        }
+        let nums: Vec<String> = nums.iter().map(|v| format_float(*v)).collect();
+        csv.push_str(&format!(
+            "{},{state},{},{},{},{},{}\n",
+            f.frame,
+            nums.join(","),
+            format_float(outline.unwrap_or(f32::NAN)),
+            f.tracked,
+            f.inliers,
+            f.added
+        ));
+    }
+    let poses = a.out.join("poses.csv");
+    std::fs::write(&poses, csv).map_err(|e| format!("{}: {e}", poses.display()))?;
+    let sheet_path = a.out.join("contact_sheet.png");
+    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale)
+        .save(&sheet_path)
+        .map_err(|e| e.to_string())?;
+    let tracking = results
+        .iter()
+        .filter(|f| f.state == TargetState::Tracking)
+        .count();
+    let summary = Summary {
+        frames: results.len(),
+        tracking,
+        lost: results.len() - tracking,
+        mean_inliers: results.iter().map(|f| f.inliers as f64).sum::<f64>()
+            / results.len().max(1) as f64,
+        worst_outline_px: worst,
+        out: a.out.display().to_string(),
+        poses: poses.display().to_string(),
+        contact_sheet: sheet_path.display().to_string(),
+    };
+    let mut s = serde_json::to_string_pretty(&summary).unwrap_or_default();
+    s.push('\n');
+    Ok(s)
+}
