@@ -44,28 +44,53 @@ pub fn scharr_row(img: &ImageView<'_, u8>, y: usize, x0: usize, out: &mut [[i16;
     let r0 = img.row_clamped(reflect101(yi - 1, h) as isize);
     let r1 = img.row_clamped(yi);
     let r2 = img.row_clamped(reflect101(yi + 1, h) as isize);
-    // Vertical pass at column c: (t0, t1) = (3 (r0 + r2) + 10 r1, r2 - r0).
-    let vert = |c: usize| -> (i32, i32) {
-        let p = |r: &[u8]| i32::from(r.get(c).copied().unwrap_or(0));
-        (3 * (p(r0) + p(r2)) + 10 * p(r1), p(r2) - p(r0))
-    };
-    let mut prev = vert(reflect101(x0 as isize - 1, w));
-    let mut cur = vert(x0.min(w.saturating_sub(1)));
-    for (k, o) in out.iter_mut().enumerate() {
-        let x = x0 + k;
-        if x >= w {
-            *o = [0, 0];
-            continue;
-        }
-        let next = vert(reflect101(x as isize + 1, w));
+    // Columns at or beyond the width are zero.
+    let valid = w.saturating_sub(x0).min(out.len());
+    let (vals, beyond) = out.split_at_mut(valid);
+    beyond.fill([0, 0]);
+    // Any column, reflecting at the ends: the first and last image columns.
+    let edge = |x: usize| -> [i16; 2] {
+        let xi = x as isize;
+        let (xm, xp) = (reflect101(xi - 1, w), reflect101(xi + 1, w));
+        let p = |r: &[u8], c: usize| i32::from(r.get(c).copied().unwrap_or(0));
+        let dx = 3 * (p(r0, xp) - p(r0, xm))
+            + 10 * (p(r1, xp) - p(r1, xm))
+            + 3 * (p(r2, xp) - p(r2, xm));
+        let dy =
+            3 * (p(r2, xm) - p(r0, xm)) + 10 * (p(r2, x) - p(r0, x)) + 3 * (p(r2, xp) - p(r0, xp));
         // |dx| <= 16 * 255 and |dy| <= 16 * 255: both fit i16.
-        *o = [
-            (next.0 - prev.0) as i16,
-            (3 * (next.1 + prev.1) + 10 * cur.1) as i16,
-        ];
-        prev = cur;
-        cur = next;
+        [dx as i16, dy as i16]
+    };
+    // Interior columns 1 .. w - 1 read straight 3-wide windows.
+    let lo = x0.max(1).min(x0 + valid);
+    let hi = (x0 + valid).min(w.saturating_sub(1)).max(lo);
+    for (k, o) in vals.iter_mut().enumerate() {
+        let x = x0 + k;
+        if x < lo || x >= hi {
+            *o = edge(x);
+        }
     }
+    let start = lo - 1;
+    let inner = vals.get_mut(lo - x0..hi - x0).unwrap_or(&mut []);
+    for (o, ((a, b), c)) in inner.iter_mut().zip(
+        windows3(r0, start)
+            .zip(windows3(r1, start))
+            .zip(windows3(r2, start)),
+    ) {
+        let (&[a0, a1, a2], &[b0, _, b2], &[c0, c1, c2]) = (a, b, c) else {
+            continue;
+        };
+        let p = i32::from;
+        let dx = 3 * (p(a2) - p(a0)) + 10 * (p(b2) - p(b0)) + 3 * (p(c2) - p(c0));
+        let dy = 3 * (p(c0) - p(a0)) + 10 * (p(c1) - p(a1)) + 3 * (p(c2) - p(a2));
+        *o = [dx as i16, dy as i16];
+    }
+}
+
+/// The 3-wide windows of `row` from column `start` on.
+#[inline]
+fn windows3(row: &[u8], start: usize) -> core::slice::Windows<'_, u8> {
+    row.get(start.min(row.len())..).unwrap_or(&[]).windows(3)
 }
 
 /// Derivatives of a whole level into `dst` (interleaved `[Ix, Iy]`, same size as `img`, else
@@ -174,6 +199,19 @@ mod tests {
                     lvl[y as usize * w + x as usize]
                 };
                 assert_eq!(win[(j * 8 + i) as usize], want);
+            }
+        }
+        // Across the right and bottom edges: the last column reflects, beyond it is zero.
+        scharr_window(&v, 18, 12, 8, 6, &mut win).unwrap();
+        for j in 0..6usize {
+            for i in 0..8usize {
+                let (x, y) = (18 + i, 12 + j);
+                let want = if x >= w || y >= h {
+                    [0, 0]
+                } else {
+                    lvl[y * w + x]
+                };
+                assert_eq!(win[j * 8 + i], want, "{x},{y}");
             }
         }
         assert_eq!(

@@ -102,6 +102,15 @@ fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
     })
 }
 
+/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
+#[inline(always)]
+fn lerp(top: [i16; 2], bot: [i16; 2], w: &[i32; 4]) -> i32 {
+    i32::from(top[0]) * w[0]
+        + i32::from(top[1]) * w[1]
+        + i32::from(bot[0]) * w[2]
+        + i32::from(bot[1]) * w[3]
+}
+
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` from `s.patch`.
 fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
     let n = win + 1;
@@ -111,21 +120,27 @@ fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
     let irows = s.iwin.chunks_exact(win);
     let drows = s.dwin.chunks_exact(win);
     for (((r0, r1), ir), dr) in rows0.zip(rows1).zip(irows).zip(drows) {
-        let top = r0.iter().zip(r0.iter().skip(1));
-        let bot = r1.iter().zip(r1.iter().skip(1));
-        for (((t, b), &iv), d) in top.zip(bot).zip(ir).zip(dr) {
-            let v = i32::from(*t.0) * w[0]
-                + i32::from(*t.1) * w[1]
-                + i32::from(*b.0) * w[2]
-                + i32::from(*b.1) * w[3];
-            let diff = descale(v, PIX_SHIFT) - i32::from(iv);
-            if abs {
-                b1 += i64::from(diff.abs());
-            } else {
-                b1 += i64::from(diff * i32::from(d[0]));
-                b2 += i64::from(diff * i32::from(d[1]));
+        let px = r0
+            .iter()
+            .zip(r0.iter().skip(1))
+            .zip(r1.iter().zip(r1.iter().skip(1)));
+        if abs {
+            for (((&t0, &t1), (&u0, &u1)), &iv) in px.zip(ir) {
+                let diff = descale(lerp([t0, t1], [u0, u1], &w), PIX_SHIFT) - i32::from(iv);
+                b1 += i64::from(diff.unsigned_abs());
             }
+            continue;
         }
+        // Row sums in i32 are exact: |J - I| <= 255 * 32 and |d| <= 16 * 255, so a row of at
+        // most MAX_WIN = 63 products is below 63 * 8160 * 4080 < 2^31; cheaper than i64 each.
+        let (mut s1, mut s2) = (0i32, 0i32);
+        for ((((&t0, &t1), (&u0, &u1)), &iv), &[dx, dy]) in px.zip(ir).zip(dr) {
+            let diff = descale(lerp([t0, t1], [u0, u1], &w), PIX_SHIFT) - i32::from(iv);
+            s1 = s1.wrapping_add(diff * i32::from(dx));
+            s2 = s2.wrapping_add(diff * i32::from(dy));
+        }
+        b1 += i64::from(s1);
+        b2 += i64::from(s2);
     }
     (b1, b2)
 }
@@ -152,27 +167,22 @@ fn template(s: &mut Scratch<'_>, win: usize, w: [i32; 4]) -> (i64, i64, i64) {
             .iter()
             .zip(g0.iter().skip(1))
             .zip(g1.iter().zip(g1.iter().skip(1)));
-        for (((p, g), io), dout) in px.zip(gr).zip(iout.iter_mut()).zip(dout.iter_mut()) {
-            let ((p00, p01), (p10, p11)) = p;
-            let v = i32::from(*p00) * w[0]
-                + i32::from(*p01) * w[1]
-                + i32::from(*p10) * w[2]
-                + i32::from(*p11) * w[3];
-            *io = descale(v, PIX_SHIFT) as i16;
-            let ((g00, g01), (g10, g11)) = g;
-            let c = |k: usize| {
-                let at = |q: &[i16; 2]| i32::from(q.get(k).copied().unwrap_or(0));
-                descale(
-                    at(g00) * w[0] + at(g01) * w[1] + at(g10) * w[2] + at(g11) * w[3],
-                    W_BITS,
-                )
-            };
-            let (ix, iy) = (c(0), c(1));
+        // Row sums in i32 are exact: |d| <= 16 * 255, so 63 squares stay below 2^31.
+        let (mut s11, mut s12, mut s22) = (0i32, 0i32, 0i32);
+        for (((((&p00, &p01), (&p10, &p11)), ((g00, g01), (g10, g11))), io), dout) in
+            px.zip(gr).zip(iout.iter_mut()).zip(dout.iter_mut())
+        {
+            *io = descale(lerp([p00, p01], [p10, p11], &w), PIX_SHIFT) as i16;
+            let ix = descale(lerp([g00[0], g01[0]], [g10[0], g11[0]], &w), W_BITS);
+            let iy = descale(lerp([g00[1], g01[1]], [g10[1], g11[1]], &w), W_BITS);
             *dout = [ix as i16, iy as i16];
-            a11 += i64::from(ix * ix);
-            a12 += i64::from(ix * iy);
-            a22 += i64::from(iy * iy);
+            s11 = s11.wrapping_add(ix * ix);
+            s12 = s12.wrapping_add(ix * iy);
+            s22 = s22.wrapping_add(iy * iy);
         }
+        a11 += i64::from(s11);
+        a12 += i64::from(s12);
+        a22 += i64::from(s22);
     }
     (a11, a12, a22)
 }
