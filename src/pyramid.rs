@@ -67,6 +67,12 @@ fn reflect101(i: isize, n: usize) -> usize {
     i.clamp(0, n - 1) as usize
 }
 
+/// `row[lo..hi]`, or empty when out of range.
+#[inline]
+fn columns(row: &[u8], lo: usize, hi: usize) -> &[u8] {
+    row.get(lo..hi).unwrap_or(&[])
+}
+
 /// One level down: `dst` must be exactly [`down_size`] of `src`, else [`Error::InvalidImage`].
 pub fn pyr_down(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
     let (w, h) = (src.width(), src.height());
@@ -78,21 +84,45 @@ pub fn pyr_down(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<(
         let cy = 2 * y as isize;
         let rows: [&[u8]; 5] =
             core::array::from_fn(|j| src.row(reflect101(cy + j as isize - 2, h)).unwrap_or(&[]));
+        let [r0, r1, r2, r3, r4] = rows;
         let Some(out) = dst.row_mut(y) else { break };
         for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
             let x0 = tile * TILE;
             // Vertical sums for source columns 2 x0 - 2 ..= 2 (x0 + n - 1) + 2.
             let first = 2 * x0 as isize - 2;
             let ncols = 2 * out_tile.len() + 3;
+            // Source columns inside the image, lo .. hi, need no reflection.
+            let lo = first.max(0) as usize;
+            let hi = (first + ncols as isize).min(w as isize).max(lo as isize) as usize;
+            let off = (lo as isize - first) as usize;
+            let vert = |c: usize| {
+                let px = |r: &[u8]| u16::from(r.get(c).copied().unwrap_or(0));
+                px(r0) + 4 * px(r1) + 6 * px(r2) + 4 * px(r3) + px(r4)
+            };
             for (k, v) in vsum.iter_mut().take(ncols).enumerate() {
-                let c = reflect101(first + k as isize, w);
-                let px =
-                    |j: usize| u16::from(rows.get(j).and_then(|r| r.get(c)).copied().unwrap_or(0));
-                *v = px(0) + 4 * px(1) + 6 * px(2) + 4 * px(3) + px(4);
+                if k < off || k >= off + (hi - lo) {
+                    *v = vert(reflect101(first + k as isize, w));
+                }
             }
-            for (i, o) in out_tile.iter_mut().enumerate() {
-                let v = |k: usize| u32::from(vsum.get(2 * i + k).copied().unwrap_or(0));
-                let s = v(0) + 4 * v(1) + 6 * v(2) + 4 * v(3) + v(4);
+            let inner = vsum.get_mut(off..off + (hi - lo)).unwrap_or(&mut []);
+            let seg = |r| columns(r, lo, hi);
+            let cols = seg(r0)
+                .iter()
+                .zip(seg(r1))
+                .zip(seg(r2))
+                .zip(seg(r3))
+                .zip(seg(r4));
+            for (v, ((((&a, &b), &c), &d), &e)) in inner.iter_mut().zip(cols) {
+                *v = u16::from(a)
+                    + 4 * u16::from(b)
+                    + 6 * u16::from(c)
+                    + 4 * u16::from(d)
+                    + u16::from(e);
+            }
+            let taps = |k: usize| vsum.iter().skip(k).step_by(2).map(|&v| u32::from(v));
+            let sums = taps(0).zip(taps(1)).zip(taps(2)).zip(taps(3)).zip(taps(4));
+            for (o, ((((a, b), c), d), e)) in out_tile.iter_mut().zip(sums) {
+                let s = a + 4 * b + 6 * c + 4 * d + e;
                 // s <= 256 * 255, so the rounded quotient fits u8.
                 *o = ((s + 128) >> 8) as u8;
             }

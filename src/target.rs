@@ -54,7 +54,11 @@ pub struct TargetConfig {
 impl Default for TargetConfig {
     fn default() -> Self {
         Self {
+            // 15x15 windows over 3 levels (OpenCV's lk_track sample): a target's features move a
+            // few pixels a frame, and each window and level costs the board ~30 % of a frame.
             lk: LkConfig {
+                win: 15,
+                max_level: 2,
                 fb_threshold: Some(1.0),
                 ..LkConfig::default()
             },
@@ -63,9 +67,13 @@ impl Default for TargetConfig {
                 min_distance: 8,
                 max_corners: 0,
             },
+            // The homography sorts inliers from outliers (its local optimisation keeps the
+            // inlier set stable) and outlines the target; the pose is refined on the
+            // reprojection error next, so RANSAC's own LM refinement is skipped.
             ransac: RansacConfig {
                 threshold: 2.0,
                 max_iterations: 200,
+                refine: false,
                 ..RansacConfig::default()
             },
             planar: PlanarConfig::default(),

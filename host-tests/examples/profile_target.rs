@@ -33,7 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .collect::<Result<Vec<_>, _>>()?;
     let (w, h) = (imgs[0].width, imgs[0].height);
     let cfg = black_box(TargetConfig::default());
-    let camera = Camera::pinhole(Intrinsics::new(789.237_67f32, 885.906_04, 160.0, 120.0)?);
+    let camera = Camera::pinhole(Intrinsics::new(789.237_7_f32, 885.906, 160.0, 120.0)?);
     let mut cand = vec![Corner::default(); 512];
     let mut cscr = vec![0u32; corners::scratch_len(w)];
     let mut fscr = vec![0i16; scratch_len(cfg.lk.win)];

@@ -104,29 +104,49 @@ fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
 
 /// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
 #[inline(always)]
-fn lerp(top: [i16; 2], bot: [i16; 2], w: &[i32; 4]) -> i32 {
-    i32::from(top[0]) * w[0]
-        + i32::from(top[1]) * w[1]
-        + i32::from(bot[0]) * w[2]
-        + i32::from(bot[1]) * w[3]
+fn lerp<P: Copy + Into<i32>>(p00: P, p01: P, p10: P, p11: P, w: &[i32; 4]) -> i32 {
+    p00.into() * w[0] + p01.into() * w[1] + p10.into() * w[2] + p11.into() * w[3]
 }
 
-/// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` from `s.patch`.
-fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
-    let n = win + 1;
+/// The `n` rows of the `n x n` block at `(x0, y0)` of `img`, straight from the image, when
+/// the block lies inside it (then no copy into the scratch patch is needed).
+fn block_rows<'a>(
+    img: &ImageView<'a, u8>,
+    x0: i32,
+    y0: i32,
+    n: usize,
+) -> Option<impl Iterator<Item = &'a [u8]> + Clone> {
+    let (x0, y0) = (usize::try_from(x0).ok()?, usize::try_from(y0).ok()?);
+    if x0 + n > img.width() || y0 + n > img.height() {
+        return None;
+    }
+    let img = *img;
+    Some((y0..y0 + n).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + n)).unwrap_or(&[])))
+}
+
+/// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
+/// `win + 1` rows `rows` (image rows or the scratch patch).
+fn mismatch<'p, P: Copy + Into<i32> + 'p>(
+    rows: impl Iterator<Item = &'p [P]> + Clone,
+    iwin: &[i16],
+    dwin: &[[i16; 2]],
+    win: usize,
+    w: [i32; 4],
+    abs: bool,
+) -> (i64, i64) {
     let (mut b1, mut b2) = (0i64, 0i64);
-    let rows0 = s.patch.chunks_exact(n);
-    let rows1 = s.patch.chunks_exact(n).skip(1);
-    let irows = s.iwin.chunks_exact(win);
-    let drows = s.dwin.chunks_exact(win);
-    for (((r0, r1), ir), dr) in rows0.zip(rows1).zip(irows).zip(drows) {
+    let pairs = rows.clone().zip(rows.skip(1));
+    for (((r0, r1), ir), dr) in pairs
+        .zip(iwin.chunks_exact(win))
+        .zip(dwin.chunks_exact(win))
+    {
         let px = r0
             .iter()
             .zip(r0.iter().skip(1))
             .zip(r1.iter().zip(r1.iter().skip(1)));
         if abs {
             for (((&t0, &t1), (&u0, &u1)), &iv) in px.zip(ir) {
-                let diff = descale(lerp([t0, t1], [u0, u1], &w), PIX_SHIFT) - i32::from(iv);
+                let diff = descale(lerp(t0, t1, u0, u1, &w), PIX_SHIFT) - i32::from(iv);
                 b1 += i64::from(diff.unsigned_abs());
             }
             continue;
@@ -135,7 +155,7 @@ fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
         // most MAX_WIN = 63 products is below 63 * 8160 * 4080 < 2^31; cheaper than i64 each.
         let (mut s1, mut s2) = (0i32, 0i32);
         for ((((&t0, &t1), (&u0, &u1)), &iv), &[dx, dy]) in px.zip(ir).zip(dr) {
-            let diff = descale(lerp([t0, t1], [u0, u1], &w), PIX_SHIFT) - i32::from(iv);
+            let diff = descale(lerp(t0, t1, u0, u1, &w), PIX_SHIFT) - i32::from(iv);
             s1 = s1.wrapping_add(diff * i32::from(dx));
             s2 = s2.wrapping_add(diff * i32::from(dy));
         }
@@ -145,20 +165,24 @@ fn mismatch(s: &Scratch<'_>, win: usize, w: [i32; 4], abs: bool) -> (i64, i64) {
     (b1, b2)
 }
 
-/// Interpolates the template and its derivatives at weights `w` and returns `G`'s sums.
-fn template(s: &mut Scratch<'_>, win: usize, w: [i32; 4]) -> (i64, i64, i64) {
+/// Interpolates the template (from the `win + 1` rows `rows` of `I`) and its derivatives
+/// (from `gwin`) at weights `w` into `iwin`, `dwin`; returns `G`'s sums.
+fn template<'p, P: Copy + Into<i32> + 'p>(
+    rows: impl Iterator<Item = &'p [P]> + Clone,
+    gwin: &[[i16; 2]],
+    iwin: &mut [i16],
+    dwin: &mut [[i16; 2]],
+    win: usize,
+    w: [i32; 4],
+) -> (i64, i64, i64) {
     let n = win + 1;
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let rows = s
-        .patch
-        .chunks_exact(n)
-        .zip(s.patch.chunks_exact(n).skip(1))
-        .zip(s.gwin.chunks_exact(n).zip(s.gwin.chunks_exact(n).skip(1)));
-    for (((r0, r1), (g0, g1)), (iout, dout)) in rows.zip(
-        s.iwin
-            .chunks_exact_mut(win)
-            .zip(s.dwin.chunks_exact_mut(win)),
-    ) {
+    let pairs = rows
+        .clone()
+        .zip(rows.skip(1))
+        .zip(gwin.chunks_exact(n).zip(gwin.chunks_exact(n).skip(1)));
+    let outs = iwin.chunks_exact_mut(win).zip(dwin.chunks_exact_mut(win));
+    for (((r0, r1), (g0, g1)), (iout, dout)) in pairs.zip(outs) {
         let px = r0
             .iter()
             .zip(r0.iter().skip(1))
@@ -172,9 +196,9 @@ fn template(s: &mut Scratch<'_>, win: usize, w: [i32; 4]) -> (i64, i64, i64) {
         for (((((&p00, &p01), (&p10, &p11)), ((g00, g01), (g10, g11))), io), dout) in
             px.zip(gr).zip(iout.iter_mut()).zip(dout.iter_mut())
         {
-            *io = descale(lerp([p00, p01], [p10, p11], &w), PIX_SHIFT) as i16;
-            let ix = descale(lerp([g00[0], g01[0]], [g10[0], g11[0]], &w), W_BITS);
-            let iy = descale(lerp([g00[1], g01[1]], [g10[1], g11[1]], &w), W_BITS);
+            *io = descale(lerp(p00, p01, p10, p11, &w), PIX_SHIFT) as i16;
+            let ix = descale(lerp(g00[0], g01[0], g10[0], g11[0], &w), W_BITS);
+            let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], &w), W_BITS);
             *dout = [ix as i16, iy as i16];
             s11 = s11.wrapping_add(ix * ix);
             s12 = s12.wrapping_add(ix * iy);
@@ -185,6 +209,26 @@ fn template(s: &mut Scratch<'_>, win: usize, w: [i32; 4]) -> (i64, i64, i64) {
         a22 += i64::from(s22);
     }
     (a11, a12, a22)
+}
+
+/// [`mismatch`] of the window of `J` at integer corner `(x, y)`: straight from the image
+/// when inside it, else through the reflected scratch patch.
+fn mismatch_at(
+    j: &ImageView<'_, u8>,
+    s: &mut Scratch<'_>,
+    (x, y): (i32, i32),
+    win: usize,
+    w: [i32; 4],
+    abs: bool,
+) -> (i64, i64) {
+    let n = win + 1;
+    match block_rows(j, x, y, n) {
+        Some(rows) => mismatch(rows, s.iwin, s.dwin, win, w, abs),
+        None => {
+            fetch_patch(j, x, y, n, s.patch);
+            mismatch(s.patch.chunks_exact(n), s.iwin, s.dwin, win, w, abs)
+        }
+    }
 }
 
 /// One point on one level (OpenCV's `LKTrackerInvoker` body).
@@ -223,14 +267,19 @@ fn track_point<A: FlowArith>(
         return;
     }
     let n = win + 1;
-    fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
     match &lv.grad {
         Some(g) => fetch_grad(g, bi.x, bi.y, n, s.gwin),
         None => {
             let _ = scharr_window(&lv.i, bi.x as isize, bi.y as isize, n, n, s.gwin);
         }
     }
-    let (a11, a12, a22) = template(s, win, bi.w);
+    let (a11, a12, a22) = match block_rows(&lv.i, bi.x, bi.y, n) {
+        Some(rows) => template(rows, s.gwin, s.iwin, s.dwin, win, bi.w),
+        None => {
+            fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
+            template(s.patch.chunks_exact(n), s.gwin, s.iwin, s.dwin, win, bi.w)
+        }
+    };
     let gram = match A::gram(a11, a12, a22, &lv.params) {
         Ok(g) => g,
         Err(status) => {
@@ -253,8 +302,7 @@ fn track_point<A: FlowArith>(
             }
             break;
         }
-        fetch_patch(&lv.j, bj.x, bj.y, n, s.patch);
-        let (b1, b2) = mismatch(s, win, bj.w, false);
+        let (b1, b2) = mismatch_at(&lv.j, s, (bj.x, bj.y), win, bj.w, false);
         let delta = A::step(&gram, b1, b2);
         next = [A::add(next[0], delta[0]), A::add(next[1], delta[1])];
         f.x = A::add(next[0], half);
@@ -278,8 +326,7 @@ fn track_point<A: FlowArith>(
             f.status = FlowStatus::OutOfBounds;
             return;
         }
-        fetch_patch(&lv.j, bj.x, bj.y, n, s.patch);
-        let (sum, _) = mismatch(s, win, bj.w, true);
+        let (sum, _) = mismatch_at(&lv.j, s, (bj.x, bj.y), win, bj.w, true);
         f.err = A::error(sum.unsigned_abs(), area);
     }
 }
