@@ -6,6 +6,12 @@
 //! per pixel: a 320x240 grayscale frame is 76 800 bytes, 19 200 words of the DCMI's 32-bit
 //! data register. In 8-bit mode that register packs four consecutive bytes, the first in bits
 //! `[7:0]`, so the little-endian words are the pixels in raster order.
+//!
+//! Luma first, and the sync polarities (VSYNC high during vertical blanking, HREF high on
+//! valid data, data sampled on PIXCLK's rising edge, which is `dcmi::Config::default()`) are
+//! as the OpenMV firmware sets them for this sensor (`drivers/sensors/ov7725.c`: `vsync_pol =
+//! 1`, `hsync_pol = 0`, `pixck_pol = 1`, no YUV byte swap; its grayscale path keeps the first
+//! byte of every pixel).
 
 use camgeom::image::ImageMut;
 use camgeom_fw_app::FrameSource;

@@ -24,6 +24,7 @@ use crate::camera::{HEIGHT, WIDTH};
 /// Pyramid levels, the frame included: the coarsest is 40x30.
 pub const LEVELS: usize = 4;
 const PYR_LEN: usize = pyramid::buffer_len(WIDTH, HEIGHT, LEVELS);
+/// KLT window (pixels, square).
 const WIN: usize = 21;
 const CANDIDATES: usize = 512;
 /// Tracked features at most.
@@ -88,6 +89,10 @@ pub struct Tracker {
 impl Tracker {
     /// Takes the static buffers; call once.
     pub fn new() -> Result<Self, camgeom::Error> {
+        let mut cfg = TargetConfig::default();
+        // The buffers are sized for these: keep the configuration tied to them.
+        cfg.lk.win = WIN;
+        cfg.lk.max_level = LEVELS - 1;
         Ok(Self {
             frames: FRAMES.take(),
             pyramids: PYRAMIDS.take(),
@@ -98,7 +103,7 @@ impl Tracker {
             initialised: false,
             target: PlanarTarget::new(TARGET_SIZE_M.0, TARGET_SIZE_M.1)?,
             camera: Camera::pinhole(Intrinsics::new(FX, FX, CX, CY)?),
-            cfg: TargetConfig::default(),
+            cfg,
         })
     }
 
