@@ -309,14 +309,14 @@ pub struct ChipId {
     pub ver: u8,
 }
 
-/// Time the registers need after a software reset before they are written (the datasheet
-/// asks for 1 ms; twice that for margin).
+/// Wait after a software reset before the registers are written (what the OpenMV firmware
+/// waits).
 pub const RESET_DELAY_MS: u32 = 2;
 
 /// The register sequence [`Ov7725::init`] writes after the reset, before the output size.
 ///
-/// Values from OmniVision's OV7725 application-note settings as used by the open drivers
-/// (OpenMV, Linux `ov772x`), re-derived here for YUV output at QVGA timing:
+/// Values from OmniVision's OV7725 application-note settings as the OpenMV firmware's driver
+/// (`drivers/sensors/ov7725.c`) uses them, set here directly for YUV output at QVGA timing:
 /// - QVGA sensor window: `HSTART = 0x3F`, `HSIZE = 0x50` (320 / 4), `VSTART = 0x03`,
 ///   `VSIZE = 0x78` (240 / 2), their LSBs in `HREF` all zero;
 /// - clock: `CLKRC = 0xC0` (no prescaler), `COM4 = 0x41` (PLL x4, full AEC window):
