@@ -5,6 +5,7 @@
 //! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
 //! | `cargo xtask run` | builds the firmware, runs it on QEMU, decodes and checks its defmt log |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
+//! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -12,6 +13,7 @@
 
 mod ci;
 mod firmware;
+mod openmv;
 mod setup;
 mod util;
 
@@ -23,6 +25,7 @@ commands:
   setup   install the rustup targets and components and qemu-system-arm the other commands need
   run     build the firmware (release), run it on QEMU mps2-an500, decode and check its log
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
+  build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
@@ -31,6 +34,7 @@ fn main() -> ExitCode {
         Some("setup") => setup::setup(),
         Some("run") => setup::setup().and_then(|()| firmware::build_and_run().map(|_| ())),
         Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
+        Some("build-openmv") => openmv::build_and_check(),
         Some("ci") => ci::ci(),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");

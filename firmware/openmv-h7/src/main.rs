@@ -1,0 +1,214 @@
+//! camgeom on the OpenMV Cam H7 (STM32H743VI, OV7725): captures 320x240 grayscale frames and
+//! tracks a planar target in them, logging its pose over defmt (RTT).
+//!
+//! Board wiring, from the OpenMV firmware's board description (`boards/OPENMV4/
+//! board_config.h` and `board_config.mk` in the openmv/openmv repository):
+//!
+//! | what | where |
+//! |---|---|
+//! | HSE crystal | 12 MHz |
+//! | core clock | 480 MHz: PLL1 = 12 MHz / 3 x 240 / 2 (VOS0) |
+//! | camera `XCLK` | PA8, TIM1 channel 1 PWM at 12 MHz |
+//! | camera SCCB | I2C1: SCL PB8, SDA PB9, 100 kHz |
+//! | camera power-down (`PWDN`, high = off) | PD7 |
+//! | camera reset (`RESETB`, low = reset) | PA10 |
+//! | DCMI data D0-D7 | PC6, PC7, PE0, PE1, PE4, PB6, PE5, PE6 |
+//! | DCMI HSYNC, VSYNC, PIXCLK | PA4, PB7, PA6 |
+//!
+//! (D5 is PB6 on this board, not the PD3 of ST's evaluation boards.)
+#![no_std]
+#![no_main]
+
+mod camera;
+mod tracker;
+
+use camgeom_fw_app::FrameSource;
+use defmt_rtt as _;
+use embassy_executor::Spawner;
+use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::i2c::{self, I2c};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::timer::low_level::CountingMode;
+use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+use embassy_stm32::{Config, bind_interrupts, dcmi, dma, peripherals};
+use embassy_time::{Delay, Timer};
+use panic_probe as _;
+use static_cell::ConstStaticCell;
+
+use crate::camera::{CAPTURE_WORDS, Camera};
+use crate::tracker::{Outcome, Tracker};
+
+bind_interrupts!(struct Irqs {
+    DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
+    DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+});
+
+/// The camera's `XCLK`, as the OpenMV firmware drives it for the OV7725.
+const XCLK_HZ: u32 = 12_000_000;
+
+/// The DCMI's DMA target (AXI SRAM, see `memory.x`).
+static CAPTURE: ConstStaticCell<[u32; CAPTURE_WORDS]> = ConstStaticCell::new([0; CAPTURE_WORDS]);
+
+fn clocks() -> Config {
+    use embassy_stm32::rcc::*;
+    let mut config = embassy_stm32::Config::default();
+    config.rcc.hse = Some(Hse {
+        freq: Hertz(12_000_000),
+        mode: HseMode::Oscillator,
+    });
+    // 12 MHz / 3 = 4 MHz into the PLL (input range 4-8 MHz), x 240 = 960 MHz VCO, / 2.
+    config.rcc.pll1 = Some(Pll {
+        source: PllSource::HSE,
+        prediv: PllPreDiv::DIV3,
+        mul: PllMul::MUL240,
+        fracn: None,
+        divp: Some(PllDiv::DIV2),
+        divq: None,
+        divr: None,
+    });
+    config.rcc.sys = Sysclk::PLL1_P; // 480 MHz
+    config.rcc.ahb_pre = AHBPrescaler::DIV2; // 240 MHz: AXI, AHB
+    config.rcc.apb1_pre = APBPrescaler::DIV2; // 120 MHz (timers 240 MHz)
+    config.rcc.apb2_pre = APBPrescaler::DIV2; // 120 MHz (TIM1 at 240 MHz)
+    config.rcc.apb3_pre = APBPrescaler::DIV2;
+    config.rcc.apb4_pre = APBPrescaler::DIV2;
+    // 480 MHz needs VOS0 (revision V silicon, which the OpenMV Cam H7 has); the H743 is
+    // powered from its LDO (the reset default, as on the OpenMV Cam H7).
+    config.rcc.voltage_scale = VoltageScale::Scale0;
+    config
+}
+
+#[embassy_executor::main]
+async fn main(_spawner: Spawner) {
+    let p = embassy_stm32::init(clocks());
+    let mut core = cortex_m::Peripherals::take();
+    if let Some(core) = core.as_mut() {
+        // Instruction cache on; the data cache stays off, so the DMA-written frames need no
+        // cache maintenance.
+        core.SCB.enable_icache();
+        core.DCB.enable_trace();
+        core.DWT.enable_cycle_counter();
+    }
+    defmt::info!("camgeom on OpenMV Cam H7: 480 MHz");
+
+    // Camera power and reset: PWDN low (on), RESETB pulsed low.
+    let _pwdn = Output::new(p.PD7, Level::Low, Speed::Low);
+    let mut reset = Output::new(p.PA10, Level::Low, Speed::Low);
+    // XCLK: TIM1 runs at 240 MHz, so 12 MHz is an exact divide by 20.
+    let mut xclk = SimplePwm::new(
+        p.TIM1,
+        Some(PwmPin::new(p.PA8, OutputType::PushPull)),
+        None,
+        None,
+        None,
+        Hertz(XCLK_HZ),
+        CountingMode::EdgeAlignedUp,
+    );
+    let mut ch1 = xclk.ch1();
+    ch1.set_duty_cycle_fraction(1, 2);
+    ch1.enable();
+    Timer::after_millis(10).await;
+    reset.set_high();
+    Timer::after_millis(10).await;
+
+    let mut i2c_config = i2c::Config::default();
+    i2c_config.frequency = Hertz(100_000);
+    let sccb = I2c::new_blocking(p.I2C1, p.PB8, p.PB9, i2c_config);
+    let dcmi = dcmi::Dcmi::new_8bit(
+        p.DCMI,
+        p.DMA1_CH0,
+        Irqs,
+        p.PC6,
+        p.PC7,
+        p.PE0,
+        p.PE1,
+        p.PE4,
+        p.PB6,
+        p.PE5,
+        p.PE6,
+        p.PB7,
+        p.PA4,
+        p.PA6,
+        dcmi::Config::default(),
+    );
+    let mut cam = match Camera::new(sccb, dcmi, CAPTURE.take(), &mut Delay) {
+        Ok(c) => c,
+        Err(e) => defmt::panic!("camera set-up failed: {}", e),
+    };
+    // Let automatic exposure settle (the OpenMV firmware waits 300 ms too).
+    Timer::after_millis(300).await;
+    let exposure = cam.sensor().read_register(ov7725::reg::AEC).and_then(|lo| {
+        let hi = cam.sensor().read_register(ov7725::reg::AECH)?;
+        Ok(u16::from_be_bytes([hi, lo]))
+    });
+    match exposure {
+        Ok(rows) => defmt::info!("camera: exposure settled at {=u16} rows", rows),
+        Err(e) => defmt::warn!("camera: cannot read the exposure: {}", e),
+    }
+
+    let mut tracker = match Tracker::new() {
+        Ok(t) => t,
+        Err(e) => defmt::panic!("tracker set-up failed: {}", e),
+    };
+    let mut frames: u32 = 0;
+    loop {
+        let grabbed = match tracker.frame_mut() {
+            Ok(mut frame) => cam.next_frame(&mut frame),
+            Err(e) => defmt::panic!("frame buffer: {}", e),
+        };
+        if let Err(e) = grabbed {
+            defmt::warn!("frame {=u32}: capture failed: {}", frames, e);
+            continue;
+        }
+        let start = cortex_m::peripheral::DWT::cycle_count();
+        let outcome = tracker.process();
+        let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(start);
+        log(frames, cycles, outcome);
+        frames = frames.wrapping_add(1);
+    }
+}
+
+/// One defmt line per frame: the pose (target frame to camera: `t` in metres, rotation vector
+/// in radians) and the per-frame cost in core cycles.
+fn log(frame: u32, cycles: u32, outcome: Result<Outcome, camgeom::Error>) {
+    match outcome {
+        Ok(Outcome::Initialised(n)) if n > 0 => {
+            defmt::info!(
+                "frame {=u32}: target initialised with {=usize} features",
+                frame,
+                n
+            )
+        }
+        Ok(Outcome::Initialised(_)) => {
+            defmt::info!("frame {=u32}: too few features in the start outline", frame)
+        }
+        Ok(Outcome::Tracked(out)) => match out.pose {
+            Some(pose) => {
+                let t = pose.best.pose.translation();
+                let r = pose.best.pose.rotation_vector();
+                defmt::info!(
+                    "frame {=u32}: {}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles",
+                    frame,
+                    out.state,
+                    out.inliers,
+                    t.x,
+                    t.y,
+                    t.z,
+                    r.x,
+                    r.y,
+                    r.z,
+                    pose.best.rms_px,
+                    cycles
+                )
+            }
+            None => defmt::info!(
+                "frame {=u32}: {}, {=usize} tracked, no pose, {=u32} cycles",
+                frame,
+                out.state,
+                out.tracked,
+                cycles
+            ),
+        },
+        Err(e) => defmt::warn!("frame {=u32}: {}", frame, e),
+    }
+}
