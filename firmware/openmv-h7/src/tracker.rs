@@ -6,9 +6,9 @@
 //! | buffer | bytes |
 //! |---|---|
 //! | 2 frames, 320x240 (the previous one stays for the flow) | 153 600 |
-//! | 2 pyramids, levels 1-3 (160x120 + 80x60 + 40x30) | 50 400 |
-//! | corner candidates (512 x 8 B) and corner scratch (6 x 320 x 4 B) | 11 776 |
-//! | flow scratch (`klt::scratch_len(21)` `i16`) | 5 550 |
+//! | 2 pyramids, levels 1-2 (160x120 + 80x60) | 48 000 |
+//! | corner candidates (512 x 8 B) and corner scratch (12 x 320 x 4 B) | 19 456 |
+//! | flow scratch (`klt::scratch_len(15)` `i16`) | 2 886 |
 
 use camgeom::camera::{Camera, Intrinsics};
 use camgeom::corners::{self, Corner};
@@ -21,11 +21,11 @@ use static_cell::ConstStaticCell;
 
 use crate::camera::{HEIGHT, WIDTH};
 
-/// Pyramid levels, the frame included: the coarsest is 40x30.
-pub const LEVELS: usize = 4;
+/// Pyramid levels, the frame included: the coarsest is 80x60 (`TargetConfig`'s default).
+pub const LEVELS: usize = 3;
 const PYR_LEN: usize = pyramid::buffer_len(WIDTH, HEIGHT, LEVELS);
-/// KLT window (pixels, square).
-const WIN: usize = 21;
+/// KLT window (pixels, square; `TargetConfig`'s default).
+const WIN: usize = 15;
 const CANDIDATES: usize = 512;
 /// Tracked features at most.
 pub const TRACKS: usize = 32;
