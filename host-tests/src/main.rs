@@ -21,6 +21,8 @@ use serde::Serialize;
 
 mod homography_cmd;
 mod klt_cmd;
+mod sfm_cmd;
+mod twoview_cmd;
 mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
@@ -75,6 +77,20 @@ enum Command {
     ///
     /// Writes rows `frame,id,x,y` to --out (optionally overlay PNGs) and prints a JSON summary.
     Track(klt_cmd::TrackArgs),
+    /// Epipolar geometry and relative pose of two calibrated views (OpenCV's
+    /// findFundamentalMat, findEssentialMat, recoverPose, triangulatePoints).
+    ///
+    /// Reads rows `x1,y1,x2,y2` (CSV; or `--images A B`: ORB + cross-check) and the camera of
+    /// each view; prints JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N,
+    /// "points": [[X, Y, Z], ..], ..}` with `X₂ = R X₁ + t`, `|t| = 1`, points in view 1's
+    /// frame in baselines.
+    Twoview(twoview_cmd::TwoviewArgs),
+    /// Three-view structure from motion: ORB tracks over three images, relative pose,
+    /// triangulation, PnP of the third view and bundle adjustment.
+    ///
+    /// Writes DIR/points.ply (points, then the camera centres in red, green, blue) and
+    /// DIR/plot.png (top-down and side views) and prints a JSON summary.
+    Sfm(sfm_cmd::SfmArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -200,6 +216,14 @@ fn main() -> ExitCode {
             message,
         }),
         Command::Track(a) => klt_cmd::run_track(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Twoview(a) => twoview_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Sfm(a) => sfm_cmd::run(a).map_err(|message| Failure {
             code: EXIT_INPUT,
             message,
         }),
