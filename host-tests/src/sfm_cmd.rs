@@ -4,10 +4,11 @@
 //!    matched pairwise with cross-check (`A-B`, `B-C`, `A-C`, as `camgeom homography --images`);
 //! 2. tracks: every `A-B` match, extended to `C` through its `B-C` match (dropped there if the
 //!    direct `A-C` match disagrees), then the `B-C` and `A-C` matches not yet in a track;
-//! 3. [`camgeom::sfm::reconstruct_three_views`]: `E` of views A-B (5-point RANSAC) and the
-//!    cheirality test, triangulation, PnP of view C, triangulation of the new tracks and
-//!    [`camgeom::sfm::bundle_adjust`] of every pose but the first and every point (lens
-//!    distortion is modelled: observations are raw pixels);
+//! 3. [`camgeom::sfm::reconstruct_three_views`] (without its bundle adjustment): `E` of views
+//!    A-B (5-point RANSAC) and the cheirality test, triangulation, PnP of view C, triangulation
+//!    of the new tracks; then [`camgeom::sfm::bundle_adjust`] of every pose but the first and
+//!    every point (lens distortion is modelled: observations are raw pixels), with the mean and
+//!    RMS reprojection error over the used observations before and after;
 //! 4. writes `DIR/points.ply` (ASCII PLY: the points in grey, then the three camera centres in
 //!    red, green, blue), `DIR/plot.png` (top-down `X-Z` and side `Z-Y` orthographic views of the
 //!    points and cameras, each camera with its viewing direction) and prints a JSON summary.
@@ -18,10 +19,14 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+use camgeom::camera::Camera;
 use camgeom::features::orb::Feature;
 use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
-use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
+use camgeom::sfm::{
+    PointBlock, SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views,
+};
+use camgeom::transform::Pose;
 use camgeom_host::{load_camera, status_name};
 use clap::Args;
 use serde::Serialize;
@@ -100,6 +105,10 @@ pub struct SfmOutput {
     pub new_points: usize,
     /// Observations in the bundle adjustment.
     pub observations: usize,
+    /// Mean reprojection error over those observations before the bundle adjustment, pixels.
+    pub reprojection_mean_before_px: f64,
+    /// The same after.
+    pub reprojection_mean_after_px: f64,
     /// RMS reprojection error over those observations before the bundle adjustment, pixels.
     pub reprojection_rms_before_px: f64,
     /// The same after.
@@ -195,7 +204,8 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
     config.essential.seed = a.seed;
     config.pnp.threshold = a.pnp_threshold;
     config.pnp.seed = a.seed;
-    config.bundle_iterations = a.bundle_iterations;
+    // The bundle adjustment runs below, on its own, so that its effect can be measured.
+    config.bundle_iterations = 0;
     let mut ws: Box<SfmWorkspace<f64, MAX_TRACKS>> = Box::default();
     let source = format!("{} {} {}", ia.display(), ib.display(), ic.display());
     let r = reconstruct_three_views(&spec.camera, &tracks, &config, &mut ws).map_err(|e| {
@@ -205,15 +215,23 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
             tracks.len()
         )
     })?;
-    let points: Vec<Point3<f64>> = ws
-        .points
-        .iter()
-        .take(tracks.len())
-        .flatten()
-        .copied()
-        .collect();
-    let views: Vec<View> = r
-        .poses
+    let n = tracks.len();
+    let mut poses = r.poses;
+    let mean_before = mean_error(&spec.camera, &poses, &tracks, &ws.points, &ws.used);
+    let mut blocks = vec![PointBlock::<f64>::default(); n];
+    let bundle = bundle_adjust(
+        &spec.camera,
+        &mut poses,
+        &mut ws.points[..n],
+        &tracks,
+        &ws.used[..n],
+        &mut blocks,
+        a.bundle_iterations,
+    )
+    .map_err(|e| format!("{source}: bundle_adjust failed: {} ({e})", status_name(&e)))?;
+    let mean_after = mean_error(&spec.camera, &poses, &tracks, &ws.points, &ws.used);
+    let points: Vec<Point3<f64>> = ws.points.iter().take(n).flatten().copied().collect();
+    let views: Vec<View> = poses
         .iter()
         .zip([ia, ib, ic])
         .zip(&feats)
@@ -246,10 +264,12 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
         initial_inliers: r.initial_inliers,
         pnp_inliers: r.pnp_inliers,
         new_points: r.new_points,
-        observations: r.bundle.observations,
-        reprojection_rms_before_px: r.bundle.initial_rms_px,
-        reprojection_rms_after_px: r.bundle.final_rms_px,
-        bundle_iterations: r.bundle.iterations,
+        observations: bundle.observations,
+        reprojection_mean_before_px: mean_before,
+        reprojection_mean_after_px: mean_after,
+        reprojection_rms_before_px: bundle.initial_rms_px,
+        reprojection_rms_after_px: bundle.final_rms_px,
+        bundle_iterations: bundle.iterations,
         views,
         ply: ply.display().to_string(),
         plot: plot.display().to_string(),
@@ -257,6 +277,31 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
     let mut s = serde_json::to_string_pretty(&summary).unwrap_or_default();
     s.push('\n');
     Ok(s)
+}
+
+/// Mean pixel reprojection error (through the lens model) of the used observations of the
+/// reconstructed tracks; an observation that does not project is skipped (the bundle
+/// adjustment refuses such a start anyway).
+fn mean_error(
+    camera: &Camera<f64>,
+    poses: &[Pose<f64>; 3],
+    tracks: &[Track<f64>],
+    points: &[Option<Point3<f64>>],
+    used: &[[bool; 3]],
+) -> f64 {
+    let (mut sum, mut count) = (0.0, 0usize);
+    for ((track, point), used) in tracks.iter().zip(points).zip(used) {
+        let Some(x) = point else { continue };
+        for ((obs, pose), u) in track.iter().zip(poses).zip(used) {
+            if let (Some(obs), true) = (obs, u)
+                && let Ok(p) = camera.project(pose, x)
+            {
+                sum += (p - obs).norm();
+                count += 1;
+            }
+        }
+    }
+    if count == 0 { 0.0 } else { sum / count as f64 }
 }
 
 /// The colours of the three cameras: red, green, blue.
