@@ -49,11 +49,11 @@ pub struct ArArgs {
     /// Downscale factor of the contact sheet's tiles.
     #[arg(long, default_value_t = 2)]
     sheet_scale: usize,
-    /// KLT window side in pixels.
-    #[arg(long, default_value_t = 21)]
+    /// KLT window side in pixels (`TargetConfig`'s default).
+    #[arg(long, default_value_t = 15)]
     win: usize,
-    /// KLT coarsest pyramid level.
-    #[arg(long, default_value_t = 3)]
+    /// KLT coarsest pyramid level (`TargetConfig`'s default).
+    #[arg(long, default_value_t = 2)]
     max_level: usize,
     /// Forward-backward check threshold in pixels (0 disables it).
     #[arg(long, default_value_t = 1.0)]

@@ -102,7 +102,7 @@ const CROSS_CHECK: MatchConfig = MatchConfig {
 };
 
 /// ORB features of an image file.
-fn orb_features(path: &Path) -> Result<Vec<Feature>, String> {
+pub fn orb_features(path: &Path) -> Result<Vec<Feature>, String> {
     let img = load_gray(path).map_err(|e| e.to_string())?;
     let view = img.view().ok_or_else(|| {
         format!(

@@ -23,6 +23,8 @@ mod ar_cmd;
 mod homography_cmd;
 mod klt_cmd;
 mod pose_cmd;
+mod sfm_cmd;
+mod twoview_cmd;
 mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
@@ -88,6 +90,20 @@ enum Command {
     /// Writes overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON
     /// summary.
     Ar(ar_cmd::ArArgs),
+    /// Epipolar geometry and relative pose of two calibrated views (OpenCV's
+    /// findFundamentalMat, findEssentialMat, recoverPose, triangulatePoints).
+    ///
+    /// Reads rows `x1,y1,x2,y2` (CSV; or `--images A B`: ORB + cross-check) and the camera of
+    /// each view; prints JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N,
+    /// "points": [[X, Y, Z], ..], ..}` with `X₂ = R X₁ + t`, `|t| = 1`, points in view 1's
+    /// frame in baselines.
+    Twoview(twoview_cmd::TwoviewArgs),
+    /// Three-view structure from motion: ORB tracks over three images, relative pose,
+    /// triangulation, PnP of the third view and bundle adjustment.
+    ///
+    /// Writes DIR/points.ply (points, then the camera centres in red, green, blue) and
+    /// DIR/plot.png (top-down and side views) and prints a JSON summary.
+    Sfm(sfm_cmd::SfmArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -221,6 +237,14 @@ fn main() -> ExitCode {
             message,
         }),
         Command::Ar(a) => ar_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Twoview(a) => twoview_cmd::run(a).map_err(|message| Failure {
+            code: EXIT_INPUT,
+            message,
+        }),
+        Command::Sfm(a) => sfm_cmd::run(a).map_err(|message| Failure {
             code: EXIT_INPUT,
             message,
         }),

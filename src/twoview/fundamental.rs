@@ -71,6 +71,21 @@ pub fn eight_point_masked<T: Real>(
     )
 }
 
+/// `F = T₂ᵀ F̂ T₁` of a rank-2 `F̂` in Hartley-normalised coordinates, rescaled only.
+///
+/// The rank is enforced on `F̂`, never again in pixels: a pixel `F` is badly scaled (its two
+/// non-zero singular values differ by about `f²`, `σ₂/σ₁ ~ 1e-5` for `f = 600` px), so an SVD
+/// of it in `f32` either rejects it as rank-deficient (`σ₂ ≤ √ε σ₁`) or, through the rounding
+/// of `σ₁`-sized entries, moves the small singular directions that carry the epipolar
+/// geometry. Multiplying by the invertible `Tᵢ` keeps the rank exactly, up to rounding.
+fn denormalize<T: Real>(
+    fhat: &Fundamental<T>,
+    n1: &Normalization<T>,
+    n2: &Normalization<T>,
+) -> Result<Fundamental<T>> {
+    Fundamental::from_rank2(&(n2.matrix().transpose() * fhat.matrix() * n1.matrix()))
+}
+
 pub(crate) fn solve<T, I>(pairs: I) -> Result<Fundamental<T>>
 where
     T: Real,
@@ -94,7 +109,7 @@ where
         return Err(Error::Degenerate);
     }
     let fhat = Fundamental::from_matrix(&unvec(&svd.null_vector()))?;
-    Fundamental::from_matrix(&(n2.matrix().transpose() * fhat.matrix() * n1.matrix()))
+    denormalize(&fhat, &n1, &n2)
 }
 
 /// The 7-point algorithm: every rank-2 `F` through 7 pairs.
@@ -142,7 +157,7 @@ pub fn seven_point<T: Real>(
     let mut out = Vec::new();
     for a in real_roots(&[c0, c1, c2, c3]) {
         let fhat = f1 * a + f2 * (T::one() - a);
-        if let Ok(f) = Fundamental::from_matrix(&(n2.matrix().transpose() * fhat * n1.matrix())) {
+        if let Ok(f) = Fundamental::from_matrix(&fhat).and_then(|f| denormalize(&f, &n1, &n2)) {
             let _ = out.push(f);
         }
     }

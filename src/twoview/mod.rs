@@ -115,6 +115,9 @@ impl<T: Real> Fundamental<T> {
     ///
     /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when `m` has rank below 2
     /// (`σ₂ ≤ √ε σ₁`, e.g. zero).
+    ///
+    /// Project well-scaled matrices (normalised coordinates): a pixel `F` has `σ₂/σ₁` of
+    /// about `1/f²`, below `√ε` in `f32`, and is rejected there.
     pub fn from_matrix(m: &Matrix3<T>) -> Result<Self> {
         check_finite(m.as_slice())?;
         let svd = svd_jacobi(m)?;

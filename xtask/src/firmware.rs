@@ -106,7 +106,7 @@ pub fn bench() -> Result<()> {
     );
     let summary = run_on_qemu_checked(&elf, BENCH_SUMMARY, BENCH_SUMMARY_REST)?;
     println!("bench-fw: {summary}");
-    Ok(())
+    bench_twoview()
 }
 
 fn timeout() -> Duration {
@@ -271,4 +271,16 @@ fn size_report(elf: &Path) -> Result<(u64, u64)> {
         rows.join(" ")
     );
     Ok((flash, ram))
+}
+
+/// The two-view bench binary (`cargo xtask bench-fw`, after the homography bench).
+const TWOVIEW_BENCH_BIN: &str = "camgeom-fw-bench-twoview";
+
+/// Builds and runs the two-view bench binary on QEMU and prints its cost table and summary.
+fn bench_twoview() -> Result<()> {
+    let elf = build_bin(TWOVIEW_BENCH_BIN, &[])?;
+    size_report(&elf)?;
+    let summary = run_on_qemu_checked(&elf, "twoview bench: ", BENCH_SUMMARY_REST)?;
+    println!("bench-fw: {summary}");
+    Ok(())
 }

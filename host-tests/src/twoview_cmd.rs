@@ -1,0 +1,272 @@
+//! `camgeom twoview`: the epipolar geometry and relative pose of two calibrated views (OpenCV's
+//! `findFundamentalMat(FM_RANSAC)`, `findEssentialMat(RANSAC)`, `recoverPose` and
+//! `triangulatePoints` in one call).
+//!
+//! Input: CSV rows `x1,y1,x2,y2` (a pixel in view 1 and its match in view 2; optional header),
+//! or two images (`--images A.png B.png`: ORB features matched with cross-check, as
+//! `camgeom homography --images`), and the camera file of each view. Lens distortion of the
+//! camera files is removed from every pixel first ([`camgeom::camera::Camera::undistort_pixel`]);
+//! `F` relates those undistorted pixels.
+//!
+//! Then, with `x̂ = K⁻¹ u`:
+//!
+//! 1. `F`: [`camgeom::twoview::find_fundamental`] (7-point RANSAC, MSAC on the Sampson
+//!    distance, `--f-threshold`, 8-point local optimisation, Sampson LM), `x₂ᵀ F x₁ = 0`;
+//! 2. `E`: [`camgeom::twoview::find_essential`] (5-point RANSAC, `--threshold` on the Sampson
+//!    distance of `K₂⁻ᵀ E K₁⁻¹` in pixels), `x̂₂ᵀ E x̂₁ = 0`, singular values `(1, 1, 0)`;
+//! 3. `R`, `t`: [`camgeom::twoview::recover_pose`] on the `E` inliers, `X₂ = R X₁ + t`,
+//!    `|t| = 1` (the scale is not observable), the cheirality test keeping the pairs in front of
+//!    both cameras and nearer than `--max-distance` baselines;
+//! 4. `points`: [`camgeom::twoview::triangulate_optimal`] of those pairs, in view 1's camera
+//!    frame in units of the baseline; `point_rows` gives the input row of each point.
+//!
+//! Output: JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N, "points": [[X, Y, Z],
+//! ...], ...}` (matrices row-major; `F` with unit Frobenius norm). A camgeom failure is an input
+//! error (status 2, one line naming the error).
+
+use std::path::PathBuf;
+
+use camgeom::Real;
+use camgeom::camera::Camera;
+use camgeom::nalgebra::{Matrix3, Point2};
+use camgeom::ransac::RansacConfig;
+use camgeom::transform::Transform;
+use camgeom::twoview::{
+    View1, find_essential, find_fundamental, recover_pose, triangulate_optimal,
+};
+use camgeom_host::{load_camera, status_name};
+use clap::Args;
+use serde::Serialize;
+
+use crate::homography_cmd::{match_images, read_matches};
+
+#[derive(Args, Debug)]
+pub struct TwoviewArgs {
+    /// Correspondences, CSV rows `x1,y1,x2,y2` (pixels of view 1 and view 2, as recorded:
+    /// distortion is removed with the camera files; optional header); `-` reads stdin.
+    #[arg(long, value_name = "FILE.csv", required_unless_present = "images")]
+    pub matches: Option<PathBuf>,
+    /// Two images (PNG, JPEG; read as grey) instead of `--matches`: ORB features of both,
+    /// matched with cross-check (as `camgeom homography --images`).
+    #[arg(
+        long,
+        num_args = 2,
+        value_names = ["A.png", "B.png"],
+        conflicts_with = "matches"
+    )]
+    pub images: Option<Vec<PathBuf>>,
+    /// Camera file of view 1 (OpenCV YAML/XML, camgeom JSON/TOML; see `camgeom camera`).
+    #[arg(long, value_name = "FILE")]
+    pub intrinsics1: PathBuf,
+    /// Camera file of view 2; default: the camera of view 1.
+    #[arg(long, value_name = "FILE")]
+    pub intrinsics2: Option<PathBuf>,
+    /// Inlier threshold of `E` in pixels, on the Sampson distance (OpenCV's findEssentialMat
+    /// default).
+    #[arg(long, value_name = "PX", default_value_t = 1.0)]
+    pub threshold: f64,
+    /// Inlier threshold of `F` in pixels, on the Sampson distance (OpenCV's
+    /// findFundamentalMat default).
+    #[arg(long, value_name = "PX", default_value_t = 3.0)]
+    pub f_threshold: f64,
+    /// Probability of having drawn an all-inlier sample when RANSAC stops early, in (0, 1].
+    #[arg(long, value_name = "P", default_value_t = 0.999)]
+    pub confidence: f64,
+    /// Most RANSAC samples drawn (each of F and E).
+    #[arg(long, value_name = "N", default_value_t = 2000)]
+    pub max_iters: u32,
+    /// Seed of RANSAC's sampler: the same seed and input give the same output everywhere.
+    #[arg(long, value_name = "SEED", default_value_t = RansacConfig::<f64>::default().seed)]
+    pub seed: u64,
+    /// Cheirality bound: points farther than this many baselines do not vote for a pose and
+    /// are not triangulated (OpenCV's recoverPose `distanceThresh`).
+    #[arg(long, value_name = "BASELINES", default_value_t = 50.0)]
+    pub max_distance: f64,
+    /// Compute in f32, as the firmware does (default f64).
+    #[arg(long)]
+    pub f32: bool,
+}
+
+/// The JSON result.
+#[derive(Serialize, Debug)]
+pub struct TwoviewOutput<T> {
+    /// `F`, row-major, unit Frobenius norm, on undistorted pixels: `x₂ᵀ F x₁ = 0`.
+    #[serde(rename = "F")]
+    pub f: [T; 9],
+    /// `E = [t]ₓ R`, row-major, singular values `(1, 1, 0)`.
+    #[serde(rename = "E")]
+    pub e: [T; 9],
+    /// `R` of `X₂ = R X₁ + t`, row-major.
+    #[serde(rename = "R")]
+    pub r: [T; 9],
+    /// `t`, unit length.
+    pub t: [T; 3],
+    /// Pairs that are `E` inliers and in front of both cameras (the triangulated ones).
+    pub inliers: usize,
+    /// Inliers of `F` (at `--f-threshold`).
+    pub f_inliers: usize,
+    /// Inliers of `E` before the cheirality test.
+    pub e_inliers: usize,
+    /// Pairs supporting the runner-up pose (a margin for the cheirality decision).
+    pub runner_up: usize,
+    /// Per input row: whether it is one of `inliers`.
+    pub inlier_mask: Vec<bool>,
+    /// Triangulated inliers, view 1's camera frame, in baselines.
+    pub points: Vec<[T; 3]>,
+    /// The input row (0-based, header excluded) of each point.
+    pub point_rows: Vec<usize>,
+    /// RMS reprojection error of the triangulated points in both views, pixels (`fx` scale).
+    pub reprojection_rms_px: T,
+    /// Feature matches found between the images (`--images` only; the mask is per match).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub matches: Option<usize>,
+}
+
+/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
+pub fn run(a: &TwoviewArgs) -> Result<String, String> {
+    let (source, matches, from_images) = match (&a.images, &a.matches) {
+        (Some(images), _) => {
+            let [ia, ib] = images.as_slice() else {
+                return Err("--images takes two files".into());
+            };
+            let source = format!("{} -> {}", ia.display(), ib.display());
+            (source, match_images(ia, ib)?, true)
+        }
+        (None, Some(path)) => (
+            path.display().to_string(),
+            read_matches(path).map_err(|e| e.to_string())?,
+            false,
+        ),
+        (None, None) => return Err("one of --matches and --images is required".into()),
+    };
+    let spec1 = load_camera(&a.intrinsics1).map_err(|e| e.to_string())?;
+    let spec2 = match &a.intrinsics2 {
+        Some(p) => load_camera(p).map_err(|e| e.to_string())?,
+        None => spec1,
+    };
+    let out = if a.f32 {
+        to_json(&estimate(
+            a,
+            &source,
+            &matches,
+            from_images,
+            &spec1.camera_f32(),
+            &spec2.camera_f32(),
+        )?)
+    } else {
+        to_json(&estimate(
+            a,
+            &source,
+            &matches,
+            from_images,
+            &spec1.camera,
+            &spec2.camera,
+        )?)
+    };
+    Ok(out)
+}
+
+fn flat<T: Real>(m: &Matrix3<T>) -> [T; 9] {
+    [
+        m.m11, m.m12, m.m13, m.m21, m.m22, m.m23, m.m31, m.m32, m.m33,
+    ]
+}
+
+/// The two-view geometry in `T` (f64, or f32 as on the firmware) of `matches` (raw pixels)
+/// seen by `c1` and `c2`; `source` names the input in error messages.
+pub fn estimate<T: Real>(
+    a: &TwoviewArgs,
+    source: &str,
+    matches: &[(Point2<f64>, Point2<f64>)],
+    from_images: bool,
+    c1: &Camera<T>,
+    c2: &Camera<T>,
+) -> Result<TwoviewOutput<T>, String> {
+    let fail = |what: &str, e: camgeom::Error| {
+        format!(
+            "{source}: {what} failed: {} ({e}), {} correspondences",
+            status_name(&e),
+            matches.len()
+        )
+    };
+    let cast = |p: &Point2<f64>| Point2::new(T::lit(p.x), T::lit(p.y));
+    let mut x1 = Vec::with_capacity(matches.len());
+    let mut x2 = Vec::with_capacity(matches.len());
+    for (row, (p, q)) in matches.iter().enumerate() {
+        let u1 = c1
+            .undistort_pixel(&cast(p))
+            .map_err(|e| fail(&format!("undistorting row {row} in view 1"), e))?;
+        let u2 = c2
+            .undistort_pixel(&cast(q))
+            .map_err(|e| fail(&format!("undistorting row {row} in view 2"), e))?;
+        x1.push(u1);
+        x2.push(u2);
+    }
+    let (k1, k2) = (c1.intrinsics, c2.intrinsics);
+    let config = |threshold: f64| RansacConfig {
+        threshold: T::lit(threshold),
+        confidence: T::lit(a.confidence),
+        max_iterations: a.max_iters,
+        seed: a.seed,
+        ..RansacConfig::default()
+    };
+    let mut f_mask = vec![false; x1.len()];
+    let (f, f_report) = find_fundamental(&x1, &x2, &config(a.f_threshold), &mut f_mask)
+        .map_err(|e| fail("find_fundamental", e))?;
+    let mut mask = vec![false; x1.len()];
+    let (e, e_report) = find_essential(&k1, &k2, &x1, &x2, &config(a.threshold), &mut mask)
+        .map_err(|e| fail("find_essential", e))?;
+    let rp = recover_pose(&e, &k1, &k2, &x1, &x2, T::lit(a.max_distance), &mut mask)
+        .map_err(|e| fail("recover_pose", e))?;
+    let p1 = Transform::<View1, View1, T>::identity();
+    let (mut points, mut point_rows) = (Vec::new(), Vec::new());
+    let mut sq = T::zero();
+    for (row, m) in mask.iter_mut().enumerate() {
+        if !*m {
+            continue;
+        }
+        let tri = k1
+            .pixel_to_normalized(&x1[row])
+            .and_then(|n1| Ok((n1, k2.pixel_to_normalized(&x2[row])?)))
+            .and_then(|(n1, n2)| triangulate_optimal(&p1, &rp.pose, &n1, &n2));
+        match tri {
+            Ok(t) => {
+                let (e1, e2) = (t.error1 * k1.fx(), t.error2 * k2.fx());
+                sq += e1 * e1 + e2 * e2;
+                points.push([t.point.x, t.point.y, t.point.z]);
+                point_rows.push(row);
+            }
+            // Not triangulable (parallel rays, behind a camera): not an inlier after all.
+            Err(_) => *m = false,
+        }
+    }
+    let reprojection_rms_px = if points.is_empty() {
+        T::zero()
+    } else {
+        (sq / T::lit(2.0 * points.len() as f64)).sqrt()
+    };
+    let (r, t) = (rp.pose.rotation(), rp.pose.translation());
+    Ok(TwoviewOutput {
+        f: flat(f.matrix()),
+        e: flat(e.matrix()),
+        r: flat(r.matrix()),
+        t: [t.x, t.y, t.z],
+        inliers: points.len(),
+        f_inliers: f_report.inliers,
+        e_inliers: e_report.inliers,
+        runner_up: rp.runner_up,
+        inlier_mask: mask,
+        points,
+        point_rows,
+        reprojection_rms_px,
+        matches: from_images.then_some(matches.len()),
+    })
+}
+
+/// Pretty-printed JSON with a final newline.
+fn to_json<S: Serialize>(value: &S) -> String {
+    // Numbers, booleans and strings only: serialising cannot fail.
+    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
+    s.push('\n');
+    s
+}
