@@ -119,12 +119,17 @@ pub fn pyr_down(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<(
                     + 4 * u16::from(d)
                     + u16::from(e);
             }
-            let taps = |k: usize| vsum.iter().skip(k).step_by(2).map(|&v| u32::from(v));
-            let sums = taps(0).zip(taps(1)).zip(taps(2)).zip(taps(3)).zip(taps(4));
-            for (o, ((((a, b), c), d), e)) in out_tile.iter_mut().zip(sums) {
+            // out(i) = v(2i) + 4 v(2i+1) + 6 v(2i+2) + 4 v(2i+3) + v(2i+4): three taps carry over
+            // from the previous output, the next two come in pairs.
+            let v = |k: usize| u32::from(vsum.get(k).copied().unwrap_or(0));
+            let (mut a, mut b, mut c) = (v(0), v(1), v(2));
+            let (pairs, _) = vsum.get(3..ncols).unwrap_or(&[]).as_chunks::<2>();
+            for (o, &[d, e]) in out_tile.iter_mut().zip(pairs) {
+                let (d, e) = (u32::from(d), u32::from(e));
                 let s = a + 4 * b + 6 * c + 4 * d + e;
                 // s <= 256 * 255, so the rounded quotient fits u8.
                 *o = ((s + 128) >> 8) as u8;
+                (a, b, c) = (c, d, e);
             }
         }
     }
