@@ -67,3 +67,43 @@ fn distort_pixel_overflow_is_an_error() {
         }
     }
 }
+
+/// `Transform::new` took `UnitQuaternion::from_rotation_matrix` of a matrix only nearly
+/// orthonormal (P3P accepts its rotation up to `64 √ε` off) without normalising: the pose's
+/// "rotation" then scaled points by up to 0.5 %. (fuzz target `pose`, P3P on world points
+/// spanning 1e-40 .. 3742 and bearings with subnormal components)
+#[test]
+fn poses_from_nearly_orthonormal_matrices_are_rotations() {
+    use camgeom::nalgebra::{Matrix3, Point3, Rotation3, Vector3};
+    use camgeom::pose::p3p;
+    use camgeom::transform::Pose;
+
+    let ortho = |p: &Pose<f32>| {
+        let r = p.rotation();
+        (r.matrix().transpose() * r.matrix() - Matrix3::identity()).amax()
+    };
+    let nearly = Rotation3::from_matrix_unchecked(Matrix3::from_diagonal_element(1.004f32));
+    let pose = Pose::new(nearly, Vector3::new(0.0, 0.0, 1.0)).unwrap();
+    assert!(ortho(&pose) < 1e-5, "{}", ortho(&pose));
+
+    let bearings = [
+        Vector3::new(1e-40f32, 29930.0 / 131_072.0, 1.0),
+        Vector3::new(1e-40, -1.0, 1.0),
+        Vector3::new(0.0, 0.0, 1.0),
+    ];
+    let world = [
+        Point3::new(128.0f32, 1e-40, 1e-40),
+        Point3::new(0.0, -3742.375, 0.0),
+        Point3::new(-5.392_603e-32, -3419.875, 0.0),
+    ];
+    if let Ok(poses) = p3p(&bearings, &world) {
+        for p in &poses {
+            assert!(
+                ortho(p) < 1e-5,
+                "P3P rotation off orthonormal by {}",
+                ortho(p)
+            );
+            assert!(p.translation().iter().all(|v| v.is_finite()));
+        }
+    }
+}
