@@ -75,6 +75,14 @@ fn steps() -> Vec<Step> {
         }),
     );
     add(
+        "panic freedom (firmware link check)",
+        Box::new(crate::panic_check::check_panic_free),
+    );
+    add(
+        "fuzz smoke run",
+        Box::new(|| crate::fuzz::fuzz(crate::fuzz::SMOKE_SECONDS)),
+    );
+    add(
         "firmware on QEMU",
         Box::new(|| build_and_run().map(|summary| println!("firmware: {summary}"))),
     );

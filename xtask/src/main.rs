@@ -5,6 +5,9 @@
 //! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
 //! | `cargo xtask run` | builds the firmware, runs it on QEMU, decodes and checks its defmt log |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
+//! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
+//! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
+//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 15) |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -12,6 +15,8 @@
 
 mod ci;
 mod firmware;
+mod fuzz;
+mod panic_check;
 mod setup;
 mod util;
 
@@ -23,6 +28,9 @@ commands:
   setup   install the rustup targets and components and qemu-system-arm the other commands need
   run     build the firmware (release), run it on QEMU mps2-an500, decode and check its log
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
+  stack   build and run the stack-painting firmware on QEMU: stack use per entry point
+  panic-check  link one firmware binary per entry point with a panic handler that cannot link
+  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 15)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
@@ -31,6 +39,16 @@ fn main() -> ExitCode {
         Some("setup") => setup::setup(),
         Some("run") => setup::setup().and_then(|()| firmware::build_and_run().map(|_| ())),
         Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
+        Some("stack") => setup::setup().and_then(|()| firmware::stack()),
+        Some("panic-check") => panic_check::check(),
+        Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
+            None => fuzz::fuzz(fuzz::SMOKE_SECONDS),
+            Some(Ok(secs)) => fuzz::fuzz(secs),
+            Some(Err(_)) => {
+                eprintln!("xtask: fuzz takes a number of seconds per target");
+                return ExitCode::from(2);
+            }
+        },
         Some("ci") => ci::ci(),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");
