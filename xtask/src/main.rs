@@ -7,7 +7,7 @@
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
 //! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
-//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 15) |
+//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 10) |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -30,7 +30,7 @@ commands:
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
   panic-check  link one firmware binary per entry point with a panic handler that cannot link
-  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 15)
+  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 10)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
