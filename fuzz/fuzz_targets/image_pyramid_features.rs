@@ -30,18 +30,19 @@ struct Input {
 }
 
 fn grow(len: usize, slack: i16) -> usize {
-    (len as i64 + i64::from(slack)).clamp(0, 1 << 18) as usize
+    (len as i64 + i64::from(slack)).clamp(0, 1 << 17) as usize
 }
 
 fuzz_target!(|inp: Input| {
-    // Small images keep each run short; the size checks are still exercised at the edges.
+    // Any geometry (the size checks see zero, huge and odd values), but at most 64 KiB of
+    // pixels: larger geometries meet a buffer that is too short, and each run stays short.
     let (w, h, s) = (
-        usize::from(inp.width % 300),
-        usize::from(inp.height % 300),
-        usize::from(inp.stride % 330),
+        usize::from(inp.width),
+        usize::from(inp.height),
+        usize::from(inp.stride),
     );
     let need = buffer_len(w, h, s);
-    let len = grow(need.min(1 << 18), inp.slack);
+    let len = grow(need.min(1 << 16), inp.slack);
     let mut state = inp.seed | 1;
     let data: std::vec::Vec<u8> = (0..len)
         .map(|i| {
