@@ -206,6 +206,48 @@ fn stronger(a: &Corner, b: &Corner) -> core::cmp::Ordering {
     b.score.cmp(&a.score).then((b.y, b.x).cmp(&(a.y, a.x)))
 }
 
+/// Sorts `v` ascending in `order` by heapsort: `O(n log n)`, in place, and without the panic
+/// path of `sort_unstable_by` (core's sorts panic on a comparator that is not a total order,
+/// which the optimiser cannot rule out; `stronger` is one, so the result is the same).
+fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::Ordering) {
+    let less = |v: &[T], i: usize, j: usize| match (v.get(i), v.get(j)) {
+        (Some(a), Some(b)) => order(a, b) == core::cmp::Ordering::Less,
+        _ => false,
+    };
+    let swap = |v: &mut [T], i: usize, j: usize| {
+        if i < v.len() && j < v.len() {
+            v.swap(i, j);
+        }
+    };
+    let (mut start, mut end) = (v.len() / 2, v.len());
+    loop {
+        // Build the max-heap (start > 0), then move its top behind the shrinking heap.
+        if start > 0 {
+            start -= 1;
+        } else if end > 1 {
+            end -= 1;
+            swap(v, 0, end);
+        } else {
+            break;
+        }
+        let mut root = start;
+        loop {
+            let mut child = 2 * root + 1;
+            if child >= end {
+                break;
+            }
+            if child + 1 < end && less(v, child, child + 1) {
+                child += 1;
+            }
+            if !less(v, root, child) {
+                break;
+            }
+            swap(v, root, child);
+            root = child;
+        }
+    }
+}
+
 /// Detects Shi-Tomasi corners of `img` into `out` (up to its capacity), skipping any within
 /// `min_distance` of a point of `existing` (pixel positions of features already tracked).
 ///
@@ -297,7 +339,7 @@ pub fn good_features<const K: usize>(
                 continue;
             }
             if count == candidates.len() {
-                candidates.sort_unstable_by(stronger);
+                heapsort_by(candidates, stronger);
                 count = candidates.len() / 2;
                 floor = candidates
                     .get(count - 1)
@@ -319,7 +361,7 @@ pub fn good_features<const K: usize>(
     // The final threshold, from the true maximum: drop what the running one let through.
     let thr = quality_of(max);
     let cands = candidates.get_mut(..count).unwrap_or(&mut []);
-    cands.sort_unstable_by(stronger);
+    heapsort_by(cands, stronger);
     let kept = cands.iter().take_while(|k| k.score > thr).count();
     let cands = cands.get(..kept).unwrap_or(&[]);
     let md = i64::from(cfg.min_distance);
@@ -431,5 +473,23 @@ mod tests {
             ),
             Err(Error::InvalidParameter)
         );
+    }
+
+    #[test]
+    fn heapsort_matches_the_standard_sort() {
+        let mut g = crate::rng::Pcg32::new(7);
+        for n in [0usize, 1, 2, 3, 5, 16, 17, 100, 513] {
+            let mut a: std::vec::Vec<Corner> = (0..n)
+                .map(|_| Corner {
+                    x: (g.next_u32() % 8) as u16,
+                    y: (g.next_u32() % 8) as u16,
+                    score: g.next_u32() % 16,
+                })
+                .collect();
+            let mut b = a.clone();
+            heapsort_by(&mut a, stronger);
+            b.sort_by(stronger);
+            assert_eq!(a, b, "n = {n}");
+        }
     }
 }

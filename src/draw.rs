@@ -54,7 +54,9 @@ pub fn draw_line_i32(
     let at = |n: i64, d: i64| -> (i64, i64) {
         let px = ax + div_round(dx * n, d);
         let py = ay + div_round(dy * n, d);
-        (px.clamp(0, w - 1), py.clamp(0, h - 1))
+        // `max` then `min`, not `clamp`: `clamp` asserts `min <= max`, a panic path the
+        // optimiser cannot remove (it does not know that `w, h >= 1`).
+        (px.max(0).min(w - 1), py.max(0).min(h - 1))
     };
     let (sx, sy) = at(t0n, t0d);
     let (ex, ey) = at(t1n, t1d);
@@ -62,11 +64,10 @@ pub fn draw_line_i32(
 }
 
 fn div_round(n: i64, d: i64) -> i64 {
-    if d == 0 {
+    // `checked_*`: `/` and `%` panic for `d = 0` and for `i64::MIN / -1`.
+    let (Some(q), Some(r)) = (n.checked_div(d), n.checked_rem(d)) else {
         return 0;
-    }
-    let q = n / d;
-    let r = n % d;
+    };
     if 2 * r.abs() >= d.abs() {
         q + if (n < 0) != (d < 0) { -1 } else { 1 }
     } else {

@@ -99,7 +99,9 @@ impl<'a, P: Copy> ImageView<'a, P> {
     /// Row `y` clamped into `0..height` (replicated border for kernels).
     #[inline]
     pub fn row_clamped(&self, y: isize) -> &'a [P] {
-        let y = y.clamp(0, self.height as isize - 1) as usize;
+        // `max` then `min`, not `clamp`: `clamp`'s `min <= max` assertion is a panic path the
+        // optimiser keeps (it does not know that `height >= 1`).
+        let y = y.min(self.height as isize - 1).max(0) as usize;
         // Validated at construction: every y < height has a full row.
         self.row(y).unwrap_or(&[])
     }

@@ -116,13 +116,24 @@ impl<A: Frame, B: Frame, T: Real> Transform<A, B, T> {
         }
     }
 
-    /// From a rotation and a translation: `X_B = R X_A + t`.
+    /// From a rotation and a translation: `X_B = R X_A + t`. A rotation matrix slightly off
+    /// orthonormal (rounding) is taken to the nearby rotation of its unit quaternion.
+    /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when the matrix has no rotation
+    /// part (its quaternion is zero).
     pub fn new(rotation: Rotation3<T>, translation: Vector3<T>) -> Result<Self> {
         check_finite(rotation.matrix().as_slice())?;
         check_finite(translation.as_slice())?;
+        // `from_rotation_matrix` trusts its input: a matrix a little off orthonormal (a
+        // solver's rounding) gives a quaternion a little off unit length, and with it a
+        // "rotation" that scales. Normalise it.
+        let q = UnitQuaternion::from_rotation_matrix(&rotation).into_inner();
+        let n = q.norm();
+        if !(n.finite() && n > T::zero()) {
+            return Err(Error::Degenerate);
+        }
         Ok(Self::from_isometry(Isometry3::from_parts(
             Translation3::from(translation),
-            UnitQuaternion::from_rotation_matrix(&rotation),
+            UnitQuaternion::new_unchecked(q / n),
         )))
     }
 

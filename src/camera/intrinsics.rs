@@ -106,10 +106,14 @@ impl<T: Real> Intrinsics<T> {
     }
 
     /// Pixels to normalised coordinates: `y = (v - cy)/fy`, `x = (u - cx - s y)/fx`.
+    ///
+    /// Errors: [`Error::NonFinite`] for NaN/inf input or a result that overflows (e.g.
+    /// `v - cy` beyond the float range, or a tiny `fx` against a large skew term).
     pub fn pixel_to_normalized(&self, p: &Point2<T>) -> Result<Point2<T>> {
         check_finite(&[p.x, p.y])?;
         let y = (p.y - self.cy) / self.fy;
         let x = (p.x - self.cx - self.skew * y) / self.fx;
+        check_finite(&[x, y])?;
         Ok(Point2::new(x, y))
     }
 

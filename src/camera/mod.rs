@@ -104,17 +104,25 @@ impl<T: Real> Camera<T> {
     }
 
     /// Removes lens distortion from a pixel: the pixel an ideal pinhole camera with the same
-    /// `K` would see.
+    /// `K` would see. Errors: as [`Self::undistort_to_normalized`]; [`Error::NonFinite`] when
+    /// the result overflows.
     pub fn undistort_pixel(&self, pixel: &Point2<T>) -> Result<Point2<T>> {
         let n = self.undistort_to_normalized(pixel)?;
-        Ok(self.intrinsics.normalized_to_pixel(&n))
+        let u = self.intrinsics.normalized_to_pixel(&n);
+        // `K` maps back: with extreme intrinsics (a huge skew or principal point) that can
+        // overflow.
+        check_finite(&[u.x, u.y])?;
+        Ok(u)
     }
 
-    /// Applies lens distortion to an ideal pinhole pixel.
+    /// Applies lens distortion to an ideal pinhole pixel. Errors: [`Error::NonFinite`] for
+    /// NaN/inf input or a result that overflows.
     pub fn distort_pixel(&self, ideal: &Point2<T>) -> Result<Point2<T>> {
         let n = self.intrinsics.pixel_to_normalized(ideal)?;
         let d = self.distortion.distort(&n)?;
-        Ok(self.intrinsics.normalized_to_pixel(&d))
+        let u = self.intrinsics.normalized_to_pixel(&d);
+        check_finite(&[u.x, u.y])?;
+        Ok(u)
     }
 
     /// Pixel to undistorted normalised coordinates `x_n = distort⁻¹(K⁻¹ u)`.
@@ -129,6 +137,10 @@ impl<T: Real> Camera<T> {
         let n = self.undistort_to_normalized(pixel)?;
         let v = Vector3::new(n.x, n.y, T::one());
         check_finite(v.as_slice())?;
+        // Scale by the largest component first: `|v|²` of a ray far off the axis (normalised
+        // coordinates beyond ~1e19 in f32) overflows, and normalising by an infinite norm
+        // would return the zero vector.
+        let v = v / v.amax();
         Ok(Unit::new_normalize(v))
     }
 

@@ -15,7 +15,7 @@
 //! singular values get small *relative* errors, Demmel & Veselić 1992), and `V` stays orthogonal
 //! to rounding because it is a product of rotations — which is what a null vector needs.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Const, SMatrix, SVector, VectorViewMut};
 
 use super::hypot;
 use crate::scalar::{Real, check_finite};
@@ -112,7 +112,9 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
         let mut rotated = false;
         for p in 0..C {
             for q in (p + 1)..C {
-                let (mut wp, mut wq) = w.columns_range_pair_mut(p, q);
+                let Some((mut wp, mut wq)) = column_pair(&mut w, p, q) else {
+                    continue;
+                };
                 let alpha = wp.norm_squared();
                 let beta = wq.norm_squared();
                 let gamma = wp.dot(&wq);
@@ -126,8 +128,9 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
                 let c = T::one() / hypot(T::one(), t);
                 let s = c * t;
                 rotate(wp.iter_mut().zip(wq.iter_mut()), c, s);
-                let (mut vp, mut vq) = v.columns_range_pair_mut(p, q);
-                rotate(vp.iter_mut().zip(vq.iter_mut()), c, s);
+                if let Some((mut vp, mut vq)) = column_pair(&mut v, p, q) {
+                    rotate(vp.iter_mut().zip(vq.iter_mut()), c, s);
+                }
             }
         }
         if !rotated {
@@ -156,10 +159,17 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
                 best = j;
             }
         }
-        if best != i {
-            sigma.swap_rows(i, best);
-            w.swap_columns(i, best);
-            v.swap_columns(i, best);
+        if best != i && best < C {
+            if let (Some(a), Some(b)) = (sigma.get(i).copied(), sigma.get(best).copied()) {
+                if let Some(x) = sigma.get_mut(i) {
+                    *x = b;
+                }
+                if let Some(y) = sigma.get_mut(best) {
+                    *y = a;
+                }
+            }
+            swap_columns(&mut w, i, best);
+            swap_columns(&mut v, i, best);
         }
     }
     Ok(Svd {
@@ -168,6 +178,54 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
         v,
         sweeps,
     })
+}
+
+/// Columns `p < q` of `m` as two slices of `R` entries, `None` out of range. Taken from the
+/// column-major storage with checked slicing: nalgebra's `columns_range_pair_mut` and
+/// `swap_columns` assert their ranges, a panic path the optimiser keeps when the sweep loops
+/// are not unrolled.
+fn column_slices<T: Real, const R: usize, const C: usize>(
+    m: &mut SMatrix<T, R, C>,
+    p: usize,
+    q: usize,
+) -> Option<(&mut [T], &mut [T])> {
+    if p >= q {
+        return None;
+    }
+    let (left, right) = m.as_mut_slice().split_at_mut_checked(q.checked_mul(R)?)?;
+    let cp = left.get_mut(p.checked_mul(R)?..)?.get_mut(..R)?;
+    let cq = right.get_mut(..R)?;
+    Some((cp, cq))
+}
+
+/// [`column_slices`] as nalgebra column views (same arithmetic as the matrix's own columns).
+#[allow(clippy::type_complexity)]
+fn column_pair<T: Real, const R: usize, const C: usize>(
+    m: &mut SMatrix<T, R, C>,
+    p: usize,
+    q: usize,
+) -> Option<(
+    VectorViewMut<'_, T, Const<R>>,
+    VectorViewMut<'_, T, Const<R>>,
+)> {
+    let (cp, cq) = column_slices(m, p, q)?;
+    Some((
+        VectorViewMut::<T, Const<R>>::from_slice_generic(cp, Const::<R>, Const::<1>),
+        VectorViewMut::<T, Const<R>>::from_slice_generic(cq, Const::<R>, Const::<1>),
+    ))
+}
+
+/// Swaps columns `i` and `j` of `m` (nothing when out of range).
+fn swap_columns<T: Real, const R: usize, const C: usize>(
+    m: &mut SMatrix<T, R, C>,
+    i: usize,
+    j: usize,
+) {
+    if let Some((a, b)) = column_slices(m, i.min(j), i.max(j)) {
+        for (x, y) in a.iter_mut().zip(b.iter_mut()) {
+            core::mem::swap(x, y);
+        }
+    }
 }
 
 /// `(x, y) ← (c x - s y, s x + c y)` over paired entries.

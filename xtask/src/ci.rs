@@ -95,6 +95,18 @@ fn steps() -> Vec<Step> {
             run(locked(&mut cmd).env("RUSTDOCFLAGS", "-D warnings"))
         }),
     );
+    // Measured from a clean target directory on the shared 2-core machine (load average 5):
+    // panic check 42 s (three release LTO links; a fourth has been added since, ~10 s), fuzz
+    // smoke 146 s (build ~95 s, then 10 s per target); a fresh machine also spends ~95 s in
+    // `setup` installing cargo-fuzz.
+    add(
+        "panic freedom (firmware link check)",
+        Box::new(crate::panic_check::check_panic_free),
+    );
+    add(
+        "fuzz smoke run",
+        Box::new(|| crate::fuzz::fuzz(crate::fuzz::SMOKE_SECONDS)),
+    );
     add(
         // About 4 min from cold measured at load average 7 on 2 cores (95 s of CPU): embassy-stm32
         // and its generated register access for the H743 dominate.

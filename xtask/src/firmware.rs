@@ -284,3 +284,15 @@ fn bench_twoview() -> Result<()> {
     println!("bench-fw: {summary}");
     Ok(())
 }
+
+/// The stack-painting binary (`cargo xtask stack`).
+const STACK_BIN: &str = "camgeom-fw-stack";
+
+/// `cargo xtask stack`: builds `firmware/emulated/src/bin/stack.rs` and runs it on QEMU; its
+/// log holds one `stack <entry point>: <bytes> bytes` line per public entry point.
+pub fn stack() -> Result<()> {
+    let elf = build_bin(STACK_BIN, &[])?;
+    let summary = run_on_qemu_checked(&elf, "stack table: ", " entry points")?;
+    println!("stack: {summary}");
+    Ok(())
+}

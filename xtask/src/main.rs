@@ -6,6 +6,9 @@
 //! | `cargo xtask run` | builds the firmware, runs it on QEMU, decodes and checks its defmt log |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
+//! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
+//! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
+//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 10) |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -14,6 +17,8 @@
 mod ci;
 mod firmware;
 mod openmv;
+mod fuzz;
+mod panic_check;
 mod setup;
 mod util;
 
@@ -26,6 +31,9 @@ commands:
   run     build the firmware (release), run it on QEMU mps2-an500, decode and check its log
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
+  stack   build and run the stack-painting firmware on QEMU: stack use per entry point
+  panic-check  link one firmware binary per entry point with a panic handler that cannot link
+  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 10)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
@@ -35,6 +43,16 @@ fn main() -> ExitCode {
         Some("run") => setup::setup().and_then(|()| firmware::build_and_run().map(|_| ())),
         Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
         Some("build-openmv") => openmv::build_and_check(),
+        Some("stack") => setup::setup().and_then(|()| firmware::stack()),
+        Some("panic-check") => panic_check::check(),
+        Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
+            None => fuzz::fuzz(fuzz::SMOKE_SECONDS),
+            Some(Ok(secs)) => fuzz::fuzz(secs),
+            Some(Err(_)) => {
+                eprintln!("xtask: fuzz takes a number of seconds per target");
+                return ExitCode::from(2);
+            }
+        },
         Some("ci") => ci::ci(),
         Some("help" | "-h" | "--help") => {
             println!("{USAGE}");

@@ -26,6 +26,7 @@ pub const QEMU: &str = "qemu-system-arm";
 pub fn setup() -> Result<()> {
     rustup()?;
     qemu()?;
+    cargo_fuzz()?;
     Ok(())
 }
 
@@ -87,4 +88,14 @@ fn qemu() -> Result<()> {
         bail!("{QEMU} still does not run after installing it");
     }
     Ok(())
+}
+
+/// cargo-fuzz (for `cargo xtask fuzz`), installed with `cargo install --locked` when missing
+/// (about 1.5 min on 2 cores).
+pub fn cargo_fuzz() -> Result<()> {
+    if output("cargo", ["fuzz", "--version"]).is_some() {
+        return Ok(());
+    }
+    println!("setup: cargo-fuzz is missing, installing it");
+    run(Command::new("cargo").args(["install", "cargo-fuzz", "--locked"]))
 }

@@ -1,0 +1,442 @@
+//! Worst-case stack use of camgeom's firmware entry points, measured by stack painting on the
+//! emulated Cortex-M7: for each entry point, [`measure`] fills the free stack below the
+//! current stack pointer with a pattern, calls the entry point once on a worst-ish input of
+//! the sizes the firmware uses (320x240 frames, 4 pyramid levels, 21x21 KLT window, 32 and 200
+//! features, 500 RANSAC samples), then finds the lowest word no longer holding the pattern.
+//! The distance from the stack pointer at the call to that word is the entry point's
+//! high-water mark (its own frames and everything it calls, plus the few bytes of the closure
+//! that forwards the arguments).
+//!
+//! Inputs that would otherwise sit in the caller's frame are statics, so only the callee's use
+//! is counted. Logs one `stack <name>: <bytes> bytes` line per entry point and the summary
+//! `stack table: <n> entry points`. Run it with `cargo xtask stack` (BENCHMARKS.md, "Stack").
+#![no_std]
+#![no_main]
+
+#[path = "../board.rs"]
+mod board;
+// Only `cost::start` is used here.
+#[allow(dead_code)]
+#[path = "../cost.rs"]
+mod cost;
+
+use core::cell::UnsafeCell;
+use core::hint::black_box;
+use core::sync::atomic::{AtomicBool, Ordering};
+
+use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::corners::{self, Corner, CornerConfig, good_features};
+use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
+use camgeom::heapless::Vec;
+use camgeom::homography::find_homography;
+use camgeom::image::{ImageMut, ImageView};
+use camgeom::klt::synthetic::textured_frame;
+use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow, scratch_len};
+use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::pose::{PlanarConfig, solve_planar, solve_pnp_ransac};
+use camgeom::pyramid::{Pyramid, buffer_len};
+use camgeom::ransac::RansacConfig;
+use camgeom::rng::Pcg32;
+use camgeom::target::{PlanarTarget, TargetConfig};
+use camgeom::transform::Pose;
+use cortex_m_rt::entry;
+use defmt_semihosting as _;
+
+const W: usize = 320;
+const H: usize = 240;
+const LEVELS: usize = 4;
+const WIN: usize = 21;
+const CANDIDATES: usize = 512;
+/// Feature counts: the planar target's and the tracker's.
+const N_TARGET: usize = 32;
+const N_TRACK: usize = 200;
+/// Exactly this many RANSAC samples (confidence 1: no early stop).
+const RANSAC_ITERATIONS: u32 = 500;
+/// The pattern painted below the stack pointer: cortex-m-rt's, so that
+/// [`board::stack_usage`] still reads the whole run's high-water mark at the end.
+const PAINT: u32 = cortex_m_rt::STACK_PAINT_VALUE;
+/// Bytes left unpainted just below the stack pointer of [`measure`] (its own loop).
+const GUARD: usize = 64;
+
+unsafe extern "C" {
+    /// Bottom of the stack region (end of static RAM), from cortex-m-rt's `link.x`.
+    static _stack_end: u32;
+}
+
+fn sp() -> usize {
+    let sp: usize;
+    // SAFETY: reads the stack pointer register; no memory access.
+    unsafe { core::arch::asm!("mov {}, sp", out(reg) sp, options(nomem, nostack)) };
+    sp
+}
+
+/// Calls `f` once on a painted stack; returns its result and its stack high-water mark in
+/// bytes (from the stack pointer at the call down to the deepest word written).
+#[inline(never)]
+fn measure<R>(f: impl FnOnce() -> R) -> (R, u32) {
+    let bottom = (&raw const _stack_end) as usize;
+    let top = sp();
+    let paint_end = (top - GUARD) & !3;
+    let mut p = bottom;
+    while p < paint_end {
+        // SAFETY: word-aligned addresses between the bottom of the stack region and below the
+        // live stack: free stack RAM that nothing else uses while this loop runs.
+        unsafe { (p as *mut u32).write_volatile(PAINT) };
+        p += 4;
+    }
+    let r = black_box(call(f));
+    let mut low = bottom;
+    while low < paint_end {
+        // SAFETY: as above; reading back the painted region.
+        if unsafe { (low as *const u32).read_volatile() } != PAINT {
+            break;
+        }
+        low += 4;
+    }
+    if low == bottom {
+        defmt::error!("stack overflowed into the bottom of the region");
+        board::exit_failure()
+    }
+    (r, (top - low) as u32)
+}
+
+/// Calls `f` in a frame of its own, below [`measure`]'s stack pointer reading: were `f`
+/// inlined into [`measure`], its locals would sit in [`measure`]'s frame and go uncounted.
+#[inline(never)]
+fn call<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+/// A static buffer handed out once as `&'static mut` (in .bss, never built on the stack).
+struct Once<T> {
+    taken: AtomicBool,
+    v: UnsafeCell<T>,
+}
+// SAFETY: the value is only reached through `take`, which hands it out at most once.
+unsafe impl<T: Send> Sync for Once<T> {}
+impl<T> Once<T> {
+    const fn new(v: T) -> Self {
+        Self {
+            taken: AtomicBool::new(false),
+            v: UnsafeCell::new(v),
+        }
+    }
+    // Sound: the flag hands the value out at most once, so the `&mut` is unique.
+    #[allow(clippy::mut_from_ref)]
+    fn take(&'static self) -> &'static mut T {
+        if self.taken.swap(true, Ordering::AcqRel) {
+            defmt::error!("static buffer taken twice");
+            board::exit_failure()
+        }
+        // SAFETY: first and only take: no other reference exists.
+        unsafe { &mut *self.v.get() }
+    }
+}
+
+const PYR_LEN: usize = buffer_len(W, H, LEVELS);
+static FRAME_A: Once<[u8; W * H]> = Once::new([0; W * H]);
+static FRAME_B: Once<[u8; W * H]> = Once::new([0; W * H]);
+static PYR_A: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
+static PYR_B: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
+static FLOW_SCRATCH: Once<[i16; scratch_len(WIN)]> = Once::new([0; scratch_len(WIN)]);
+static CORNER_SCRATCH: Once<[u32; corners::scratch_len(W)]> =
+    Once::new([0; corners::scratch_len(W)]);
+const NO_CORNER: Corner = Corner {
+    x: 0,
+    y: 0,
+    score: 0,
+};
+static CANDIDATE_BUF: Once<[Corner; CANDIDATES]> = Once::new([NO_CORNER; CANDIDATES]);
+static CORNERS_OUT: Once<Vec<Corner, N_TRACK>> = Once::new(Vec::new());
+static FIXED_PTS: Once<[[i32; 2]; N_TRACK]> = Once::new([[0; 2]; N_TRACK]);
+static FIXED_FLOWS: Once<[Flow<i32>; N_TRACK]> = Once::new(
+    [Flow {
+        x: 0,
+        y: 0,
+        status: camgeom::klt::FlowStatus::Tracked,
+        err: 0,
+    }; N_TRACK],
+);
+static F32_PTS: Once<[[f32; 2]; N_TRACK]> = Once::new([[0.0; 2]; N_TRACK]);
+static F32_FLOWS: Once<[Flow<f32>; N_TRACK]> = Once::new(
+    [Flow {
+        x: 0.0,
+        y: 0.0,
+        status: camgeom::klt::FlowStatus::Tracked,
+        err: 0.0,
+    }; N_TRACK],
+);
+const ORIGIN2: Point2<f32> = Point2::new(0.0, 0.0);
+static H_SRC: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
+static H_DST: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
+static H_MASK: Once<[bool; N_TRACK]> = Once::new([false; N_TRACK]);
+static TARGET: Once<Option<PlanarTarget<Fixed, N_TARGET>>> = Once::new(None);
+
+fn fail(what: &str, e: camgeom::Error) -> ! {
+    defmt::error!("{=str}: {}", what, e);
+    board::exit_failure()
+}
+
+fn row(name: &str, bytes: u32, rows: &mut u32) {
+    defmt::info!("stack {=str}: {=u32} bytes", name, bytes);
+    *rows += 1;
+}
+
+#[entry]
+fn main() -> ! {
+    cost::start();
+    let mut rows = 0u32;
+    let frame_a = FRAME_A.take();
+    let frame_b = FRAME_B.take();
+    let frames = ImageMut::packed(&mut frame_a[..], W, H)
+        .map(|mut a| textured_frame(&mut a, 0, 0))
+        .and_then(|()| ImageMut::packed(&mut frame_b[..], W, H))
+        .map(|mut b| textured_frame(&mut b, 300, -170));
+    if let Err(e) = frames {
+        fail("frames", e)
+    }
+
+    // ---- camera ----
+    let k = match Intrinsics::new(300.0f32, 300.0, 159.5, 119.5) {
+        Ok(k) => k,
+        Err(e) => fail("intrinsics", e),
+    };
+    let dist = match Distortion::from_opencv([-0.28f32, 0.07, 1e-3, -5e-4, 0.0]) {
+        Ok(d) => d,
+        Err(e) => fail("distortion", e),
+    };
+    let camera = black_box(Camera::new(k, dist));
+    let pose = match Pose::from_rodrigues(
+        Vector3::new(0.2f32, -0.1, 0.05),
+        Vector3::new(-0.1f32, -0.08, 0.35),
+    ) {
+        Ok(p) => black_box(p),
+        Err(e) => fail("pose", e),
+    };
+    let x = black_box(Point3::new(0.05f32, 0.04, 0.0));
+    let (_, s) = measure(|| camera.project(&pose, &x));
+    row("Camera::project", s, &mut rows);
+    let u = black_box(Point2::new(300.0f32, 20.0));
+    let (_, s) = measure(|| camera.back_project(&u));
+    row("Camera::back_project (distorted, Newton)", s, &mut rows);
+
+    // ---- the cube (drawn into frame B before its views exist) ----
+    let (vertices, edges) = cube(0.05f32, 0.025, 0.1);
+    let wire = black_box(WireframeConfig::default());
+    let (r, s) = measure(|| {
+        let mut img = ImageMut::packed(&mut frame_b[..], W, H)?;
+        draw_wireframe(&mut img, &camera, &pose, &vertices, &edges, &wire)
+    });
+    row("draw_wireframe cube, 8 segments", s, &mut rows);
+    if let Err(e) = r {
+        fail("draw_wireframe", e)
+    }
+
+    // ---- pyramids ----
+    let pyr_a = PYR_A.take();
+    let pyr_b = PYR_B.take();
+    let va = match ImageView::packed(&frame_a[..], W, H) {
+        Ok(v) => black_box(v),
+        Err(e) => fail("view A", e),
+    };
+    let vb = match ImageView::packed(&frame_b[..], W, H) {
+        Ok(v) => black_box(v),
+        Err(e) => fail("view B", e),
+    };
+    let (pa, s) = measure(|| Pyramid::build(va, &mut pyr_a[..], LEVELS));
+    row("Pyramid::build 320x240, 4 levels", s, &mut rows);
+    let pa = match pa {
+        Ok(p) => p,
+        Err(e) => fail("pyramid A", e),
+    };
+    let pb = match Pyramid::build(vb, &mut pyr_b[..], LEVELS) {
+        Ok(p) => p,
+        Err(e) => fail("pyramid B", e),
+    };
+
+    // ---- corners ----
+    let cand = CANDIDATE_BUF.take();
+    let cscr = CORNER_SCRATCH.take();
+    let out = CORNERS_OUT.take();
+    let ccfg = black_box(CornerConfig {
+        quality: 0.01,
+        min_distance: 8,
+        max_corners: N_TRACK,
+    });
+    let (n, s) = measure(|| {
+        good_features(
+            &va,
+            &ccfg,
+            core::iter::empty(),
+            out,
+            &mut cand[..],
+            &mut cscr[..],
+        )
+    });
+    row(
+        "good_features 320x240, 512 candidates, 200 out",
+        s,
+        &mut rows,
+    );
+    if let Err(e) = n {
+        fail("good_features", e)
+    }
+
+    // ---- KLT, 200 points on a grid, 21x21, max level 3 ----
+    let fscr = FLOW_SCRATCH.take();
+    let cfg = black_box(LkConfig::default());
+    let fpts = FIXED_PTS.take();
+    let ffl = FIXED_FLOWS.take();
+    let gpts = F32_PTS.take();
+    let gfl = F32_FLOWS.take();
+    for (k, (fp, gp)) in fpts.iter_mut().zip(gpts.iter_mut()).enumerate() {
+        let (i, j) = (k % 20, k / 20);
+        let x = 24 + (i * (W - 48)) / 19;
+        let y = 24 + (j * (H - 48)) / 9;
+        *fp = [Fixed::from_f32(x as f32), Fixed::from_f32(y as f32)];
+        *gp = [x as f32, y as f32];
+    }
+    let (r, s) = measure(|| {
+        calc_flow::<Fixed>(
+            &pa,
+            &pb,
+            &fpts[..],
+            &mut ffl[..],
+            &cfg,
+            Gradients::PerWindow,
+            &mut fscr[..],
+        )
+    });
+    row("calc_flow::<Fixed> 200 points", s, &mut rows);
+    if let Err(e) = r {
+        fail("calc_flow fixed", e)
+    }
+    let (r, s) = measure(|| {
+        calc_flow::<f32>(
+            &pa,
+            &pb,
+            &gpts[..],
+            &mut gfl[..],
+            &cfg,
+            Gradients::PerWindow,
+            &mut fscr[..],
+        )
+    });
+    row("calc_flow::<f32> 200 points", s, &mut rows);
+    if let Err(e) = r {
+        fail("calc_flow f32", e)
+    }
+
+    // ---- homography RANSAC, 200 points, half outliers, exactly 500 samples ----
+    let src = H_SRC.take();
+    let dst = H_DST.take();
+    let mask = H_MASK.take();
+    let mut g = Pcg32::new(0x5354_4143_4b00);
+    for (i, (s, d)) in src.iter_mut().zip(dst.iter_mut()).enumerate() {
+        let p = Point2::new(g.uniform(0.0, 320.0) as f32, g.uniform(0.0, 240.0) as f32);
+        *s = p;
+        *d = if i % 2 == 0 {
+            Point2::new(
+                0.93 * p.x - 0.11 * p.y + 31.0,
+                0.06 * p.x + 1.04 * p.y - 17.0,
+            )
+        } else {
+            Point2::new(g.uniform(0.0, 320.0) as f32, g.uniform(0.0, 240.0) as f32)
+        };
+    }
+    let rcfg = black_box(RansacConfig {
+        threshold: 2.0f32,
+        confidence: 1.0,
+        max_iterations: RANSAC_ITERATIONS,
+        ..RansacConfig::default()
+    });
+    let (r, s) = measure(|| find_homography(&src[..], &dst[..], &rcfg, &mut mask[..]));
+    row("find_homography 200 points, 500 samples", s, &mut rows);
+    if let Err(e) = r {
+        fail("find_homography", e)
+    }
+
+    // ---- pose: 32 target points seen through the distorted camera ----
+    let model: [Point2<f32>; N_TARGET] =
+        core::array::from_fn(|k| Point2::new((k % 8) as f32 * 0.025, (k / 8) as f32 * 0.035));
+    let mut pixels = [ORIGIN2; N_TARGET];
+    for (u, m) in pixels.iter_mut().zip(model.iter()) {
+        match camera.project(&pose, &Point3::new(m.x, m.y, 0.0)) {
+            Ok(p) => *u = p,
+            Err(e) => fail("project", e),
+        }
+    }
+    let (model, pixels) = black_box((model, pixels));
+    let mut scratch = [ORIGIN2; N_TARGET];
+    let pcfg = black_box(PlanarConfig::default());
+    let (r, s) = measure(|| solve_planar(&camera, &model, &pixels, &mut scratch, &pcfg));
+    row("solve_planar 32 points", s, &mut rows);
+    if let Err(e) = r {
+        fail("solve_planar", e)
+    }
+    let world: [Point3<f32>; N_TARGET] = core::array::from_fn(|k| {
+        let m = model.get(k).copied().unwrap_or(ORIGIN2);
+        Point3::new(m.x, m.y, if k % 3 == 0 { 0.02 } else { 0.0 })
+    });
+    let mut wpix = [ORIGIN2; N_TARGET];
+    for (u, x) in wpix.iter_mut().zip(world.iter()) {
+        match camera.project(&pose, x) {
+            Ok(p) => *u = p,
+            Err(e) => fail("project", e),
+        }
+    }
+    let mut pmask = [false; N_TARGET];
+    let (r, s) =
+        measure(|| solve_pnp_ransac(&camera, &world, &wpix, &mut scratch, &rcfg, &mut pmask));
+    row("solve_pnp_ransac 32 points, 500 samples", s, &mut rows);
+    if let Err(e) = r {
+        fail("solve_pnp_ransac", e)
+    }
+
+    // ---- one planar-target frame (KLT both ways, RANSAC, IPPE + LM, re-detection) ----
+    let slot = TARGET.take();
+    *slot = match PlanarTarget::<Fixed, N_TARGET>::new(0.2, 0.15) {
+        Ok(t) => Some(t),
+        Err(e) => fail("target", e),
+    };
+    let Some(target) = slot.as_mut() else {
+        board::exit_failure()
+    };
+    let tcfg = black_box(TargetConfig::default());
+    let pinhole = black_box(Camera::pinhole(k));
+    let rect = [
+        (70.0f32, 50.0f32),
+        (250.0, 50.0),
+        (250.0, 185.0),
+        (70.0, 185.0),
+    ]
+    .map(|(x, y)| Point2::new(x, y));
+    let (r, s) = measure(|| target.init(&va, &rect, &tcfg, &mut cand[..], &mut cscr[..]));
+    row("PlanarTarget::<Fixed, 32>::init", s, &mut rows);
+    if let Err(e) = r {
+        fail("target init", e)
+    }
+    let (r, s) = measure(|| {
+        target.step(
+            &pa,
+            &pb,
+            &pinhole,
+            &tcfg,
+            &mut fscr[..],
+            &mut cand[..],
+            &mut cscr[..],
+        )
+    });
+    row("PlanarTarget::<Fixed, 32>::step", s, &mut rows);
+    if let Err(e) = r {
+        fail("target step", e)
+    }
+    let (used, size) = board::stack_usage();
+    defmt::info!(
+        "stack table: {=u32} entry points; the whole binary used {=u32} of {=u32} bytes of stack",
+        rows,
+        used,
+        size
+    );
+    board::exit_success()
+}

@@ -1,0 +1,175 @@
+//! Pyramidal Lucas-Kanade (`calc_flow`, fixed point and `f32`, per-window and per-level
+//! derivatives) on small arbitrary images, arbitrary points (NaN, inf, far outside) and
+//! arbitrary configurations. Contract: no panic; on `Ok`, every tracked point is finite and
+//! its error is finite and non-negative.
+#![no_main]
+
+use arbitrary::Arbitrary;
+use camgeom::image::ImageView;
+use camgeom::klt::{
+    Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, level_gradient_len, scratch_len,
+};
+use camgeom::pyramid::{Pyramid, buffer_len};
+use libfuzzer_sys::fuzz_target;
+
+#[path = "common.rs"]
+mod common;
+use common::Num;
+
+#[derive(Debug, Arbitrary)]
+struct Input {
+    w: u8,
+    h: u8,
+    /// Second frame a different size (must be rejected, not crash).
+    other_size: bool,
+    levels: u8,
+    pixels: std::vec::Vec<u8>,
+    shift: (i8, i8),
+    win: u8,
+    max_level: u8,
+    max_iter: u8,
+    epsilon: Num,
+    min_eigenvalue: Num,
+    use_initial_flow: bool,
+    fb: Option<Num>,
+    per_level: bool,
+    scratch_slack: i8,
+    points: std::vec::Vec<(Num, Num)>,
+    fixed_points: std::vec::Vec<(i32, i32)>,
+}
+
+fn frame(w: usize, h: usize, px: &[u8], dx: i32, dy: i32) -> std::vec::Vec<u8> {
+    let mut v = std::vec![0u8; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            // The pattern (tiled from the fuzzer's bytes plus a ramp), shifted.
+            let (sx, sy) = (
+                (x as i32 - dx).rem_euclid(w as i32),
+                (y as i32 - dy).rem_euclid(h as i32),
+            );
+            let i = (sy as usize * w + sx as usize) % px.len().max(1);
+            v[y * w + x] = px
+                .get(i)
+                .copied()
+                .unwrap_or(0)
+                .wrapping_add((sx * 3 + sy * 5) as u8);
+        }
+    }
+    v
+}
+
+fn grads(per_level: bool, g: &mut [[i16; 2]]) -> Gradients<'_> {
+    if per_level {
+        Gradients::PerLevel(g)
+    } else {
+        Gradients::PerWindow
+    }
+}
+
+fn check<C: Copy>(flows: &[Flow<C>], to_f32: impl Fn(C) -> f32, what: &str) {
+    for f in flows {
+        if f.status == FlowStatus::Tracked {
+            let (x, y, e) = (to_f32(f.x), to_f32(f.y), to_f32(f.err));
+            assert!(
+                x.is_finite() && y.is_finite(),
+                "{what}: tracked point not finite"
+            );
+            assert!(e.is_finite() && e >= 0.0, "{what}: error {e}");
+        }
+    }
+}
+
+fuzz_target!(|inp: Input| {
+    let (w, h) = (usize::from(inp.w % 72) + 1, usize::from(inp.h % 72) + 1);
+    let (w2, h2) = if inp.other_size { (w + 1, h) } else { (w, h) };
+    let levels = usize::from(inp.levels % 6);
+    let a = frame(w, h, &inp.pixels, 0, 0);
+    let b = frame(
+        w2,
+        h2,
+        &inp.pixels,
+        i32::from(inp.shift.0 % 8),
+        i32::from(inp.shift.1 % 8),
+    );
+    let (Ok(va), Ok(vb)) = (
+        ImageView::packed(&a[..], w, h),
+        ImageView::packed(&b[..], w2, h2),
+    ) else {
+        return;
+    };
+    let mut ba = std::vec![0u8; buffer_len(w, h, levels.min(8))];
+    let mut bb = std::vec![0u8; buffer_len(w2, h2, levels.min(8))];
+    let (Ok(pa), Ok(pb)) = (
+        Pyramid::build(va, &mut ba[..], levels),
+        Pyramid::build(vb, &mut bb[..], levels),
+    ) else {
+        return;
+    };
+    let cfg = LkConfig {
+        win: usize::from(inp.win % 70),
+        max_level: usize::from(inp.max_level % 6),
+        max_iter: u32::from(inp.max_iter % 110),
+        epsilon: inp.epsilon.get(),
+        min_eigenvalue: inp.min_eigenvalue.get(),
+        use_initial_flow: inp.use_initial_flow,
+        fb_threshold: inp.fb.map(Num::get),
+    };
+    let slen =
+        (scratch_len(cfg.win.min(63)) as i64 + i64::from(inp.scratch_slack % 3)).max(0) as usize;
+    let mut scratch = std::vec![0i16; slen];
+    let mut grad = std::vec![[0i16; 2]; if inp.per_level { level_gradient_len(w, h) } else { 0 }];
+
+    let pts: std::vec::Vec<[f32; 2]> = inp
+        .points
+        .iter()
+        .take(16)
+        .map(|p| [p.0.get(), p.1.get()])
+        .collect();
+    let mut flows = std::vec![Flow::<f32>::default(); pts.len()];
+    if inp.use_initial_flow {
+        for (f, p) in flows.iter_mut().zip(&pts) {
+            f.x = p[0];
+            f.y = p[1];
+        }
+    }
+    if calc_flow::<f32>(
+        &pa,
+        &pb,
+        &pts,
+        &mut flows,
+        &cfg,
+        grads(inp.per_level, &mut grad),
+        &mut scratch,
+    )
+    .is_ok()
+    {
+        check(&flows, |c| c, "f32");
+    }
+
+    let fpts: std::vec::Vec<[i32; 2]> = inp
+        .fixed_points
+        .iter()
+        .take(16)
+        .map(|p| [p.0, p.1])
+        .collect();
+    let mut fflows = std::vec![Flow::<i32>::default(); fpts.len()];
+    if inp.use_initial_flow {
+        for (f, p) in fflows.iter_mut().zip(&fpts) {
+            f.x = p[0];
+            f.y = p[1];
+        }
+    }
+    if calc_flow::<Fixed>(
+        &pa,
+        &pb,
+        &fpts,
+        &mut fflows,
+        &cfg,
+        grads(inp.per_level, &mut grad),
+        &mut scratch,
+    )
+    .is_ok()
+    {
+        check(&fflows, Fixed::to_f32, "fixed");
+    }
+});

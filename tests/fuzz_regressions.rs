@@ -1,0 +1,109 @@
+//! Inputs found by the fuzz targets (`fuzz/`, README "Fuzzing") that broke a contract, each
+//! reduced to the smallest case that shows it. Every test is named for what it guards.
+
+use camgeom::Error;
+use camgeom::camera::{Camera, Intrinsics};
+use camgeom::nalgebra::Point2;
+
+/// `back_project` normalised `(x, y, 1)` directly: for a ray far off the axis `|v|²`
+/// overflows f32 and the "unit" ray came back as the zero vector, `Ok`. (fuzz target `pose`)
+#[test]
+fn back_project_far_off_axis_is_a_unit_ray() {
+    let cam = Camera::pinhole(Intrinsics::new(1.0f32, 1.0, 0.0, 0.0).unwrap());
+    for p in [
+        Point2::new(1e30f32, 1e30),
+        Point2::new(-3e38, 1.0),
+        Point2::new(1.0, 3e38),
+    ] {
+        let ray = cam.back_project(&p).unwrap();
+        let r = ray.into_inner();
+        assert!(r.iter().all(|v| v.is_finite()), "{r:?}");
+        assert!(
+            (r.norm() - 1.0).abs() < 1e-6,
+            "|ray| = {} for {p:?}",
+            r.norm()
+        );
+        // The direction is still right: mostly along x or y, z > 0.
+        assert!(r.z > 0.0 && (r.x.abs() > 0.7 || r.y.abs() > 0.7));
+    }
+}
+
+/// `pixel_to_normalized` returned `Ok(inf)` when `u - cx` overflowed (finite intrinsics and
+/// pixel, e.g. `cx = -3e38`, `u = 3e38`); every caller then computed with infinities.
+/// (fuzz target `pose`, `Intrinsics` with `fy = f32::MAX`)
+#[test]
+fn pixel_to_normalized_overflow_is_an_error() {
+    let k = Intrinsics::new(1.0f32, 1.0, -3e38, 0.0).unwrap();
+    assert_eq!(
+        k.pixel_to_normalized(&Point2::new(3e38, 0.0)),
+        Err(Error::NonFinite)
+    );
+    let k = Intrinsics::with_skew(1e-3f32, 1e-3, 0.0, 0.0, 3e38).unwrap();
+    assert_eq!(
+        k.pixel_to_normalized(&Point2::new(0.0, 1e3)),
+        Err(Error::NonFinite)
+    );
+    let cam = Camera::pinhole(Intrinsics::new(1.0f32, 1.0, -3e38, 0.0).unwrap());
+    assert_eq!(
+        cam.back_project(&Point2::new(3e38, 0.0)),
+        Err(Error::NonFinite)
+    );
+}
+
+/// `distort_pixel` / `undistort_pixel` mapped back through `K` without checking: a finite
+/// pixel with an extreme principal point and skew came back as `Ok(inf)`. (fuzz target
+/// `pose`: `cx = f32::MAX`, `cy = 7.747e31`, skew 29812: `u = (0, 0)` maps to normalised
+/// `(-1.14e34, -5.88e30)` and back to `-inf`)
+#[test]
+fn distort_pixel_overflow_is_an_error() {
+    let k = Intrinsics::with_skew(29820.0f32, 13.17627, f32::MAX, 7.747_039_4e31, 29812.0).unwrap();
+    let cam = Camera::pinhole(k);
+    for p in [Point2::new(0.0f32, 0.0), Point2::new(-3e38, 3e38)] {
+        for r in [cam.distort_pixel(&p), cam.undistort_pixel(&p)] {
+            match r {
+                Ok(u) => assert!(u.x.is_finite() && u.y.is_finite(), "{u:?}"),
+                Err(e) => assert_eq!(e, Error::NonFinite),
+            }
+        }
+    }
+}
+
+/// `Transform::new` took `UnitQuaternion::from_rotation_matrix` of a matrix only nearly
+/// orthonormal (P3P accepts its rotation up to `64 √ε` off) without normalising: the pose's
+/// "rotation" then scaled points by up to 0.5 %. (fuzz target `pose`, P3P on world points
+/// spanning 1e-40 .. 3742 and bearings with subnormal components)
+#[test]
+fn poses_from_nearly_orthonormal_matrices_are_rotations() {
+    use camgeom::nalgebra::{Matrix3, Point3, Rotation3, Vector3};
+    use camgeom::pose::p3p;
+    use camgeom::transform::Pose;
+
+    let ortho = |p: &Pose<f32>| {
+        let r = p.rotation();
+        (r.matrix().transpose() * r.matrix() - Matrix3::identity()).amax()
+    };
+    let nearly = Rotation3::from_matrix_unchecked(Matrix3::from_diagonal_element(1.004f32));
+    let pose = Pose::new(nearly, Vector3::new(0.0, 0.0, 1.0)).unwrap();
+    assert!(ortho(&pose) < 1e-5, "{}", ortho(&pose));
+
+    let bearings = [
+        Vector3::new(1e-40f32, 29930.0 / 131_072.0, 1.0),
+        Vector3::new(1e-40, -1.0, 1.0),
+        Vector3::new(0.0, 0.0, 1.0),
+    ];
+    let world = [
+        Point3::new(128.0f32, 1e-40, 1e-40),
+        Point3::new(0.0, -3742.375, 0.0),
+        Point3::new(-5.392_603e-32, -3419.875, 0.0),
+    ];
+    if let Ok(poses) = p3p(&bearings, &world) {
+        for p in &poses {
+            assert!(
+                ortho(p) < 1e-5,
+                "P3P rotation off orthonormal by {}",
+                ortho(p)
+            );
+            assert!(p.translation().iter().all(|v| v.is_finite()));
+        }
+    }
+}
