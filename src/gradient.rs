@@ -33,7 +33,7 @@ pub(crate) fn reflect101(i: isize, n: usize) -> usize {
     if r >= n {
         r = period - r;
     }
-    r.clamp(0, n - 1) as usize
+    r.max(0).min(n - 1) as usize
 }
 
 /// Scharr derivatives `(Ix, Iy)` of row `y` of `img` at columns `x0 .. x0 + out.len()`
@@ -46,7 +46,7 @@ pub fn scharr_row(img: &ImageView<'_, u8>, y: usize, x0: usize, out: &mut [[i16;
     let r2 = img.row_clamped(reflect101(yi + 1, h) as isize);
     // Columns at or beyond the width are zero.
     let valid = w.saturating_sub(x0).min(out.len());
-    let (vals, beyond) = out.split_at_mut(valid);
+    let (vals, beyond) = out.split_at_mut(valid.min(out.len()));
     beyond.fill([0, 0]);
     // Any column, reflecting at the ends: the first and last image columns.
     let edge = |x: usize| -> [i16; 2] {
@@ -126,9 +126,9 @@ pub fn scharr_window(
     }
     let (iw, ih) = (img.width() as isize, img.height() as isize);
     // Columns of the grid that fall inside the image.
-    let cx0 = x0.clamp(0, iw);
-    let cx1 = (x0 + w as isize).clamp(0, iw);
-    for (j, row) in out.chunks_exact_mut(w).enumerate() {
+    let cx0 = x0.max(0).min(iw);
+    let cx1 = (x0 + w as isize).max(0).min(iw);
+    for (j, row) in out.chunks_exact_mut(w.max(1)).enumerate() {
         let y = y0 + j as isize;
         if y < 0 || y >= ih || cx1 <= cx0 {
             row.fill([0, 0]);
@@ -136,7 +136,7 @@ pub fn scharr_window(
         }
         let lead = (cx0 - x0) as usize;
         let inner = (cx1 - cx0) as usize;
-        let (left, rest) = row.split_at_mut(lead.min(w));
+        let (left, rest) = row.split_at_mut(lead.min(row.len()));
         left.fill([0, 0]);
         let (mid, right) = rest.split_at_mut(inner.min(rest.len()));
         scharr_row(img, y as usize, cx0 as usize, mid);

@@ -64,7 +64,7 @@ fn reflect101(i: isize, n: usize) -> usize {
     if i >= n {
         i = 2 * n - 2 - i;
     }
-    i.clamp(0, n - 1) as usize
+    i.max(0).min(n - 1) as usize
 }
 
 /// `row[lo..hi]`, or empty when out of range.
@@ -159,7 +159,9 @@ impl<'a> Pyramid<'a> {
         let mut rest = buf;
         for _ in 1..levels {
             let (w, h) = down_size(prev.width(), prev.height());
-            let (cur, tail) = rest.split_at_mut(w * h);
+            let (cur, tail) = rest
+                .split_at_mut_checked(w * h)
+                .ok_or(Error::InvalidImage)?;
             let mut dst = ImageMut::packed(cur, w, h)?;
             pyr_down(&prev, &mut dst)?;
             let done: &'a [u8] = cur;
@@ -226,7 +228,7 @@ mod tests {
             }
             let r = i.abs();
             let r = if r >= n { 2 * n - 2 - r } else { r };
-            r.clamp(0, n - 1) as usize
+            r.max(0).min(n - 1) as usize
         };
         let mut out = std::vec![0u8; ow * oh];
         for y in 0..oh {

@@ -173,7 +173,7 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
             // A full buffer drops the extra solutions: documented on the constant.
             let _ = models.push(m);
         });
-        for model in models {
+        for model in models.iter().cloned() {
             let (cost, count) = score(estimator, &model, t2);
             if best.as_ref().is_some_and(|b| b.1 <= cost) {
                 continue;

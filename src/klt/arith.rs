@@ -402,8 +402,8 @@ impl FlowArith for f32 {
         let (b1, b2) = (b1 as f32 * FLT_SCALE, b2 as f32 * FLT_SCALE);
         let lim = 4096.0;
         [
-            ((g.a12 * b2 - g.a22 * b1) * g.inv_det).clamp(-lim, lim),
-            ((g.a12 * b1 - g.a11 * b2) * g.inv_det).clamp(-lim, lim),
+            ((g.a12 * b2 - g.a22 * b1) * g.inv_det).max(-lim).min(lim),
+            ((g.a12 * b1 - g.a11 * b2) * g.inv_det).max(-lim).min(lim),
         ]
     }
     fn converged(d: [f32; 2], p: &FloatParams) -> bool {

@@ -19,7 +19,7 @@ fn descale(v: i32, n: u32) -> i32 {
 fn fetch_patch(img: &ImageView<'_, u8>, x0: i32, y0: i32, n: usize, out: &mut [i16]) {
     let (w, h) = (img.width() as i32, img.height() as i32);
     let inside = x0 >= 0 && y0 >= 0 && x0 + n as i32 <= w && y0 + n as i32 <= h;
-    for (j, row) in out.chunks_exact_mut(n).take(n).enumerate() {
+    for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
         let y = y0 as isize + j as isize;
         let src = img.row_clamped(reflect101(y, img.height()) as isize);
         if inside {
@@ -38,7 +38,7 @@ fn fetch_patch(img: &ImageView<'_, u8>, x0: i32, y0: i32, n: usize, out: &mut [i
 
 /// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside.
 fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
-    for (j, row) in out.chunks_exact_mut(n).take(n).enumerate() {
+    for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
         let y = y0 + j as i32;
         let src = if y >= 0 { g.row(y as usize) } else { None };
         for (i, o) in row.iter_mut().enumerate() {
@@ -137,8 +137,8 @@ fn mismatch<'p, P: Copy + Into<i32> + 'p>(
     let (mut b1, mut b2) = (0i64, 0i64);
     let pairs = rows.clone().zip(rows.skip(1));
     for (((r0, r1), ir), dr) in pairs
-        .zip(iwin.chunks_exact(win))
-        .zip(dwin.chunks_exact(win))
+        .zip(iwin.chunks_exact(win.max(1)))
+        .zip(dwin.chunks_exact(win.max(1)))
     {
         let px = r0
             .iter()
@@ -177,11 +177,13 @@ fn template<'p, P: Copy + Into<i32> + 'p>(
 ) -> (i64, i64, i64) {
     let n = win + 1;
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let pairs = rows
-        .clone()
-        .zip(rows.skip(1))
-        .zip(gwin.chunks_exact(n).zip(gwin.chunks_exact(n).skip(1)));
-    let outs = iwin.chunks_exact_mut(win).zip(dwin.chunks_exact_mut(win));
+    let pairs = rows.clone().zip(rows.skip(1)).zip(
+        gwin.chunks_exact(n.max(1))
+            .zip(gwin.chunks_exact(n.max(1)).skip(1)),
+    );
+    let outs = iwin
+        .chunks_exact_mut(win.max(1))
+        .zip(dwin.chunks_exact_mut(win.max(1)));
     for (((r0, r1), (g0, g1)), (iout, dout)) in pairs.zip(outs) {
         let px = r0
             .iter()
@@ -226,7 +228,7 @@ fn mismatch_at(
         Some(rows) => mismatch(rows, s.iwin, s.dwin, win, w, abs),
         None => {
             fetch_patch(j, x, y, n, s.patch);
-            mismatch(s.patch.chunks_exact(n), s.iwin, s.dwin, win, w, abs)
+            mismatch(s.patch.chunks_exact(n.max(1)), s.iwin, s.dwin, win, w, abs)
         }
     }
 }
@@ -277,7 +279,14 @@ fn track_point<A: FlowArith>(
         Some(rows) => template(rows, s.gwin, s.iwin, s.dwin, win, bi.w),
         None => {
             fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
-            template(s.patch.chunks_exact(n), s.gwin, s.iwin, s.dwin, win, bi.w)
+            template(
+                s.patch.chunks_exact(n.max(1)),
+                s.gwin,
+                s.iwin,
+                s.dwin,
+                win,
+                bi.w,
+            )
         }
     };
     let gram = match A::gram(a11, a12, a22, &lv.params) {

@@ -96,7 +96,7 @@ fn steps() -> Vec<Step> {
         }),
     );
     // Measured from a clean target directory on the shared 2-core machine (load average 5):
-    // panic check 42 s (three release LTO links; a fourth has been added since, ~10 s), fuzz
+    // panic check ~40 s (one release LTO link of all eight entry points, most of it building), fuzz
     // smoke 146 s (build ~95 s, then 10 s per target); a fresh machine also spends ~95 s in
     // `setup` installing cargo-fuzz.
     add(

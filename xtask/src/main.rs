@@ -16,8 +16,8 @@
 
 mod ci;
 mod firmware;
-mod openmv;
 mod fuzz;
+mod openmv;
 mod panic_check;
 mod setup;
 mod util;
