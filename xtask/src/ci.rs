@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Result, anyhow};
 
-use crate::firmware::{build_and_run, firmware_cargo, firmware_dir};
+use crate::firmware::{firmware_cargo, firmware_dir};
 use crate::setup::{TARGETS, setup};
 use crate::util::{cargo, in_ci, locked, output, root, run};
 
@@ -114,8 +114,21 @@ fn steps() -> Vec<Step> {
         Box::new(crate::openmv::build_and_check),
     );
     add(
-        "firmware on QEMU",
-        Box::new(|| build_and_run().map(|summary| println!("firmware: {summary}"))),
+        "firmware pipeline cross-compile (thumbv6m: RP2040 class, thumbv8m.main: RP2350 class)",
+        Box::new(|| {
+            // `camgeom-fw-app` instantiates the 320x240 pipeline (`qvga::step_qvga`), so this
+            // compiles and optimises the whole per-frame path for each target.
+            for target in ["thumbv6m-none-eabi", "thumbv8m.main-none-eabihf"] {
+                let mut cmd = firmware_cargo("build");
+                cmd.args(["--release", "-p", "camgeom-fw-app", "--target", target]);
+                run(locked(&mut cmd))?;
+            }
+            Ok(())
+        }),
+    );
+    add(
+        "main job: firmware on QEMU over the box sequence, checked against the host replay",
+        Box::new(|| crate::mainjob::run(&crate::mainjob::Options::full())),
     );
     steps
 }

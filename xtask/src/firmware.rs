@@ -1,4 +1,5 @@
-//! `cargo xtask run`: build the firmware, run it on QEMU, decode its defmt log, check it.
+//! Building the firmware, running it on QEMU, decoding its defmt log, checking it. The main
+//! job (`cargo xtask run`) is in `mainjob.rs`.
 //!
 //! The firmware writes defmt frames to semihosting stdout, which QEMU (`target=native`) writes
 //! to its own stdout. The firmware never touches the UART that `-nographic` also connects to
@@ -17,9 +18,9 @@ use object::{Object, ObjectSection, SectionFlags, elf};
 use crate::setup::{FIRMWARE_TARGET, QEMU};
 use crate::util::{cargo, locked, root, run};
 
-const PACKAGE: &str = "camgeom-fw-emulated";
-/// The main firmware binary (`cargo xtask run`).
-const MAIN_BIN: &str = "camgeom-fw-emulated";
+pub const PACKAGE: &str = "camgeom-fw-emulated";
+/// The projection checks (run by `cargo xtask run` before the main job).
+const PROJECTION_BIN: &str = "camgeom-fw-projection";
 /// The homography benchmark binary (`cargo xtask bench-fw`).
 const BENCH_BIN: &str = "camgeom-fw-bench";
 /// The line the firmware logs when it has done all its work; the run fails without it.
@@ -59,13 +60,9 @@ pub fn firmware_cargo(subcommand: &str) -> Command {
     cmd
 }
 
-pub fn build() -> Result<PathBuf> {
-    build_bin(MAIN_BIN, &[])
-}
-
 /// Builds binary `bin` of the firmware package (release) with extra cargo arguments; returns
 /// its ELF.
-fn build_bin(bin: &str, extra: &[&str]) -> Result<PathBuf> {
+pub fn build_bin(bin: &str, extra: &[&str]) -> Result<PathBuf> {
     let mut cmd = firmware_cargo("build");
     cmd.args(["--release", "-p", PACKAGE, "--bin", bin])
         .args(extra);
@@ -80,11 +77,11 @@ fn build_bin(bin: &str, extra: &[&str]) -> Result<PathBuf> {
     Ok(elf)
 }
 
-/// Builds and runs the firmware; returns its summary line.
-pub fn build_and_run() -> Result<String> {
-    let elf = build()?;
+/// Builds and runs the projection checks; returns their summary line.
+pub fn build_and_run_projection() -> Result<String> {
+    let elf = build_bin(PROJECTION_BIN, &[])?;
     size_report(&elf)?;
-    run_on_qemu(&elf)
+    run_on_qemu_checked(&elf, SUMMARY, SUMMARY_REST)
 }
 
 /// `cargo xtask bench-fw`: builds the homography bench binary with the `size-baseline`
@@ -117,13 +114,22 @@ fn timeout() -> Duration {
     Duration::from_secs(secs)
 }
 
-pub fn run_on_qemu(elf: &Path) -> Result<String> {
-    run_on_qemu_checked(elf, SUMMARY, SUMMARY_REST)
-}
-
 /// Runs `elf` on QEMU and checks its log; its summary line starts with `summary` and contains
 /// `summary_rest`.
 pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) -> Result<String> {
+    run_on_qemu_in(elf, None, summary_start, summary_rest, &|_| true).map(|(s, _)| s)
+}
+
+/// [`run_on_qemu_checked`] with QEMU started in `dir` (where the firmware's semihosting file
+/// calls land), printing only the log lines `show` accepts; returns the summary line and every
+/// decoded message.
+pub fn run_on_qemu_in(
+    elf: &Path,
+    dir: Option<&Path>,
+    summary_start: &str,
+    summary_rest: &str,
+    show: &dyn Fn(&str) -> bool,
+) -> Result<(String, Vec<String>)> {
     let image = fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let table = Table::parse(&image)
         .context("cannot read the defmt table")?
@@ -139,6 +145,7 @@ pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) 
         .args(["-icount", "shift=0"])
         .arg("-kernel")
         .arg(elf)
+        .current_dir(dir.unwrap_or(&root()))
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
@@ -180,6 +187,7 @@ pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) 
     let mut decoder = table.new_stream_decoder();
     decoder.received(&bytes);
     let mut summary = None;
+    let mut messages = Vec::new();
     let (mut lines, mut malformed, mut error_logs) = (0usize, 0usize, 0usize);
     println!("---- firmware log (defmt) ----");
     loop {
@@ -196,14 +204,16 @@ pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) 
                     ("warn" | "error", Some(loc)) => {
                         println!("{:<5} {message}  ({loc})", level.to_uppercase())
                     }
-                    _ => println!("{:<5} {message}", level.to_uppercase()),
+                    _ if show(&message) => println!("{:<5} {message}", level.to_uppercase()),
+                    _ => {}
                 }
                 if level == "error" {
                     error_logs += 1;
                 }
                 if message.starts_with(summary_start) && message.contains(summary_rest) {
-                    summary = Some(message);
+                    summary = Some(message.clone());
                 }
+                messages.push(message);
             }
             Err(DecodeError::UnexpectedEof) => break,
             Err(DecodeError::Malformed) => malformed += 1,
@@ -234,12 +244,12 @@ pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) 
         bail!("the log has no summary line (`{summary_start}...{summary_rest}...`)");
     };
     println!("firmware run OK: {summary}");
-    Ok(summary)
+    Ok((summary, messages))
 }
 
 /// Prints what the ELF takes of the board's flash and RAM (from its allocated sections);
 /// returns `(flash, static RAM)` in bytes.
-fn size_report(elf: &Path) -> Result<(u64, u64)> {
+pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
     let image = fs::read(elf)?;
     let file = object::File::parse(&*image).context("cannot parse the ELF")?;
     let (mut flash, mut ram) = (0u64, 0u64);

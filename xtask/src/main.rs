@@ -3,9 +3,10 @@
 //! | command | what |
 //! |---|---|
 //! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
-//! | `cargo xtask run` | builds the firmware, runs it on QEMU, decodes and checks its defmt log |
+//! | `cargo xtask run` | the main job: the firmware over the recorded sequence on QEMU, checked against the host replay |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
+//! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
 //! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
 //! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 10) |
@@ -17,9 +18,11 @@
 mod ci;
 mod firmware;
 mod fuzz;
+mod mainjob;
 mod openmv;
 mod panic_check;
 mod setup;
+mod size;
 mod util;
 
 use std::process::ExitCode;
@@ -28,11 +31,13 @@ const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
   setup   install the rustup targets and components and qemu-system-arm the other commands need
-  run     build the firmware (release), run it on QEMU mps2-an500, decode and check its log
+  run     the main job: the firmware over the recorded box sequence on QEMU mps2-an500
+          (320x240 and 160x120), per-stage cost, overlays, checked against the host replay
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
   panic-check  link one firmware binary per entry point with a panic handler that cannot link
+  size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
   fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 10)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
@@ -40,9 +45,12 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("setup") => setup::setup(),
-        Some("run") => setup::setup().and_then(|()| firmware::build_and_run().map(|_| ())),
+        Some("run") => setup::setup().and_then(|()| mainjob::run(&mainjob::Options::full())),
         Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
         Some("build-openmv") => openmv::build_and_check(),
+        Some("size") => {
+            setup::setup().and_then(|()| size::size(args.get(1).is_some_and(|a| a == "--update")))
+        }
         Some("stack") => setup::setup().and_then(|()| firmware::stack()),
         Some("panic-check") => panic_check::check(),
         Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {

@@ -1,0 +1,543 @@
+//! The tracking pipeline: frame in, pyramid, planar-target step, AR overlay, report out.
+//!
+//! Per frame `k` (frame 0 only starts the target, [`Pipeline::start`]):
+//!
+//! 1. the [`FrameSource`] writes frame `k` into the free one of two frame buffers;
+//! 2. its Gaussian pyramid is built into the free one of two pyramid buffers
+//!    ([`camgeom::pyramid`]);
+//! 3. [`PlanarTarget::step_probed`] runs KLT (Q16.16 fixed point, forward-backward checked)
+//!    from frame `k - 1`'s pyramid, the RANSAC homography target plane → image, the IPPE + LM
+//!    pose and, when too few tracks survive, re-detection; a lost target is re-detected around
+//!    its last outline ([`PlanarTarget::relocate`]) on the same frame;
+//! 4. frame `k - 1` is no longer needed as the KLT template: the overlay of frame `k - 1` (its
+//!    outline and an AR cube, [`camgeom::draw`]) is drawn into its own buffer and handed to the
+//!    caller, then the buffers swap roles.
+//!
+//! No frame is ever copied. The overlay lags one frame because a frame is the next flow's
+//! template: drawing into it earlier would put the drawing into the tracking.
+//! [`Pipeline::finish`] draws the last frame's overlay.
+//!
+//! Every buffer is a fixed-size array whose length comes from a `const fn` of the geometry
+//! (width, height, pyramid levels, KLT window, candidates, tracks): a board places one
+//! [`Pipeline`] in a `static`, so the linker checks its RAM against the memory map. The
+//! [`pipeline_type!`](crate::pipeline_type) macro spells the type from the geometry.
+
+use camgeom::Error;
+use camgeom::camera::Camera;
+use camgeom::corners::{self, Corner};
+use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
+use camgeom::image::{ImageMut, ImageView};
+use camgeom::klt::{self, Fixed};
+use camgeom::nalgebra::Point2;
+use camgeom::pose::PoseEstimate;
+use camgeom::pyramid::{self, Pyramid};
+use camgeom::target::{PlanarTarget, Stage, StageProbe, TargetConfig, TargetState};
+
+use crate::source::FrameSource;
+
+/// Bytes of one `width x height` grayscale frame.
+pub const fn frame_len(width: usize, height: usize) -> usize {
+    width * height
+}
+
+/// Bytes of one pyramid buffer (levels `1..levels`; level 0 is the frame itself).
+pub const fn pyramid_len(width: usize, height: usize, levels: usize) -> usize {
+    pyramid::buffer_len(width, height, levels)
+}
+
+/// `i16` elements of the KLT scratch for `win x win` windows.
+pub const fn flow_scratch_len(win: usize) -> usize {
+    klt::scratch_len(win)
+}
+
+/// `u32` elements of the corner detector's scratch for frames `width` wide.
+pub const fn corner_scratch_len(width: usize) -> usize {
+    corners::scratch_len(width)
+}
+
+/// Bytes of RAM a pipeline of this geometry takes: two frames, two pyramids, the scratch
+/// buffers, the candidate corners and the target of `N` tracks (an estimate of the last,
+/// rounded up; [`core::mem::size_of`] of the concrete type is exact, see [`Pipeline::RAM`]).
+pub const fn buffers_ram(
+    width: usize,
+    height: usize,
+    levels: usize,
+    win: usize,
+    candidates: usize,
+) -> usize {
+    2 * frame_len(width, height)
+        + 2 * pyramid_len(width, height, levels)
+        + 2 * flow_scratch_len(win)
+        + 4 * corner_scratch_len(width)
+        + core::mem::size_of::<Corner>() * candidates
+}
+
+/// The concrete [`Pipeline`] type of a geometry: `pipeline_type!(width, height, levels, win,
+/// candidates, tracks)`, every argument a constant expression.
+#[macro_export]
+macro_rules! pipeline_type {
+    ($w:expr, $h:expr, $levels:expr, $win:expr, $candidates:expr, $n:expr) => {
+        $crate::pipeline::Pipeline<
+            { $crate::pipeline::frame_len($w, $h) },
+            { $crate::pipeline::pyramid_len($w, $h, $levels) },
+            { $crate::pipeline::flow_scratch_len($win) },
+            { $crate::pipeline::corner_scratch_len($w) },
+            $candidates,
+            $n,
+        >
+    };
+}
+
+/// Where the AR cube stands on the target plane: one corner at `(x, y, 0)`, side `size`
+/// (target units), its top towards the camera (see [`camgeom::draw::cube`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CubeConfig {
+    /// Target-plane `X` of the cube's first corner.
+    pub x: f32,
+    /// Target-plane `Y` of the cube's first corner.
+    pub y: f32,
+    /// Side.
+    pub size: f32,
+}
+
+/// What the application is told once: geometry, camera, target, drawing. Kept apart from the
+/// state ([`Pipeline`]), so one configuration can serve any number of runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AppConfig {
+    /// Frame width (pixels); must match the pipeline's buffers.
+    pub width: usize,
+    /// Frame height (pixels).
+    pub height: usize,
+    /// Pyramid levels, the frame included (`cfg.target.lk.max_level + 1` is enough).
+    pub levels: usize,
+    /// The camera's intrinsics and distortion.
+    pub camera: Camera<f32>,
+    /// The target's `width x height` (metres): its corners are `(0, 0), (w, 0), (w, h), (0, h)`.
+    pub target_size: [f32; 2],
+    /// Tracking parameters (`target.lk.win` must match the pipeline's flow scratch).
+    pub target: TargetConfig,
+    /// The AR cube.
+    pub cube: CubeConfig,
+    /// How the cube is drawn.
+    pub wire: WireframeConfig<f32>,
+    /// Pixel value of the target's outline.
+    pub outline_value: u8,
+}
+
+/// The board's clock: a monotonic count in its own unit (cycles on hardware, instructions on
+/// QEMU with `-icount`). Differences are what the cost record holds.
+pub trait Clock {
+    /// The count now.
+    fn now(&mut self) -> u64;
+}
+
+/// A clock that always reads 0 (every cost 0): for replays where only the results matter.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoClock;
+
+impl Clock for NoClock {
+    fn now(&mut self) -> u64 {
+        0
+    }
+}
+
+/// What one frame cost, in the [`Clock`]'s unit (saturating at `u32::MAX`). A stage that did
+/// not run costs 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct StageCosts {
+    /// Reading the frame from the source (not part of `total`: a camera's DMA does it).
+    pub capture: u32,
+    /// The pyramid of the new frame.
+    pub pyramid: u32,
+    /// KLT, forward and back.
+    pub flow: u32,
+    /// RANSAC homography.
+    pub homography: u32,
+    /// IPPE and its refinement.
+    pub pose: u32,
+    /// Re-detection (after too few tracks, or relocation after a lost frame).
+    pub redetect: u32,
+    /// Drawing the previous frame's overlay.
+    pub draw: u32,
+    /// Pyramid to draw, everything but the capture.
+    pub total: u32,
+}
+
+impl StageCosts {
+    /// The stages in table order, with their names.
+    pub fn named(&self) -> [(&'static str, u32); 8] {
+        [
+            ("capture", self.capture),
+            ("pyramid", self.pyramid),
+            ("flow", self.flow),
+            ("homography", self.homography),
+            ("pose", self.pose),
+            ("redetect", self.redetect),
+            ("draw", self.draw),
+            ("total", self.total),
+        ]
+    }
+}
+
+fn span(from: u64, to: u64) -> u32 {
+    u32::try_from(to.saturating_sub(from)).unwrap_or(u32::MAX)
+}
+
+/// Times the stages of [`PlanarTarget::step_probed`].
+struct Probe<'a, C: Clock> {
+    clock: &'a mut C,
+    last: u64,
+    costs: &'a mut StageCosts,
+}
+
+impl<C: Clock> StageProbe for Probe<'_, C> {
+    fn stage_done(&mut self, stage: Stage) {
+        let now = self.clock.now();
+        let d = span(self.last, now);
+        self.last = now;
+        let slot = match stage {
+            Stage::Flow => &mut self.costs.flow,
+            Stage::Homography => &mut self.costs.homography,
+            Stage::Pose => &mut self.costs.pose,
+            Stage::Redetect => &mut self.costs.redetect,
+        };
+        *slot = slot.saturating_add(d);
+    }
+}
+
+/// The outcome of one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameReport {
+    /// Frame number in the sequence (0 is the start frame).
+    pub index: u32,
+    /// The tracker's state after the frame.
+    pub state: TargetState,
+    /// Tracks that survived the flow.
+    pub tracked: usize,
+    /// Homography inliers.
+    pub inliers: usize,
+    /// Features added by re-detection or relocation.
+    pub added: usize,
+    /// Features alive after the frame.
+    pub features: usize,
+    /// The best planar pose (target → camera), when tracking.
+    pub pose: Option<PoseEstimate<f32>>,
+    /// The target's outline in this frame, when tracking.
+    pub outline: Option<[Point2<f32>; 4]>,
+    /// [`track_checksum`] of the live features after the frame.
+    pub checksum: u32,
+    /// What the frame cost.
+    pub costs: StageCosts,
+}
+
+/// FNV-1a (32 bit) over the features' image positions in Q16.16 (`x`, `y` as little-endian
+/// `i32`), in order: two builds track identically exactly when their checksums agree on
+/// every frame (up to hash collisions).
+///
+/// The positions come from [`PlanarTarget::features`], which gives them as `f32`
+/// (`q / 2¹⁶`): the conversion is exact while `|q| < 2²⁴` (coordinates below 256 px) and
+/// rounds away at most the last Q16.16 bit (2⁻¹⁶ px) beyond, so the checksum sees the raw
+/// tracks to within 1.5e-5 px at 320 px wide, bit for bit at 160 px.
+pub fn track_checksum<const N: usize>(target: &PlanarTarget<Fixed, N>) -> u32 {
+    let mut h: u32 = 0x811c_9dc5;
+    for (p, _) in target.features() {
+        // p * 2^16 is an integer-valued f32 (see above), so the cast is exact.
+        for v in [(p.x * 65536.0) as i32, (p.y * 65536.0) as i32] {
+            for b in v.to_le_bytes() {
+                h ^= u32::from(b);
+                h = h.wrapping_mul(0x0100_0193);
+            }
+        }
+    }
+    h
+}
+
+/// What can go wrong in the pipeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AppError<E> {
+    /// The frame source failed.
+    Source(E),
+    /// The source ended before the start frame.
+    NoFrame,
+    /// The configuration does not fit the pipeline's buffers (geometry, window) or the
+    /// source's frame size.
+    Geometry,
+    /// [`Pipeline::step`] before [`Pipeline::start`].
+    NotStarted,
+    /// The core returned an error (a bad configuration or degenerate start corners).
+    Core(Error),
+}
+
+impl<E> From<Error> for AppError<E> {
+    fn from(e: Error) -> Self {
+        AppError::Core(e)
+    }
+}
+
+/// The previous frame: its number, pose and outline (for its overlay).
+type LastFrame = (u32, Option<PoseEstimate<f32>>, Option<[Point2<f32>; 4]>);
+
+/// The application's state: every buffer, the target, and which buffer holds which frame.
+///
+/// `F`, `P`, `S`, `C`: lengths from [`frame_len`], [`pyramid_len`], [`flow_scratch_len`],
+/// [`corner_scratch_len`]; `K` candidate corners for the detector; `N` tracks. Spell the type
+/// with [`pipeline_type!`](crate::pipeline_type).
+pub struct Pipeline<
+    const F: usize,
+    const P: usize,
+    const S: usize,
+    const C: usize,
+    const K: usize,
+    const N: usize,
+> {
+    frames: [[u8; F]; 2],
+    pyramids: [[u8; P]; 2],
+    flow_scratch: [i16; S],
+    corner_scratch: [u32; C],
+    candidates: [Corner; K],
+    target: Option<PlanarTarget<Fixed, N>>,
+    /// The buffer holding the latest frame.
+    current: usize,
+    /// The latest frame's number and what to draw on it.
+    last: Option<LastFrame>,
+}
+
+impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: usize, const N: usize>
+    Default for Pipeline<F, P, S, C, K, N>
+{
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: usize, const N: usize>
+    Pipeline<F, P, S, C, K, N>
+{
+    /// Bytes of RAM this pipeline takes (buffers, target, bookkeeping).
+    pub const RAM: usize = core::mem::size_of::<Self>();
+
+    /// An empty pipeline, all zeros: `const`, so a `static` of it lives in `.bss` and is
+    /// never built on the stack.
+    pub const fn new() -> Self {
+        Self {
+            frames: [[0; F]; 2],
+            pyramids: [[0; P]; 2],
+            flow_scratch: [0; S],
+            corner_scratch: [0; C],
+            candidates: [Corner {
+                x: 0,
+                y: 0,
+                score: 0,
+            }; K],
+            target: None,
+            current: 0,
+            last: None,
+        }
+    }
+
+    /// Checks `cfg` (and the source's frame size) against the buffers.
+    fn check<E>(cfg: &AppConfig, size: (usize, usize)) -> Result<(), AppError<E>> {
+        let fits = size == (cfg.width, cfg.height)
+            && F == frame_len(cfg.width, cfg.height)
+            && P == pyramid_len(cfg.width, cfg.height, cfg.levels)
+            && S == flow_scratch_len(cfg.target.lk.win)
+            && C == corner_scratch_len(cfg.width);
+        if fits {
+            Ok(())
+        } else {
+            Err(AppError::Geometry)
+        }
+    }
+
+    /// Reads the start frame, builds its pyramid and starts the target from its four image
+    /// `corners` (order of [`PlanarTarget::target_corners`]). Returns the start frame's
+    /// report (features found, no pose: the pose comes with the first step). Errors: as
+    /// [`AppError`]; a start that finds too few features is [`AppError::Core`].
+    pub fn start<Src: FrameSource, Clk: Clock>(
+        &mut self,
+        cfg: &AppConfig,
+        source: &mut Src,
+        corners: &[Point2<f32>; 4],
+        clock: &mut Clk,
+    ) -> Result<FrameReport, AppError<Src::Error>> {
+        Self::check(cfg, source.size())?;
+        let mut target = PlanarTarget::<Fixed, N>::new(cfg.target_size[0], cfg.target_size[1])?;
+        let mut costs = StageCosts::default();
+        let t0 = clock.now();
+        let [frame, _] = &mut self.frames;
+        let [pyr, _] = &mut self.pyramids;
+        {
+            let mut img = ImageMut::packed(&mut frame[..], cfg.width, cfg.height)?;
+            if !source.next_frame(&mut img).map_err(AppError::Source)? {
+                return Err(AppError::NoFrame);
+            }
+        }
+        let t1 = clock.now();
+        costs.capture = span(t0, t1);
+        let view = ImageView::packed(&frame[..], cfg.width, cfg.height)?;
+        Pyramid::build(view, &mut pyr[..], cfg.levels)?;
+        let t2 = clock.now();
+        costs.pyramid = span(t1, t2);
+        let added = target.init(
+            &view,
+            corners,
+            &cfg.target,
+            &mut self.candidates[..],
+            &mut self.corner_scratch[..],
+        )?;
+        let t3 = clock.now();
+        costs.redetect = span(t2, t3);
+        costs.total = span(t1, t3);
+        let report = FrameReport {
+            index: 0,
+            state: target.state(),
+            tracked: 0,
+            inliers: 0,
+            added,
+            features: target.features().count(),
+            pose: None,
+            outline: Some(*corners),
+            checksum: track_checksum(&target),
+            costs,
+        };
+        self.target = Some(target);
+        self.current = 0;
+        self.last = Some((0, None, Some(*corners)));
+        Ok(report)
+    }
+
+    /// Runs one frame (see the module documentation). Returns `Ok(None)` once the source has
+    /// ended. `overlay` receives the previous frame's number and its picture with the outline
+    /// and cube drawn.
+    pub fn step<Src: FrameSource, Clk: Clock>(
+        &mut self,
+        cfg: &AppConfig,
+        source: &mut Src,
+        clock: &mut Clk,
+        overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
+    ) -> Result<Option<FrameReport>, AppError<Src::Error>> {
+        Self::check(cfg, source.size())?;
+        let (Some(target), Some((prev_index, prev_pose, prev_outline))) =
+            (self.target.as_mut(), self.last)
+        else {
+            return Err(AppError::NotStarted);
+        };
+        let index = prev_index.saturating_add(1);
+        let (w, h, levels) = (cfg.width, cfg.height, cfg.levels);
+        let [f0, f1] = &mut self.frames;
+        let [p0, p1] = &mut self.pyramids;
+        let (prev_frame, next_frame, prev_pyr, next_pyr) = if self.current == 0 {
+            (f0, f1, p0, p1)
+        } else {
+            (f1, f0, p1, p0)
+        };
+        let mut costs = StageCosts::default();
+        let t0 = clock.now();
+        {
+            let mut img = ImageMut::packed(&mut next_frame[..], w, h)?;
+            if !source.next_frame(&mut img).map_err(AppError::Source)? {
+                return Ok(None);
+            }
+        }
+        let t1 = clock.now();
+        costs.capture = span(t0, t1);
+        let out = {
+            let next_view = ImageView::packed(&next_frame[..], w, h)?;
+            let next = Pyramid::build(next_view, &mut next_pyr[..], levels)?;
+            let prev_view = ImageView::packed(&prev_frame[..], w, h)?;
+            let prev = Pyramid::from_buffer(prev_view, &prev_pyr[..], levels)?;
+            let t2 = clock.now();
+            costs.pyramid = span(t1, t2);
+            let mut probe = Probe {
+                clock: &mut *clock,
+                last: t2,
+                costs: &mut costs,
+            };
+            let mut out = target.step_probed(
+                &prev,
+                &next,
+                &cfg.camera,
+                &cfg.target,
+                &mut self.flow_scratch[..],
+                &mut self.candidates[..],
+                &mut self.corner_scratch[..],
+                &mut probe,
+            )?;
+            if out.state == TargetState::Lost {
+                // Look for the target around its last outline on this frame.
+                let t = probe.clock.now();
+                out.added += target.relocate(
+                    &next_view,
+                    &cfg.target,
+                    &mut self.candidates[..],
+                    &mut self.corner_scratch[..],
+                )?;
+                let d = span(t, probe.clock.now());
+                costs.redetect = costs.redetect.saturating_add(d);
+            }
+            out
+        };
+        // The previous frame has served as the template: draw its overlay into it.
+        let t3 = clock.now();
+        draw_overlay(cfg, &mut prev_frame[..], prev_pose, prev_outline)?;
+        overlay(prev_index, &ImageView::packed(&prev_frame[..], w, h)?);
+        let t4 = clock.now();
+        costs.draw = span(t3, t4);
+        costs.total = span(t1, t4);
+        let pose = out.pose.map(|p| p.best);
+        self.current = 1 - self.current;
+        self.last = Some((index, pose, out.outline));
+        Ok(Some(FrameReport {
+            index,
+            state: out.state,
+            tracked: out.tracked,
+            inliers: out.inliers,
+            added: out.added,
+            features: target.features().count(),
+            pose,
+            outline: out.outline,
+            checksum: track_checksum(target),
+            costs,
+        }))
+    }
+
+    /// Draws the latest frame's overlay and hands it to `overlay` (after the source ended).
+    pub fn finish<E>(
+        &mut self,
+        cfg: &AppConfig,
+        overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
+    ) -> Result<(), AppError<E>> {
+        let Some((index, pose, outline)) = self.last.take() else {
+            return Err(AppError::NotStarted);
+        };
+        let [f0, f1] = &mut self.frames;
+        let frame = if self.current == 0 { f0 } else { f1 };
+        draw_overlay(cfg, &mut frame[..], pose, outline)?;
+        overlay(
+            index,
+            &ImageView::packed(&frame[..], cfg.width, cfg.height)?,
+        );
+        Ok(())
+    }
+}
+
+/// The outline (straight lines between the corners) and, with a pose, the cube.
+fn draw_overlay(
+    cfg: &AppConfig,
+    frame: &mut [u8],
+    pose: Option<PoseEstimate<f32>>,
+    outline: Option<[Point2<f32>; 4]>,
+) -> Result<usize, Error> {
+    let mut img = ImageMut::packed(frame, cfg.width, cfg.height)?;
+    let mut written = 0;
+    if let Some(q) = outline {
+        for (a, b) in q.iter().zip(q.iter().cycle().skip(1)) {
+            written += draw_line(&mut img, a, b, cfg.outline_value)?;
+        }
+    }
+    if let Some(p) = pose {
+        let (vertices, edges) = cube(cfg.cube.x, cfg.cube.y, cfg.cube.size);
+        written += draw_wireframe(&mut img, &cfg.camera, &p.pose, &vertices, &edges, &cfg.wire)?;
+    }
+    Ok(written)
+}

@@ -1,0 +1,179 @@
+//! The description of a recorded run: what a board is told before it replays a sequence.
+//!
+//! `cargo xtask run` writes it (`run.bin`) next to the raw frames; the emulated board reads it
+//! over semihosting and the host replay reads the same bytes, so both build the same
+//! [`AppConfig`] from it. Layout: [`RUN_SPEC_LEN`] bytes, 26 little-endian 32-bit words:
+//!
+//! | words | what |
+//! |---|---|
+//! | 0, 1 | magic [`MAGIC`] (`"CRUN"`), version [`VERSION`] |
+//! | 2..7 | `u32`: width, height, frames to run (at most), stride (every `stride`-th recorded frame), overlay period (every `n`-th frame's overlay is saved; 0: none) |
+//! | 7..16 | `f32`: `fx fy cx cy` and OpenCV's distortion `k1 k2 p1 p2 k3` |
+//! | 16, 17 | `f32`: the target's width and height (metres) |
+//! | 18..26 | `f32`: the target's corners in the start frame, `x y` of `(0, 0), (w, 0), (w, h), (0, h)` |
+
+use camgeom::Error;
+use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::draw::WireframeConfig;
+use camgeom::nalgebra::Point2;
+use camgeom::target::TargetConfig;
+
+use crate::pipeline::{AppConfig, CubeConfig};
+
+/// `"CRUN"` as a little-endian word.
+pub const MAGIC: u32 = u32::from_le_bytes(*b"CRUN");
+/// Layout version.
+pub const VERSION: u32 = 1;
+/// Bytes of a run description.
+pub const RUN_SPEC_LEN: usize = 26 * 4;
+/// Pyramid levels the application uses (`TargetConfig`'s default coarsest level is 2).
+pub const LEVELS: usize = 3;
+/// KLT window side of the main job ([`camgeom::target::TargetConfig`]'s default).
+pub const WIN: usize = 15;
+/// Candidate corners the detector may hold (before its minimum-distance selection).
+pub const CANDIDATES: usize = 512;
+/// Tracks of the main job's target.
+pub const TRACKS: usize = 32;
+/// Side of the AR cube as a share of the target's shorter side.
+const CUBE_SHARE: f32 = 0.4;
+
+/// A decoded run description.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RunSpec {
+    /// Frame width.
+    pub width: u32,
+    /// Frame height.
+    pub height: u32,
+    /// Frames to run at most (the start frame included).
+    pub frames: u32,
+    /// Every `stride`-th recorded frame is delivered.
+    pub stride: u32,
+    /// Every `overlay_every`-th frame's overlay is saved (0: none).
+    pub overlay_every: u32,
+    /// `fx fy cx cy`.
+    pub intrinsics: [f32; 4],
+    /// `k1 k2 p1 p2 k3`.
+    pub distortion: [f32; 5],
+    /// The target's width and height (metres).
+    pub target_size: [f32; 2],
+    /// The target's corners in the start frame.
+    pub corners: [[f32; 2]; 4],
+}
+
+impl RunSpec {
+    /// Decodes [`RUN_SPEC_LEN`] bytes. Errors: [`Error::InvalidParameter`] for a wrong magic,
+    /// version or length.
+    pub fn parse(bytes: &[u8]) -> Result<Self, Error> {
+        if bytes.len() != RUN_SPEC_LEN {
+            return Err(Error::InvalidParameter);
+        }
+        let mut words = [0u32; RUN_SPEC_LEN / 4];
+        for (w, c) in words.iter_mut().zip(bytes.chunks_exact(4)) {
+            let mut b = [0u8; 4];
+            b.copy_from_slice(c);
+            *w = u32::from_le_bytes(b);
+        }
+        let u = |i: usize| words.get(i).copied().unwrap_or(0);
+        let f = |i: usize| f32::from_bits(u(i));
+        if u(0) != MAGIC || u(1) != VERSION {
+            return Err(Error::InvalidParameter);
+        }
+        Ok(Self {
+            width: u(2),
+            height: u(3),
+            frames: u(4),
+            stride: u(5),
+            overlay_every: u(6),
+            intrinsics: [f(7), f(8), f(9), f(10)],
+            distortion: [f(11), f(12), f(13), f(14), f(15)],
+            target_size: [f(16), f(17)],
+            corners: [
+                [f(18), f(19)],
+                [f(20), f(21)],
+                [f(22), f(23)],
+                [f(24), f(25)],
+            ],
+        })
+    }
+
+    /// Encodes into [`RUN_SPEC_LEN`] bytes (the inverse of [`Self::parse`]).
+    pub fn to_bytes(&self) -> [u8; RUN_SPEC_LEN] {
+        let mut words = [0u32; RUN_SPEC_LEN / 4];
+        let [fx, fy, cx, cy] = self.intrinsics;
+        let [k1, k2, p1, p2, k3] = self.distortion;
+        let [tw, th] = self.target_size;
+        let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = self.corners;
+        let ints = [
+            MAGIC,
+            VERSION,
+            self.width,
+            self.height,
+            self.frames,
+            self.stride,
+            self.overlay_every,
+        ];
+        let floats = [
+            fx, fy, cx, cy, k1, k2, p1, p2, k3, tw, th, x0, y0, x1, y1, x2, y2, x3, y3,
+        ];
+        for (w, v) in words
+            .iter_mut()
+            .zip(ints.into_iter().chain(floats.into_iter().map(f32::to_bits)))
+        {
+            *w = v;
+        }
+        let mut out = [0u8; RUN_SPEC_LEN];
+        for (c, w) in out.chunks_exact_mut(4).zip(words) {
+            c.copy_from_slice(&w.to_le_bytes());
+        }
+        out
+    }
+
+    /// The start corners as points.
+    pub fn start_corners(&self) -> [Point2<f32>; 4] {
+        self.corners.map(|[x, y]| Point2::new(x, y))
+    }
+
+    /// The application's configuration for this run: its camera and target, the default
+    /// tracking parameters, [`LEVELS`] pyramid levels, and a cube of side 0.4 x the target's
+    /// shorter side standing in the target's middle. Errors: as [`Intrinsics::new`] and
+    /// [`Distortion::from_opencv`].
+    pub fn app_config(&self) -> Result<AppConfig, Error> {
+        let [fx, fy, cx, cy] = self.intrinsics;
+        let camera = Camera::new(
+            Intrinsics::new(fx, fy, cx, cy)?,
+            Distortion::from_opencv(self.distortion)?,
+        );
+        let [tw, th] = self.target_size;
+        let size = CUBE_SHARE * tw.min(th);
+        // The defaults are for 320x240; a smaller frame shows the target smaller, so the
+        // corner spacing and the border margin shrink with it (not below 3 and 2 px).
+        let mut target = TargetConfig::default();
+        // No forward-backward check on the board: it tracks every feature twice (half of a
+        // frame's instructions) and on the recorded sequence it rejected nothing the
+        // homography's RANSAC did not (the host `camgeom ar --fb 0` run gives the same poses
+        // on all 150 frames). A caller who expects occlusions turns it back on
+        // (`fb_threshold: Some(1.0)`, about +5M instructions a frame at 320x240).
+        target.lk.fb_threshold = None;
+        let scale = self.width as f32 / 320.0;
+        if scale < 1.0 {
+            target.corners.min_distance =
+                ((target.corners.min_distance as f32 * scale) as u32).max(3);
+            target.border = (target.border * scale).max(2.0);
+        }
+        Ok(AppConfig {
+            width: self.width as usize,
+            height: self.height as usize,
+            levels: LEVELS,
+            camera,
+            target_size: self.target_size,
+            target,
+            cube: CubeConfig {
+                x: 0.5 * (tw - size),
+                y: 0.5 * (th - size),
+                size,
+            },
+            wire: WireframeConfig::default(),
+            outline_value: 255,
+        })
+    }
+}
