@@ -1,8 +1,8 @@
 //! KLT speed per tracked feature on the host: basketball1 → basketball2 (640x480), 21x21
 //! windows, maxLevel 3 (4 levels), 30 iterations / 0.01, pyramids built beforehand (OpenCV's
 //! side does the same with `buildOpticalFlowPyramid`, see `scripts/bench_klt_opencv.py`).
-//! Paths: fixed and f32, derivatives per window and per level; plus the pyramid build and
-//! the Shi-Tomasi detection.
+//! Paths: fixed and f32, derivatives per window and per level; the Rust crate
+//! `optical-flow-lk` on the same points; plus the pyramid build and the Shi-Tomasi detection.
 //!
 //! `cargo bench -p camgeom-host --bench klt`
 
@@ -35,6 +35,12 @@ fn bench(c: &mut Criterion) {
     let pa = pyramid(&a, &mut ba, l);
     let pb = pyramid(&b, &mut bb, l);
 
+    let to_image = |g: &camgeom_host::images::GrayImage| {
+        image::GrayImage::from_raw(g.width as u32, g.height as u32, g.data.clone()).unwrap()
+    };
+    let oa = optical_flow_lk::build_pyramid(&to_image(&a), l);
+    let ob = optical_flow_lk::build_pyramid(&to_image(&b), l);
+
     let mut g = c.benchmark_group("klt_flow");
     g.sample_size(20);
     for n in [100usize, 1000] {
@@ -50,6 +56,17 @@ fn bench(c: &mut Criterion) {
                 bn.iter(|| flow_pyramids(&pa, &pb, black_box(p), &cfg, path, per_level).unwrap())
             });
         }
+        // The peer crate optical-flow-lk on the same points, pyramids and window (its pyramid
+        // built beforehand too; 4 levels, 30 iterations, its default texture threshold).
+        let op: Vec<(f32, f32)> = p.iter().map(|q| (q[0] as f32, q[1] as f32)).collect();
+        let params = optical_flow_lk::TrackParams {
+            window_size: 21,
+            max_iterations: 30,
+            min_eigen_threshold: optical_flow_lk::DEFAULT_MIN_EIGEN_THRESHOLD,
+        };
+        g.bench_with_input(BenchmarkId::new("optical_flow_lk", n), &op, |bn, op| {
+            bn.iter(|| optical_flow_lk::calc_optical_flow_ex(&oa, &ob, black_box(op), None, params))
+        });
     }
     g.finish();
 
