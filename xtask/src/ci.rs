@@ -97,7 +97,7 @@ fn steps() -> Vec<Step> {
     );
     // Measured from a clean target directory on the shared 2-core machine (load average 5):
     // panic check ~40 s (one release LTO link of all eight entry points, most of it building), fuzz
-    // smoke 146 s (build ~95 s, then 10 s per target); a fresh machine also spends ~95 s in
+    // smoke ~120 s (build ~95 s, then 5 s per target); a fresh machine also spends ~95 s in
     // `setup` installing cargo-fuzz.
     add(
         "panic freedom (firmware link check)",

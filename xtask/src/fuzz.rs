@@ -14,7 +14,7 @@ use anyhow::Result;
 use crate::util::{output, root, run};
 
 /// Seconds per target of the CI smoke run.
-pub const SMOKE_SECONDS: u64 = 10;
+pub const SMOKE_SECONDS: u64 = 5;
 
 /// The targets, in `fuzz/Cargo.toml` order.
 pub const TARGETS: [&str; 5] = [

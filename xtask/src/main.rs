@@ -9,7 +9,7 @@
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
 //! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
-//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 10) |
+//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 5, the CI smoke run) |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -38,7 +38,7 @@ commands:
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
   panic-check  link one firmware binary per entry point with a panic handler that cannot link
   size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
-  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 10)
+  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 5)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
