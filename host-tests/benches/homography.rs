@@ -2,9 +2,11 @@
 //! RANSAC (N = 200, 50 % outliers, threshold 3 px, fixed seed), in f32 and f64.
 //!
 //! The inputs are the CSV files in `host-tests/data/fixtures/homography_bench/` (rows
-//! `x1,y1,x2,y2`), which `host-tests/scripts/bench_homography_opencv.py` times with OpenCV on
-//! the very same numbers. They come from [`generate`] below; the bench checks that the files
-//! still match it, and rewrites them with `CAMGEOM_WRITE_FIXTURES=1`:
+//! `x1,y1,x2,y2`, and `truth.csv`: the true `H`, row-major), which
+//! `host-tests/scripts/bench_homography_opencv.py` and `scripts/peers.py` run OpenCV on. They
+//! come from [`generate`] below; the bench checks that the files still match it, and rewrites
+//! them with `CAMGEOM_WRITE_FIXTURES=1`. camgeom's estimates are left in
+//! `target/tmp/peers/homography.json` for the peer harness's accuracy columns.
 //!
 //! ```sh
 //! CAMGEOM_WRITE_FIXTURES=1 cargo bench -p camgeom-host --bench homography -- --test
@@ -20,8 +22,9 @@ use camgeom::homography::{Homography, dlt, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2, Vector3};
 use camgeom::ransac::RansacConfig;
 use camgeom::rng::Pcg32;
-use camgeom_host::points::read_csv;
+use camgeom_host::bench::{self, Answers, pairs_csv, row_major};
 use criterion::{Criterion, criterion_group, criterion_main};
+use serde_json::json;
 
 /// DLT sizes.
 const DLT_SIZES: [usize; 3] = [8, 64, 256];
@@ -31,9 +34,7 @@ const RANSAC_THRESHOLD: f64 = 3.0;
 const RANSAC_SEED: u64 = 0x5eed_ca4e_0000_0001;
 
 fn fixture_dir() -> PathBuf {
-    camgeom_host::data_dir()
-        .join("fixtures")
-        .join("homography_bench")
+    bench::fixture_dir("homography_bench")
 }
 
 /// The ground truth of every bench input: a plane seen by two 640x480 cameras.
@@ -48,17 +49,12 @@ fn map(h: &Matrix3<f64>, p: &Point2<f64>) -> Point2<f64> {
 
 /// `(file name, CSV text)` of every input: `four.csv` (4 exact correspondences),
 /// `dlt_{8,64,256}.csv` (0.5 px Gaussian noise on the destination), `ransac_200.csv` (the same
-/// noise, every even row replaced by a uniform random destination: 50 % outliers).
+/// noise, every even row replaced by a uniform random destination: 50 % outliers), and
+/// `truth.csv` (`h11..h33`).
 fn generate() -> Vec<(String, String)> {
     let h = truth();
     let mut g = Pcg32::new(0x4842_454e_4348);
-    let csv = |rows: &[(Point2<f64>, Point2<f64>)]| {
-        let mut s = String::from("x1,y1,x2,y2\n");
-        for (a, b) in rows {
-            s.push_str(&format!("{:?},{:?},{:?},{:?}\n", a.x, a.y, b.x, b.y));
-        }
-        s
-    };
+    let csv = pairs_csv;
     let noisy = |g: &mut Pcg32, n: usize| -> Vec<(Point2<f64>, Point2<f64>)> {
         (0..n)
             .map(|_| {
@@ -91,49 +87,36 @@ fn generate() -> Vec<(String, String)> {
         }
     }
     out.push((format!("ransac_{RANSAC_N}.csv"), csv(&rows)));
+    let names: Vec<String> = (1..=9)
+        .map(|i| format!("h{}{}", (i - 1) / 3 + 1, (i - 1) % 3 + 1))
+        .collect();
+    let vals: Vec<String> = row_major(&h).iter().map(|v| format!("{v:?}")).collect();
+    out.push((
+        "truth.csv".to_string(),
+        format!("{}\n{}\n", names.join(","), vals.join(",")),
+    ));
     out
-}
-
-/// Writes the fixtures (`CAMGEOM_WRITE_FIXTURES=1`) or checks that they match [`generate`].
-fn sync_fixtures() {
-    let dir = fixture_dir();
-    let write = std::env::var("CAMGEOM_WRITE_FIXTURES").is_ok_and(|v| v == "1");
-    for (name, text) in generate() {
-        let path = dir.join(&name);
-        if write {
-            std::fs::create_dir_all(&dir).expect("create the fixture directory");
-            std::fs::write(&path, &text).expect("write a fixture");
-        } else {
-            let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
-            assert!(
-                on_disk == text,
-                "{} is missing or stale: rerun with CAMGEOM_WRITE_FIXTURES=1",
-                path.display()
-            );
-        }
-    }
 }
 
 /// `(src, dst)` of a fixture, in `T`.
 fn load<T: Real>(name: &str) -> (Vec<Point2<T>>, Vec<Point2<T>>) {
-    let table = read_csv(fixture_dir().join(name), &["x1", "y1", "x2", "y2"]).expect("fixture");
-    let p = |x: f64, y: f64| Point2::new(T::lit(x), T::lit(y));
-    table
-        .rows
-        .iter()
-        .map(|r| (p(r[0], r[1]), p(r[2], r[3])))
-        .unzip()
+    bench::load_pairs(&fixture_dir().join(name))
 }
 
-fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
+fn bench_type<T: Real>(c: &mut Criterion, ty: &str, answers: &mut Answers) {
+    let h_json = |h: &Homography<T>| json!({ "H": row_major(h.matrix()) });
     let (s, d) = load::<T>("four.csv");
     let s4: [Point2<T>; 4] = s.try_into().expect("4 rows");
     let d4: [Point2<T>; 4] = d.try_into().expect("4 rows");
+    let h = Homography::from_four_points(&s4, &d4).expect("4-point bench input");
+    answers.record(&format!("four_point/{ty}"), h_json(&h));
     c.bench_function(&format!("homography/four_point/{ty}"), |b| {
         b.iter(|| Homography::from_four_points(black_box(&s4), black_box(&d4)))
     });
     for n in DLT_SIZES {
         let (s, d) = load::<T>(&format!("dlt_{n}.csv"));
+        let h = dlt(&s, &d).expect("DLT bench input");
+        answers.record(&format!("dlt_{n}/{ty}"), h_json(&h));
         c.bench_function(&format!("homography/dlt_{n}/{ty}"), |b| {
             b.iter(|| dlt(black_box(&s), black_box(&d)))
         });
@@ -145,10 +128,14 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
         ..RansacConfig::default()
     };
     let mut mask = vec![false; s.len()];
-    let (_, report) = find_homography(&s, &d, &config, &mut mask).expect("RANSAC bench input");
+    let (h, report) = find_homography(&s, &d, &config, &mut mask).expect("RANSAC bench input");
     eprintln!(
         "homography/ransac_{RANSAC_N}/{ty}: {} inliers, {} iterations",
         report.inliers, report.iterations
+    );
+    answers.record(
+        &format!("ransac_{RANSAC_N}/{ty}"),
+        json!({ "H": row_major(h.matrix()), "inliers": report.inliers, "mask": mask }),
     );
     c.bench_function(&format!("homography/ransac_{RANSAC_N}/{ty}"), |b| {
         b.iter(|| find_homography(black_box(&s), black_box(&d), &config, &mut mask))
@@ -156,9 +143,11 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
 }
 
 fn benches(c: &mut Criterion) {
-    sync_fixtures();
-    bench_type::<f32>(c, "f32");
-    bench_type::<f64>(c, "f64");
+    bench::sync_fixtures(&fixture_dir(), &generate());
+    let mut answers = Answers::new(env!("CARGO_TARGET_TMPDIR"), "homography");
+    bench_type::<f32>(c, "f32", &mut answers);
+    bench_type::<f64>(c, "f64", &mut answers);
+    answers.save();
 }
 
 criterion_group! {

@@ -4,31 +4,38 @@
 //! Paths: fixed and f32, derivatives per window and per level; the Rust crate
 //! `optical-flow-lk` on the same points; plus the pyramid build and the Shi-Tomasi detection.
 //!
+//! For accuracy and speed on one input, `klt_known` tracks the 278 Shi-Tomasi corners of
+//! basketball1 (`fixtures/klt/basketball_corners.csv`) into basketball1 warped by the known
+//! homography of the KLT tests ([`camgeom_host::known_motion`]; OpenCV's side builds the same
+//! image bit for bit): camgeom's and optical-flow-lk's end points are left in
+//! `target/tmp/peers/klt.json`, which `scripts/peers.py` scores against the exact motion.
+//!
 //! `cargo bench -p camgeom-host --bench klt`
 
 use std::hint::black_box;
 
 use camgeom::corners::CornerConfig;
+use camgeom::klt::FlowStatus;
 use camgeom::klt::LkConfig;
+use camgeom_host::bench::{Answers, load_rows};
 use camgeom_host::data_dir;
 use camgeom_host::images::load_gray;
 use camgeom_host::klt::{Path, corners, flow_pyramids, levels, pyramid};
-use camgeom_host::points::read_csv;
+use camgeom_host::known_motion::{warp, warps};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use serde_json::json;
 
 fn bench(c: &mut Criterion) {
     let mb = data_dir().join("middlebury");
     let a = load_gray(mb.join("basketball1.png")).unwrap();
     let b = load_gray(mb.join("basketball2.png")).unwrap();
-    let pts: Vec<[f64; 2]> = read_csv(
-        data_dir().join("fixtures/klt/basketball_bench_pts.csv"),
-        &["x", "y"],
-    )
-    .unwrap()
-    .rows
-    .iter()
-    .map(|r| [r[0], r[1]])
-    .collect();
+    let xy = |file: &str| -> Vec<[f64; 2]> {
+        load_rows(&data_dir().join("fixtures/klt").join(file), &["x", "y"])
+            .iter()
+            .map(|r| [r[0], r[1]])
+            .collect()
+    };
+    let pts = xy("basketball_bench_pts.csv");
     let cfg = LkConfig::default();
     let l = levels(&cfg);
     let (mut ba, mut bb) = (Vec::new(), Vec::new());
@@ -40,6 +47,15 @@ fn bench(c: &mut Criterion) {
     };
     let oa = optical_flow_lk::build_pyramid(&to_image(&a), l);
     let ob = optical_flow_lk::build_pyramid(&to_image(&b), l);
+    // The peer crate's parameters: 21x21, 30 iterations, its default texture threshold.
+    let params = optical_flow_lk::TrackParams {
+        window_size: 21,
+        max_iterations: 30,
+        min_eigen_threshold: optical_flow_lk::DEFAULT_MIN_EIGEN_THRESHOLD,
+    };
+    let to_peer = |p: &[[f64; 2]]| -> Vec<(f32, f32)> {
+        p.iter().map(|q| (q[0] as f32, q[1] as f32)).collect()
+    };
 
     let mut g = c.benchmark_group("klt_flow");
     g.sample_size(20);
@@ -57,18 +73,54 @@ fn bench(c: &mut Criterion) {
             });
         }
         // The peer crate optical-flow-lk on the same points, pyramids and window (its pyramid
-        // built beforehand too; 4 levels, 30 iterations, its default texture threshold).
-        let op: Vec<(f32, f32)> = p.iter().map(|q| (q[0] as f32, q[1] as f32)).collect();
-        let params = optical_flow_lk::TrackParams {
-            window_size: 21,
-            max_iterations: 30,
-            min_eigen_threshold: optical_flow_lk::DEFAULT_MIN_EIGEN_THRESHOLD,
-        };
+        // built beforehand too; 4 levels).
+        let op = to_peer(p);
         g.bench_with_input(BenchmarkId::new("optical_flow_lk", n), &op, |bn, op| {
             bn.iter(|| optical_flow_lk::calc_optical_flow_ex(&oa, &ob, black_box(op), None, params))
         });
     }
     g.finish();
+
+    // Known motion: basketball1 and its warp by the test homography, same configuration.
+    let (_, h) = warps(a.width, a.height)
+        .into_iter()
+        .find(|(name, _)| *name == "homography")
+        .expect("the homography warp");
+    let w = warp(&a, &h);
+    let mut bw = Vec::new();
+    let pw = pyramid(&w, &mut bw, l);
+    let ow = optical_flow_lk::build_pyramid(&to_image(&w), l);
+    let known = xy("basketball_corners.csv");
+    let mut answers = Answers::new(env!("CARGO_TARGET_TMPDIR"), "klt");
+    let mut g = c.benchmark_group("klt_known");
+    g.sample_size(20);
+    g.throughput(Throughput::Elements(known.len() as u64));
+    for (name, path) in [("fixed", Path::Fixed), ("f32", Path::F32)] {
+        let res = flow_pyramids(&pa, &pw, &known, &cfg, path, false).unwrap();
+        let end: Vec<Option<[f64; 2]>> = res
+            .iter()
+            .map(|f| (f.status == FlowStatus::Tracked).then_some([f.x, f.y]))
+            .collect();
+        answers.record(&format!("homography/{name}"), json!({ "points": end }));
+        g.bench_function(BenchmarkId::new(name, "homography"), |bn| {
+            bn.iter(|| flow_pyramids(&pa, &pw, black_box(&known), &cfg, path, false).unwrap())
+        });
+    }
+    let op = to_peer(&known);
+    let res = optical_flow_lk::calc_optical_flow_ex(&oa, &ow, &op, None, params);
+    let end: Vec<Option<[f64; 2]>> = res
+        .iter()
+        .map(|r| {
+            (r.status == optical_flow_lk::TrackStatus::Tracked)
+                .then_some([f64::from(r.pos.0), f64::from(r.pos.1)])
+        })
+        .collect();
+    answers.record("homography/optical_flow_lk", json!({ "points": end }));
+    g.bench_function(BenchmarkId::new("optical_flow_lk", "homography"), |bn| {
+        bn.iter(|| optical_flow_lk::calc_optical_flow_ex(&oa, &ow, black_box(&op), None, params))
+    });
+    g.finish();
+    answers.save();
 
     let mut g = c.benchmark_group("klt_setup");
     g.sample_size(20);

@@ -4,10 +4,12 @@
 //! in f64 inside either way).
 //!
 //! The inputs are the files in `host-tests/data/fixtures/twoview_bench/` (rows `x1,y1,x2,y2`
-//! in pixels of the camera `f = 600`, `c = (320, 240)`, and `truth.csv`: the camera, `R`, `t`
-//! and `E`), which `host-tests/scripts/bench_twoview_opencv.py` times with OpenCV on the very
-//! same numbers. They come from [`generate`] below; the bench checks that the files still
-//! match it, and rewrites them with `CAMGEOM_WRITE_FIXTURES=1`:
+//! in pixels of the camera `f = 600`, `c = (320, 240)`; `truth.csv`: the camera, `R`, `t` and
+//! `E`; `pose_100_points.csv`: the 3D points behind `pose_100.csv`, view-1 camera frame), which
+//! `host-tests/scripts/bench_twoview_opencv.py` and `scripts/peers.py` run OpenCV on. They come
+//! from [`generate`] below; the bench checks that the files still match it, and rewrites them
+//! with `CAMGEOM_WRITE_FIXTURES=1`. camgeom's answers are left in
+//! `target/tmp/peers/twoview.json` for the peer harness's accuracy columns:
 //!
 //! ```sh
 //! CAMGEOM_WRITE_FIXTURES=1 cargo bench -p camgeom-host --bench twoview -- --test
@@ -28,8 +30,9 @@ use camgeom::twoview::{
     Essential, RelativePose, View1, eight_point, find_essential, find_fundamental, five_point,
     recover_pose, seven_point, triangulate_dlt, triangulate_optimal,
 };
-use camgeom_host::points::read_csv;
+use camgeom_host::bench::{self, Answers, pairs_csv, row_major};
 use criterion::{Criterion, criterion_group, criterion_main};
+use serde_json::json;
 
 const EIGHT_N: usize = 64;
 const RANSAC_N: usize = 200;
@@ -39,12 +42,9 @@ pub const THRESHOLD: f64 = 1.0;
 pub const CONFIDENCE: f64 = 0.999;
 const SEED: u64 = 0x5eed_ca4e_0000_0001;
 const NOISE: f64 = 0.5;
-const COLUMNS: [&str; 4] = ["x1", "y1", "x2", "y2"];
 
 fn fixture_dir() -> PathBuf {
-    camgeom_host::data_dir()
-        .join("fixtures")
-        .join("twoview_bench")
+    bench::fixture_dir("twoview_bench")
 }
 
 fn camera() -> Intrinsics<f64> {
@@ -60,21 +60,19 @@ fn pose() -> RelativePose<f64> {
     .expect("pose")
 }
 
+/// Pixel pairs with their 3D points (view-1 camera frame).
+type Scene = Vec<((Point2<f64>, Point2<f64>), Point3<f64>)>;
+
 /// `(file name, text)` of every input: `eight_64.csv`, `seven.csv` (7 rows), `five.csv`
 /// (5 rows), `ransac_200.csv` (every even row's second point replaced by a uniform one),
 /// `pose_100.csv` (all inliers) with 0.5 px Gaussian noise on both points (the minimal
-/// solvers' inputs exact), and `truth.csv` (`fx,fy,cx,cy,r11..r33,t1,t2,t3,e11..e33`).
+/// solvers' inputs exact), `pose_100_points.csv` (`X,Y,Z`) and `truth.csv`
+/// (`fx,fy,cx,cy,r11..r33,t1,t2,t3,e11..e33`).
 fn generate() -> Vec<(String, String)> {
     let (k, pose) = (camera(), pose());
     let mut g = Pcg32::new(0x0054_5642_454e_4348);
-    let csv = |rows: &[(Point2<f64>, Point2<f64>)]| {
-        let mut s = String::from("x1,y1,x2,y2\n");
-        for (a, b) in rows {
-            s.push_str(&format!("{:?},{:?},{:?},{:?}\n", a.x, a.y, b.x, b.y));
-        }
-        s
-    };
-    let pairs = |g: &mut Pcg32, n: usize, noise: f64| -> Vec<(Point2<f64>, Point2<f64>)> {
+    let csv = |scene: &Scene| pairs_csv(&scene.iter().map(|s| s.0).collect::<Vec<_>>());
+    let pairs = |g: &mut Pcg32, n: usize, noise: f64| -> Scene {
         (0..n)
             .map(|_| {
                 let x = Point3::new(
@@ -86,8 +84,11 @@ fn generate() -> Vec<(String, String)> {
                 let px = |c: Point3<f64>| k.normalized_to_pixel(&Point2::new(c.x / c.z, c.y / c.z));
                 let (a, b) = (px(x), px(c2));
                 (
-                    Point2::new(a.x + noise * g.normal(), a.y + noise * g.normal()),
-                    Point2::new(b.x + noise * g.normal(), b.y + noise * g.normal()),
+                    (
+                        Point2::new(a.x + noise * g.normal(), a.y + noise * g.normal()),
+                        Point2::new(b.x + noise * g.normal(), b.y + noise * g.normal()),
+                    ),
+                    x,
                 )
             })
             .collect()
@@ -103,14 +104,17 @@ fn generate() -> Vec<(String, String)> {
     let mut rows = pairs(&mut g, RANSAC_N, NOISE);
     for (i, r) in rows.iter_mut().enumerate() {
         if i % 2 == 0 {
-            r.1 = Point2::new(g.uniform(0.0, 640.0), g.uniform(0.0, 480.0));
+            r.0.1 = Point2::new(g.uniform(0.0, 640.0), g.uniform(0.0, 480.0));
         }
     }
     out.push((format!("ransac_{RANSAC_N}.csv"), csv(&rows)));
-    out.push((
-        format!("pose_{POSE_N}.csv"),
-        csv(&pairs(&mut g, POSE_N, NOISE)),
-    ));
+    let scene = pairs(&mut g, POSE_N, NOISE);
+    out.push((format!("pose_{POSE_N}.csv"), csv(&scene)));
+    let mut world = String::from("X,Y,Z\n");
+    for (_, x) in &scene {
+        world.push_str(&format!("{:?},{:?},{:?}\n", x.x, x.y, x.z));
+    }
+    out.push((format!("pose_{POSE_N}_points.csv"), world));
     let e = Essential::from_pose(&pose).expect("E");
     let r = pose.rotation();
     let t = pose.translation();
@@ -137,38 +141,12 @@ fn generate() -> Vec<(String, String)> {
     out
 }
 
-/// Writes the fixtures (`CAMGEOM_WRITE_FIXTURES=1`) or checks that they match [`generate`].
-fn sync_fixtures() {
-    let dir = fixture_dir();
-    let write = std::env::var("CAMGEOM_WRITE_FIXTURES").is_ok_and(|v| v == "1");
-    for (name, text) in generate() {
-        let path = dir.join(&name);
-        if write {
-            std::fs::create_dir_all(&dir).expect("create the fixture directory");
-            std::fs::write(&path, &text).expect("write a fixture");
-        } else {
-            let on_disk = std::fs::read_to_string(&path).unwrap_or_default();
-            assert!(
-                on_disk == text,
-                "{} is missing or stale: rerun with CAMGEOM_WRITE_FIXTURES=1",
-                path.display()
-            );
-        }
-    }
-}
-
 /// `(x1, x2)` of a fixture, in `T`.
 fn load<T: Real>(name: &str) -> (Vec<Point2<T>>, Vec<Point2<T>>) {
-    let table = read_csv(fixture_dir().join(name), &COLUMNS).expect("fixture");
-    let p = |x: f64, y: f64| Point2::new(T::lit(x), T::lit(y));
-    table
-        .rows
-        .iter()
-        .map(|r| (p(r[0], r[1]), p(r[2], r[3])))
-        .unzip()
+    bench::load_pairs(&fixture_dir().join(name))
 }
 
-fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
+fn bench_type<T: Real>(c: &mut Criterion, ty: &str, answers: &mut Answers) {
     let k: Intrinsics<T> = camera().cast();
     let normalised = |v: &[Point2<T>]| -> Vec<Point2<T>> {
         v.iter()
@@ -176,12 +154,20 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
             .collect()
     };
     let (a, b) = load::<T>(&format!("eight_{EIGHT_N}.csv"));
+    let f = eight_point(&a, &b).expect("8-point bench input");
+    answers.record(
+        &format!("eight_point_{EIGHT_N}/{ty}"),
+        json!({ "F": row_major(f.matrix()) }),
+    );
     c.bench_function(&format!("twoview/eight_point_{EIGHT_N}/{ty}"), |bn| {
         bn.iter(|| eight_point(black_box(&a), black_box(&b)))
     });
     let (a, b) = load::<T>("seven.csv");
     let (a7, b7): ([Point2<T>; 7], [Point2<T>; 7]) =
         (a.try_into().expect("7"), b.try_into().expect("7"));
+    let sols = seven_point(&a7, &b7).expect("7-point bench input");
+    let fs: Vec<Vec<f64>> = sols.iter().map(|f| row_major(f.matrix())).collect();
+    answers.record(&format!("seven_point/{ty}"), json!({ "F": fs }));
     c.bench_function(&format!("twoview/seven_point/{ty}"), |bn| {
         bn.iter(|| seven_point(black_box(&a7), black_box(&b7)))
     });
@@ -192,6 +178,8 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
     );
     let sols = five_point(&a5, &b5).expect("five-point bench input");
     eprintln!("twoview/five_point/{ty}: {} solutions", sols.len());
+    let es: Vec<Vec<f64>> = sols.iter().map(|e| row_major(e.matrix())).collect();
+    answers.record(&format!("five_point/{ty}"), json!({ "E": es }));
     c.bench_function(&format!("twoview/five_point/{ty}"), |bn| {
         bn.iter(|| five_point(black_box(&a5), black_box(&b5)))
     });
@@ -203,8 +191,25 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
         ..RansacConfig::default()
     };
     let mut mask = vec![false; a.len()];
-    let (_, rf) = find_fundamental(&a, &b, &config, &mut mask).expect("F bench input");
-    let (_, re) = find_essential(&k, &k, &a, &b, &config, &mut mask).expect("E bench input");
+    let (f, rf) = find_fundamental(&a, &b, &config, &mut mask).expect("F bench input");
+    answers.record(
+        &format!("f_ransac_{RANSAC_N}/{ty}"),
+        json!({ "F": row_major(f.matrix()), "inliers": rf.inliers, "mask": mask }),
+    );
+    let (e, re) = find_essential(&k, &k, &a, &b, &config, &mut mask).expect("E bench input");
+    // The pose the E-RANSAC run leads to, through the same cheirality test OpenCV's
+    // `recoverPose` applies after `findEssentialMat`.
+    let rp = recover_pose(&e, &k, &k, &a, &b, T::lit(50.0), &mut mask.clone()).expect("pose");
+    answers.record(
+        &format!("e_ransac_{RANSAC_N}/{ty}"),
+        json!({
+            "E": row_major(e.matrix()),
+            "R": row_major(rp.pose.rotation().matrix()),
+            "t": rp.pose.translation().iter().map(|v| v.to_f64()).collect::<Vec<_>>(),
+            "inliers": re.inliers,
+            "mask": mask,
+        }),
+    );
     eprintln!(
         "twoview/ransac_{RANSAC_N}/{ty}: F {} inliers, {} samples; E {} inliers, {} samples",
         rf.inliers, rf.iterations, re.inliers, re.iterations
@@ -220,6 +225,15 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
     let e = Essential::<T>::from_matrix(&Essential::from_pose(&truth).expect("E").matrix().cast())
         .expect("E");
     let mut mask = vec![true; a.len()];
+    let rp = recover_pose(&e, &k, &k, &a, &b, T::lit(50.0), &mut mask).expect("pose");
+    answers.record(
+        &format!("recover_pose_{POSE_N}/{ty}"),
+        json!({
+            "R": row_major(rp.pose.rotation().matrix()),
+            "t": rp.pose.translation().iter().map(|v| v.to_f64()).collect::<Vec<_>>(),
+            "supporting": rp.supporting,
+        }),
+    );
     c.bench_function(&format!("twoview/recover_pose_{POSE_N}/{ty}"), |bn| {
         bn.iter(|| {
             mask.iter_mut().for_each(|m| *m = true);
@@ -239,6 +253,36 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
     let p2: RelativePose<T> =
         RelativePose::from_rodrigues(truth.rotation_vector().cast(), truth.translation().cast())
             .expect("pose");
+    for (name, points) in [
+        (
+            "dlt",
+            na.iter()
+                .zip(&nb)
+                .map(|(x, y)| triangulate_dlt(&p1, &p2, x, y).map(|t| t.point))
+                .collect::<Vec<_>>(),
+        ),
+        (
+            "optimal",
+            na.iter()
+                .zip(&nb)
+                .map(|(x, y)| triangulate_optimal(&p1, &p2, x, y).map(|t| t.point))
+                .collect(),
+        ),
+    ] {
+        // A point that fails (behind a camera, at infinity) is `null`.
+        let xyz: Vec<Option<[f64; 3]>> = points
+            .iter()
+            .map(|p| {
+                p.as_ref()
+                    .ok()
+                    .map(|p| [p.x.to_f64(), p.y.to_f64(), p.z.to_f64()])
+            })
+            .collect();
+        answers.record(
+            &format!("triangulate_{name}_{POSE_N}/{ty}"),
+            json!({ "points": xyz }),
+        );
+    }
     c.bench_function(&format!("twoview/triangulate_dlt_{POSE_N}/{ty}"), |bn| {
         bn.iter(|| {
             na.iter()
@@ -263,9 +307,11 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str) {
 }
 
 fn benches(c: &mut Criterion) {
-    sync_fixtures();
-    bench_type::<f32>(c, "f32");
-    bench_type::<f64>(c, "f64");
+    bench::sync_fixtures(&fixture_dir(), &generate());
+    let mut answers = Answers::new(env!("CARGO_TARGET_TMPDIR"), "twoview");
+    bench_type::<f32>(c, "f32", &mut answers);
+    bench_type::<f64>(c, "f64", &mut answers);
+    answers.save();
 }
 
 criterion_group! {
