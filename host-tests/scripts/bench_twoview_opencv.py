@@ -26,77 +26,41 @@ camgeom / OpenCV.
 """
 
 import argparse
-import json
-import os
-import statistics
-import time
 
 import cv2
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-FIXTURES = os.path.join(HERE, "..", "data", "fixtures", "twoview_bench")
+from cvbench import criterion_median, fixture, load_pairs, median_ns, seeded
+from cvbench import fmt_ns as fmt
 
-
-def load(name):
-    a = np.loadtxt(os.path.join(FIXTURES, name), delimiter=",", skiprows=1, dtype=np.float64)
-    return a[:, :2].copy(), a[:, 2:].copy()
+BENCH = "twoview_bench"
 
 
 def truth():
-    v = np.loadtxt(os.path.join(FIXTURES, "truth.csv"), delimiter=",", skiprows=1)
+    v = np.loadtxt(fixture(BENCH, "truth.csv"), delimiter=",", skiprows=1)
     fx, fy, cx, cy = v[:4]
     k = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
     return k, v[4:13].reshape(3, 3), v[13:16].reshape(3, 1), v[16:25].reshape(3, 3)
 
 
-def median_ns(fn, target_s=1.0, batches=31):
-    """Median per-call time (ns) over `batches` batches sized to take ~target_s in total."""
-    fn()
-    n = 1
-    while True:
-        t = time.perf_counter_ns()
-        for _ in range(n):
-            fn()
-        dt = time.perf_counter_ns() - t
-        if dt > 2e7 or n > 1 << 20:
-            break
-        n *= 2
-    per_batch = max(1, int(n * (target_s * 1e9 / batches) / max(dt, 1)))
-    samples = []
-    for _ in range(batches):
-        t = time.perf_counter_ns()
-        for _ in range(per_batch):
-            fn()
-        samples.append((time.perf_counter_ns() - t) / per_batch)
-    return statistics.median(samples)
-
-
-def seeded(fn):
-    def call():
-        cv2.setRNGSeed(1)
-        return fn()
-    return call
-
-
 def cases():
     k, r, t, e = truth()
     out = []
-    a, b = load("eight_64.csv")
+    a, b = load_pairs(BENCH, "eight_64.csv")
     out.append(("eight_point_64", "findFundamentalMat(FM_8POINT)",
                 lambda a=a, b=b: cv2.findFundamentalMat(a, b, cv2.FM_8POINT)))
-    a, b = load("seven.csv")
+    a, b = load_pairs(BENCH, "seven.csv")
     out.append(("seven_point", "findFundamentalMat(FM_7POINT)",
                 lambda a=a, b=b: cv2.findFundamentalMat(a, b, cv2.FM_7POINT)))
-    a, b = load("five.csv")
+    a, b = load_pairs(BENCH, "five.csv")
     out.append(("five_point", "findEssentialMat(RANSAC) on 5 rows",
-                seeded(lambda a=a, b=b: cv2.findEssentialMat(a, b, k, cv2.RANSAC, 0.999, 1.0))))
-    a, b = load("ransac_200.csv")
+                seeded(cv2, lambda a=a, b=b: cv2.findEssentialMat(a, b, k, cv2.RANSAC, 0.999, 1.0))))
+    a, b = load_pairs(BENCH, "ransac_200.csv")
     out.append(("f_ransac_200", "findFundamentalMat(FM_RANSAC, 1.0, 0.999)",
-                seeded(lambda a=a, b=b: cv2.findFundamentalMat(a, b, cv2.FM_RANSAC, 1.0, 0.999))))
+                seeded(cv2, lambda a=a, b=b: cv2.findFundamentalMat(a, b, cv2.FM_RANSAC, 1.0, 0.999))))
     out.append(("e_ransac_200", "findEssentialMat(RANSAC, 0.999, 1.0)",
-                seeded(lambda a=a, b=b: cv2.findEssentialMat(a, b, k, cv2.RANSAC, 0.999, 1.0))))
-    a, b = load("pose_100.csv")
+                seeded(cv2, lambda a=a, b=b: cv2.findEssentialMat(a, b, k, cv2.RANSAC, 0.999, 1.0))))
+    a, b = load_pairs(BENCH, "pose_100.csv")
     out.append(("recover_pose_100", "recoverPose(E, x1, x2, K)",
                 lambda a=a, b=b: cv2.recoverPose(e, a, b, k)))
     kinv = np.linalg.inv(k)
@@ -111,29 +75,12 @@ def cases():
 
 def report_inliers():
     k, _, _, _ = truth()
-    a, b = load("ransac_200.csv")
+    a, b = load_pairs(BENCH, "ransac_200.csv")
     cv2.setRNGSeed(1)
     _, m = cv2.findFundamentalMat(a, b, cv2.FM_RANSAC, 1.0, 0.999)
     cv2.setRNGSeed(1)
     _, me = cv2.findEssentialMat(a, b, k, cv2.RANSAC, 0.999, 1.0)
     print(f"ransac_200: OpenCV F {int(m.sum())} inliers, E {int(me.sum())} inliers")
-
-
-def criterion_median(root, case, ty):
-    path = os.path.join(root, f"twoview_{case}_{ty}", "new", "estimates.json")
-    try:
-        with open(path) as f:
-            return json.load(f)["median"]["point_estimate"]
-    except OSError:
-        return None
-
-
-def fmt(ns):
-    if ns >= 1e6:
-        return f"{ns / 1e6:.2f} ms"
-    if ns >= 1e3:
-        return f"{ns / 1e3:.2f} µs"
-    return f"{ns:.0f} ns"
 
 
 def main():
@@ -150,7 +97,7 @@ def main():
     print("|---|---|---:|---:|---:|---:|---:|")
     for case, call, fn in cases():
         theirs = median_ns(fn, args.seconds)
-        ours = {ty: criterion_median(args.criterion, case, ty) if args.criterion else None
+        ours = {ty: criterion_median(args.criterion, f"twoview/{case}/{ty}") if args.criterion else None
                 for ty in ("f32", "f64")}
         cols = [fmt(ours[ty]) if ours[ty] else "-" for ty in ("f32", "f64")]
         ratios = [f"{ours[ty] / theirs:.2f}" if ours[ty] else "-" for ty in ("f32", "f64")]
