@@ -8,9 +8,6 @@
 //! pipeline and the stack high-water mark. `cargo xtask run` parses these lines: keep their
 //! wording in step with `xtask/src/mainjob.rs`.
 
-use core::cell::UnsafeCell;
-use core::sync::atomic::{AtomicBool, Ordering};
-
 use camgeom::image::ImageView;
 use camgeom::target::TargetState;
 use camgeom_fw_app::pipeline::{AppError, Clock, FrameReport, Pipeline, StageCosts};
@@ -22,33 +19,6 @@ use crate::{board, cost};
 /// Pyramid levels, KLT window, corner candidates and tracks of the main job (shared with the
 /// host replay).
 pub use camgeom_fw_app::run::{CANDIDATES, LEVELS, TRACKS, WIN};
-
-/// A static handed out once as `&'static mut` (zero-initialised: it lives in `.bss` and is
-/// never built on the stack).
-pub struct Once<T> {
-    taken: AtomicBool,
-    v: UnsafeCell<T>,
-}
-// SAFETY: the value is only reached through `take`, which hands it out at most once.
-unsafe impl<T: Send> Sync for Once<T> {}
-impl<T> Once<T> {
-    pub const fn new(v: T) -> Self {
-        Self {
-            taken: AtomicBool::new(false),
-            v: UnsafeCell::new(v),
-        }
-    }
-    // Sound: the flag hands the value out at most once, so the `&mut` is unique.
-    #[allow(clippy::mut_from_ref)]
-    pub fn take(&'static self) -> &'static mut T {
-        if self.taken.swap(true, Ordering::AcqRel) {
-            defmt::error!("static buffer taken twice");
-            board::exit_failure()
-        }
-        // SAFETY: first and only take: no other reference exists.
-        unsafe { &mut *self.v.get() }
-    }
-}
 
 /// SysTick, in instructions (QEMU `-icount`) or cycles (hardware).
 struct SysTickClock;

@@ -12,12 +12,14 @@ mod board;
 #[allow(dead_code)]
 mod cost;
 mod job;
+mod once;
 mod semihost;
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 
-use crate::job::{CANDIDATES, LEVELS, Once, TRACKS, WIN};
+use crate::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use crate::once::Once;
 
 const W: usize = 320;
 const H: usize = 240;

@@ -31,6 +31,8 @@
 mod board;
 #[path = "../cost.rs"]
 mod cost;
+#[path = "../once.rs"]
+mod once;
 
 use core::hint::black_box;
 
@@ -231,9 +233,7 @@ fn main() -> ! {
 /// KLT, pyramid and the planar-target loop on 320x240 synthetic frames; buffers in statics.
 #[cfg(not(feature = "size-baseline"))]
 mod klt_bench {
-    use core::cell::UnsafeCell;
     use core::hint::black_box;
-    use core::sync::atomic::{AtomicBool, Ordering};
 
     use camgeom::camera::{Camera, Intrinsics};
     use camgeom::corners::{self, Corner};
@@ -251,6 +251,7 @@ mod klt_bench {
     use super::check;
     use crate::board;
     use crate::cost::{CostTable, measure};
+    use crate::once::Once;
 
     const W: usize = 320;
     const H: usize = 240;
@@ -270,33 +271,6 @@ mod klt_bench {
     const FX: f32 = 300.0;
     const CX: f32 = 159.5;
     const CY: f32 = 119.5;
-
-    /// A static buffer handed out once as `&'static mut` (zero-initialised: it lives in .bss
-    /// and is never built on the stack).
-    struct Once<T> {
-        taken: AtomicBool,
-        v: UnsafeCell<T>,
-    }
-    // SAFETY: the value is only reached through `take`, which hands it out at most once.
-    unsafe impl<T: Send> Sync for Once<T> {}
-    impl<T> Once<T> {
-        const fn new(v: T) -> Self {
-            Self {
-                taken: AtomicBool::new(false),
-                v: UnsafeCell::new(v),
-            }
-        }
-        // Sound: the flag hands the value out at most once, so the `&mut` is unique.
-        #[allow(clippy::mut_from_ref)]
-        fn take(&'static self) -> &'static mut T {
-            if self.taken.swap(true, Ordering::AcqRel) {
-                defmt::error!("static buffer taken twice");
-                board::exit_failure()
-            }
-            // SAFETY: first and only take: no other reference exists.
-            unsafe { &mut *self.v.get() }
-        }
-    }
 
     const PYR_LEN: usize = buffer_len(W, H, LEVELS);
     static FRAME_A: Once<[u8; W * H]> = Once::new([0; W * H]);

@@ -11,13 +11,16 @@ mod board;
 mod cost;
 #[path = "../job.rs"]
 mod job;
+#[path = "../once.rs"]
+mod once;
 #[path = "../semihost.rs"]
 mod semihost;
 
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 
-use crate::job::{CANDIDATES, LEVELS, Once, TRACKS, WIN};
+use crate::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use crate::once::Once;
 
 const W: usize = 160;
 const H: usize = 120;

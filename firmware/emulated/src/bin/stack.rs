@@ -19,10 +19,10 @@ mod board;
 #[allow(dead_code)]
 #[path = "../cost.rs"]
 mod cost;
+#[path = "../once.rs"]
+mod once;
 
-use core::cell::UnsafeCell;
 use core::hint::black_box;
-use core::sync::atomic::{AtomicBool, Ordering};
 
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
@@ -41,6 +41,8 @@ use camgeom::target::{PlanarTarget, TargetConfig};
 use camgeom::transform::Pose;
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
+
+use crate::once::Once;
 
 const W: usize = 320;
 const H: usize = 240;
@@ -105,32 +107,6 @@ fn measure<R>(f: impl FnOnce() -> R) -> (R, u32) {
 #[inline(never)]
 fn call<R>(f: impl FnOnce() -> R) -> R {
     f()
-}
-
-/// A static buffer handed out once as `&'static mut` (in .bss, never built on the stack).
-struct Once<T> {
-    taken: AtomicBool,
-    v: UnsafeCell<T>,
-}
-// SAFETY: the value is only reached through `take`, which hands it out at most once.
-unsafe impl<T: Send> Sync for Once<T> {}
-impl<T> Once<T> {
-    const fn new(v: T) -> Self {
-        Self {
-            taken: AtomicBool::new(false),
-            v: UnsafeCell::new(v),
-        }
-    }
-    // Sound: the flag hands the value out at most once, so the `&mut` is unique.
-    #[allow(clippy::mut_from_ref)]
-    fn take(&'static self) -> &'static mut T {
-        if self.taken.swap(true, Ordering::AcqRel) {
-            defmt::error!("static buffer taken twice");
-            board::exit_failure()
-        }
-        // SAFETY: first and only take: no other reference exists.
-        unsafe { &mut *self.v.get() }
-    }
 }
 
 const PYR_LEN: usize = buffer_len(W, H, LEVELS);
