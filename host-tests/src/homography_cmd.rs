@@ -161,23 +161,33 @@ pub fn read_matches(path: &PathBuf) -> camgeom_host::Result<Vec<(Point2<f64>, Po
         .collect())
 }
 
-/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
-pub fn run(a: &HomographyArgs) -> Result<String, String> {
-    let (source, matches, from_images) = match (&a.images, &a.matches) {
+/// The correspondences of a subcommand's input, `--images A B` (matched with [`match_images`])
+/// or else `--matches FILE.csv` ([`read_matches`]): `(source, matches, from_images)`, `source`
+/// naming the input in error messages and `from_images` telling feature matches from rows.
+pub fn read_input(
+    images: Option<&[PathBuf]>,
+    matches: Option<&PathBuf>,
+) -> Result<(String, Correspondences, bool), String> {
+    match (images, matches) {
         (Some(images), _) => {
-            let [ia, ib] = images.as_slice() else {
+            let [ia, ib] = images else {
                 return Err("--images takes two files".into());
             };
             let source = format!("{} -> {}", ia.display(), ib.display());
-            (source, match_images(ia, ib)?, true)
+            Ok((source, match_images(ia, ib)?, true))
         }
-        (None, Some(path)) => (
+        (None, Some(path)) => Ok((
             path.display().to_string(),
             read_matches(path).map_err(|e| e.to_string())?,
             false,
-        ),
-        (None, None) => return Err("one of --matches and --images is required".into()),
-    };
+        )),
+        (None, None) => Err("one of --matches and --images is required".into()),
+    }
+}
+
+/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
+pub fn run(a: &HomographyArgs) -> Result<String, String> {
+    let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
     let json = if a.f32 {
         to_json(&estimate::<f32>(a, &source, &matches, from_images)?)
     } else {

@@ -38,7 +38,7 @@ use camgeom_host::{load_camera, status_name};
 use clap::Args;
 use serde::Serialize;
 
-use crate::homography_cmd::{match_images, read_matches};
+use crate::homography_cmd::read_input;
 
 #[derive(Args, Debug)]
 pub struct TwoviewArgs {
@@ -124,21 +124,7 @@ pub struct TwoviewOutput<T> {
 
 /// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
 pub fn run(a: &TwoviewArgs) -> Result<String, String> {
-    let (source, matches, from_images) = match (&a.images, &a.matches) {
-        (Some(images), _) => {
-            let [ia, ib] = images.as_slice() else {
-                return Err("--images takes two files".into());
-            };
-            let source = format!("{} -> {}", ia.display(), ib.display());
-            (source, match_images(ia, ib)?, true)
-        }
-        (None, Some(path)) => (
-            path.display().to_string(),
-            read_matches(path).map_err(|e| e.to_string())?,
-            false,
-        ),
-        (None, None) => return Err("one of --matches and --images is required".into()),
-    };
+    let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
     let spec1 = load_camera(&a.intrinsics1).map_err(|e| e.to_string())?;
     let spec2 = match &a.intrinsics2 {
         Some(p) => load_camera(p).map_err(|e| e.to_string())?,
