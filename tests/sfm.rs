@@ -1,10 +1,13 @@
 //! Three-view structure from motion on synthetic scenes with exact ground truth.
 
+mod common;
+
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::rng::Pcg32;
 use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views};
 use camgeom::transform::Pose;
+use common::{dir_err, rot_err};
 
 const N: usize = 256;
 
@@ -76,20 +79,6 @@ fn scene(
         }
     }
     (world, tracks)
-}
-
-fn rot_err(a: &Pose<f64>, b: &Pose<f64>) -> f64 {
-    (a.isometry().rotation * b.isometry().rotation.inverse())
-        .angle()
-        .to_degrees()
-}
-
-fn dir_err(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    a.normalize()
-        .dot(&b.normalize())
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
 }
 
 #[test]

@@ -1,6 +1,8 @@
 //! Two-view geometry on synthetic scenes with exact ground truth: noise 0..2 px, outliers
 //! 0..50 %, `f64` and `f32`.
 
+mod common;
+
 use camgeom::camera::Intrinsics;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::ransac::RansacConfig;
@@ -10,6 +12,7 @@ use camgeom::twoview::{
     Essential, RelativePose, View1, eight_point, find_essential, find_fundamental, recover_pose,
     refine_fundamental, triangulate_midpoint,
 };
+use common::{dir_err, rot_err};
 
 struct Scene {
     k: Intrinsics<f64>,
@@ -70,20 +73,6 @@ fn scene(seed: u64, n: usize, noise: f64, outliers: f64) -> Scene {
         x2,
         inlier,
     }
-}
-
-fn rot_err(a: &RelativePose<f64>, b: &RelativePose<f64>) -> f64 {
-    (a.isometry().rotation * b.isometry().rotation.inverse())
-        .angle()
-        .to_degrees()
-}
-
-fn dir_err(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    a.normalize()
-        .dot(&b.normalize())
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees()
 }
 
 #[test]
