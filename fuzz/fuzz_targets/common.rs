@@ -2,7 +2,7 @@
 #![allow(dead_code)]
 
 use arbitrary::Arbitrary;
-use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::nalgebra::{Point, Point2, Point3, Vector3};
 
 /// An `f32` that is usually an ordinary coordinate but can be any bit pattern (NaN, ±inf,
 /// subnormal) or one of the values that break careless numerics.
@@ -71,7 +71,8 @@ pub fn vec3(p: (Num, Num, Num)) -> Vector3<f32> {
     Vector3::new(p.0.get(), p.1.get(), p.2.get())
 }
 
-pub fn apply_edits2(points: &mut [Point2<f32>], edits: &[Edit]) {
+/// Applies `edits` to `points` (2-D or 3-D) in order; nothing for an empty set.
+pub fn apply_edits<const D: usize>(points: &mut [Point<f32, D>], edits: &[Edit]) {
     let n = points.len();
     if n == 0 {
         return;
@@ -88,31 +89,7 @@ pub fn apply_edits2(points: &mut [Point2<f32>], edits: &[Edit]) {
             Edit::ScaleAll(s) => {
                 let s = s.get();
                 for p in points.iter_mut() {
-                    *p = Point2::from(p.coords * s);
-                }
-            }
-        }
-    }
-}
-
-pub fn apply_edits3(points: &mut [Point3<f32>], edits: &[Edit]) {
-    let n = points.len();
-    if n == 0 {
-        return;
-    }
-    for e in edits {
-        match *e {
-            Edit::Duplicate { from, to } => {
-                points[usize::from(to) % n] = points[usize::from(from) % n];
-            }
-            Edit::Collinear { a, b, k, t } => {
-                let (pa, pb) = (points[usize::from(a) % n], points[usize::from(b) % n]);
-                points[usize::from(k) % n] = pa + (pb - pa) * t.get();
-            }
-            Edit::ScaleAll(s) => {
-                let s = s.get();
-                for p in points.iter_mut() {
-                    *p = Point3::from(p.coords * s);
+                    *p = Point::from(p.coords * s);
                 }
             }
         }

@@ -11,7 +11,7 @@ use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::{Edit, Num, Ransac, apply_edits2, finite, pt2};
+use common::{Edit, Num, Ransac, apply_edits, finite, pt2};
 
 #[derive(Debug, Arbitrary)]
 struct Input {
@@ -44,8 +44,8 @@ fuzz_target!(|inp: Input| {
     let n = inp.pairs.len().min(64);
     let mut src: std::vec::Vec<Point2<f32>> = inp.pairs[..n].iter().map(|p| pt2(p.0)).collect();
     let mut dst: std::vec::Vec<Point2<f32>> = inp.pairs[..n].iter().map(|p| pt2(p.1)).collect();
-    apply_edits2(&mut src, &inp.src_edits[..inp.src_edits.len().min(8)]);
-    apply_edits2(&mut dst, &inp.dst_edits[..inp.dst_edits.len().min(8)]);
+    apply_edits(&mut src, &inp.src_edits[..inp.src_edits.len().min(8)]);
+    apply_edits(&mut dst, &inp.dst_edits[..inp.dst_edits.len().min(8)]);
 
     if let (Ok(s4), Ok(d4)) = (
         <&[Point2<f32>; 4]>::try_from(src.get(..4).unwrap_or(&[])),

@@ -14,7 +14,7 @@ use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::{Edit, Num, Ransac, apply_edits2, apply_edits3, check_pose, pt2, pt3, vec3};
+use common::{Edit, Num, Ransac, apply_edits, check_pose, pt2, pt3, vec3};
 
 #[derive(Debug, Arbitrary)]
 struct Input {
@@ -58,7 +58,7 @@ fuzz_target!(|inp: Input| {
 
     let n = inp.world.len().min(40);
     let mut world: std::vec::Vec<Point3<f32>> = inp.world[..n].iter().map(|w| pt3(w.0)).collect();
-    apply_edits3(&mut world, &inp.world_edits[..inp.world_edits.len().min(6)]);
+    apply_edits(&mut world, &inp.world_edits[..inp.world_edits.len().min(6)]);
     let mut pixels: std::vec::Vec<Point2<f32>> = inp.world[..n].iter().map(|w| pt2(w.1)).collect();
     if inp.project {
         if let Some(pose) = &pose {
@@ -70,7 +70,7 @@ fuzz_target!(|inp: Input| {
             }
         }
     }
-    apply_edits2(
+    apply_edits(
         &mut pixels,
         &inp.pixel_edits[..inp.pixel_edits.len().min(6)],
     );

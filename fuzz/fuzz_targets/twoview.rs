@@ -16,7 +16,7 @@ use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::{Edit, Num, Ransac, apply_edits2, finite, pt2, vec3};
+use common::{Edit, Num, Ransac, apply_edits, finite, pt2, vec3};
 
 #[derive(Debug, Arbitrary)]
 struct Input {
@@ -59,8 +59,8 @@ fuzz_target!(|inp: Input| {
     let n = inp.pairs.len().min(48);
     let mut x1: std::vec::Vec<Point2<f32>> = inp.pairs[..n].iter().map(|p| pt2(p.0)).collect();
     let mut x2: std::vec::Vec<Point2<f32>> = inp.pairs[..n].iter().map(|p| pt2(p.1)).collect();
-    apply_edits2(&mut x1, &inp.edits1[..inp.edits1.len().min(8)]);
-    apply_edits2(&mut x2, &inp.edits2[..inp.edits2.len().min(8)]);
+    apply_edits(&mut x1, &inp.edits1[..inp.edits1.len().min(8)]);
+    apply_edits(&mut x2, &inp.edits2[..inp.edits2.len().min(8)]);
     let cfg = inp.ransac.config();
     let mut mask = std::vec![false; n];
     if let Ok((f, r)) = find_fundamental(&x1, &x2, &cfg, &mut mask) {
