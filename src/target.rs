@@ -196,6 +196,13 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         })
     }
 
+    /// The image positions of the features currently tracked, in the flow's own coordinates
+    /// (Q16.16 `i32` for [`crate::klt::Fixed`], `f32` pixels for `f32`), in the order of
+    /// [`Self::features`]: what a determinism check compares bit for bit at any image size.
+    pub fn tracks(&self) -> impl Iterator<Item = [A::Coord; 2]> + '_ {
+        self.features.iter().map(|f| f.pos)
+    }
+
     /// The target's corners `(0, 0), (w, 0), (w, h), (0, h)` on the target plane.
     pub fn target_corners(&self) -> [Point2<f32>; 4] {
         let [w, h] = self.size;

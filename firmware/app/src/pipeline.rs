@@ -231,22 +231,14 @@ pub struct FrameReport {
 }
 
 /// FNV-1a (32 bit) over the features' image positions in Q16.16 (`x`, `y` as little-endian
-/// `i32`), in order: two builds track identically exactly when their checksums agree on
-/// every frame (up to hash collisions).
-///
-/// The positions come from [`PlanarTarget::features`], which gives them as `f32`
-/// (`q / 2¹⁶`): the conversion is exact while `|q| < 2²⁴` (coordinates below 256 px) and
-/// rounds away at most the last Q16.16 bit (2⁻¹⁶ px) beyond, so the checksum sees the raw
-/// tracks to within 1.5e-5 px at 320 px wide, bit for bit at 160 px.
+/// `i32`, [`PlanarTarget::tracks`]), in order: two builds track identically exactly when their
+/// checksums agree on every frame (up to hash collisions).
 pub fn track_checksum<const N: usize>(target: &PlanarTarget<Fixed, N>) -> u32 {
     let mut h: u32 = 0x811c_9dc5;
-    for (p, _) in target.features() {
-        // p * 2^16 is an integer-valued f32 (see above), so the cast is exact.
-        for v in [(p.x * 65536.0) as i32, (p.y * 65536.0) as i32] {
-            for b in v.to_le_bytes() {
-                h ^= u32::from(b);
-                h = h.wrapping_mul(0x0100_0193);
-            }
+    for q in target.tracks() {
+        for b in q.iter().flat_map(|v| v.to_le_bytes()) {
+            h ^= u32::from(b);
+            h = h.wrapping_mul(0x0100_0193);
         }
     }
     h
