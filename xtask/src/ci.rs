@@ -76,17 +76,35 @@ fn steps() -> Vec<Step> {
         "test (root)",
         Box::new(|| run(locked(&mut root_cargo(&["test", "--workspace"])))),
     );
-    for target in TARGETS {
-        for features in [&["--no-default-features"][..], &["--features", "defmt"]] {
-            add(
-                &format!("build camgeom {} ({target})", features.join(" ")),
-                Box::new(move || {
-                    let mut cmd = root_cargo(&["build", "-p", "camgeom", "--target", target]);
-                    cmd.args(features);
-                    run(locked(&mut cmd))
-                }),
-            );
-        }
+    add(
+        "peer harness smoke run: each bench once, its answers and OpenCV's scored (no timing)",
+        Box::new(|| {
+            // The benches run in criterion's test mode in the test profile, whose dependencies
+            // the previous step built; the script installs opencv-python-headless when missing.
+            let mut cmd = Command::new("python3");
+            cmd.current_dir(root())
+                .args(["host-tests/scripts/peers.py", "--smoke"]);
+            run(&mut cmd)
+        }),
+    );
+    for features in [&["--no-default-features"][..], &["--features", "defmt"]] {
+        add(
+            &format!(
+                "build camgeom {} for every no_std target ({})",
+                features.join(" "),
+                TARGETS.join(", ")
+            ),
+            Box::new(move || {
+                // One cargo for all four targets: it schedules their crates on both cores
+                // together (a target at a time left one core idle at each target's tail).
+                let mut cmd = root_cargo(&["build", "-p", "camgeom"]);
+                for target in TARGETS {
+                    cmd.args(["--target", target]);
+                }
+                cmd.args(features);
+                run(locked(&mut cmd))
+            }),
+        );
     }
     add(
         "doc",
