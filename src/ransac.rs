@@ -6,9 +6,11 @@
 //! 1. draw a minimal sample of `s` distinct indices (Floyd's algorithm, seeded [`Pcg32`]),
 //! 2. reject it if [`Estimator::is_sample_valid`] says so, else solve it,
 //! 3. score each model by MSAC (Torr & Zisserman 2000): `C = Σᵢ min(rᵢ², t²)`, lower is better,
+//!    or, per [`Estimator::scoring`], by the number of inliers with `C` breaking ties, or both
+//!    side by side with the winner picked by how much of the band the noise fills,
 //! 4. on a new best model, locally optimise it (Chum et al., LO-RANSAC 2003, with the iterated
 //!    least squares of Lebeda et al. 2012): refit with [`Estimator::refit`] on its inliers at a
-//!    threshold shrinking from `m t` to `t`, keeping refits that lower the cost, and lower the
+//!    threshold shrinking from `m t` to `t`, keeping refits that rank better, and lower the
 //!    iteration budget to `N = ⌈log(1 - p) / log(1 - wˢ)⌉` for inlier ratio `w` and confidence `p`,
 //! 5. stop after `min(N, max_iterations)` samples, then polish the best model once with
 //!    [`Estimator::refine`] (e.g. Levenberg-Marquardt) and write its inlier mask.
@@ -26,6 +28,40 @@ pub const MAX_SAMPLE_SIZE: usize = 8;
 /// Most models a minimal solver may return per sample (the 5-point essential solver's 10);
 /// extra models are ignored.
 pub const MAX_MODELS_PER_SAMPLE: usize = 10;
+
+/// How [`ransac`] ranks two models (and accepts a local-optimisation refit or the final
+/// polish).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Scoring {
+    /// The lower MSAC cost `Σᵢ min(rᵢ², t²)` wins (Torr & Zisserman 2000).
+    #[default]
+    Msac,
+    /// More inliers (`rᵢ² < t²`) win; equal counts go to the lower MSAC cost (COLMAP's
+    /// default support measure). Ranks better than MSAC when the noise fills the band
+    /// (`σ ≳ t / 2`): the residual inside the band then carries more noise than information
+    /// about the model, and weighting inliers by `t² - rᵢ²` only adds variance. Worse when
+    /// `σ ≪ t`: a model bent to take in one more point beats the exact one.
+    InlierCount,
+    /// Both rankings side by side (each with its own local optimisation); the result is the
+    /// MSAC winner when its inliers' mean squared residual is below `(t/4)²` (the noise well
+    /// inside the band), else the [`Scoring::InlierCount`] winner. The iteration budget
+    /// follows the larger inlier count.
+    Adaptive,
+}
+
+impl Scoring {
+    /// Whether support `a` (MSAC cost, inlier count) ranks strictly above `b`.
+    pub fn better<T: Real>(self, a: (T, usize), b: (T, usize)) -> bool {
+        match self {
+            Self::Msac => a.0 < b.0,
+            Self::InlierCount => a.1 > b.1 || (a.1 == b.1 && a.0 < b.0),
+            // The adaptive ranking decides between two winners at the end; pairwise it
+            // ranks by MSAC.
+            Self::Adaptive => a.0 < b.0,
+        }
+    }
+}
 
 /// A model-fitting problem over `num_points` data points addressed by index.
 pub trait Estimator {
@@ -63,6 +99,11 @@ pub trait Estimator {
     /// to keep it. Default: none.
     fn refine(&self, _model: &Self::Model, _inliers: &[bool]) -> Option<Self::Model> {
         None
+    }
+
+    /// How models are ranked. Default: [`Scoring::Msac`].
+    fn scoring(&self) -> Scoring {
+        Scoring::Msac
     }
 }
 
@@ -110,7 +151,7 @@ impl<T: Real> Default for RansacConfig<T> {
 pub struct RansacReport<T: Real = f32> {
     /// Number of inliers of the returned model (`true` entries of the mask).
     pub inliers: usize,
-    /// MSAC cost `Σ min(r², t²)` of the returned model.
+    /// MSAC cost `Σ min(r², t²)` of the returned model (whatever the [`Scoring`]).
     pub cost: T,
     /// Samples drawn.
     pub iterations: u32,
@@ -151,8 +192,16 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
         return Err(Error::TooFewPoints);
     }
     let t2 = config.threshold * config.threshold;
+    let scoring = estimator.scoring();
     let mut rng = Pcg32::new(config.seed);
+    // The best model of each ranking: (model, MSAC cost, inliers). `Adaptive` runs both.
+    let (first, second) = match scoring {
+        Scoring::Msac => (Scoring::Msac, None),
+        Scoring::InlierCount => (Scoring::InlierCount, None),
+        Scoring::Adaptive => (Scoring::Msac, Some(Scoring::InlierCount)),
+    };
     let mut best: Option<(E::Model, T, usize)> = None;
+    let mut best_second: Option<(E::Model, T, usize)> = None;
     let mut budget = config.max_iterations;
     let mut iterations = 0u32;
     let mut sample_buf = [0usize; MAX_SAMPLE_SIZE];
@@ -173,46 +222,52 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
             // A full buffer drops the extra solutions: documented on the constant.
             let _ = models.push(m);
         });
-        for model in models.iter().cloned() {
-            let (cost, count) = score(estimator, &model, t2);
-            if best.as_ref().is_some_and(|b| b.1 <= cost) {
-                continue;
-            }
-            let mut current = (model, cost, count);
-            // Local optimisation by iterated least squares (Lebeda, Matas & Chum 2012): refit
-            // on the inliers at a threshold shrinking from `m t` to `t`, so noisy true inliers
-            // just beyond `t` still pull the fit; keep a refit only if its MSAC cost at `t`
-            // is lower.
-            let rounds = config.local_optimization;
-            for k in 0..rounds {
-                let m = config.lo_threshold_multiplier;
-                let frac = if rounds > 1 {
-                    T::lit(f64::from(k)) / T::lit(f64::from(rounds - 1))
-                } else {
-                    one
+        for model in models.iter() {
+            let (cost, count) = score(estimator, model, t2);
+            let tracks = [(&mut best, Some(first)), (&mut best_second, second)];
+            for (slot, order) in tracks {
+                let Some(order) = order else {
+                    continue;
                 };
-                let tk = config.threshold * (m - (m - one) * frac);
-                write_mask(estimator, &current.0, tk * tk, mask);
-                let Some(refit) = estimator.refit(&current.0, mask) else {
-                    break;
-                };
-                let (c, k) = score(estimator, &refit, t2);
-                if c < current.1 {
-                    current = (refit, c, k);
+                if slot
+                    .as_ref()
+                    .is_some_and(|b| !order.better((cost, count), (b.1, b.2)))
+                {
+                    continue;
                 }
+                let current = local_optimisation(
+                    estimator,
+                    config,
+                    order,
+                    (model.clone(), cost, count),
+                    mask,
+                );
+                budget = budget.min(iterations_needed(
+                    current.2,
+                    n,
+                    s,
+                    config.confidence,
+                    config.max_iterations,
+                ));
+                *slot = Some(current);
             }
-            budget = budget.min(iterations_needed(
-                current.2,
-                n,
-                s,
-                config.confidence,
-                config.max_iterations,
-            ));
-            best = Some(current);
         }
     }
 
-    let Some((mut model, mut cost, _)) = best else {
+    // `Adaptive`: the MSAC winner while the noise sits well inside the band (its inliers'
+    // mean squared residual below `(t/4)²`), else the inlier-count winner.
+    let (chosen, order) = match (second, best, best_second) {
+        (Some(order), Some(m), Some(c)) => {
+            let in_band = m.1 - T::lit((n - m.2.min(n)) as f64) * t2;
+            if m.2 > 0 && in_band * T::lit(16.0) < T::lit(m.2 as f64) * t2 {
+                (Some(m), first)
+            } else {
+                (Some(c), order)
+            }
+        }
+        (_, b, _) => (b, first),
+    };
+    let Some((mut model, mut cost, count)) = chosen else {
         mask.iter_mut().for_each(|m| *m = false);
         return Err(Error::Degenerate);
     };
@@ -220,8 +275,9 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
     if config.refine
         && let Some(polished) = estimator.refine(&model, mask)
     {
-        let (c, _) = score(estimator, &polished, t2);
-        if c <= cost {
+        // Kept unless it scores worse.
+        let (c, k) = score(estimator, &polished, t2);
+        if !order.better((cost, count), (c, k)) {
             model = polished;
             cost = c;
         }
@@ -235,6 +291,40 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
             iterations,
         },
     ))
+}
+
+/// Local optimisation by iterated least squares (Lebeda, Matas & Chum 2012) of a new best
+/// model `(model, cost, inliers)`: refit on the inliers at a threshold shrinking from `m t` to
+/// `t`, so noisy true inliers just beyond `t` still pull the fit; a refit is kept only if it
+/// ranks better under `order` at `t`. Uses `mask` as scratch.
+fn local_optimisation<T: Real, E: Estimator<Scalar = T>>(
+    estimator: &E,
+    config: &RansacConfig<T>,
+    order: Scoring,
+    mut current: (E::Model, T, usize),
+    mask: &mut [bool],
+) -> (E::Model, T, usize) {
+    let one = T::one();
+    let t2 = config.threshold * config.threshold;
+    let rounds = config.local_optimization;
+    for k in 0..rounds {
+        let m = config.lo_threshold_multiplier;
+        let frac = if rounds > 1 {
+            T::lit(f64::from(k)) / T::lit(f64::from(rounds - 1))
+        } else {
+            one
+        };
+        let tk = config.threshold * (m - (m - one) * frac);
+        write_mask(estimator, &current.0, tk * tk, mask);
+        let Some(refit) = estimator.refit(&current.0, mask) else {
+            break;
+        };
+        let (c, k) = score(estimator, &refit, t2);
+        if order.better((c, k), (current.1, current.2)) {
+            current = (refit, c, k);
+        }
+    }
+    current
 }
 
 /// `⌈log(1 - p) / log(1 - wˢ)⌉` samples for inlier ratio `w = inliers / n`, capped at `cap`.
@@ -367,6 +457,70 @@ mod tests {
         let mut mask2 = [false; 100];
         assert_eq!(ransac(&est, &cfg, &mut mask2).unwrap(), (a, report));
         assert_eq!(mask, mask2);
+    }
+
+    /// Two fixed candidate models over a table of squared residuals: model 0 has three
+    /// inliers at `r² = exact` (and a lower MSAC cost), model 1 five at `r² = 0.81 t²`.
+    struct Table {
+        scoring: Scoring,
+        exact: f64,
+    }
+
+    impl Estimator for Table {
+        type Model = usize;
+        type Scalar = f64;
+        fn num_points(&self) -> usize {
+            7
+        }
+        fn sample_size(&self) -> usize {
+            1
+        }
+        fn fit_minimal(&self, s: &[usize], emit: &mut dyn FnMut(usize)) {
+            emit(s[0] % 2);
+        }
+        fn residual_sq(&self, m: &usize, i: usize) -> Option<f64> {
+            let e = self.exact;
+            let r = [
+                [e, e, e, 4.0, 4.0, 4.0, 4.0],
+                [0.81, 0.81, 0.81, 0.81, 0.81, 4.0, 4.0],
+            ];
+            r.get(*m)?.get(i).copied()
+        }
+        fn scoring(&self) -> Scoring {
+            self.scoring
+        }
+    }
+
+    #[test]
+    fn scoring_ranks_by_cost_or_by_count() {
+        let cfg = RansacConfig {
+            threshold: 1.0,
+            confidence: 1.0,
+            max_iterations: 50,
+            ..RansacConfig::default()
+        };
+        let run = |scoring, exact| {
+            let mut mask = [false; 7];
+            let (m, rep) = ransac(&Table { scoring, exact }, &cfg, &mut mask).unwrap();
+            assert_eq!(rep.inliers, mask.iter().filter(|m| **m).count());
+            (m, rep.inliers, rep.cost)
+        };
+        // MSAC: 3 · 0 + 4 t² = 4 beats 5 · 0.81 + 2 t² = 6.05; the count ranking takes the
+        // five inliers.
+        assert_eq!(run(Scoring::Msac, 0.0), (0, 3, 4.0));
+        let (m, k, c) = run(Scoring::InlierCount, 0.0);
+        assert_eq!((m, k), (1, 5));
+        assert!((c - 6.05).abs() < 1e-12);
+        // Adaptive: exact inliers (noise well inside the band) keep the MSAC winner; inliers
+        // at 0.5 t² (the band full of noise) give the count winner.
+        assert_eq!(run(Scoring::Adaptive, 0.0), (0, 3, 4.0));
+        assert_eq!(run(Scoring::Adaptive, 0.01).0, 0);
+        assert_eq!(run(Scoring::Adaptive, 0.5).0, 1);
+        assert_eq!(run(Scoring::Msac, 0.5).0, 0);
+        // Equal counts: the lower cost wins.
+        assert!(Scoring::InlierCount.better((1.0f64, 5), (2.0, 5)));
+        assert!(!Scoring::InlierCount.better((1.0f64, 4), (2.0, 5)));
+        assert!(!Scoring::Msac.better((2.0f64, 5), (2.0, 4)));
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //! two essential matrices): no two-view method can tell them apart from the points alone, and
 //! which one RANSAC lands on is a matter of the sample drawn. OpenCV's `findEssentialMat` +
 //! `recoverPose` on the same undistorted corners lands on the twin (or a cheirality split) in 8
-//! of the 12 pairs below, camgeom in 5 (`host-tests/scripts/chessboard_twoview_opencv.py`;
+//! of the 12 pairs below, camgeom in 6 (`host-tests/scripts/chessboard_twoview_opencv.py`;
 //! neither is wrong: the data cannot decide). This test therefore checks:
 //! every pair's answer explains the corners at their noise level (a twin or the truth, never a
 //! wrong fit); the pairs on the true pose are within the stated bounds; the twins are told
