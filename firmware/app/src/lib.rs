@@ -10,6 +10,7 @@
 pub mod pipeline;
 pub mod qvga;
 pub mod run;
+pub mod slot;
 pub mod source;
 
 pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameReport, Pipeline, StageCosts};

@@ -33,6 +33,7 @@ use camgeom::pose::PoseEstimate;
 use camgeom::pyramid::{self, Pyramid};
 use camgeom::target::{PlanarTarget, Stage, StageProbe, TargetConfig, TargetState};
 
+use crate::slot::Slot;
 use crate::source::FrameSource;
 
 /// Bytes of one `width x height` grayscale frame.
@@ -287,11 +288,11 @@ pub struct Pipeline<
     flow_scratch: [i16; S],
     corner_scratch: [u32; C],
     candidates: [Corner; K],
-    target: Option<PlanarTarget<Fixed, N>>,
+    target: Slot<PlanarTarget<Fixed, N>>,
     /// The buffer holding the latest frame.
     current: usize,
     /// The latest frame's number and what to draw on it.
-    last: Option<LastFrame>,
+    last: Slot<LastFrame>,
 }
 
 impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: usize, const N: usize>
@@ -308,8 +309,9 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
     /// Bytes of RAM this pipeline takes (buffers, target, bookkeeping).
     pub const RAM: usize = core::mem::size_of::<Self>();
 
-    /// An empty pipeline, all zeros: `const`, so a `static` of it lives in `.bss` and is
-    /// never built on the stack.
+    /// An empty pipeline: zero buffers and empty [`Slot`]s, so a `static` of it lives in
+    /// `.bss` (no flash image, never built on the stack). Were it to move to `.data`, the
+    /// main job's flash would triple and its size check (`cargo xtask size`) would fail.
     pub const fn new() -> Self {
         Self {
             frames: [[0; F]; 2],
@@ -321,9 +323,9 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
                 y: 0,
                 score: 0,
             }; K],
-            target: None,
+            target: Slot::empty(),
             current: 0,
-            last: None,
+            last: Slot::empty(),
         }
     }
 
@@ -392,9 +394,9 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
             checksum: track_checksum(&target),
             costs,
         };
-        self.target = Some(target);
+        self.target.set(target);
         self.current = 0;
-        self.last = Some((0, None, Some(*corners)));
+        self.last.set((0, None, Some(*corners)));
         Ok(report)
     }
 
@@ -410,7 +412,7 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
     ) -> Result<Option<FrameReport>, AppError<Src::Error>> {
         Self::check(cfg, source.size())?;
         let (Some(target), Some((prev_index, prev_pose, prev_outline))) =
-            (self.target.as_mut(), self.last)
+            (self.target.get_mut(), self.last.get().copied())
         else {
             return Err(AppError::NotStarted);
         };
@@ -478,7 +480,7 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         costs.total = span(t1, t4);
         let pose = out.pose.map(|p| p.best);
         self.current = 1 - self.current;
-        self.last = Some((index, pose, out.outline));
+        self.last.set((index, pose, out.outline));
         Ok(Some(FrameReport {
             index,
             state: out.state,
