@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """OpenCV's findEssentialMat + recoverPose on the chessboard pairs of
-host-tests/tests/twoview_chessboard.rs: the same recorded corners, undistorted with the bundled
+host-tests/tests/it/twoview_chessboard.rs: the same recorded corners, undistorted with the bundled
 calibration (cv2.undistortPoints, P = K), RANSAC with prob 0.999 and a 1 px threshold; the
 rotation and translation-direction errors against the calibrated per-view poses.
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""OpenCV reference results for camgeom's KLT tests (host-tests/tests/klt.rs).
+"""OpenCV reference results for camgeom's KLT tests (host-tests/tests/it/klt.rs).
 
 Writes into host-tests/data/fixtures/klt/:
 
@@ -72,7 +72,7 @@ def about_centre(w, h, a):
 def warps(w, h):
     """The known motions: name -> 3x3 H mapping frame-1 pixels to frame-2 pixels.
 
-    Keep in sync with `warps()` in host-tests/tests/klt.rs (same numbers)."""
+    Keep in sync with `warps()` in host-tests/tests/it/klt.rs (same numbers)."""
     out = {}
     out["shift_sub"] = np.array([[1, 0, 0.37], [0, 1, -0.61], [0, 0, 1]], dtype=np.float64)
     out["shift_big"] = np.array([[1, 0, 6.25], [0, 1, -3.8], [0, 0, 1]], dtype=np.float64)

@@ -22,7 +22,7 @@ Writes into host-tests/data/fixtures/pose_sequence/:
   opencv.csv   frame,variant,method,rx,ry,rz,tx,ty,tz,rot_deg,t_pct,rms_px
                cv2.solvePnP with SOLVEPNP_IPPE, SOLVEPNP_ITERATIVE, SOLVEPNP_SQPNP on the same
                points; rot_deg the angle of R_est R_true^T, t_pct = |t_est - t_true| / |t_true| * 100.
-and prints OpenCV's table. camgeom's side: cargo test -p camgeom-host --test pose_sequence
+and prints OpenCV's table. camgeom's side: cargo test -p camgeom-host --test it pose_sequence::
 -- --nocapture (reads these files). Run from the repository root.
 
 With --camgeom PATH (the `camgeom` binary, e.g. target/release/camgeom) and --draws N (default

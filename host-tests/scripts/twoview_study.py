@@ -10,7 +10,7 @@ draw): deterministic, nothing stored). Per draw:
   findEssentialMat(x1, x2, K, RANSAC, 0.999, 1.0), recoverPose(E, x1, x2, K, mask);
 - camgeom through its CLI: `camgeom twoview --matches FILE.csv --intrinsics1 K.json
   --threshold 1 --confidence 0.999 --seed S` (S: RansacConfig's default seed, as in
-  tests/twoview_opencv.rs).
+  tests/it/twoview_opencv.rs).
 
 `--threshold PX` changes the RANSAC threshold of both sides (default 1 px, as the fixture).
 
@@ -41,7 +41,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "scripts" /
 import twoview as tv  # noqa: E402  (the fixture generator: scene, draws, OpenCV's side)
 
 STUDY_SEED = 20250612
-# RansacConfig::default().seed (0x5eed_ca4e_0000_0001), what tests/twoview_opencv.rs uses.
+# RansacConfig::default().seed (0x5eed_ca4e_0000_0001), what tests/it/twoview_opencv.rs uses.
 CAMGEOM_SEED = 0x5EEDCA4E00000001
 TIE = 1e-6
 # OpenCV one call at a time (its RNG state is reset before each call; no interleaving).

@@ -1,7 +1,7 @@
 //! `cargo xtask fuzz [SECONDS]`: builds the cargo-fuzz targets of `fuzz/` and runs each for
 //! `SECONDS` (the CI smoke run uses [`SMOKE_SECONDS`]). A crash fails the command; libFuzzer
 //! writes the input to `fuzz/artifacts/<target>/` (turn it into a regression test in
-//! `tests/fuzz_regressions.rs`).
+//! `tests/it/fuzz_regressions.rs`).
 //!
 //! cargo-fuzz needs a nightly compiler: the `nightly` rustup toolchain when installed,
 //! otherwise the current (stable) one with `RUSTC_BOOTSTRAP=1`.

@@ -53,12 +53,12 @@
 //! check (residuals within 1e-3 px of the threshold are not judged) and the matrix check
 //! relative to f32's precision on a 640-px image (`0.032` still holds, see the assertion).
 //!
-//! `cargo test -p camgeom-host --test homography_sweep` runs every combination on one scene
+//! `cargo test -p camgeom-host --test it homography_sweep::` runs every combination on one scene
 //! each (a few seconds in debug) and the σ = 2 bounds. The full sweep, 5 scenes per combination
 //! in f64 and f32, is ignored in debug builds for time (0.4 s in release):
 //!
 //! ```sh
-//! cargo test --release -p camgeom-host --test homography_sweep -- --ignored full_sweep
+//! cargo test --release -p camgeom-host --test it -- --ignored homography_sweep::full_sweep
 //! ```
 
 use camgeom::Real;

@@ -1,12 +1,10 @@
 //! Camera-file loaders: the four formats agree, and malformed files are errors (never panics)
 //! that name the file and what is wrong.
 
-mod common;
-
+use crate::common::{bundled_camera, chessboard, scratch_file};
 use camgeom_host::intrinsics::{camera_from_json, camera_from_storage, camera_from_toml};
 use camgeom_host::storage::Value;
 use camgeom_host::{CameraSpec, ErrorKind, FileStorage, load_camera, read_matrix_text};
-use common::{bundled_camera, chessboard, scratch_file};
 
 /// A malformed-file case: what it is, the file text, and the error kind it must produce.
 type Case<S> = (&'static str, S, fn(&ErrorKind) -> bool);

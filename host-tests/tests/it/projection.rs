@@ -5,14 +5,12 @@
 //! `python3 host-tests/scripts/make_fixtures.py` (see data/README.md); it is committed, so this
 //! test needs neither Python nor OpenCV.
 
-mod common;
-
+use crate::common::{bundled_camera, bundled_poses, chessboard};
 use camgeom::Real;
 use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point3, Vector3};
 use camgeom::transform::Pose;
 use camgeom_host::points::read_csv;
-use common::{bundled_camera, bundled_poses, chessboard};
 
 /// Square size of the board, metres (as in `left_intrinsics.yml` and the fixture script).
 const SQUARE: f64 = 0.025;

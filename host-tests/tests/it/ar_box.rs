@@ -7,8 +7,6 @@
 //! fixed-point and f32 flows tell the same story. `camgeom ar` with the command in README.md
 //! draws the same run (`docs/ar-box.png`).
 
-mod common;
-
 use camgeom::nalgebra::Point2;
 use camgeom::target::{TargetConfig, TargetState};
 use camgeom_host::ar::{ArFrame, ArOptions, run_ar};

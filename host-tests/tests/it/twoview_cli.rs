@@ -2,14 +2,12 @@
 //! a real chessboard pair through its lens distortion against OpenCV's calibrated poses, ORB on
 //! a real image pair and triple (the box sequence), and input errors.
 
-mod common;
-
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
+use crate::common::{bundled_poses, chessboard, scratch_file};
 use camgeom::nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
 use camgeom::rng::Pcg32;
-use common::{bundled_poses, chessboard, scratch_file};
 use serde_json::Value;
 
 fn camgeom(args: &[&str]) -> Output {
@@ -135,7 +133,7 @@ fn synthetic_scene_with_outliers() {
     let n = v["inliers"].as_u64().unwrap() as usize;
     println!("rotation {er:.3} deg, translation {et:.3} deg, inliers {n} (true {true_inliers})");
     // At 0.5 px noise on these scenes the maximum-likelihood estimate is off by up to 0.3 deg
-    // in R and 1 deg in t (tests/twoview.rs: the bounds 2 * noise and 10 * noise hold there
+    // in R and 1 deg in t (tests/it/twoview.rs: the bounds 2 * noise and 10 * noise hold there
     // with wide margins); these bounds are that, with the same margins.
     assert!(er < 1.0, "rotation {er}");
     assert!(et < 5.0, "translation {et}");
@@ -242,7 +240,7 @@ fn chessboard_pair_through_distortion() {
         "left01 -> left02: rotation {er:.3} deg, translation {et:.3} deg, {} inliers, RMS {} px",
         v["inliers"], v["reprojection_rms_px"]
     );
-    // See tests/twoview_chessboard.rs for the error budget of these pairs (the corners'
+    // See tests/it/twoview_chessboard.rs for the error budget of these pairs (the corners'
     // ~0.1 px noise and the calibration's pose uncertainty): 1.5 deg and 3 deg hold every pair on the true pose.
     assert!(er < 1.5 && et < 3.0, "{er} {et}");
     assert!(v["inliers"].as_u64().unwrap() >= 50);

@@ -2,7 +2,7 @@
 //! against the normal equations and nalgebra's SVD, all measured against an `f64` reference
 //! computed from the *same* `f32`-rounded matrix (so only the algorithms' errors are compared).
 //!
-//! Run with `cargo test -p camgeom --test linalg_conditioning -- --nocapture` for the table.
+//! Run with `cargo test -p camgeom --test it linalg_conditioning:: -- --nocapture` for the table.
 
 use camgeom::homography::Normalization;
 use camgeom::linalg::{StreamingQr, svd_jacobi};

@@ -3,12 +3,10 @@
 //! (`--images`, against the Oxford graf ground truth), and input errors (status 2, one line
 //! naming the camgeom error).
 
-mod common;
-
 use std::process::{Command, Output};
 
+use crate::common::scratch_file;
 use camgeom::rng::Pcg32;
-use common::scratch_file;
 use serde_json::Value;
 
 fn camgeom(args: &[&str]) -> Output {
@@ -198,7 +196,7 @@ fn graf(name: &str) -> String {
 }
 
 /// `--images graf1.png graf3.png`: ORB + cross-check + RANSAC, the same pipeline as
-/// `tests/features.rs::graf_homography_from_features_and_ransac`. The printed H maps a 40-px
+/// `tests/it/features.rs::graf_homography_from_features_and_ransac`. The printed H maps a 40-px
 /// grid of graf1 points (those whose true image lies inside graf3) within a mean of 2 px and a
 /// max of 5 px of the ground truth H1to3p (measured 0.49 px mean, 1.35 px max over 311 points;
 /// the features test 0.52 px, 1.4 px).

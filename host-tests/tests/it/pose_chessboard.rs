@@ -6,8 +6,6 @@
 //! reprojection error through the same 5-coefficient lens model, so camgeom's refined pose must
 //! reach OpenCV's iterative (LM) minimum.
 
-mod common;
-
 use std::collections::BTreeMap;
 
 use camgeom::nalgebra::{Point2, Point3, Vector3};
@@ -20,7 +18,7 @@ struct View {
 }
 
 fn views() -> Vec<View> {
-    let text = std::fs::read_to_string(common::chessboard("corners.csv")).unwrap();
+    let text = std::fs::read_to_string(crate::common::chessboard("corners.csv")).unwrap();
     let mut by_name: BTreeMap<String, Vec<(usize, Point2<f64>)>> = BTreeMap::new();
     for line in text.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
@@ -45,7 +43,7 @@ fn views() -> Vec<View> {
 }
 
 fn opencv(name: &str, method: &str) -> (Pose<f64>, f64) {
-    let text = std::fs::read_to_string(common::chessboard("opencv_pnp.csv")).unwrap();
+    let text = std::fs::read_to_string(crate::common::chessboard("opencv_pnp.csv")).unwrap();
     for line in text.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         if f[0] == name && f[1] == method {
@@ -75,7 +73,7 @@ fn rot_deg(a: &Pose<f64>, b: &Pose<f64>) -> f64 {
 
 #[test]
 fn chessboard_pose_matches_opencv() {
-    let cam = common::bundled_camera().camera;
+    let cam = crate::common::bundled_camera().camera;
     let model = model();
     let world: Vec<Point3<f64>> = model.iter().map(|p| Point3::new(p.x, p.y, 0.0)).collect();
     let views = views();

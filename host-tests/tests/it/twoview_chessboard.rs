@@ -14,14 +14,12 @@
 //! wrong fit); the pairs on the true pose are within the stated bounds; the twins are told
 //! apart by the board's shape (a twin reconstructs a perspective-distorted board).
 
-mod common;
-
+use crate::common::{bundled_camera, bundled_poses, chessboard};
 use camgeom::camera::Camera;
 use camgeom::nalgebra::{Matrix3, Point2, Rotation3, Vector3};
 use camgeom::ransac::RansacConfig;
 use camgeom::transform::Transform;
 use camgeom::twoview::{View1, find_essential, recover_pose, triangulate_optimal};
-use common::{bundled_camera, bundled_poses, chessboard};
 
 const NAMES: [&str; 13] = [
     "left01", "left02", "left03", "left04", "left05", "left06", "left07", "left08", "left09",

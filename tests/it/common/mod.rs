@@ -1,6 +1,5 @@
 //! Helpers shared by the synthetic-scene tests (`sfm.rs`, `twoview.rs`): pose errors against
 //! the exact ground truth.
-#![allow(dead_code)] // Each test binary uses a different subset.
 
 use camgeom::nalgebra::Vector3;
 use camgeom::transform::{Frame, Transform};

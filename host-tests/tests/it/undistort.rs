@@ -4,13 +4,11 @@
 //! The OpenCV reference is `data/chessboard/opencv_undistort.csv`, made by
 //! `python3 host-tests/scripts/make_fixtures.py` (see data/README.md).
 
-mod common;
-
+use crate::common::{bundled_camera, chessboard, pixel_grid};
 use camgeom::Real;
 use camgeom::camera::Camera;
 use camgeom::nalgebra::Point2;
 use camgeom_host::points::read_csv;
-use common::{bundled_camera, chessboard, pixel_grid};
 
 const W: u32 = 640;
 const H: u32 = 480;

@@ -2,8 +2,6 @@
 //! `chessboard/opencv_pnp.csv`), on a non-planar scene with a known pose, with outliers
 //! (`--ransac`), and on bad input.
 
-mod common;
-
 use std::process::Command;
 
 use camgeom::nalgebra::{Rotation3, Vector3};
@@ -51,9 +49,9 @@ fn rot_deg(a: &Rotation3<f64>, b: &Rotation3<f64>) -> f64 {
 
 #[test]
 fn chessboard_poses_equal_opencv_iterative() {
-    let corners = std::fs::read_to_string(common::chessboard("corners.csv")).unwrap();
-    let opencv = std::fs::read_to_string(common::chessboard("opencv_pnp.csv")).unwrap();
-    let intr = common::chessboard("left_intrinsics.yml");
+    let corners = std::fs::read_to_string(crate::common::chessboard("corners.csv")).unwrap();
+    let opencv = std::fs::read_to_string(crate::common::chessboard("opencv_pnp.csv")).unwrap();
+    let intr = crate::common::chessboard("left_intrinsics.yml");
     let mut images: Vec<&str> = corners
         .lines()
         .skip(1)
@@ -74,7 +72,7 @@ fn chessboard_poses_equal_opencv_iterative() {
                 f[4]
             ));
         }
-        let pts = common::scratch_file(&format!("{name}.csv"), &csv);
+        let pts = crate::common::scratch_file(&format!("{name}.csv"), &csv);
         let v = pose(intr.to_str().unwrap(), pts.to_str().unwrap(), &[]);
         assert_eq!(v["solver"], "planar");
         assert!(v["alternative"].is_object());
@@ -91,7 +89,7 @@ fn chessboard_poses_equal_opencv_iterative() {
         let dt = (Vector3::new(t[0], t[1], t[2]) - Vector3::new(row[3], row[4], row[5])).norm();
         let dr = rot_deg(&rot(&v), &r_cv);
         let rms = v["rms_px"].as_f64().unwrap();
-        // The same minimum as OpenCV's LM (bounds as in tests/pose_chessboard.rs: 10x the
+        // The same minimum as OpenCV's LM (bounds as in tests/it/pose_chessboard.rs: 10x the
         // observed differences; RMS to 1e-6 px, both stop on a relative-decrease test).
         assert!(dr < 0.01 && dt < 5e-5, "{name}: {dr} deg, {dt} m");
         assert!(rms <= row[6] + 1e-6, "{name}: {rms} vs {}", row[6]);
@@ -135,14 +133,14 @@ fn scene() -> (Rotation3<f64>, Vector3<f64>, Vec<Vector3<f64>>) {
 
 #[test]
 fn non_planar_scene_gives_the_true_pose() {
-    let cam = common::scratch_file("pinhole.json", CAMERA);
+    let cam = crate::common::scratch_file("pinhole.json", CAMERA);
     let (r, t, pts) = scene();
     let mut csv = String::from("X,Y,Z,u,v\n");
     for p in &pts {
         let (u, v) = project(&r, &t, p);
         csv.push_str(&format!("{},{},{},{u},{v}\n", p.x, p.y, p.z));
     }
-    let file = common::scratch_file("scene.csv", &csv);
+    let file = crate::common::scratch_file("scene.csv", &csv);
     let v = pose(cam.to_str().unwrap(), file.to_str().unwrap(), &[]);
     assert_eq!(v["solver"], "pnp");
     assert!(v["alternative"].is_null());
@@ -161,7 +159,7 @@ fn non_planar_scene_gives_the_true_pose() {
         }
         csv.push_str(&format!("{},{},{},{u},{v}\n", p.x, p.y, p.z));
     }
-    let file = common::scratch_file("outliers.csv", &csv);
+    let file = crate::common::scratch_file("outliers.csv", &csv);
     let v = pose(
         cam.to_str().unwrap(),
         file.to_str().unwrap(),
@@ -183,10 +181,10 @@ fn non_planar_scene_gives_the_true_pose() {
 
 #[test]
 fn bad_input_is_a_one_line_error() {
-    let cam = common::scratch_file("pinhole.json", CAMERA);
+    let cam = crate::common::scratch_file("pinhole.json", CAMERA);
     let cam = cam.to_str().unwrap();
     let check = |csv: &str, camera: &str, extra: &[&str], expect: &str| {
-        let file = common::scratch_file("bad.csv", csv);
+        let file = crate::common::scratch_file("bad.csv", csv);
         let mut args = vec![
             "pose",
             "--intrinsics",
@@ -215,7 +213,7 @@ fn bad_input_is_a_one_line_error() {
         "degenerate",
     );
     // A camera with a zero focal length is rejected when it is read.
-    let singular = common::scratch_file(
+    let singular = crate::common::scratch_file(
         "singular.json",
         r#"{"fx": 0.0, "fy": 510.0, "cx": 320.0, "cy": 240.0}"#,
     );

@@ -1,8 +1,7 @@
 //! Two-view geometry on synthetic scenes with exact ground truth: noise 0..2 px, outliers
 //! 0..50 %, `f64` and `f32`.
 
-mod common;
-
+use crate::common::{dir_err, rot_err};
 use camgeom::camera::Intrinsics;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::ransac::RansacConfig;
@@ -12,7 +11,6 @@ use camgeom::twoview::{
     Essential, RelativePose, View1, eight_point, find_essential, find_fundamental, recover_pose,
     refine_fundamental, triangulate_midpoint,
 };
-use common::{dir_err, rot_err};
 
 struct Scene {
     k: Intrinsics<f64>,
@@ -109,7 +107,7 @@ fn essential_and_pose_under_noise_and_outliers() {
         // Bounds from the conditioning of these scenes (60° field of view, depths 4-8, some
         // forward motion): the maximum-likelihood estimate started from the TRUE E on the true
         // inliers is off by as much (seed 2: 0.57 deg, 2.0 deg), and OpenCV's errors are of
-        // the same size (tests/twoview_opencv.rs).
+        // the same size (tests/it/twoview_opencv.rs).
         assert!(r < 1e-6 + 2.0 * noise, "rotation {r}");
         assert!(t < 1e-6 + 10.0 * noise, "translation {t}");
         assert!(rp.supporting > rp.runner_up);

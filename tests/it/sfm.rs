@@ -1,13 +1,11 @@
 //! Three-view structure from motion on synthetic scenes with exact ground truth.
 
-mod common;
-
+use crate::common::{dir_err, rot_err};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::rng::Pcg32;
 use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views};
 use camgeom::transform::Pose;
-use common::{dir_err, rot_err};
 
 const N: usize = 256;
 
@@ -157,7 +155,7 @@ fn reconstructs_three_views() {
         }
         // Bounds from the conditioning of this scene (narrow baseline, 60° field of view): with
         // 30 % outlying observations only ~60 tracks link views 1-2 and two-view rotation
-        // errors of ~0.5 deg at 0.5 px are what OpenCV gets too (tests/twoview_opencv.rs).
+        // errors of ~0.5 deg at 0.5 px are what OpenCV gets too (tests/it/twoview_opencv.rs).
         let tol = 0.05 + 1.2 * noise;
         assert!(r2 < tol && r3 < tol, "rotation {r2} {r3} deg");
         assert!(

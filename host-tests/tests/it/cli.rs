@@ -1,14 +1,12 @@
 //! The `camgeom` binary: output against the OpenCV fixture, and usage/input errors (exit status
 //! 2, one line on stderr, nothing on stdout).
 
-mod common;
-
 use std::io::Write;
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 
+use crate::common::{bundled_poses, chessboard, scratch_file};
 use camgeom_host::points::parse_csv;
-use common::{bundled_poses, chessboard, scratch_file};
 
 fn camgeom(args: &[&str], stdin: Option<&str>) -> Output {
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_camgeom"));
@@ -112,7 +110,7 @@ fn project_matches_opencv() {
         for ((u, v, status), (ru, rv)) in rows.iter().zip(&reference) {
             assert_eq!(status, "ok");
             // The CLI computes in f64 and prints the shortest text that reads back to the same
-            // double, so the f64 library bound (1e-9 px, see tests/projection.rs) holds here too.
+            // double, so the f64 library bound (1e-9 px, see tests/it/projection.rs) holds here too.
             assert!(
                 (u - ru).abs() < 1e-9 && (v - rv).abs() < 1e-9,
                 "view {view}"
@@ -151,7 +149,7 @@ fn project_json_f32_and_stdin() {
         let (u, v) = (p["u"].as_f64().unwrap(), p["v"].as_f64().unwrap());
         assert!((u - ru).abs() < 1e-9 && (v - rv).abs() < 1e-9);
     }
-    // --f32: the firmware's arithmetic; bound as in tests/projection.rs (2e-3 px, measured
+    // --f32: the firmware's arithmetic; bound as in tests/it/projection.rs (2e-3 px, measured
     // ~1.2e-4 px).
     let out = camgeom(
         &[

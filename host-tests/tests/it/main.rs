@@ -1,0 +1,21 @@
+//! The host-side integration tests (recorded data, the CLI, OpenCV fixtures), one module a
+//! subject, in one test binary: one link instead of one per file (run one subject with a
+//! filter: `cargo test -p camgeom-host --test it pose_sequence:: -- --nocapture`).
+
+mod ar_box;
+mod cli;
+mod common;
+mod features;
+mod homography_cli;
+mod homography_sweep;
+mod klt;
+mod klt_cli;
+mod loaders;
+mod pose_chessboard;
+mod pose_cli;
+mod pose_sequence;
+mod projection;
+mod twoview_chessboard;
+mod twoview_cli;
+mod undistort;
+mod warp;
