@@ -3,18 +3,11 @@
 //! (`--images`, against the Oxford graf ground truth), and input errors (status 2, one line
 //! naming the camgeom error).
 
-use std::process::{Command, Output};
+use std::process::Output;
 
-use crate::common::scratch_file;
+use crate::common::{camgeom, scratch_file};
 use camgeom::rng::Pcg32;
 use serde_json::Value;
-
-fn camgeom(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_camgeom"))
-        .args(args)
-        .output()
-        .expect("run camgeom")
-}
 
 fn homography(file: &str, content: &str, extra: &[&str]) -> Output {
     let path = scratch_file(file, content);

@@ -1,15 +1,7 @@
 //! `camgeom flow` and `camgeom track` on the bundled data.
 
-use std::process::Command;
-
+use crate::common::camgeom;
 use camgeom_host::data_dir;
-
-fn camgeom(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_camgeom"))
-        .args(args)
-        .output()
-        .expect("run camgeom")
-}
 
 #[test]
 fn flow_matches_opencv_on_the_basketball_pair() {

@@ -2,17 +2,9 @@
 //! `chessboard/opencv_pnp.csv`), on a non-planar scene with a known pose, with outliers
 //! (`--ransac`), and on bad input.
 
-use std::process::Command;
-
+use crate::common::camgeom;
 use camgeom::nalgebra::{Rotation3, Vector3};
 use serde_json::Value;
-
-fn camgeom(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_camgeom"))
-        .args(args)
-        .output()
-        .expect("run camgeom")
-}
 
 /// Runs `camgeom pose` and parses its JSON (asserting success).
 fn pose(intrinsics: &str, points: &str, extra: &[&str]) -> Value {

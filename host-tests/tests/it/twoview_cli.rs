@@ -3,19 +3,12 @@
 //! a real image pair and triple (the box sequence), and input errors.
 
 use std::path::PathBuf;
-use std::process::{Command, Output};
+use std::process::Output;
 
-use crate::common::{bundled_poses, chessboard, scratch_file};
+use crate::common::{bundled_poses, camgeom, chessboard, scratch_file};
 use camgeom::nalgebra::{Matrix3, Point2, Point3, Rotation3, Vector3};
 use camgeom::rng::Pcg32;
 use serde_json::Value;
-
-fn camgeom(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_camgeom"))
-        .args(args)
-        .output()
-        .expect("run camgeom")
-}
 
 fn json(out: &Output) -> Value {
     assert_eq!(out.status.code(), Some(0), "{out:?}");

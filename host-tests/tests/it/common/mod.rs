@@ -1,6 +1,7 @@
 //! Helpers shared by the integration tests.
 
 use std::path::PathBuf;
+use std::process::{Command, Output};
 
 use camgeom_host::CameraSpec;
 
@@ -52,4 +53,12 @@ pub fn pixel_grid(w: u32, h: u32, step: u32) -> Vec<(f64, f64)> {
     ys.iter()
         .flat_map(|&y| xs.iter().map(move |&x| (x as f64, y as f64)))
         .collect()
+}
+
+/// Runs the `camgeom` binary with `args` and collects its status and output.
+pub fn camgeom(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_camgeom"))
+        .args(args)
+        .output()
+        .expect("run camgeom")
 }
