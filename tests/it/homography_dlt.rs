@@ -8,10 +8,7 @@ use camgeom::nalgebra::{Matrix3, Point2, Rotation2, Vector2};
 use camgeom::rng::Pcg32;
 use proptest::prelude::*;
 
-#[allow(dead_code)]
-mod fixture {
-    include!("fixtures/homography_dlt.rs");
-}
+use crate::fixtures::homography_dlt as fixture;
 
 fn mat(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
     Matrix3::from_fn(|i, j| m[i][j])

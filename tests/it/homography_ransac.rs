@@ -5,10 +5,7 @@ use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2};
 use camgeom::ransac::RansacConfig;
 
-#[allow(dead_code)]
-mod fixture {
-    include!("fixtures/homography_dlt.rs");
-}
+use crate::fixtures::homography_dlt as fixture;
 
 fn mat(m: &[[f64; 3]; 3]) -> Matrix3<f64> {
     Matrix3::from_fn(|i, j| m[i][j])

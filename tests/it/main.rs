@@ -3,6 +3,7 @@
 //! `cargo test --test it twoview_opencv::`).
 
 mod common;
+mod fixtures;
 mod fuzz_regressions;
 mod homography_dlt;
 mod homography_ransac;

@@ -9,10 +9,7 @@ use camgeom::ransac::RansacConfig;
 use camgeom::rng::Pcg32;
 use camgeom::transform::Pose;
 
-#[allow(dead_code)]
-mod fixture {
-    include!("fixtures/pnp_opencv.rs");
-}
+use crate::fixtures::pnp_opencv as fixture;
 
 fn camera() -> Camera<f64> {
     let [fx, fy, cx, cy] = fixture::K;

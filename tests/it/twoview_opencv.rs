@@ -15,10 +15,7 @@ use camgeom::twoview::{
     recover_pose, sampson_distance_sq, seven_point, triangulate_dlt, triangulate_optimal,
 };
 
-#[allow(dead_code)]
-mod fixture {
-    include!("fixtures/twoview_opencv.rs");
-}
+use crate::fixtures::twoview_opencv as fixture;
 
 use fixture::{CASES, Case};
 
