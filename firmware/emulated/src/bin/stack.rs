@@ -2,7 +2,8 @@
 //! emulated Cortex-M7: for each entry point, [`measure`] fills the free stack below the
 //! current stack pointer with a pattern, calls the entry point once on a worst-ish input of
 //! the sizes the firmware uses (320x240 frames, 4 pyramid levels, 21x21 KLT window, 32 and 200
-//! features, 500 RANSAC samples), then finds the lowest word no longer holding the pattern.
+//! features, 500 RANSAC samples, 100 two-view pairs and three-view tracks), then finds the
+//! lowest word no longer holding the pattern.
 //! The distance from the stack pointer at the call to that word is the entry point's
 //! high-water mark (its own frames and everything it calls, plus the few bytes of the closure
 //! that forwards the arguments).
@@ -37,8 +38,13 @@ use camgeom::pose::{PlanarConfig, solve_planar, solve_pnp_ransac};
 use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::ransac::RansacConfig;
 use camgeom::rng::Pcg32;
+use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
 use camgeom::target::{PlanarTarget, TargetConfig};
-use camgeom::transform::Pose;
+use camgeom::transform::{Pose, Transform};
+use camgeom::twoview::{
+    View1, eight_point, find_essential, find_fundamental, five_point, recover_pose, seven_point,
+    triangulate_dlt, triangulate_optimal,
+};
 use cortex_m_rt::entry;
 use defmt_semihosting as _;
 
@@ -54,6 +60,10 @@ const N_TARGET: usize = 32;
 const N_TRACK: usize = 200;
 /// Exactly this many RANSAC samples (confidence 1: no early stop).
 const RANSAC_ITERATIONS: u32 = 500;
+/// Two-view correspondences (and three-view tracks).
+const N_PAIRS: usize = 100;
+/// E-RANSAC samples: each is a 5-point solve in software `f64`, ~15M instructions.
+const E_RANSAC_ITERATIONS: u32 = 20;
 /// The pattern painted below the stack pointer: cortex-m-rt's, so that
 /// [`board::stack_usage`] still reads the whole run's high-water mark at the end.
 const PAINT: u32 = cortex_m_rt::STACK_PAINT_VALUE;
@@ -147,6 +157,7 @@ static H_SRC: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
 static H_DST: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
 static H_MASK: Once<[bool; N_TRACK]> = Once::new([false; N_TRACK]);
 static TARGET: Once<Option<PlanarTarget<Fixed, N_TARGET>>> = Once::new(None);
+static SFM: Once<Option<SfmWorkspace<f32, N_PAIRS>>> = Once::new(None);
 
 fn fail(what: &str, e: camgeom::Error) -> ! {
     defmt::error!("{=str}: {}", what, e);
@@ -407,6 +418,140 @@ fn main() -> ! {
     if let Err(e) = r {
         fail("target step", e)
     }
+    // ---- two-view: 100 pairs of a camera moving sideways, every other one an outlier ----
+    let kp = match Intrinsics::new(600.0f32, 600.0, 320.0, 240.0) {
+        Ok(k) => black_box(k),
+        Err(e) => fail("intrinsics", e),
+    };
+    let rel = |r: [f32; 3], t: [f32; 3]| match Pose::from_rodrigues(r.into(), t.into()) {
+        Ok(p) => p,
+        Err(e) => fail("pose", e),
+    };
+    // World = view 1; views 2 and 3 to its right and above.
+    let views = [
+        rel([0.04, -0.12, 0.03], [-0.8, 0.1, 0.2]),
+        rel([-0.05, 0.1, 0.02], [0.3, -0.7, 0.1]),
+    ];
+    let mut g2 = Pcg32::new(0x7477_6f76);
+    let mut see = |pose: Option<&Pose<f32>>, x: &Point3<f32>| {
+        let c = pose.map_or(*x, |p| p.apply(x));
+        let u = kp.normalized_to_pixel(&Point2::new(c.x / c.z, c.y / c.z));
+        Point2::new(
+            u.x + 0.5 * g2.normal() as f32,
+            u.y + 0.5 * g2.normal() as f32,
+        )
+    };
+    let mut tracks: [Track<f32>; N_PAIRS] = [[None; 3]; N_PAIRS];
+    let (mut xa, mut xb) = ([ORIGIN2; N_PAIRS], [ORIGIN2; N_PAIRS]);
+    let mut gx = Pcg32::new(0x7477_0001);
+    for (i, ((t, a), b)) in tracks
+        .iter_mut()
+        .zip(xa.iter_mut())
+        .zip(xb.iter_mut())
+        .enumerate()
+    {
+        let x = Point3::new(
+            gx.uniform(-2.0, 2.0) as f32,
+            gx.uniform(-1.5, 1.5) as f32,
+            gx.uniform(4.0, 8.0) as f32,
+        );
+        let [v2, v3] = &views;
+        *t = [
+            Some(see(None, &x)),
+            Some(see(Some(v2), &x)),
+            Some(see(Some(v3), &x)),
+        ];
+        *a = t[0].unwrap_or(ORIGIN2);
+        *b = if i % 2 == 0 {
+            t[1].unwrap_or(ORIGIN2)
+        } else {
+            Point2::new(gx.uniform(0.0, 640.0) as f32, gx.uniform(0.0, 480.0) as f32)
+        };
+    }
+    let (xa, xb) = black_box((xa, xb));
+    // Minimal samples from the inliers (even indices); the 5-point solver takes normalised
+    // coordinates.
+    let pick = |x: &[Point2<f32>; N_PAIRS], k: usize| x.get(2 * k).copied().unwrap_or(ORIGIN2);
+    let norm = |p: Point2<f32>| kp.pixel_to_normalized(&p).unwrap_or(ORIGIN2);
+    let (s7a, s7b) = black_box((
+        core::array::from_fn::<_, 7, _>(|k| pick(&xa, k)),
+        core::array::from_fn::<_, 7, _>(|k| pick(&xb, k)),
+    ));
+    let (s5a, s5b) = black_box((
+        core::array::from_fn::<_, 5, _>(|k| norm(pick(&xa, k))),
+        core::array::from_fn::<_, 5, _>(|k| norm(pick(&xb, k))),
+    ));
+    let (r, s) = measure(|| eight_point(&xa[..], &xb[..]));
+    row("eight_point 100 pairs", s, &mut rows);
+    if let Err(e) = r {
+        fail("eight_point", e)
+    }
+    let (r, s) = measure(|| seven_point(&s7a, &s7b));
+    row("seven_point", s, &mut rows);
+    if let Err(e) = r {
+        fail("seven_point", e)
+    }
+    let (r, s) = measure(|| five_point(&s5a, &s5b));
+    row("five_point (f64 inside)", s, &mut rows);
+    if let Err(e) = r {
+        fail("five_point", e)
+    }
+    let mut tmask = [false; N_PAIRS];
+    let fcfg = black_box(RansacConfig {
+        threshold: 1.0f32,
+        confidence: 1.0,
+        max_iterations: RANSAC_ITERATIONS,
+        ..RansacConfig::default()
+    });
+    let (r, s) = measure(|| find_fundamental(&xa[..], &xb[..], &fcfg, &mut tmask[..]));
+    row("find_fundamental 100 pairs, 500 samples", s, &mut rows);
+    if let Err(e) = r {
+        fail("find_fundamental", e)
+    }
+    // E samples cost ~15M instructions each (f64 5-point in software): the depth does not
+    // depend on the count.
+    let ecfg = black_box(RansacConfig {
+        max_iterations: E_RANSAC_ITERATIONS,
+        ..fcfg
+    });
+    let (r, s) = measure(|| find_essential(&kp, &kp, &xa[..], &xb[..], &ecfg, &mut tmask[..]));
+    row("find_essential 100 pairs, 20 samples", s, &mut rows);
+    let e = match r {
+        Ok((e, _)) => e,
+        Err(e) => fail("find_essential", e),
+    };
+    let (r, s) = measure(|| recover_pose(&e, &kp, &kp, &xa[..], &xb[..], 50.0, &mut tmask[..]));
+    row("recover_pose 100 pairs", s, &mut rows);
+    let recovered = match r {
+        Ok(r) => r,
+        Err(e) => fail("recover_pose", e),
+    };
+    let (p1, p2) = (Transform::<View1, View1, f32>::identity(), recovered.pose);
+    let (a0, b0) = black_box((norm(pick(&xa, 0)), norm(pick(&xb, 0))));
+    let (r, s) = measure(|| triangulate_dlt(&p1, &p2, &a0, &b0));
+    row("triangulate_dlt", s, &mut rows);
+    if let Err(e) = r {
+        fail("triangulate_dlt", e)
+    }
+    let (r, s) = measure(|| triangulate_optimal(&p1, &p2, &a0, &b0));
+    row("triangulate_optimal", s, &mut rows);
+    if let Err(e) = r {
+        fail("triangulate_optimal", e)
+    }
+    let sfm_slot = SFM.take();
+    let sfm_ws = sfm_slot.insert(SfmWorkspace::new());
+    let (tracks, scfg) = black_box((tracks, SfmConfig::default()));
+    let pin = black_box(Camera::pinhole(kp));
+    let (r, s) = measure(|| reconstruct_three_views(&pin, &tracks[..], &scfg, sfm_ws));
+    row(
+        "reconstruct_three_views 100 tracks, 20 bundle steps",
+        s,
+        &mut rows,
+    );
+    if let Err(e) = r {
+        fail("reconstruct_three_views", e)
+    }
+
     let (used, size) = board::stack_usage();
     defmt::info!(
         "stack table: {=u32} entry points; the whole binary used {=u32} of {=u32} bytes of stack",
