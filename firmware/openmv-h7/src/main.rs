@@ -22,7 +22,7 @@
 mod camera;
 mod tracker;
 
-use camgeom_fw_app::FrameSource;
+use camgeom_fw_app::{AppError, FrameReport};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
@@ -36,7 +36,7 @@ use panic_probe as _;
 use static_cell::ConstStaticCell;
 
 use crate::camera::{CAPTURE_WORDS, Camera};
-use crate::tracker::{Outcome, Tracker};
+use crate::tracker::{DwtClock, LostCounter};
 
 bind_interrupts!(struct Irqs {
     DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
@@ -146,69 +146,88 @@ async fn main(_spawner: Spawner) {
         Err(e) => defmt::warn!("camera: cannot read the exposure: {}", e),
     }
 
-    let mut tracker = match Tracker::new() {
-        Ok(t) => t,
-        Err(e) => defmt::panic!("tracker set-up failed: {}", e),
+    let cfg = match tracker::config() {
+        Ok(c) => c,
+        Err(e) => defmt::panic!("configuration: {}", e),
     };
-    let mut frames: u32 = 0;
+    let app = tracker::pipeline();
+    let mut clock = DwtClock::default();
+    let corners = tracker::first_corners();
     loop {
-        let grabbed = match tracker.frame_mut() {
-            Ok(mut frame) => cam.next_frame(&mut frame),
-            Err(e) => defmt::panic!("frame buffer: {}", e),
-        };
-        if let Err(e) = grabbed {
-            defmt::warn!("frame {=u32}: capture failed: {}", frames, e);
-            continue;
+        // Start (or start again) from the card held in the middle half of the view.
+        match app.start(&cfg, &mut cam, &corners, &mut clock) {
+            Ok(r) => defmt::info!(
+                "target started with {=usize} features ({=u32} cycles)",
+                r.features,
+                r.costs.total
+            ),
+            Err(e) => {
+                // A blank view (too few features) or a failed capture: try the next frame.
+                tracker::log_error("start", &e);
+                continue;
+            }
         }
-        let start = cortex_m::peripheral::DWT::cycle_count();
-        let outcome = tracker.process();
-        let cycles = cortex_m::peripheral::DWT::cycle_count().wrapping_sub(start);
-        log(frames, cycles, outcome);
-        frames = frames.wrapping_add(1);
+        let mut lost = LostCounter::default();
+        loop {
+            match app.step(&cfg, &mut cam, &mut clock, &mut |_, _| {}) {
+                Ok(Some(r)) => {
+                    log(&r);
+                    if lost.restart_after(&r) {
+                        defmt::info!(
+                            "target lost for {=u32} frames: starting again",
+                            tracker::RESTART_AFTER_LOST
+                        );
+                        break;
+                    }
+                }
+                // A camera never ends.
+                Ok(None) => break,
+                // A failed capture leaves the pipeline as it was: go on with the next frame.
+                Err(e @ AppError::Source(_)) => tracker::log_error("frame", &e),
+                Err(e) => {
+                    tracker::log_error("frame", &e);
+                    break;
+                }
+            }
+        }
     }
 }
 
 /// One defmt line per frame: the pose (target frame to camera: `t` in metres, rotation vector
-/// in radians) and the per-frame cost in core cycles.
-fn log(frame: u32, cycles: u32, outcome: Result<Outcome, camgeom::Error>) {
-    match outcome {
-        Ok(Outcome::Initialised(n)) if n > 0 => {
+/// in radians), the inliers and the frame's cost in core cycles (pyramid to drawing; the
+/// capture, a DMA wait, apart).
+fn log(r: &FrameReport) {
+    let c = &r.costs;
+    match r.pose {
+        Some(pose) => {
+            let t = pose.pose.translation();
+            let rv = pose.pose.rotation_vector();
             defmt::info!(
-                "frame {=u32}: target initialised with {=usize} features",
-                frame,
-                n
+                "frame {=u32}: {}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles (flow {=u32}, homography {=u32}, pose {=u32}, redetect {=u32}, draw {=u32})",
+                r.index,
+                r.state,
+                r.inliers,
+                t.x,
+                t.y,
+                t.z,
+                rv.x,
+                rv.y,
+                rv.z,
+                pose.rms_px,
+                c.total,
+                c.flow,
+                c.homography,
+                c.pose,
+                c.redetect,
+                c.draw
             )
         }
-        Ok(Outcome::Initialised(_)) => {
-            defmt::info!("frame {=u32}: too few features in the start outline", frame)
-        }
-        Ok(Outcome::Tracked(out)) => match out.pose {
-            Some(pose) => {
-                let t = pose.best.pose.translation();
-                let r = pose.best.pose.rotation_vector();
-                defmt::info!(
-                    "frame {=u32}: {}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles",
-                    frame,
-                    out.state,
-                    out.inliers,
-                    t.x,
-                    t.y,
-                    t.z,
-                    r.x,
-                    r.y,
-                    r.z,
-                    pose.best.rms_px,
-                    cycles
-                )
-            }
-            None => defmt::info!(
-                "frame {=u32}: {}, {=usize} tracked, no pose, {=u32} cycles",
-                frame,
-                out.state,
-                out.tracked,
-                cycles
-            ),
-        },
-        Err(e) => defmt::warn!("frame {=u32}: {}", frame, e),
+        None => defmt::info!(
+            "frame {=u32}: {}, {=usize} tracked, no pose, {=u32} cycles",
+            r.index,
+            r.state,
+            r.tracked,
+            c.total
+        ),
     }
 }

@@ -1,165 +1,116 @@
-//! The per-frame work: a Gaussian pyramid of the new frame, then the planar target tracked
-//! from the previous frame's pyramid to it, and its pose logged.
+//! The per-frame work: the shared `camgeom-fw-app` pipeline at 320x240 (pyramid,
+//! planar-target tracking in Q16.16, IPPE + LM pose, outline and cube drawn into the frame),
+//! the very code the emulated board runs in CI over the recorded sequence and the host
+//! replays bit for bit. This board only adds its camera (a [`camgeom_fw_app::FrameSource`]),
+//! its clock (the DWT cycle counter) and its configuration.
 //!
-//! Everything lives in statics handed out once (AXI SRAM, `memory.x`):
-//!
-//! | buffer | bytes |
-//! |---|---|
-//! | 2 frames, 320x240 (the previous one stays for the flow) | 153 600 |
-//! | 2 pyramids, levels 1-2 (160x120 + 80x60) | 48 000 |
-//! | corner candidates (512 x 8 B) and corner scratch (12 x 320 x 4 B) | 19 456 |
-//! | flow scratch (`klt::scratch_len(15)` `i16`) | 2 886 |
+//! Everything lives in one static in AXI SRAM (`memory.x`): the pipeline's two frames, two
+//! pyramids (levels 1-2), corner candidates and scratch, KLT scratch and the target
+//! ([`Qvga::RAM`] bytes, in `.bss`).
 
-use camgeom::camera::{Camera, Intrinsics};
-use camgeom::corners::{self, Corner};
-use camgeom::image::{ImageMut, ImageView};
-use camgeom::klt::{self, Fixed};
 use camgeom::nalgebra::Point2;
-use camgeom::pyramid::{self, Pyramid};
-use camgeom::target::{PlanarTarget, TargetConfig, TargetFrame, TargetState};
+use camgeom::target::TargetState;
+use camgeom_fw_app::pipeline::{AppConfig, AppError, Clock, FrameReport};
+use camgeom_fw_app::qvga::Qvga;
+use camgeom_fw_app::run::RunSpec;
 use static_cell::ConstStaticCell;
 
 use crate::camera::{HEIGHT, WIDTH};
 
-/// Pyramid levels, the frame included: the coarsest is 80x60 (`TargetConfig`'s default).
-pub const LEVELS: usize = 3;
-const PYR_LEN: usize = pyramid::buffer_len(WIDTH, HEIGHT, LEVELS);
-/// KLT window (pixels, square; `TargetConfig`'s default).
-const WIN: usize = 15;
-const CANDIDATES: usize = 512;
-/// Tracked features at most.
-pub const TRACKS: usize = 32;
-
 /// The target's metric size: a 16 x 12 cm textured card (any planar texture), held so that it
-/// fills [`FIRST_CORNERS`] in the first frame.
-const TARGET_SIZE_M: (f32, f32) = (0.16, 0.12);
-/// The target's corners in the first frame (pixels, the order of
+/// fills [`FIRST_CORNERS`] when the target starts.
+const TARGET_SIZE_M: [f32; 2] = [0.16, 0.12];
+/// The target's corners when it starts (pixels, the order of
 /// `PlanarTarget::target_corners`): the middle half of the image.
-const FIRST_CORNERS: [(f32, f32); 4] = [(80.0, 60.0), (240.0, 60.0), (240.0, 180.0), (80.0, 180.0)];
+const FIRST_CORNERS: [[f32; 2]; 4] = [[80.0, 60.0], [240.0, 60.0], [240.0, 180.0], [80.0, 180.0]];
 
 /// Nominal QVGA intrinsics of the OpenMV Cam H7's stock 2.8 mm lens on the OV7725 (image area
 /// 3.984 x 2.952 mm): `fx = fy = 2.8 / 3.984 · 320 = 224.9` px, principal point at the
-/// centre. Not a calibration: poses are only as good as this guess until the board's camera
-/// is calibrated (e.g. with OpenCV on frames it sends) and the numbers put here.
+/// centre, no distortion. Not a calibration: poses are only as good as this guess until the
+/// board's camera is calibrated (e.g. with OpenCV on frames it sends) and the numbers put here.
 const FX: f32 = 2.8 / 3.984 * WIDTH as f32;
 const CX: f32 = (WIDTH as f32 - 1.0) / 2.0;
 const CY: f32 = (HEIGHT as f32 - 1.0) / 2.0;
 
-static FRAMES: ConstStaticCell<[[u8; WIDTH * HEIGHT]; 2]> =
-    ConstStaticCell::new([[0; WIDTH * HEIGHT]; 2]);
-static PYRAMIDS: ConstStaticCell<[[u8; PYR_LEN]; 2]> = ConstStaticCell::new([[0; PYR_LEN]; 2]);
-static FLOW_SCRATCH: ConstStaticCell<[i16; klt::scratch_len(WIN)]> =
-    ConstStaticCell::new([0; klt::scratch_len(WIN)]);
-static CORNER_SCRATCH: ConstStaticCell<[u32; corners::scratch_len(WIDTH)]> =
-    ConstStaticCell::new([0; corners::scratch_len(WIDTH)]);
-static CANDIDATES_BUF: ConstStaticCell<[Corner; CANDIDATES]> = ConstStaticCell::new(
-    [Corner {
-        x: 0,
-        y: 0,
-        score: 0,
-    }; CANDIDATES],
-);
+/// Consecutive lost frames (the pipeline re-detecting around the last outline each time)
+/// before the target starts again from [`FIRST_CORNERS`]: about a second at 30 fps.
+pub const RESTART_AFTER_LOST: u32 = 30;
 
-/// What one frame gave.
-#[derive(defmt::Format)]
-pub enum Outcome {
-    /// First frame: the target was set up from [`FIRST_CORNERS`] with this many features.
-    Initialised(usize),
-    /// A tracked frame.
-    Tracked(TargetFrame),
+/// The pipeline, in `.bss`.
+static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
+
+/// Takes the pipeline's static; call once.
+pub fn pipeline() -> &'static mut Qvga {
+    APP.take()
 }
 
-/// The tracking state across frames.
-pub struct Tracker {
-    frames: &'static mut [[u8; WIDTH * HEIGHT]; 2],
-    pyramids: &'static mut [[u8; PYR_LEN]; 2],
-    flow_scratch: &'static mut [i16; klt::scratch_len(WIN)],
-    corner_scratch: &'static mut [u32; corners::scratch_len(WIDTH)],
-    candidates: &'static mut [Corner; CANDIDATES],
-    /// Which of `frames` receives the next frame (the other holds the previous one).
-    next: usize,
-    /// Whether the target holds features to track (false before the first successful
-    /// initialisation and after the target was lost).
-    initialised: bool,
-    target: PlanarTarget<Fixed, TRACKS>,
-    camera: Camera<f32>,
-    cfg: TargetConfig,
+/// This board's run: 320x240 from the camera, the nominal camera, the card, and otherwise
+/// exactly the emulated board's configuration ([`RunSpec::app_config`]: tracking parameters,
+/// pyramid levels, cube).
+pub fn config() -> Result<AppConfig, camgeom::Error> {
+    RunSpec {
+        width: WIDTH as u32,
+        height: HEIGHT as u32,
+        // A camera never ends; these two only steer recorded runs.
+        frames: u32::MAX,
+        stride: 1,
+        overlay_every: 0,
+        intrinsics: [FX, FX, CX, CY],
+        distortion: [0.0; 5],
+        target_size: TARGET_SIZE_M,
+        corners: FIRST_CORNERS,
+    }
+    .app_config()
 }
 
-impl Tracker {
-    /// Takes the static buffers; call once.
-    pub fn new() -> Result<Self, camgeom::Error> {
-        let mut cfg = TargetConfig::default();
-        // The buffers are sized for these: keep the configuration tied to them.
-        cfg.lk.win = WIN;
-        cfg.lk.max_level = LEVELS - 1;
-        Ok(Self {
-            frames: FRAMES.take(),
-            pyramids: PYRAMIDS.take(),
-            flow_scratch: FLOW_SCRATCH.take(),
-            corner_scratch: CORNER_SCRATCH.take(),
-            candidates: CANDIDATES_BUF.take(),
-            next: 0,
-            initialised: false,
-            target: PlanarTarget::new(TARGET_SIZE_M.0, TARGET_SIZE_M.1)?,
-            camera: Camera::pinhole(Intrinsics::new(FX, FX, CX, CY)?),
-            cfg,
-        })
-    }
+/// Where the target starts.
+pub fn first_corners() -> [Point2<f32>; 4] {
+    FIRST_CORNERS.map(|[x, y]| Point2::new(x, y))
+}
 
-    /// The buffer the camera writes the next frame into.
-    pub fn frame_mut(&mut self) -> Result<ImageMut<'_, u8>, camgeom::Error> {
-        let buf = self
-            .frames
-            .get_mut(self.next)
-            .ok_or(camgeom::Error::InvalidImage)?;
-        ImageMut::packed(&mut buf[..], WIDTH, HEIGHT)
-    }
+/// The core's cycle counter (DWT `CYCCNT`, enabled at start-up), extended to 64 bits: it wraps
+/// every 8.9 s at 480 MHz, and the pipeline reads it several times a frame.
+#[derive(Debug, Default)]
+pub struct DwtClock {
+    last: u32,
+    wraps: u64,
+}
 
-    /// Processes the frame just written through [`Self::frame_mut`]: builds its pyramid and,
-    /// on the first frame (and after a failed initialisation or a lost target) starts the
-    /// target from [`FIRST_CORNERS`]; on later frames steps it from the previous frame. The one
-    /// place to replace by the shared `firmware/app` pipeline.
-    pub fn process(&mut self) -> Result<Outcome, camgeom::Error> {
-        let cur = self.next;
-        let [frame_a, frame_b] = &*self.frames;
-        let [pyr_a, pyr_b] = &mut *self.pyramids;
-        let (frame, prev_frame, pyr, prev_pyr) = if cur == 0 {
-            (frame_a, frame_b, pyr_a, &*pyr_b)
+impl Clock for DwtClock {
+    fn now(&mut self) -> u64 {
+        let c = cortex_m::peripheral::DWT::cycle_count();
+        if c < self.last {
+            self.wraps = self.wraps.wrapping_add(1);
+        }
+        self.last = c;
+        (self.wraps << 32) | u64::from(c)
+    }
+}
+
+/// Counts consecutive lost frames: says when the target should start again.
+#[derive(Debug, Default)]
+pub struct LostCounter(u32);
+
+impl LostCounter {
+    /// Records a frame's state; `true` once [`RESTART_AFTER_LOST`] lost frames have followed
+    /// each other.
+    pub fn restart_after(&mut self, report: &FrameReport) -> bool {
+        self.0 = if report.state == TargetState::Lost {
+            self.0.saturating_add(1)
         } else {
-            (frame_b, frame_a, pyr_b, &*pyr_a)
+            0
         };
-        let view = ImageView::packed(&frame[..], WIDTH, HEIGHT)?;
-        let next = Pyramid::build(view, &mut pyr[..], LEVELS)?;
-        let outcome = if !self.initialised {
-            let corners = FIRST_CORNERS.map(|(x, y)| Point2::new(x, y));
-            let n = self.target.init(
-                &view,
-                &corners,
-                &self.cfg,
-                &mut self.candidates[..],
-                &mut self.corner_scratch[..],
-            );
-            // Too few features (a blank view): try again on the next frame.
-            self.initialised = n.is_ok();
-            Outcome::Initialised(n.unwrap_or(0))
-        } else {
-            let prev_view = ImageView::packed(&prev_frame[..], WIDTH, HEIGHT)?;
-            let previous = Pyramid::from_buffer(prev_view, &prev_pyr[..], LEVELS)?;
-            let out = self.target.step(
-                &previous,
-                &next,
-                &self.camera,
-                &self.cfg,
-                &mut self.flow_scratch[..],
-                &mut self.candidates[..],
-                &mut self.corner_scratch[..],
-            )?;
-            // Lost: start again from the first-frame corners (the card shown again there).
-            self.initialised = out.state == TargetState::Tracking;
-            Outcome::Tracked(out)
-        };
-        self.next = 1 - cur;
-        Ok(outcome)
+        self.0 >= RESTART_AFTER_LOST
+    }
+}
+
+/// One defmt line for a pipeline error.
+pub fn log_error<E: defmt::Format>(what: &str, e: &AppError<E>) {
+    match e {
+        AppError::Source(e) => defmt::warn!("{=str}: camera: {}", what, e),
+        AppError::Core(e) => defmt::warn!("{=str}: {}", what, e),
+        AppError::NoFrame => defmt::warn!("{=str}: no frame", what),
+        AppError::Geometry => defmt::warn!("{=str}: configuration and buffers disagree", what),
+        AppError::NotStarted => defmt::warn!("{=str}: not started", what),
     }
 }
