@@ -247,13 +247,21 @@ pub fn run_on_qemu_in(
     Ok((summary, messages))
 }
 
-/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections);
-/// returns `(flash, static RAM)` in bytes.
-pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
+/// An allocated section of a firmware ELF.
+pub struct Section {
+    pub name: String,
+    pub address: u64,
+    pub size: u64,
+    /// Whether the image holds its bytes: `.data` does (flash holds its initial value), NOBITS
+    /// sections (`.bss`, `.uninit`) do not.
+    pub has_bytes: bool,
+}
+
+/// The non-empty allocated sections of the ELF at `elf`.
+pub fn alloc_sections(elf: &Path) -> Result<Vec<Section>> {
     let image = fs::read(elf)?;
     let file = object::File::parse(&*image).context("cannot parse the ELF")?;
-    let (mut flash, mut ram) = (0u64, 0u64);
-    let mut rows = Vec::new();
+    let mut out = Vec::new();
     for s in file.sections() {
         let SectionFlags::Elf { sh_flags } = s.flags() else {
             continue;
@@ -261,16 +269,38 @@ pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
         if sh_flags & u64::from(elf::SHF_ALLOC) == 0 || s.size() == 0 {
             continue;
         }
-        let in_ram = s.address() >= RAM_ORIGIN;
-        // NOBITS (.bss, .uninit) has no bytes in the image; .data is in both.
-        let has_bytes = s.file_range().is_some();
+        out.push(Section {
+            name: s.name().unwrap_or("?").to_string(),
+            address: s.address(),
+            size: s.size(),
+            has_bytes: s.file_range().is_some(),
+        });
+    }
+    Ok(out)
+}
+
+/// `name=size` of each section, for the size lines.
+pub fn section_list(sections: &[Section]) -> String {
+    let rows: Vec<String> = sections
+        .iter()
+        .map(|s| format!("{}={}", s.name, s.size))
+        .collect();
+    rows.join(" ")
+}
+
+/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections);
+/// returns `(flash, static RAM)` in bytes.
+pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
+    let sections = alloc_sections(elf)?;
+    let (mut flash, mut ram) = (0u64, 0u64);
+    for s in &sections {
+        let in_ram = s.address >= RAM_ORIGIN;
         if in_ram {
-            ram += s.size();
+            ram += s.size;
         }
-        if !in_ram || has_bytes {
-            flash += s.size();
+        if !in_ram || s.has_bytes {
+            flash += s.size;
         }
-        rows.push(format!("{}={}", s.name().unwrap_or("?"), s.size()));
     }
     println!(
         "firmware size: flash {flash} B of {} KiB ({:.1}%), static RAM {ram} B of {} KiB, \
@@ -278,7 +308,7 @@ pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
         FLASH_LEN / 1024,
         100.0 * flash as f64 / FLASH_LEN as f64,
         RAM_LEN / 1024,
-        rows.join(" ")
+        section_list(&sections)
     );
     Ok((flash, ram))
 }

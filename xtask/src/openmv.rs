@@ -7,9 +7,9 @@ use std::fs;
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use object::{Object, ObjectSection, SectionFlags, elf};
+use object::{Object, ObjectSection};
 
-use crate::firmware::{firmware_cargo, firmware_target_dir};
+use crate::firmware::{alloc_sections, firmware_cargo, firmware_target_dir, section_list};
 use crate::setup::FIRMWARE_TARGET;
 use crate::util::{locked, run};
 
@@ -39,24 +39,13 @@ fn within(addr: u64, size: u64, (origin, len): (u64, u64)) -> bool {
 
 /// Checks the memory map and returns `(flash, static RAM)` bytes.
 pub fn check(elf: &std::path::Path) -> Result<(u64, u64)> {
-    let image = fs::read(elf)?;
-    let file = object::File::parse(&*image).context("cannot parse the ELF")?;
+    let sections = alloc_sections(elf)?;
     let (mut flash, mut ram) = (0u64, 0u64);
-    let mut rows = Vec::new();
-    for s in file.sections() {
-        let SectionFlags::Elf { sh_flags } = s.flags() else {
-            continue;
-        };
-        if sh_flags & u64::from(elf::SHF_ALLOC) == 0 || s.size() == 0 {
-            continue;
-        }
-        let name = s.name().unwrap_or("?");
-        let (addr, size) = (s.address(), s.size());
-        // NOBITS (.bss, .uninit) has no bytes in the image; .data is in both.
-        let has_bytes = s.file_range().is_some();
+    for s in &sections {
+        let (name, addr, size) = (&s.name, s.address, s.size);
         if within(addr, size, AXI_SRAM) {
             ram += size;
-            if has_bytes {
+            if s.has_bytes {
                 flash += size;
             }
         } else if within(addr, size, FLASH) {
@@ -66,8 +55,9 @@ pub fn check(elf: &std::path::Path) -> Result<(u64, u64)> {
                 "section {name} at {addr:#x} ({size} B) is outside the board's flash and AXI SRAM: wrong memory.x?"
             );
         }
-        rows.push(format!("{name}={size}"));
     }
+    let image = fs::read(elf)?;
+    let file = object::File::parse(&*image).context("cannot parse the ELF")?;
     let vectors = file
         .section_by_name(".vector_table")
         .context("no .vector_table")?;
@@ -92,7 +82,7 @@ pub fn check(elf: &std::path::Path) -> Result<(u64, u64)> {
         100.0 * flash as f64 / FLASH.1 as f64,
         AXI_SRAM.1 / 1024,
         100.0 * ram as f64 / AXI_SRAM.1 as f64,
-        rows.join(" ")
+        section_list(&sections)
     );
     Ok((flash, ram))
 }
