@@ -94,6 +94,7 @@ fuzz_target!(|inp: Input| {
     let model: std::vec::Vec<Point2<f32>> = world.iter().map(|w| Point2::new(w.x, w.y)).collect();
     let cfg = PlanarConfig {
         refine_iterations: inp.refine_iterations % 25,
+        alternative_ratio: inp.refine_iterations.rotate_left(3),
     };
     if let Ok(pp) = solve_planar(&camera, &model, &pixels, &mut scratch, &cfg) {
         check_estimate(&pp.best, "solve_planar best");

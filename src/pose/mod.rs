@@ -167,6 +167,42 @@ mod tests {
         );
     }
 
+    /// The second IPPE solution is refined only when it is within `alternative_ratio` of the
+    /// best; the best pose is the same either way, and a skipped alternative reports its
+    /// unrefined error, which refinement could only lower.
+    #[test]
+    fn far_alternative_is_not_refined_and_the_best_is_unchanged() {
+        let cam = camera();
+        let model = board();
+        let mut g = Pcg32::new(17);
+        for truth in views() {
+            let pixels = model.map(|p| {
+                let u = cam.project(&truth, &Point3::new(p.x, p.y, 0.0)).unwrap();
+                Point2::new(u.x + 0.5 * g.normal(), u.y + 0.5 * g.normal())
+            });
+            let scratch = [Point2::origin(); 54];
+            let solve = |alternative_ratio| {
+                let cfg = PlanarConfig {
+                    alternative_ratio,
+                    ..PlanarConfig::default()
+                };
+                solve_planar(&cam, &model, &pixels, &mut scratch.clone(), &cfg).unwrap()
+            };
+            let (skipped, refined) = (solve(4), solve(u8::MAX));
+            assert_eq!(skipped.best, refined.best);
+            // These views are far from fronto-parallel: the alternative is many times off.
+            assert!(skipped.alternative.rms_px > 4.0 * skipped.best.rms_px);
+            assert!(refined.alternative.rms_px <= skipped.alternative.rms_px);
+            // Unrefined: the second IPPE solution itself, with its own error.
+            let normalized = pixels.map(|u| cam.undistort_to_normalized(&u).unwrap());
+            let [_, (p1, _)] = ippe(&model, &normalized).unwrap();
+            assert_eq!(skipped.alternative.pose, p1);
+            let lifted = |i: usize| model.get(i).map(|p| Point3::new(p.x, p.y, 0.0));
+            let rms = refine::rms_with(&cam, &p1, &pixels, lifted).unwrap();
+            assert_eq!(skipped.alternative.rms_px, rms);
+        }
+    }
+
     /// A small, fronto-parallel target far away: both solutions fit nearly equally well.
     #[test]
     fn fronto_parallel_target_is_flagged_ambiguous() {
