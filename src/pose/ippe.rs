@@ -251,18 +251,21 @@ pub fn solve_planar<T: Real>(
     let lifted = |i: usize| model.get(i).map(|p| Point3::new(p.x, p.y, T::zero()));
     let estimate = |p: Pose<T>| refine_pose_with(camera, &p, pixels, cfg.refine_iterations, lifted);
     let a = estimate(p0)?;
-    let rms1 = super::refine::rms_with(camera, &p1, pixels, lifted)?;
+    // The second IPPE solution as it is, reported when it is not refined or when refinement
+    // carries it into the best.
+    let unrefined = PoseEstimate {
+        pose: p1,
+        rms_px: super::refine::rms_with(camera, &p1, pixels, lifted)?,
+    };
     // `above` is false for NaN: such an error goes on to the refinement, which reports it.
-    if above(rms1, T::lit(f64::from(cfg.alternative_ratio)) * a.rms_px)
-        && cfg.alternative_ratio < u8::MAX
+    if above(
+        unrefined.rms_px,
+        T::lit(f64::from(cfg.alternative_ratio)) * a.rms_px,
+    ) && cfg.alternative_ratio < u8::MAX
     {
-        let alternative = PoseEstimate {
-            pose: p1,
-            rms_px: rms1,
-        };
         return Ok(PlanarPose {
             best: a,
-            alternative,
+            alternative: unrefined,
         });
     }
     let b = estimate(p1)?;
@@ -274,12 +277,7 @@ pub fn solve_planar<T: Real>(
         .angle()
         < T::lit(MERGED_DEG.to_radians());
     if merged {
-        // `ippe` sorts its solutions, so p1 is the second one.
-        let rms = super::refine::rms_with(camera, &p1, pixels, lifted)?;
-        alternative = PoseEstimate {
-            pose: p1,
-            rms_px: rms,
-        };
+        alternative = unrefined;
     }
     Ok(PlanarPose { best, alternative })
 }
