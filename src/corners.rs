@@ -264,15 +264,15 @@ pub fn good_features<const K: usize>(
     scratch: &mut [u32],
 ) -> Result<usize> {
     if !(cfg.quality > 0.0 && cfg.quality <= 1.0) || candidates.len() < 2 {
-        return Err(Error::InvalidParameter);
+        return Err(Error::InvalidParameter("quality"));
     }
     let (w, h) = (img.width(), img.height());
     let scratch = scratch
         .get_mut(..scratch_len(w))
-        .ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("scratch"))?;
     let (prods, ring) = scratch
         .split_at_mut_checked(9 * w)
-        .ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("scratch"))?;
     let q = f64::from(cfg.quality);
     let quality_of = |max: u32| (f64::from(max) * q) as u32;
     // Rows of products and of scores live in rings of three, slot `row % 3`.
@@ -471,7 +471,7 @@ mod tests {
                 &mut small,
                 &mut scratch[..5]
             ),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("scratch"))
         );
     }
 

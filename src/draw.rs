@@ -193,16 +193,16 @@ pub fn draw_wireframe<T: Real>(
     cfg: &WireframeConfig<T>,
 ) -> Result<usize> {
     if !(1..=64).contains(&cfg.segments) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::InvalidParameter("segments"));
     }
     let mut written = 0usize;
     for &(i, j) in edges {
         let a = vertices
             .get(usize::from(i))
-            .ok_or(Error::InvalidParameter)?;
+            .ok_or(Error::InvalidParameter("edges"))?;
         let b = vertices
             .get(usize::from(j))
-            .ok_or(Error::InvalidParameter)?;
+            .ok_or(Error::InvalidParameter("edges"))?;
         let (mut ca, mut cb) = (pose.apply(a), pose.apply(b));
         crate::scalar::check_finite(&[ca.x, ca.y, ca.z, cb.x, cb.y, cb.z])?;
         // Near-plane clip: keep the part with Z >= near.
@@ -345,7 +345,7 @@ mod tests {
                 &[(0, 8)],
                 &WireframeConfig::default()
             ),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("edges"))
         );
         let bad = WireframeConfig {
             segments: 0,
@@ -353,7 +353,7 @@ mod tests {
         };
         assert_eq!(
             draw_wireframe(&mut img, &cam, &pose, &v, &e, &bad),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("segments"))
         );
     }
 }

@@ -30,11 +30,61 @@ pub enum Error {
     LengthMismatch,
     /// Fewer inputs than the method needs.
     TooFewPoints,
-    /// A parameter is outside its documented range.
-    InvalidParameter,
+    /// A parameter is outside its documented range. Names it as the configuration spells it
+    /// (`"lk.win"`, `"threshold"`, `"levels"`, ...).
+    InvalidParameter(&'static str),
+    /// A caller-provided buffer is shorter than the `const fn` that sizes it asks for. Names
+    /// the buffer (`"scratch"`, `"out"`, ...).
+    BufferTooSmall(&'static str),
     /// Image geometry that cannot be used: a zero or too large size, a stride shorter than the
     /// width, a buffer too short for the geometry, or images whose sizes must match and do not.
     InvalidImage,
+}
+
+impl Error {
+    /// The error's kind in snake case (`non_finite`, `invalid_parameter`, ...): stable across
+    /// releases, for command-line tools, logs and board reports to name errors by.
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Error::NonFinite => "non_finite",
+            Error::InvalidIntrinsics => "invalid_intrinsics",
+            Error::BehindCamera => "behind_camera",
+            Error::AtInfinity => "at_infinity",
+            Error::Degenerate => "degenerate",
+            Error::NoConvergence => "no_convergence",
+            Error::Overflow => "overflow",
+            Error::LengthMismatch => "length_mismatch",
+            Error::TooFewPoints => "too_few_points",
+            Error::InvalidParameter(_) => "invalid_parameter",
+            Error::BufferTooSmall(_) => "buffer_too_small",
+            Error::InvalidImage => "invalid_image",
+        }
+    }
+
+    /// The parameter or buffer the error is about, for [`Error::InvalidParameter`] and
+    /// [`Error::BufferTooSmall`].
+    pub const fn subject(&self) -> Option<&'static str> {
+        match self {
+            Error::InvalidParameter(p) | Error::BufferTooSmall(p) => Some(p),
+            _ => None,
+        }
+    }
+
+    /// Every kind, in declaration order (with a placeholder subject), for tables and tests.
+    pub const ALL: [Error; 12] = [
+        Error::NonFinite,
+        Error::InvalidIntrinsics,
+        Error::BehindCamera,
+        Error::AtInfinity,
+        Error::Degenerate,
+        Error::NoConvergence,
+        Error::Overflow,
+        Error::LengthMismatch,
+        Error::TooFewPoints,
+        Error::InvalidParameter("parameter"),
+        Error::BufferTooSmall("buffer"),
+        Error::InvalidImage,
+    ];
 }
 
 impl fmt::Display for Error {
@@ -49,7 +99,8 @@ impl fmt::Display for Error {
             Error::Overflow => "value out of fixed-point range",
             Error::LengthMismatch => "slice lengths do not match",
             Error::TooFewPoints => "too few points",
-            Error::InvalidParameter => "parameter out of range",
+            Error::InvalidParameter(p) => return write!(f, "parameter out of range: {p}"),
+            Error::BufferTooSmall(b) => return write!(f, "buffer too small: {b}"),
             Error::InvalidImage => "invalid image geometry",
         })
     }

@@ -120,7 +120,7 @@ pub fn scharr_window(
 ) -> Result<()> {
     let out = out
         .get_mut(..w.saturating_mul(h))
-        .ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("out"))?;
     if w == 0 {
         return Ok(());
     }
@@ -216,7 +216,7 @@ mod tests {
         }
         assert_eq!(
             scharr_window(&v, 0, 0, 8, 7, &mut win),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("out"))
         );
     }
 

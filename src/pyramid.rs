@@ -148,13 +148,14 @@ impl<'a> Pyramid<'a> {
     /// range, [`Error::InvalidImage`] when the buffer is too short.
     pub fn build(frame: ImageView<'a, u8>, buf: &'a mut [u8], levels: usize) -> Result<Self> {
         if levels == 0 || levels > MAX_LEVELS {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("levels"));
         }
         if buf.len() < buffer_len(frame.width(), frame.height(), levels) {
             return Err(Error::InvalidImage);
         }
         let mut out = Vec::new();
-        out.push(frame).map_err(|_| Error::InvalidParameter)?;
+        out.push(frame)
+            .map_err(|_| Error::InvalidParameter("levels"))?;
         let mut prev = frame;
         let mut rest = buf;
         for _ in 1..levels {
@@ -166,7 +167,8 @@ impl<'a> Pyramid<'a> {
             pyr_down(&prev, &mut dst)?;
             let done: &'a [u8] = cur;
             prev = ImageView::packed(done, w, h)?;
-            out.push(prev).map_err(|_| Error::InvalidParameter)?;
+            out.push(prev)
+                .map_err(|_| Error::InvalidParameter("levels"))?;
             rest = tail;
         }
         Ok(Self { levels: out })
@@ -178,20 +180,21 @@ impl<'a> Pyramid<'a> {
     /// [`Pyramid::build`].
     pub fn from_buffer(frame: ImageView<'a, u8>, buf: &'a [u8], levels: usize) -> Result<Self> {
         if levels == 0 || levels > MAX_LEVELS {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("levels"));
         }
         if buf.len() < buffer_len(frame.width(), frame.height(), levels) {
             return Err(Error::InvalidImage);
         }
         let mut out = Vec::new();
-        out.push(frame).map_err(|_| Error::InvalidParameter)?;
+        out.push(frame)
+            .map_err(|_| Error::InvalidParameter("levels"))?;
         let (mut w, mut h) = (frame.width(), frame.height());
         let mut rest = buf;
         for _ in 1..levels {
             (w, h) = down_size(w, h);
             let (cur, tail) = rest.split_at_checked(w * h).ok_or(Error::InvalidImage)?;
             out.push(ImageView::packed(cur, w, h)?)
-                .map_err(|_| Error::InvalidParameter)?;
+                .map_err(|_| Error::InvalidParameter("levels"))?;
             rest = tail;
         }
         Ok(Self { levels: out })
@@ -309,11 +312,11 @@ mod tests {
         let mut buf = [0u8; 64];
         assert_eq!(
             Pyramid::build(v, &mut buf, 0).err(),
-            Some(Error::InvalidParameter)
+            Some(Error::InvalidParameter("levels"))
         );
         assert_eq!(
             Pyramid::build(v, &mut buf, MAX_LEVELS + 1).err(),
-            Some(Error::InvalidParameter)
+            Some(Error::InvalidParameter("levels"))
         );
         let mut d = [0u8; 25];
         let mut wrong = ImageMut::packed(&mut d, 5, 5).unwrap();

@@ -179,14 +179,15 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
     let threshold_ok = config.threshold.finite() && config.threshold > zero;
     let confidence_ok = config.confidence > zero && config.confidence <= one;
     let lo_ok = config.lo_threshold_multiplier.finite() && config.lo_threshold_multiplier >= one;
-    if !threshold_ok
-        || !confidence_ok
-        || !lo_ok
-        || config.max_iterations == 0
-        || s == 0
-        || s > MAX_SAMPLE_SIZE
-    {
-        return Err(Error::InvalidParameter);
+    let checks = [
+        (threshold_ok, "ransac.threshold"),
+        (confidence_ok, "ransac.confidence"),
+        (lo_ok, "ransac.lo_threshold_multiplier"),
+        (config.max_iterations > 0, "ransac.max_iterations"),
+        (s > 0 && s <= MAX_SAMPLE_SIZE, "sample_size"),
+    ];
+    if let Some((_, name)) = checks.iter().find(|(ok, _)| !ok) {
+        return Err(Error::InvalidParameter(name));
     }
     if n < s {
         return Err(Error::TooFewPoints);
@@ -212,7 +213,7 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
             .get_mut(..s)
             .and_then(|buf| draw_sample(&mut rng, n, buf))
         else {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("sample_size"));
         };
         if !estimator.is_sample_valid(sample) {
             continue;
@@ -535,31 +536,46 @@ mod tests {
             ransac(&est, &ok, &mut [false; 3]).unwrap_err(),
             Error::LengthMismatch
         );
-        for bad in [
-            RansacConfig {
-                threshold: 0.0,
-                ..ok
-            },
-            RansacConfig {
-                threshold: f64::NAN,
-                ..ok
-            },
-            RansacConfig {
-                confidence: 1.5,
-                ..ok
-            },
-            RansacConfig {
-                lo_threshold_multiplier: 0.5,
-                ..ok
-            },
-            RansacConfig {
-                max_iterations: 0,
-                ..ok
-            },
+        for (bad, name) in [
+            (
+                RansacConfig {
+                    threshold: 0.0,
+                    ..ok
+                },
+                "ransac.threshold",
+            ),
+            (
+                RansacConfig {
+                    threshold: f64::NAN,
+                    ..ok
+                },
+                "ransac.threshold",
+            ),
+            (
+                RansacConfig {
+                    confidence: 1.5,
+                    ..ok
+                },
+                "ransac.confidence",
+            ),
+            (
+                RansacConfig {
+                    lo_threshold_multiplier: 0.5,
+                    ..ok
+                },
+                "ransac.lo_threshold_multiplier",
+            ),
+            (
+                RansacConfig {
+                    max_iterations: 0,
+                    ..ok
+                },
+                "ransac.max_iterations",
+            ),
         ] {
             assert_eq!(
                 ransac(&est, &bad, &mut mask).unwrap_err(),
-                Error::InvalidParameter
+                Error::InvalidParameter(name)
             );
         }
         // Confidence 1 means "never stop early" once there is an outlier: exactly

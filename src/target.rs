@@ -166,7 +166,7 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
     /// Errors: [`Error::InvalidParameter`] for a size that is not finite and positive.
     pub fn new(width: f32, height: f32) -> Result<Self> {
         if !(width.is_finite() && height.is_finite() && width > 0.0 && height > 0.0) {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("size"));
         }
         Ok(Self {
             size: [width, height],
@@ -299,7 +299,7 @@ impl<A: FlowArith, const N: usize> PlanarTarget<A, N> {
         probe: &mut P,
     ) -> Result<TargetFrame> {
         if self.state == TargetState::Uninitialised {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("state"));
         }
         let frame = next.level(0).ok_or(Error::InvalidImage)?;
         let tracked = self.flow(prev, next, cfg, flow_scratch)?;
@@ -696,11 +696,11 @@ mod tests {
     fn bad_use_is_an_error() {
         assert_eq!(
             PlanarTarget::<f32, 8>::new(0.0, 1.0).err(),
-            Some(Error::InvalidParameter)
+            Some(Error::InvalidParameter("size"))
         );
         assert_eq!(
             PlanarTarget::<f32, 8>::new(f32::NAN, 1.0).err(),
-            Some(Error::InvalidParameter)
+            Some(Error::InvalidParameter("size"))
         );
         let mut t = PlanarTarget::<f32, 8>::new(1.0, 1.0).unwrap();
         let img = [0u8; 64];
@@ -722,7 +722,7 @@ mod tests {
                 &mut s
             )
             .err(),
-            Some(Error::InvalidParameter)
+            Some(Error::InvalidParameter("state"))
         );
         // Collinear corners are not a target.
         let line = [

@@ -150,7 +150,7 @@ impl<A: Frame, B: Frame, T: Real> Transform<A, B, T> {
         check_finite(r.as_slice())?;
         let err = (r.transpose() * r - Matrix3::identity()).amax();
         if err > tol || (r.determinant() - T::one()).abs() > tol {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("rotation"));
         }
         Self::new(Rotation3::from_matrix_unchecked(*r), t)
     }
@@ -264,12 +264,12 @@ mod tests {
         let scaled = Matrix3::identity() * 2.0f32;
         assert_eq!(
             Pose::from_matrix_parts(&scaled, Vector3::zeros(), 1e-5),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("rotation"))
         );
         let reflection = Matrix3::from_diagonal(&Vector3::new(1.0f32, 1.0, -1.0));
         assert_eq!(
             Pose::from_matrix_parts(&reflection, Vector3::zeros(), 1e-5),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("rotation"))
         );
     }
 

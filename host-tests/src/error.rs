@@ -107,26 +107,10 @@ impl std::error::Error for Error {
     }
 }
 
-/// The snake-case name of a camgeom error, as the CLI prints it in its `status` column:
-/// `BehindCamera` → `behind_camera`. Derived from the variant name, so new variants get a name
-/// without a change here.
+/// The snake-case name of a camgeom error, as the CLI prints it in its `status` column
+/// ([`camgeom::Error::name`]): `BehindCamera` → `behind_camera`.
 pub fn status_name(e: &camgeom::Error) -> String {
-    let debug = format!("{e:?}");
-    let mut out = String::with_capacity(debug.len() + 4);
-    for (i, c) in debug.chars().enumerate() {
-        if c.is_ascii_uppercase() {
-            if i > 0 {
-                out.push('_');
-            }
-            out.push(c.to_ascii_lowercase());
-        } else if c.is_ascii_alphanumeric() || c == '_' {
-            out.push(c);
-        } else {
-            // A variant with fields would print `Name { .. }` or `Name(..)`: keep the name only.
-            break;
-        }
-    }
-    out
+    e.name().to_string()
 }
 
 #[cfg(test)]
@@ -140,6 +124,10 @@ mod tests {
         assert_eq!(
             status_name(&camgeom::Error::NoConvergence),
             "no_convergence"
+        );
+        assert_eq!(
+            status_name(&camgeom::Error::InvalidParameter("lk.win")),
+            "invalid_parameter"
         );
     }
 }

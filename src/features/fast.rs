@@ -165,8 +165,11 @@ pub fn fast_detect(
     mut emit: impl FnMut(Corner),
 ) -> Result<()> {
     let (w, h) = (img.width(), img.height());
-    if scratch.len() < scratch_len(w) || config.threshold == 0 {
-        return Err(Error::InvalidParameter);
+    if config.threshold == 0 {
+        return Err(Error::InvalidParameter("threshold"));
+    }
+    if scratch.len() < scratch_len(w) {
+        return Err(Error::BufferTooSmall("scratch"));
     }
     let b = usize::from(config.border).max(RADIUS);
     if w <= 2 * b || h <= 2 * b {
@@ -176,7 +179,7 @@ pub fn fast_detect(
     let (x0, x1) = (b, w - b);
     let (s0, rest) = scratch.split_at_mut(w);
     let (s1, rest) = rest.split_at_mut(w);
-    let s2 = rest.get_mut(..w).ok_or(Error::InvalidParameter)?;
+    let s2 = rest.get_mut(..w).ok_or(Error::BufferTooSmall("scratch"))?;
     let mut bufs: [&mut [u8]; 3] = [s0, s1, s2];
     for buf in bufs.iter_mut() {
         buf.fill(0);
@@ -188,7 +191,9 @@ pub fn fast_detect(
             let rows: [&[u8]; 7] =
                 core::array::from_fn(|j| img.row_clamped(y as isize + j as isize - 3));
             let centre = rows[3];
-            let cur = bufs.get_mut(y % 3).ok_or(Error::InvalidParameter)?;
+            let cur = bufs
+                .get_mut(y % 3)
+                .ok_or(Error::BufferTooSmall("scratch"))?;
             cur.fill(0);
             for x in x0..x1 {
                 let v = centre.get(x).copied().unwrap_or(0);
@@ -423,7 +428,7 @@ mod tests {
         let mut short = [0u8; 10];
         assert_eq!(
             fast_detect(&img, &FastConfig::default(), &mut short, |_| {}),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("scratch"))
         );
         let mut s = [0u8; 120];
         let zero = FastConfig {
@@ -432,7 +437,7 @@ mod tests {
         };
         assert_eq!(
             fast_detect(&img, &zero, &mut s, |_| {}),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("threshold"))
         );
     }
 

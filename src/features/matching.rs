@@ -91,8 +91,11 @@ pub fn match_descriptors(
     scratch: &mut [u32],
     out: &mut [Match],
 ) -> Result<usize> {
-    if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS || config.ratio.is_nan() {
-        return Err(Error::InvalidParameter);
+    if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS {
+        return Err(Error::InvalidParameter("descriptors"));
+    }
+    if config.ratio.is_nan() {
+        return Err(Error::InvalidParameter("ratio"));
     }
     if out.len() < query.len() {
         return Err(Error::LengthMismatch);
@@ -100,7 +103,7 @@ pub fn match_descriptors(
     let reverse: &mut [u32] = if config.cross_check {
         let r = scratch
             .get_mut(..scratch_len(train.len()))
-            .ok_or(Error::InvalidParameter)?;
+            .ok_or(Error::BufferTooSmall("scratch"))?;
         r.fill(u32::MAX);
         r
     } else {
@@ -301,7 +304,7 @@ mod tests {
         );
         assert_eq!(
             match_descriptors(&d, &d, &MatchConfig::default(), &mut s[..2], &mut out),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("scratch"))
         );
         let nan = MatchConfig {
             ratio: f32::NAN,
@@ -309,7 +312,7 @@ mod tests {
         };
         assert_eq!(
             match_descriptors(&d, &d, &nan, &mut s, &mut out),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("ratio"))
         );
     }
 }

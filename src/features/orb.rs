@@ -261,13 +261,18 @@ pub fn orb_detect<const N: usize>(
     out.clear();
     let levels = usize::from(config.levels);
     let q = config.scale_q8;
-    if levels == 0 || levels > MAX_LEVELS || config.fast_threshold == 0 || !(272..=512).contains(&q)
-    {
-        return Err(Error::InvalidParameter);
+    if levels == 0 || levels > MAX_LEVELS {
+        return Err(Error::InvalidParameter("levels"));
+    }
+    if config.fast_threshold == 0 {
+        return Err(Error::InvalidParameter("fast_threshold"));
+    }
+    if !(272..=512).contains(&q) {
+        return Err(Error::InvalidParameter("scale_q8"));
     }
     let (w, h) = (frame.width(), frame.height());
     if scratch.len() < scratch_len(w, h, q) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::BufferTooSmall("scratch"));
     }
     let gauss = q == 512;
     let (w1, h1) = level_size(w, h, q, 1);
@@ -314,7 +319,7 @@ pub fn orb_detect<const N: usize>(
             };
             let dst = dst
                 .get_mut(..cur.0 * cur.1)
-                .ok_or(Error::InvalidParameter)?;
+                .ok_or(Error::BufferTooSmall("scratch"))?;
             let mut dst_img = ImageMut::packed(dst, cur.0, cur.1)?;
             if gauss {
                 pyramid::pyr_down(&prev, &mut dst_img)?;
@@ -363,7 +368,9 @@ pub fn orb_detect<const N: usize>(
             continue;
         }
         let (lw, lh) = (level.width(), level.height());
-        let blur_slice = blur_buf.get_mut(..lw * lh).ok_or(Error::InvalidParameter)?;
+        let blur_slice = blur_buf
+            .get_mut(..lw * lh)
+            .ok_or(Error::BufferTooSmall("scratch"))?;
         smooth(&level, &mut ImageMut::packed(blur_slice, lw, lh)?)?;
         let smoothed = ImageView::packed(blur_slice, lw, lh)?;
         for f in out.get_mut(start..).unwrap_or(&mut []) {
@@ -576,11 +583,11 @@ mod tests {
         let bad = OrbConfig { levels: 0, ..cfg };
         assert_eq!(
             orb_detect(&img, &bad, &mut scratch, &mut out),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("levels"))
         );
         assert_eq!(
             orb_detect(&img, &cfg, &mut scratch[..100], &mut out),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("scratch"))
         );
     }
 

@@ -78,7 +78,7 @@ pub fn dlt_weighted<T: Real>(
     }
     check_finite(weights)?;
     if weights.iter().any(|w| *w < T::zero()) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::InvalidParameter("weights"));
     }
     solve(
         src.iter()
@@ -185,7 +185,10 @@ mod tests {
         assert!(rel(hw.matrix(), &truth()) < 1e-12);
         assert_eq!(dlt(&src, &dst), Err(Error::NonFinite));
         w[1] = -1.0;
-        assert_eq!(dlt_weighted(&src, &dst, &w), Err(Error::InvalidParameter));
+        assert_eq!(
+            dlt_weighted(&src, &dst, &w),
+            Err(Error::InvalidParameter("weights"))
+        );
         w[1] = f64::NAN;
         assert_eq!(dlt_weighted(&src, &dst, &w), Err(Error::NonFinite));
         assert_eq!(

@@ -84,14 +84,16 @@ fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
     let w2 = win * win;
     let (g, rest) = scratch
         .split_at_mut_checked(2 * n2)
-        .ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("scratch"))?;
     let (patch, rest) = rest
         .split_at_mut_checked(n2)
-        .ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("scratch"))?;
     let (iwin, rest) = rest
         .split_at_mut_checked(w2)
-        .ok_or(Error::InvalidParameter)?;
-    let d = rest.get_mut(..2 * w2).ok_or(Error::InvalidParameter)?;
+        .ok_or(Error::BufferTooSmall("scratch"))?;
+    let d = rest
+        .get_mut(..2 * w2)
+        .ok_or(Error::BufferTooSmall("scratch"))?;
     let (gwin, _) = g.as_chunks_mut::<2>();
     let (dwin, _) = d.as_chunks_mut::<2>();
     Ok(Scratch {
@@ -355,14 +357,20 @@ fn usable_levels(prev: &Pyramid<'_>, next: &Pyramid<'_>, cfg: &LkConfig) -> usiz
 }
 
 fn check(cfg: &LkConfig, scratch: &[i16]) -> Result<()> {
-    if cfg.win < 3 || cfg.win > MAX_WIN || cfg.max_iter == 0 || cfg.max_iter > 100 {
-        return Err(Error::InvalidParameter);
+    if cfg.win < 3 || cfg.win > MAX_WIN {
+        return Err(Error::InvalidParameter("lk.win"));
     }
-    if cfg.epsilon.is_nan() || cfg.epsilon < 0.0 || !cfg.min_eigenvalue.is_finite() {
-        return Err(Error::InvalidParameter);
+    if cfg.max_iter == 0 || cfg.max_iter > 100 {
+        return Err(Error::InvalidParameter("lk.max_iter"));
+    }
+    if cfg.epsilon.is_nan() || cfg.epsilon < 0.0 {
+        return Err(Error::InvalidParameter("lk.epsilon"));
+    }
+    if !cfg.min_eigenvalue.is_finite() {
+        return Err(Error::InvalidParameter("lk.min_eigenvalue"));
     }
     if scratch.len() < scratch_len(cfg.win) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::BufferTooSmall("scratch"));
     }
     Ok(())
 }
@@ -396,7 +404,9 @@ fn run<A: FlowArith>(
             Gradients::PerWindow => None,
             Gradients::PerLevel(buf) => {
                 let len = i.width() * i.height();
-                let b = buf.get_mut(..len).ok_or(Error::InvalidParameter)?;
+                let b = buf
+                    .get_mut(..len)
+                    .ok_or(Error::BufferTooSmall("gradients"))?;
                 crate::gradient::scharr_level(
                     &i,
                     &mut ImageMut::packed(b, i.width(), i.height())?,
@@ -654,7 +664,7 @@ mod tests {
                 Gradients::PerWindow,
                 &mut short
             ),
-            Err(Error::InvalidParameter)
+            Err(Error::BufferTooSmall("scratch"))
         );
         assert_eq!(
             calc_flow::<f32>(
@@ -671,7 +681,7 @@ mod tests {
         let bad = LkConfig { win: 2, ..cfg };
         assert_eq!(
             calc_flow::<f32>(&pa, &pa, &pts, &mut f, &bad, Gradients::PerWindow, &mut s),
-            Err(Error::InvalidParameter)
+            Err(Error::InvalidParameter("lk.win"))
         );
         // A flat image has no texture.
         let flat = [77u8; 64 * 48];

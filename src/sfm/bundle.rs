@@ -169,7 +169,7 @@ pub fn bundle_adjust<T: Real>(
     );
     let [_, p2, _] = &*poses;
     if !above(T::lit(1e-3), (p2.translation().norm() - T::one()).abs()) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::InvalidParameter("poses"));
     }
     let Some((mut cost, count)) = total_cost(camera, poses, tracks, used, |i| {
         points.get(i).copied().flatten()

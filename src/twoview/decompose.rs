@@ -66,7 +66,7 @@ pub fn recover_pose<T: Real>(
         return Err(Error::LengthMismatch);
     }
     if !above(max_distance, T::zero()) {
-        return Err(Error::InvalidParameter);
+        return Err(Error::InvalidParameter("max_distance"));
     }
     let candidates = e.decompose()?;
     let supports = |pose: &RelativePose<T>, i: usize| -> bool {

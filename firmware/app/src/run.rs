@@ -65,7 +65,7 @@ impl RunSpec {
     /// version or length.
     pub fn parse(bytes: &[u8]) -> Result<Self, Error> {
         if bytes.len() != RUN_SPEC_LEN {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("run_spec.length"));
         }
         let mut words = [0u32; RUN_SPEC_LEN / 4];
         for (w, c) in words.iter_mut().zip(bytes.chunks_exact(4)) {
@@ -76,7 +76,7 @@ impl RunSpec {
         let u = |i: usize| words.get(i).copied().unwrap_or(0);
         let f = |i: usize| f32::from_bits(u(i));
         if u(0) != MAGIC || u(1) != VERSION {
-            return Err(Error::InvalidParameter);
+            return Err(Error::InvalidParameter("run_spec.version"));
         }
         Ok(Self {
             width: u(2),
