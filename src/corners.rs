@@ -48,6 +48,33 @@ pub struct CornerConfig {
     pub max_corners: usize,
 }
 
+impl CornerConfig {
+    /// Checks the configuration. Errors: [`Error::InvalidParameter`] (`corners.quality`) for a
+    /// quality outside `(0, 1]`.
+    pub fn check(&self) -> Result<()> {
+        if self.quality > 0.0 && self.quality <= 1.0 {
+            Ok(())
+        } else {
+            Err(Error::InvalidParameter("corners.quality"))
+        }
+    }
+
+    /// The same configuration adding at most `free` corners: [`Self::max_corners`] capped by
+    /// `free` (0 means no cap of its own, so `free` it is). What a tracker with `free` empty
+    /// slots asks for.
+    pub const fn up_to(&self, free: usize) -> Self {
+        let max_corners = if self.max_corners == 0 || self.max_corners > free {
+            free
+        } else {
+            self.max_corners
+        };
+        Self {
+            max_corners,
+            ..*self
+        }
+    }
+}
+
 impl Default for CornerConfig {
     fn default() -> Self {
         Self {
@@ -62,25 +89,6 @@ impl Default for CornerConfig {
 /// `12 width`.
 pub const fn scratch_len(width: usize) -> usize {
     12 * width
-}
-
-/// `⌊√v⌋` (bit by bit, from the highest set bit).
-fn isqrt(v: u64) -> u64 {
-    if v == 0 {
-        return 0;
-    }
-    let (mut rem, mut root) = (v, 0u64);
-    let mut bit = 1u64 << ((63 - v.leading_zeros()) & !1);
-    while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
-            root = (root >> 1) + bit;
-        } else {
-            root >>= 1;
-        }
-        bit >>= 2;
-    }
-    root
 }
 
 /// Sobel `dx, dy` at the middle column of three-pixel windows of rows `r0, r1, r2`.
@@ -192,7 +200,7 @@ fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &
         } else {
             let d = a.abs_diff(c);
             let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
-            tr.saturating_sub(isqrt(disc)).min(u64::from(u32::MAX)) as u32
+            tr.saturating_sub(disc.isqrt()).min(u64::from(u32::MAX)) as u32
         };
         best = best.max(*o);
         prev = cur;
@@ -253,8 +261,9 @@ fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::Ordering) {
 ///
 /// `candidates` bounds the local maxima considered: when it fills up the weakest half is
 /// dropped, so the strongest `candidates.len() / 2` maxima are always exact (OpenCV keeps all).
-/// Returns the number of corners added. Errors: [`Error::InvalidParameter`] for a quality
-/// outside `(0, 1]`, fewer than 2 candidates or scratch shorter than [`scratch_len`].
+/// Returns the number of corners added. Errors: as [`CornerConfig::check`];
+/// [`Error::BufferTooSmall`] for fewer than 2 candidates or scratch shorter than
+/// [`scratch_len`].
 pub fn good_features<const K: usize>(
     img: &ImageView<'_, u8>,
     cfg: &CornerConfig,
@@ -263,8 +272,9 @@ pub fn good_features<const K: usize>(
     candidates: &mut [Corner],
     scratch: &mut [u32],
 ) -> Result<usize> {
-    if !(cfg.quality > 0.0 && cfg.quality <= 1.0) || candidates.len() < 2 {
-        return Err(Error::InvalidParameter("quality"));
+    cfg.check()?;
+    if candidates.len() < 2 {
+        return Err(Error::BufferTooSmall("candidates"));
     }
     let (w, h) = (img.width(), img.height());
     let scratch = scratch

@@ -145,6 +145,34 @@ impl<T: Real> Default for RansacConfig<T> {
     }
 }
 
+impl<T: Real> RansacConfig<T> {
+    /// Checks the ranges documented on each field. Errors: [`Error::InvalidParameter`] naming
+    /// the field (`ransac.threshold`, `ransac.confidence`, `ransac.max_iterations`,
+    /// `ransac.lo_threshold_multiplier`).
+    pub fn check(&self) -> Result<()> {
+        let (zero, one) = (T::zero(), T::one());
+        let checks = [
+            (
+                self.threshold.finite() && self.threshold > zero,
+                "ransac.threshold",
+            ),
+            (
+                self.confidence > zero && self.confidence <= one,
+                "ransac.confidence",
+            ),
+            (
+                self.lo_threshold_multiplier.finite() && self.lo_threshold_multiplier >= one,
+                "ransac.lo_threshold_multiplier",
+            ),
+            (self.max_iterations > 0, "ransac.max_iterations"),
+        ];
+        match checks.iter().find(|(ok, _)| !ok) {
+            Some((_, name)) => Err(Error::InvalidParameter(name)),
+            None => Ok(()),
+        }
+    }
+}
+
 /// What [`ransac`] found besides the model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -160,8 +188,8 @@ pub struct RansacReport<T: Real = f32> {
 /// Runs RANSAC (see the module docs) and writes the returned model's inlier mask into `mask`.
 ///
 /// Errors: [`Error::LengthMismatch`] if `mask.len() != num_points()`,
-/// [`Error::InvalidParameter`] for a threshold that is not finite and positive, a confidence
-/// outside `(0, 1]`, a local-optimisation multiplier below 1, `max_iterations == 0` or a sample size outside `1..=MAX_SAMPLE_SIZE`,
+/// [`Error::InvalidParameter`] as [`RansacConfig::check`] or for a sample size outside
+/// `1..=MAX_SAMPLE_SIZE`,
 /// [`Error::TooFewPoints`] with fewer points than a sample, [`Error::Degenerate`] when no
 /// sample produced a model.
 pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
@@ -171,23 +199,12 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
 ) -> Result<(E::Model, RansacReport<T>)> {
     let n = estimator.num_points();
     let s = estimator.sample_size();
-    let zero = T::zero();
-    let one = T::one();
     if mask.len() != n {
         return Err(Error::LengthMismatch);
     }
-    let threshold_ok = config.threshold.finite() && config.threshold > zero;
-    let confidence_ok = config.confidence > zero && config.confidence <= one;
-    let lo_ok = config.lo_threshold_multiplier.finite() && config.lo_threshold_multiplier >= one;
-    let checks = [
-        (threshold_ok, "ransac.threshold"),
-        (confidence_ok, "ransac.confidence"),
-        (lo_ok, "ransac.lo_threshold_multiplier"),
-        (config.max_iterations > 0, "ransac.max_iterations"),
-        (s > 0 && s <= MAX_SAMPLE_SIZE, "sample_size"),
-    ];
-    if let Some((_, name)) = checks.iter().find(|(ok, _)| !ok) {
-        return Err(Error::InvalidParameter(name));
+    config.check()?;
+    if s == 0 || s > MAX_SAMPLE_SIZE {
+        return Err(Error::InvalidParameter("sample_size"));
     }
     if n < s {
         return Err(Error::TooFewPoints);

@@ -114,6 +114,10 @@ fuzz_target!(|inp: Input| {
         use_initial_flow: inp.use_initial_flow,
         fb_threshold: inp.fb.map(Num::get),
     };
+    // A configuration out of range is rejected once, here; the flow never sees it.
+    let Ok(params) = cfg.check() else {
+        return;
+    };
     let slen =
         (scratch_len(cfg.win.min(63)) as i64 + i64::from(inp.scratch_slack % 3)).max(0) as usize;
     let mut scratch = std::vec![0i16; slen];
@@ -137,7 +141,7 @@ fuzz_target!(|inp: Input| {
         &pb,
         &pts,
         &mut flows,
-        &cfg,
+        &params,
         grads(inp.per_level, &mut grad),
         &mut scratch,
     )
@@ -164,7 +168,7 @@ fuzz_target!(|inp: Input| {
         &pb,
         &fpts,
         &mut fflows,
-        &cfg,
+        &params,
         grads(inp.per_level, &mut grad),
         &mut scratch,
     )

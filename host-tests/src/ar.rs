@@ -1,16 +1,18 @@
-//! The AR loop on owned frames: [`camgeom::target::PlanarTarget`] over a sequence, overlays
+//! The AR loop on owned frames: [`camgeom::target::PlanarTarget::step`] over a sequence, overlays
 //! with the target outline, the tracked features and a cube standing on the target, and a
 //! contact sheet of overlays (for `camgeom ar` and the sequence tests).
 
 use camgeom::camera::Camera;
-use camgeom::corners::Corner;
 use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
 use camgeom::image::ImageMut;
-use camgeom::klt::{Fixed, FlowArith, scratch_len};
+use camgeom::klt::{Fixed, FlowArith};
 use camgeom::nalgebra::{Point2, Point3};
-use camgeom::pose::{PlanarPose, solve_planar};
+use camgeom::pose::PlanarPose;
 use camgeom::pyramid::{Pyramid, buffer_len};
-use camgeom::target::{PlanarTarget, TargetConfig, TargetState};
+use camgeom::target::{
+    Acquire, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
+    flow_scratch_len,
+};
 
 use crate::images::GrayImage;
 use crate::klt::{Path, levels};
@@ -38,15 +40,17 @@ pub struct ArFrame {
     pub frame: usize,
     /// Tracking state after the frame.
     pub state: TargetState,
+    /// The target was acquired on this frame.
+    pub acquired: bool,
     /// Both planar poses (target to camera), when tracking.
     pub pose: Option<PlanarPose<f32>>,
     /// The target's corners through the tracked homography, when tracking.
     pub outline: Option<[Point2<f32>; 4]>,
-    /// Tracks that survived the flow (frame 0: features detected).
+    /// Tracks that survived the flow (0 on an acquisition).
     pub tracked: usize,
-    /// Homography inliers (frame 0: features detected).
+    /// Homography inliers (on an acquisition: the features detected).
     pub inliers: usize,
-    /// Features added by re-detection.
+    /// Features added by acquisition, re-detection or relocation.
     pub added: usize,
     /// Image positions of the features tracked after the frame.
     pub features: Vec<Point2<f32>>,
@@ -68,94 +72,82 @@ impl ArFrame {
     }
 }
 
-/// Runs the target tracker over `frames` from the target's `corners` in frame 0 (order
-/// `(0, 0), (w, 0), (w, h), (0, h)`). After a lost frame the tracker re-detects around the
-/// last outline. `on_frame` sees every frame's outcome as it is computed.
+/// The target tracker of the host: `MAX_FEATURES` tracks, work buffers for any window up to
+/// [`camgeom::klt::MAX_WIN`] and frames up to [`MAX_WIDTH`] pixels wide.
+pub type HostTarget<A> = PlanarTarget<
+    A,
+    MAX_FEATURES,
+    { flow_scratch_len(camgeom::klt::MAX_WIN) },
+    { corner_scratch_len(MAX_WIDTH) },
+    2048,
+>;
+
+/// Widest frame [`run_ar`] takes.
+pub const MAX_WIDTH: usize = 4096;
+
+/// Runs the AR loop ([`PlanarTarget::step`], the same per-frame policy as the board) over
+/// `frames`; `acquire` finds the target (e.g. [`GivenCorners`] from the corners picked in
+/// frame 0). `on_frame` sees every frame's outcome as it is computed.
 ///
-/// Errors: as [`PlanarTarget::init`] (e.g. [`camgeom::Error::TooFewPoints`] when the corners
-/// enclose too little texture) and [`PlanarTarget::step`].
+/// Errors: as [`TargetParams::new`] and [`PlanarTarget::step`]; [`camgeom::Error::InvalidImage`]
+/// for frames of different sizes or wider than [`MAX_WIDTH`].
 pub fn run_ar(
     frames: &[GrayImage],
-    corners: &[Point2<f32>; 4],
+    acquire: &mut dyn Acquire,
     camera: &Camera<f32>,
     opts: &ArOptions,
     mut on_frame: impl FnMut(&ArFrame),
 ) -> camgeom::Result<Vec<ArFrame>> {
+    let params = TargetParams::new(&opts.target, *camera, opts.size)?;
     match opts.path {
-        Path::Fixed => go::<Fixed>(frames, corners, camera, opts, &mut on_frame),
-        Path::F32 => go::<f32>(frames, corners, camera, opts, &mut on_frame),
+        Path::Fixed => go::<Fixed>(frames, acquire, &params, &mut on_frame),
+        Path::F32 => go::<f32>(frames, acquire, &params, &mut on_frame),
     }
 }
 
 fn go<A: FlowArith>(
     frames: &[GrayImage],
-    corners: &[Point2<f32>; 4],
-    camera: &Camera<f32>,
-    opts: &ArOptions,
+    acquire: &mut dyn Acquire,
+    params: &TargetParams,
     on_frame: &mut dyn FnMut(&ArFrame),
 ) -> camgeom::Result<Vec<ArFrame>> {
-    let cfg = &opts.target;
     let first = frames.first().ok_or(camgeom::Error::TooFewPoints)?;
-    let mut target: Box<PlanarTarget<A, MAX_FEATURES>> =
-        Box::new(PlanarTarget::new(opts.size[0], opts.size[1])?);
-    let mut cands = vec![Corner::default(); 2048];
-    let mut cscr = vec![0u32; camgeom::corners::scratch_len(first.width)];
-    let mut fscr = vec![0i16; scratch_len(cfg.lk.win)];
-    let view0 = first.view().ok_or(camgeom::Error::InvalidImage)?;
-    let n0 = target.init(&view0, corners, cfg, &mut cands, &mut cscr)?;
-    // Frame 0's pose from the features just tied to the target (they satisfy the corners'
-    // homography exactly, so this is the pose of the four corners).
-    let (model, pixels): (Vec<Point2<f32>>, Vec<Point2<f32>>) =
-        target.features().map(|(p, t)| (t, p)).unzip();
-    let mut scr = vec![Point2::origin(); model.len()];
-    let pose0 = solve_planar(camera, &model, &pixels, &mut scr, &cfg.planar).ok();
-    let f0 = ArFrame {
-        frame: 0,
-        state: TargetState::Tracking,
-        pose: pose0,
-        outline: Some(*corners),
-        tracked: n0,
-        inliers: n0,
-        added: n0,
-        features: pixels,
-    };
-    on_frame(&f0);
-    let mut out = vec![f0];
-    let l = levels(&cfg.lk);
-    let mut bufs = [Vec::new(), Vec::new()];
-    for (k, pair) in frames.windows(2).enumerate() {
-        let k = k + 1;
-        let (a, b) = (&pair[0], &pair[1]);
-        if (a.width, a.height) != (b.width, b.height) {
+    let (w, h) = (first.width, first.height);
+    if w > MAX_WIDTH {
+        return Err(camgeom::Error::InvalidImage);
+    }
+    let mut target: Box<HostTarget<A>> = Box::default();
+    let l = levels(&params.config().lk);
+    let len = buffer_len(w, h, l);
+    let mut bufs = [vec![0u8; len], vec![0u8; len]];
+    let mut out = Vec::with_capacity(frames.len());
+    for (k, img) in frames.iter().enumerate() {
+        if (img.width, img.height) != (w, h) {
             return Err(camgeom::Error::InvalidImage);
         }
-        let (b0, b1) = bufs.split_at_mut(1);
-        let (cur, old) = if k % 2 == 0 {
-            (&mut b0[0], &mut b1[0])
-        } else {
-            (&mut b1[0], &mut b0[0])
+        // Two pyramid buffers swap roles: the previous frame's pyramid is re-wrapped.
+        let [b0, b1] = &mut bufs;
+        let (cur, old) = if k % 2 == 0 { (b0, &*b1) } else { (b1, &*b0) };
+        let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
+        let next = Pyramid::build(view, cur, l)?;
+        let prev = match k.checked_sub(1).and_then(|p| frames.get(p)) {
+            Some(p) => Some(Pyramid::from_buffer(
+                p.view().ok_or(camgeom::Error::InvalidImage)?,
+                old,
+                l,
+            )?),
+            None => None,
         };
-        let len = buffer_len(a.width, a.height, l);
-        old.resize(len, 0);
-        cur.resize(len, 0);
-        let pview = a.view().ok_or(camgeom::Error::InvalidImage)?;
-        let nview = b.view().ok_or(camgeom::Error::InvalidImage)?;
-        // The previous pyramid is rebuilt rather than kept: simpler, and cheap on the host.
-        let prev = Pyramid::build(pview, old, l)?;
-        let next = Pyramid::build(nview, cur, l)?;
-        let r = target.step(&prev, &next, camera, cfg, &mut fscr, &mut cands, &mut cscr)?;
-        let mut added = r.added;
-        if r.state == TargetState::Lost {
-            added += target.relocate(&nview, cfg, &mut cands, &mut cscr)?;
-        }
+        let r = target.step(params, prev.as_ref(), &next, acquire, &mut ())?;
         let f = ArFrame {
             frame: k,
             state: r.state,
+            acquired: r.acquired,
             pose: r.pose,
             outline: r.outline,
             tracked: r.tracked,
             inliers: r.inliers,
-            added,
+            added: r.added,
             features: target.features().map(|(p, _)| p).collect(),
         };
         on_frame(&f);

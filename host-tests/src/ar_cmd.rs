@@ -6,7 +6,7 @@ use camgeom::corners::CornerConfig;
 use camgeom::klt::LkConfig;
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
-use camgeom::target::{TargetConfig, TargetState};
+use camgeom::target::{GivenCorners, TargetConfig, TargetState};
 use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
 use camgeom_host::klt::Path;
 use camgeom_host::load_camera;
@@ -173,7 +173,8 @@ pub fn run(a: &ArArgs) -> Result<String, String> {
     let sheet_idx = evenly_spaced(frames.len(), a.sheet_frames);
     let mut tiles = Vec::new();
     let mut write_err = None;
-    let results = run_ar(&frames, &corners, &camera, &opts, |f| {
+    let mut given = GivenCorners::new(corners);
+    let results = run_ar(&frames, &mut given, &camera, &opts, |f| {
         bar.inc(1);
         let img = draw_ar(&frames[f.frame], &camera, f, &opts);
         let name = files[f.frame]
@@ -197,6 +198,12 @@ pub fn run(a: &ArArgs) -> Result<String, String> {
     bar.finish_and_clear();
     if let Some(e) = write_err {
         return Err(e);
+    }
+    if results.first().is_some_and(|f| f.pose.is_none()) {
+        return Err(format!(
+            "{}: the corners enclose too little texture to track (too_few_points)",
+            a.corners.display()
+        ));
     }
     let mut csv = String::from(
         "frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added\n",

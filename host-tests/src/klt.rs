@@ -62,6 +62,7 @@ pub fn flow_pyramids(
         cfg: &LkConfig,
         per_level: bool,
     ) -> camgeom::Result<Vec<FlowPoint>> {
+        let params = cfg.check()?;
         let mut scratch = vec![0i16; scratch_len(cfg.win)];
         let l0 = prev.level(0).ok_or(camgeom::Error::InvalidImage)?;
         let mut grad = vec![
@@ -85,7 +86,7 @@ pub fn flow_pyramids(
             next,
             &pts,
             &mut flows,
-            cfg,
+            &params,
             g(&mut grad, per_level),
             &mut scratch,
         )?;
@@ -97,7 +98,7 @@ pub fn flow_pyramids(
                 &pts,
                 &mut flows,
                 &mut back,
-                cfg,
+                &params,
                 g(&mut grad, per_level),
                 &mut scratch,
             )?;
@@ -198,7 +199,7 @@ pub fn track_sequence(
         cfg: &TrackerConfig,
         on_frame: &mut dyn FnMut(usize, &[TrackRow]),
     ) -> camgeom::Result<Vec<TrackRow>> {
-        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new());
+        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new(cfg)?);
         let l = levels(&cfg.lk);
         let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
         let mut cands = vec![Corner::default(); 8192];
@@ -219,10 +220,10 @@ pub fn track_sequence(
             if k > 0 {
                 let pview = frames[k - 1].view().ok_or(camgeom::Error::InvalidImage)?;
                 let prev = Pyramid::from_buffer(pview, old, l)?;
-                tracker.update(&prev, &next, cfg, &mut scratch)?;
+                tracker.update(&prev, &next, &mut scratch)?;
             }
             cs.resize(camgeom::corners::scratch_len(img.width), 0);
-            tracker.replenish(&view, cfg, &mut cands, &mut cs)?;
+            tracker.replenish(&view, &mut cands, &mut cs)?;
             let start = rows.len();
             for t in tracker.tracks() {
                 rows.push(TrackRow {

@@ -4,7 +4,7 @@
 //! `i64` sums); they differ in how a point is represented, how the bilinear weights are derived
 //! from it, and how the 2x2 system `G δ = -b` is solved.
 
-use super::{FlowStatus, LkConfig};
+use super::{FlowStatus, LkParams};
 
 /// Bits of the bilinear weights: `w00 + w01 + w10 + w11 = 2¹⁴`.
 pub const W_BITS: u32 = 14;
@@ -56,13 +56,15 @@ pub struct Bilinear {
 pub trait FlowArith: sealed::Sealed {
     /// A point coordinate.
     type Coord: Copy + PartialEq + core::fmt::Debug + Default;
-    /// Per-call constants derived from the [`LkConfig`] (thresholds in this path's units).
+    /// The coordinate 0 (for `const` initialisers: a tracker in a zeroed `static`).
+    const ZERO: Self::Coord;
+    /// Per-call constants derived from the [`LkParams`] (thresholds in this path's units).
     type Params: Copy;
     /// The inverted gradient matrix of one window.
     type Gram: Copy;
 
     /// Prepares the thresholds of `cfg` for windows of `area` pixels.
-    fn params(cfg: &LkConfig, area: u32) -> Self::Params;
+    fn params(cfg: &LkParams, area: u32) -> Self::Params;
     /// `v` as a coordinate (`v` pixels, may be fractional: `(win - 1) / 2`).
     fn from_half_px(halves: i32) -> Self::Coord;
     /// `a + b`.
@@ -131,26 +133,6 @@ fn mul_div_pow2(n: i64, shift: i32, d: i64, limit: i64) -> i64 {
     if n < 0 { -mag } else { mag }
 }
 
-/// `⌊√v⌋`, bit by bit (32 rounds).
-fn isqrt(v: u64) -> u64 {
-    let mut rem = v;
-    let mut root = 0u64;
-    let mut bit = 1u64 << 62;
-    while bit > rem {
-        bit >>= 2;
-    }
-    while bit != 0 {
-        if rem >= root + bit {
-            rem -= root + bit;
-            root = (root >> 1) + bit;
-        } else {
-            root >>= 1;
-        }
-        bit >>= 2;
-    }
-    root
-}
-
 fn bit_len(v: u64) -> u32 {
     64 - v.leading_zeros()
 }
@@ -181,20 +163,20 @@ pub struct FixedGram {
 
 impl FlowArith for Fixed {
     type Coord = i32;
+    const ZERO: i32 = 0;
     type Params = FixedParams;
     type Gram = FixedGram;
 
-    fn params(cfg: &LkConfig, area: u32) -> FixedParams {
+    fn params(cfg: &LkParams, area: u32) -> FixedParams {
+        let cfg = cfg.config();
         let sq = |v: f32| {
             let q = f64::from(v) * f64::from(Q16);
             (q * q).min(i64::MAX as f64) as i64
         };
         FixedParams {
-            min_eig: (f64::from(cfg.min_eigenvalue.max(0.0))
-                * (1u64 << 20) as f64
-                * f64::from(area)) as u64,
-            eps2: sq(cfg.epsilon.clamp(0.0, 10.0)),
-            fb2: cfg.fb_threshold.map_or(i64::MAX, |t| sq(t.max(0.0))),
+            min_eig: (f64::from(cfg.min_eigenvalue) * (1u64 << 20) as f64 * f64::from(area)) as u64,
+            eps2: sq(cfg.epsilon),
+            fb2: cfg.fb_threshold.map_or(i64::MAX, sq),
         }
     }
     fn from_half_px(halves: i32) -> i32 {
@@ -239,7 +221,7 @@ impl FlowArith for Fixed {
         let diff = (a11 - a22).unsigned_abs();
         let disc = diff * diff + 4 * a12.unsigned_abs() * a12.unsigned_abs();
         let lmin2 = (a11 + a22).max(0) as u64; // 2 λ_min = a11 + a22 - √disc
-        let lmin2 = lmin2.saturating_sub(isqrt(disc));
+        let lmin2 = lmin2.saturating_sub(disc.isqrt());
         // λ_min · 2^shift < min_eig  ⇔  2 λ_min · 2^shift < 2 min_eig.
         if lmin2.saturating_mul(1u64 << shift.clamp(0, 62)) < p.min_eig.saturating_mul(2) {
             return Err(FlowStatus::SmallEigenvalue);
@@ -326,12 +308,14 @@ const FLT_SCALE: f32 = 1.0 / (1u32 << 20) as f32;
 
 impl FlowArith for f32 {
     type Coord = f32;
+    const ZERO: f32 = 0.0;
     type Params = FloatParams;
     type Gram = FloatGram;
 
-    fn params(cfg: &LkConfig, area: u32) -> FloatParams {
-        let e = cfg.epsilon.clamp(0.0, 10.0);
-        let fb = cfg.fb_threshold.map_or(f32::INFINITY, |t| t.max(0.0));
+    fn params(cfg: &LkParams, area: u32) -> FloatParams {
+        let cfg = cfg.config();
+        let e = cfg.epsilon;
+        let fb = cfg.fb_threshold.unwrap_or(f32::INFINITY);
         FloatParams {
             min_eig: cfg.min_eigenvalue,
             eps2: e * e,
@@ -446,29 +430,6 @@ mod tests {
         let want = ((n as f64) * 65536.0 / d as f64).round() as i64;
         assert!((mul_div_pow2(n, 16, d, i64::MAX) - want).abs() <= 1);
         assert!((mul_div_pow2(-n, -3, d, i64::MAX) + (n / d + 4) / 8).abs() <= 1);
-    }
-
-    #[test]
-    fn sqrt() {
-        for v in [
-            0u64,
-            1,
-            2,
-            3,
-            4,
-            15,
-            16,
-            17,
-            1 << 40,
-            u64::MAX,
-            999_999_999_999,
-        ] {
-            let r = isqrt(v);
-            assert!(
-                r * r <= v && (r + 1).checked_mul(r + 1).is_none_or(|s| s > v),
-                "{v}"
-            );
-        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The Lucas-Kanade iteration of one point on one level, and the pyramid driver.
 
 use super::arith::{Bilinear, FlowArith, W_BITS};
-use super::{Flow, FlowStatus, Gradients, LkConfig, MAX_WIN, scratch_len};
+use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams, scratch_len};
 use crate::gradient::{reflect101, scharr_window};
 use crate::image::{ImageMut, ImageView};
 use crate::pyramid::Pyramid;
@@ -356,39 +356,23 @@ fn usable_levels(prev: &Pyramid<'_>, next: &Pyramid<'_>, cfg: &LkConfig) -> usiz
     top
 }
 
-fn check(cfg: &LkConfig, scratch: &[i16]) -> Result<()> {
-    if cfg.win < 3 || cfg.win > MAX_WIN {
-        return Err(Error::InvalidParameter("lk.win"));
-    }
-    if cfg.max_iter == 0 || cfg.max_iter > 100 {
-        return Err(Error::InvalidParameter("lk.max_iter"));
-    }
-    if cfg.epsilon.is_nan() || cfg.epsilon < 0.0 {
-        return Err(Error::InvalidParameter("lk.epsilon"));
-    }
-    if !cfg.min_eigenvalue.is_finite() {
-        return Err(Error::InvalidParameter("lk.min_eigenvalue"));
-    }
-    if scratch.len() < scratch_len(cfg.win) {
-        return Err(Error::BufferTooSmall("scratch"));
-    }
-    Ok(())
-}
-
 /// The driver: every level from the coarsest down, every point on each level.
 fn run<A: FlowArith>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     pts: impl Fn(usize) -> Option<[A::Coord; 2]>,
     flows: &mut [Flow<A::Coord>],
-    cfg: &LkConfig,
+    params: &LkParams,
     grads: &mut Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
-    check(cfg, scratch)?;
+    let cfg = params.config();
+    if scratch.len() < scratch_len(cfg.win) {
+        return Err(Error::BufferTooSmall("scratch"));
+    }
     let mut s = split_scratch(scratch, cfg.win)?;
     let top = usable_levels(prev, next, cfg);
-    let params = A::params(cfg, (cfg.win * cfg.win) as u32);
+    let params = A::params(params, (cfg.win * cfg.win) as u32);
     for f in flows.iter_mut() {
         f.status = FlowStatus::Tracked;
         f.err = A::Coord::default();
@@ -442,15 +426,15 @@ fn run<A: FlowArith>(
 /// full-resolution pixel coordinates, `(0, 0)` the centre of the top-left pixel.
 ///
 /// Errors: [`Error::LengthMismatch`] when the slices differ in length,
-/// [`Error::InvalidParameter`] for a configuration out of range or scratch shorter than
-/// [`scratch_len`]`(cfg.win)` (or a [`Gradients::PerLevel`] buffer too short),
-/// [`Error::InvalidImage`] when the pyramids' levels differ in size.
+/// [`Error::BufferTooSmall`] for scratch shorter than [`scratch_len`]`(win)` (or a
+/// [`Gradients::PerLevel`] buffer too short), [`Error::InvalidImage`] when the pyramids'
+/// levels differ in size. The configuration was checked once by [`LkConfig::check`].
 pub fn calc_flow<A: FlowArith>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     prev_pts: &[[A::Coord; 2]],
     flows: &mut [Flow<A::Coord>],
-    cfg: &LkConfig,
+    cfg: &LkParams,
     mut grads: Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
@@ -479,18 +463,17 @@ pub fn forward_backward<A: FlowArith>(
     prev_pts: &[[A::Coord; 2]],
     flows: &mut [Flow<A::Coord>],
     back: &mut [Flow<A::Coord>],
-    cfg: &LkConfig,
+    cfg: &LkParams,
     mut grads: Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
     if prev_pts.len() != flows.len() || back.len() != flows.len() {
         return Err(Error::LengthMismatch);
     }
-    if cfg.fb_threshold.is_none() {
+    if cfg.config().fb_threshold.is_none() {
         return Ok(());
     }
-    let mut bcfg = *cfg;
-    bcfg.use_initial_flow = false;
+    let bcfg = cfg.with_initial_flow(false);
     {
         let fw: &[Flow<A::Coord>] = flows;
         run::<A>(
@@ -503,7 +486,8 @@ pub fn forward_backward<A: FlowArith>(
             scratch,
         )?;
     }
-    let params = A::params(cfg, (cfg.win * cfg.win) as u32);
+    let win = cfg.config().win;
+    let params = A::params(cfg, (win * win) as u32);
     for ((f, b), p) in flows.iter_mut().zip(back.iter()).zip(prev_pts) {
         if f.status == FlowStatus::Tracked
             && (b.status != FlowStatus::Tracked || A::beyond([b.x, b.y], *p, &params))
@@ -547,11 +531,13 @@ mod tests {
         let cfg = LkConfig {
             max_level: 2,
             ..LkConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let pts: Vec<[f32; 2]> = (0..5)
             .flat_map(|j| (0..5).map(move |i| [25.0 + 22.0 * i as f32, 20.0 + 20.0 * j as f32]))
             .collect();
-        let mut scratch = std::vec![0i16; scratch_len(cfg.win)];
+        let mut scratch = std::vec![0i16; scratch_len(cfg.config().win)];
         let mut ff = std::vec![Flow::<f32>::default(); pts.len()];
         calc_flow::<f32>(
             &pa,
@@ -612,7 +598,9 @@ mod tests {
             win: 9,
             max_level: 0,
             ..LkConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         // Including points near and past the border.
         let pts = [
             [0, 0],
@@ -647,7 +635,9 @@ mod tests {
             win: 7,
             max_level: 0,
             ..LkConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let pts = [[-50.0f32, 3.0], [f32::NAN, 1.0], [10.0, 1e30]];
         let mut f = [Flow::<f32>::default(); 3];
         let mut s = std::vec![0i16; scratch_len(7)];
@@ -678,11 +668,11 @@ mod tests {
             ),
             Err(Error::LengthMismatch)
         );
-        let bad = LkConfig { win: 2, ..cfg };
-        assert_eq!(
-            calc_flow::<f32>(&pa, &pa, &pts, &mut f, &bad, Gradients::PerWindow, &mut s),
-            Err(Error::InvalidParameter("lk.win"))
-        );
+        let bad = LkConfig {
+            win: 2,
+            ..*cfg.config()
+        };
+        assert_eq!(bad.check(), Err(Error::InvalidParameter("lk.win")));
         // A flat image has no texture.
         let flat = [77u8; 64 * 48];
         let pf = Pyramid::build(ImageView::packed(&flat, w, h).unwrap(), &mut [], 1).unwrap();
@@ -718,7 +708,9 @@ mod tests {
             max_level: 0,
             fb_threshold: Some(0.5),
             ..LkConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let pts = [[30.0f32, 20.0], [78.0, 56.0]];
         let mut f = [Flow::<f32>::default(); 2];
         let mut back = [Flow::<f32>::default(); 2];

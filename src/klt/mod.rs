@@ -19,9 +19,10 @@
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
 
+use crate::{Error, Result};
+
 mod arith;
 mod lk;
-pub mod synthetic;
 mod tracker;
 
 pub use arith::{Bilinear, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16};
@@ -55,15 +56,80 @@ pub struct LkConfig {
     pub max_level: usize,
     /// Iteration cap per level, 1 ..= 100 (`criteria.maxCount`). Default 30.
     pub max_iter: u32,
-    /// Stop when `|δ| <= epsilon` pixels, clamped to 0 ..= 10 (`criteria.epsilon`). Default 0.01.
+    /// Stop when `|δ| <= epsilon` pixels, 0 ..= 10 (`criteria.epsilon`; OpenCV clamps it to that
+    /// range, camgeom rejects a value outside it). Default 0.01.
     pub epsilon: f32,
-    /// Reject windows with `λ_min(G) / (2²⁰ win²)` below this (`minEigThreshold`). Default 1e-4.
+    /// Reject windows with `λ_min(G) / (2²⁰ win²)` below this, finite and not negative
+    /// (`minEigThreshold`). Default 1e-4.
     pub min_eigenvalue: f32,
     /// Start the coarsest level from the positions already in the output
     /// (`OPTFLOW_USE_INITIAL_FLOW`). Default `false`.
     pub use_initial_flow: bool,
-    /// Forward-backward threshold in pixels for [`forward_backward`]; `None` disables it.
+    /// Forward-backward threshold in pixels (finite, not negative) for [`forward_backward`];
+    /// `None` disables it.
     pub fb_threshold: Option<f32>,
+}
+
+impl LkConfig {
+    /// Checks every field once: the flow functions take the checked [`LkParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `lk.win` outside 3 ..= [`MAX_WIN`],
+    /// `lk.max_iter` outside 1 ..= 100, `lk.epsilon` outside 0 ..= 10 (or NaN),
+    /// `lk.min_eigenvalue` negative or not finite, `lk.fb_threshold` negative or not finite.
+    pub fn check(&self) -> Result<LkParams> {
+        if self.win < 3 || self.win > MAX_WIN {
+            return Err(Error::InvalidParameter("lk.win"));
+        }
+        if self.max_iter == 0 || self.max_iter > 100 {
+            return Err(Error::InvalidParameter("lk.max_iter"));
+        }
+        if !(0.0..=10.0).contains(&self.epsilon) {
+            return Err(Error::InvalidParameter("lk.epsilon"));
+        }
+        if !(self.min_eigenvalue.is_finite() && self.min_eigenvalue >= 0.0) {
+            return Err(Error::InvalidParameter("lk.min_eigenvalue"));
+        }
+        if self
+            .fb_threshold
+            .is_some_and(|t| !(t.is_finite() && t >= 0.0))
+        {
+            return Err(Error::InvalidParameter("lk.fb_threshold"));
+        }
+        Ok(LkParams(*self))
+    }
+}
+
+/// An [`LkConfig`] that passed [`LkConfig::check`]: what [`calc_flow`], [`forward_backward`]
+/// and the trackers take, so that no call validates or clamps it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LkParams(LkConfig);
+
+impl LkParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &LkConfig {
+        &self.0
+    }
+
+    /// The same parameters with [`LkConfig::use_initial_flow`] set to `on`.
+    pub const fn with_initial_flow(mut self, on: bool) -> Self {
+        self.0.use_initial_flow = on;
+        self
+    }
+}
+
+impl Default for LkParams {
+    /// The checked [`LkConfig::default`].
+    fn default() -> Self {
+        Self(LkConfig::default())
+    }
+}
+
+impl TryFrom<LkConfig> for LkParams {
+    type Error = Error;
+    fn try_from(c: LkConfig) -> Result<Self> {
+        c.check()
+    }
 }
 
 impl Default for LkConfig {

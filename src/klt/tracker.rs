@@ -9,7 +9,7 @@ use heapless::Vec;
 
 use super::arith::FlowArith;
 use super::lk::{calc_flow, forward_backward};
-use super::{Flow, FlowStatus, Gradients, LkConfig};
+use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::image::ImageView;
 use crate::pyramid::Pyramid;
@@ -85,12 +85,18 @@ impl<A: FlowArith, const N: usize> Default for FlowBuffers<A, N> {
 }
 
 impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
-    /// Zeroed buffers.
-    pub fn new() -> Self {
+    /// Zeroed buffers (`const`: they can live in a zero-initialised `static`).
+    pub const fn new() -> Self {
+        let zero = Flow {
+            x: A::ZERO,
+            y: A::ZERO,
+            status: FlowStatus::Tracked,
+            err: A::ZERO,
+        };
         Self {
-            pts: [[A::Coord::default(); 2]; N],
-            flows: [Flow::default(); N],
-            back: [Flow::default(); N],
+            pts: [[A::ZERO; 2]; N],
+            flows: [zero; N],
+            back: [zero; N],
         }
     }
 
@@ -104,7 +110,7 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
         next: &Pyramid<'_>,
         n: usize,
         points: impl Iterator<Item = [A::Coord; 2]>,
-        lk: &LkConfig,
+        lk: &LkParams,
         scratch: &mut [i16],
     ) -> Result<&[Flow<A::Coord>]> {
         let (Some(pts), Some(flows), Some(back)) = (
@@ -117,10 +123,7 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
         for (p, q) in pts.iter_mut().zip(points) {
             *p = q;
         }
-        let lk = LkConfig {
-            use_initial_flow: false,
-            ..*lk
-        };
+        let lk = lk.with_initial_flow(false);
         calc_flow::<A>(prev, next, pts, flows, &lk, Gradients::PerWindow, scratch)?;
         forward_backward::<A>(
             prev,
@@ -134,31 +137,64 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
         )?;
         Ok(flows)
     }
+
+    /// Moves every item of `items` (at most `N`) from `prev` to `next` ([`Self::run`] on their
+    /// `pos`), keeps those [`FlowStatus::Tracked`] in order and hands each kept one its flow
+    /// through `moved`; the rest are removed. Returns how many remain. Errors: as
+    /// [`Self::run`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn track<T, const M: usize>(
+        &mut self,
+        prev: &Pyramid<'_>,
+        next: &Pyramid<'_>,
+        items: &mut Vec<T, M>,
+        pos: impl Fn(&T) -> [A::Coord; 2],
+        mut moved: impl FnMut(&mut T, &Flow<A::Coord>),
+        lk: &LkParams,
+        scratch: &mut [i16],
+    ) -> Result<usize> {
+        let n = items.len();
+        let flows = self.run(prev, next, n, items.iter().map(pos), lk, scratch)?;
+        let mut k = 0usize;
+        items.retain_mut(|t| {
+            let f = flows.get(k);
+            k += 1;
+            match f {
+                Some(f) if f.status == FlowStatus::Tracked => {
+                    moved(t, f);
+                    true
+                }
+                _ => false,
+            }
+        });
+        Ok(items.len())
+    }
 }
 
 /// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is in
-/// [`pipeline_ram`]).
+/// [`pipeline_ram`]), and the checked configuration they are tracked with.
 #[derive(Debug, Clone)]
 pub struct Tracker<A: FlowArith, const N: usize> {
     tracks: Vec<Track<A::Coord>, N>,
     buffers: FlowBuffers<A, N>,
+    lk: LkParams,
+    cfg: TrackerConfig,
     next_id: u32,
 }
 
-impl<A: FlowArith, const N: usize> Default for Tracker<A, N> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
 impl<A: FlowArith, const N: usize> Tracker<A, N> {
-    /// An empty tracker.
-    pub fn new() -> Self {
-        Self {
+    /// An empty tracker with `cfg`, checked once here. Errors: as [`LkConfig::check`] and
+    /// [`CornerConfig::check`].
+    pub fn new(cfg: &TrackerConfig) -> Result<Self> {
+        let lk = cfg.lk.check()?;
+        cfg.corners.check()?;
+        Ok(Self {
             tracks: Vec::new(),
             buffers: FlowBuffers::new(),
+            lk,
+            cfg: *cfg,
             next_id: 0,
-        }
+        })
     }
 
     /// The live tracks.
@@ -172,69 +208,55 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     }
 
     /// Moves every track from `prev` to `next`; removes those not [`FlowStatus::Tracked`].
-    /// `scratch`: [`super::scratch_len`]`(cfg.lk.win)` `i16`. Errors as [`calc_flow`].
+    /// `scratch`: [`super::scratch_len`]`(lk.win)` `i16`. Errors as [`calc_flow`].
     pub fn update(
         &mut self,
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
-        cfg: &TrackerConfig,
         scratch: &mut [i16],
     ) -> Result<TrackerStats> {
         let n = self.tracks.len();
-        let flows = self.buffers.run(
+        let tracked = self.buffers.track(
             prev,
             next,
-            n,
-            self.tracks.iter().map(|t| [t.x, t.y]),
-            &cfg.lk,
+            &mut self.tracks,
+            |t| [t.x, t.y],
+            |t, f| {
+                t.x = f.x;
+                t.y = f.y;
+                t.err = f.err;
+                t.age = t.age.saturating_add(1);
+            },
+            &self.lk,
             scratch,
         )?;
-        let mut k = 0;
-        self.tracks.retain_mut(|t| {
-            let f = flows.get(k).copied().unwrap_or_default();
-            k += 1;
-            if f.status != FlowStatus::Tracked {
-                return false;
-            }
-            t.x = f.x;
-            t.y = f.y;
-            t.err = f.err;
-            t.age = t.age.saturating_add(1);
-            true
-        });
         Ok(TrackerStats {
-            tracked: self.tracks.len(),
-            lost: n - self.tracks.len(),
+            tracked,
+            lost: n - tracked,
             added: 0,
         })
     }
 
-    /// When fewer than `cfg.replenish_below` tracks remain, detects corners of `frame` away
-    /// from the live tracks (`cfg.corners.min_distance`) and adds them as new tracks, up to
-    /// `cfg.corners.max_corners` per call and `cfg.max_tracks` (at most `N`) in all. `candidates` and `scratch` as [`good_features`]. Returns the number added.
+    /// When fewer than `replenish_below` tracks remain, detects corners of `frame` away from
+    /// the live tracks (`corners.min_distance`) and adds them as new tracks, up to
+    /// `corners.max_corners` per call and `max_tracks` (at most `N`) in all. `candidates` and
+    /// `scratch` as [`good_features`]. Returns the number added.
     pub fn replenish(
         &mut self,
         frame: &ImageView<'_, u8>,
-        cfg: &TrackerConfig,
         candidates: &mut [Corner],
         scratch: &mut [u32],
     ) -> Result<usize> {
-        let cap = if cfg.max_tracks == 0 {
+        let cap = if self.cfg.max_tracks == 0 {
             N
         } else {
-            cfg.max_tracks.min(N)
+            self.cfg.max_tracks.min(N)
         };
-        if self.tracks.len() >= cfg.replenish_below.min(cap) {
+        if self.tracks.len() >= self.cfg.replenish_below.min(cap) {
             return Ok(0);
         }
         let mut found: Vec<Corner, N> = Vec::new();
-        let mut ccfg = cfg.corners;
-        let free = cap - self.tracks.len();
-        ccfg.max_corners = if ccfg.max_corners == 0 {
-            free
-        } else {
-            ccfg.max_corners.min(free)
-        };
+        let ccfg = self.cfg.corners.up_to(cap - self.tracks.len());
         let existing = self.tracks.iter().map(|t| [A::round(t.x), A::round(t.y)]);
         good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
         let mut added = 0;
@@ -311,11 +333,11 @@ mod tests {
             replenish_below: 20,
             max_tracks: 0,
         };
-        let mut t: Tracker<Fixed, 32> = Tracker::new();
+        let mut t: Tracker<Fixed, 32> = Tracker::new(&cfg).unwrap();
         let mut cands = [Corner::default(); 256];
         let mut cs = std::vec![0u32; crate::corners::scratch_len(w)];
         let v0 = ImageView::packed(&f0, w, h).unwrap();
-        let added = t.replenish(&v0, &cfg, &mut cands, &mut cs).unwrap();
+        let added = t.replenish(&v0, &mut cands, &mut cs).unwrap();
         assert!(added >= 20, "{added}");
         let before: std::vec::Vec<_> = t.tracks().to_vec();
         let mut b0 = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
@@ -324,7 +346,7 @@ mod tests {
         let p1 = Pyramid::build(ImageView::packed(&f1, w, h).unwrap(), &mut b1, 2).unwrap();
         let p0 = Pyramid::from_buffer(v0, &b0, 2).unwrap();
         let mut s = std::vec![0i16; super::super::scratch_len(11)];
-        let st = t.update(&p0, &p1, &cfg, &mut s).unwrap();
+        let st = t.update(&p0, &p1, &mut s).unwrap();
         assert_eq!(st.tracked + st.lost, before.len());
         assert!(st.tracked * 10 >= before.len() * 8, "{st:?}");
         for tr in t.tracks() {
@@ -356,7 +378,7 @@ mod ram {
         std::println!("tracker: {}", core::mem::size_of::<Tracker<Fixed, 200>>());
         assert_eq!(
             n,
-            2 * 76_800 + 2 * 25_200 + 2 * 2_775 + 4 * 3_840 + 512 * 8 + 12_016
+            2 * 76_800 + 2 * 25_200 + 2 * 2_775 + 4 * 3_840 + 512 * 8 + 12_128
         );
     }
 }

@@ -46,9 +46,28 @@ fn steps() -> Vec<Step> {
     add(
         "clippy (firmware)",
         Box::new(|| {
+            // The app's tests run on the host (next step): its test target has no std here.
             let mut cmd = firmware_cargo("clippy");
-            cmd.args(["--workspace", "--all-targets"]);
+            cmd.args([
+                "--workspace",
+                "--all-targets",
+                "--exclude",
+                "camgeom-fw-app",
+            ]);
             run(locked(&mut cmd).args(["--", "-D", "warnings"]))
+        }),
+    );
+    add(
+        "firmware app: clippy + tests (host)",
+        Box::new(|| {
+            let host = host_triple()?;
+            let target = ["--target", host.as_str()];
+            let mut cmd = firmware_cargo("clippy");
+            cmd.args(["-p", "camgeom-fw-app", "--all-targets"]);
+            run(locked(cmd.args(target)).args(["--", "-D", "warnings"]))?;
+            let mut cmd = firmware_cargo("test");
+            cmd.args(["-p", "camgeom-fw-app"]).args(target);
+            run(locked(&mut cmd))
         }),
     );
     add(

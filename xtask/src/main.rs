@@ -18,6 +18,7 @@
 mod ci;
 mod firmware;
 mod fuzz;
+mod jobs;
 mod mainjob;
 mod openmv;
 mod panic_check;

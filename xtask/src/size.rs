@@ -13,7 +13,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 
 use crate::firmware::{build_bin, firmware_dir, size_report};
-use crate::mainjob::{FULL, HALF};
+use crate::jobs::{FULL, HALF};
 
 /// Growth allowed before the comparison fails (compiler updates move sizes by a few tenths of
 /// a percent; a real regression, such as a buffer doubling or a panic path pulling in

@@ -2,16 +2,23 @@
 //!
 //! A board supplies frames through [`FrameSource`] (a camera, or a recorded sequence read
 //! from the host on the emulator) and a [`Clock`]; everything downstream of the frame is the
-//! same code on every board: [`pipeline::Pipeline`] (pyramid, planar-target tracking, pose, AR
-//! overlay, per-stage cost). It has no board dependency, so it also builds for the host (the
-//! replay that checks a board's log) and for any Cortex-M target.
+//! same code on every board: [`pipeline::Pipeline`] (pyramid, the core's per-frame loop
+//! [`camgeom::target::PlanarTarget::step`], AR overlay, per-stage cost) and the binary
+//! [`report`] records a board sends back. It has no board dependency, so it also builds for
+//! the host (the replay that checks a board's run, and this crate's tests) and for any
+//! Cortex-M or RISC-V target.
 #![no_std]
+
+#[cfg(test)]
+extern crate std;
 
 pub mod pipeline;
 pub mod qvga;
+pub mod report;
 pub mod run;
 pub mod slot;
 pub mod source;
+pub mod texture;
 
 pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameReport, Pipeline, StageCosts};
 pub use run::RunSpec;

@@ -1,14 +1,13 @@
-//! The tracking pipeline: frame in, pyramid, planar-target step, AR overlay, report out.
+//! The board's pipeline: frame in, pyramid, [`PlanarTarget::step`], AR overlay, report out.
 //!
-//! Per frame `k` (frame 0 only starts the target, [`Pipeline::start`]):
+//! Per frame `k`:
 //!
 //! 1. the [`FrameSource`] writes frame `k` into the free one of two frame buffers;
 //! 2. its Gaussian pyramid is built into the free one of two pyramid buffers
 //!    ([`camgeom::pyramid`]);
-//! 3. [`PlanarTarget::step_probed`] runs KLT (Q16.16 fixed point, forward-backward checked)
-//!    from frame `k - 1`'s pyramid, the RANSAC homography target plane → image, the IPPE + LM
-//!    pose and, when too few tracks survive, re-detection; a lost target is re-detected around
-//!    its last outline ([`PlanarTarget::relocate`]) on the same frame;
+//! 3. [`PlanarTarget::step`] runs the core's per-frame policy on it: acquisition (frame 0, after
+//!    a loss), KLT in Q16.16 fixed point from frame `k - 1`'s pyramid, the RANSAC homography
+//!    target plane → image, the IPPE + LM pose, re-detection and relocation;
 //! 4. frame `k - 1` is no longer needed as the KLT template: the overlay of frame `k - 1` (its
 //!    outline and an AR cube, [`camgeom::draw`]) is drawn into its own buffer and handed to the
 //!    caller, then the buffers swap roles.
@@ -19,22 +18,23 @@
 //!
 //! Every buffer is a fixed-size array whose length comes from a `const fn` of the geometry
 //! (width, height, pyramid levels, KLT window, candidates, tracks): a board places one
-//! [`Pipeline`] in a `static`, so the linker checks its RAM against the memory map. The
-//! [`pipeline_type!`](crate::pipeline_type) macro spells the type from the geometry.
+//! [`Pipeline`] in a `static` (all zeros, so in `.bss`), and the linker checks its RAM against
+//! the memory map. The [`pipeline_type!`](crate::pipeline_type) macro spells the type from the
+//! geometry.
 
 use camgeom::Error;
-use camgeom::camera::Camera;
-use camgeom::corners::{self, Corner};
 use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
 use camgeom::image::{ImageMut, ImageView};
-use camgeom::klt::{self, Fixed};
+use camgeom::klt::Fixed;
 use camgeom::nalgebra::Point2;
-use camgeom::pose::PoseEstimate;
+use camgeom::pose::{PlanarPose, PoseEstimate};
 use camgeom::pyramid::{self, Pyramid};
-use camgeom::target::{PlanarTarget, Stage, StageProbe, TargetConfig, TargetState};
+use camgeom::target::{Acquire, PlanarTarget, Stage, StageProbe, TargetParams, TargetState};
 
 use crate::slot::Slot;
 use crate::source::FrameSource;
+
+pub use camgeom::target::{corner_scratch_len, flow_scratch_len};
 
 /// Bytes of one `width x height` grayscale frame.
 pub const fn frame_len(width: usize, height: usize) -> usize {
@@ -44,33 +44,6 @@ pub const fn frame_len(width: usize, height: usize) -> usize {
 /// Bytes of one pyramid buffer (levels `1..levels`; level 0 is the frame itself).
 pub const fn pyramid_len(width: usize, height: usize, levels: usize) -> usize {
     pyramid::buffer_len(width, height, levels)
-}
-
-/// `i16` elements of the KLT scratch for `win x win` windows.
-pub const fn flow_scratch_len(win: usize) -> usize {
-    klt::scratch_len(win)
-}
-
-/// `u32` elements of the corner detector's scratch for frames `width` wide.
-pub const fn corner_scratch_len(width: usize) -> usize {
-    corners::scratch_len(width)
-}
-
-/// Bytes of RAM a pipeline of this geometry takes: two frames, two pyramids, the scratch
-/// buffers, the candidate corners and the target of `N` tracks (an estimate of the last,
-/// rounded up; [`core::mem::size_of`] of the concrete type is exact, see [`Pipeline::RAM`]).
-pub const fn buffers_ram(
-    width: usize,
-    height: usize,
-    levels: usize,
-    win: usize,
-    candidates: usize,
-) -> usize {
-    2 * frame_len(width, height)
-        + 2 * pyramid_len(width, height, levels)
-        + 2 * flow_scratch_len(win)
-        + 4 * corner_scratch_len(width)
-        + core::mem::size_of::<Corner>() * candidates
 }
 
 /// The concrete [`Pipeline`] type of a geometry: `pipeline_type!(width, height, levels, win,
@@ -101,22 +74,19 @@ pub struct CubeConfig {
     pub size: f32,
 }
 
-/// What the application is told once: geometry, camera, target, drawing. Kept apart from the
-/// state ([`Pipeline`]), so one configuration can serve any number of runs.
+/// What the application is told once: geometry, the checked target parameters (camera, size,
+/// tracking), drawing. Kept apart from the state ([`Pipeline`]), so one configuration can
+/// serve any number of runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AppConfig {
     /// Frame width (pixels); must match the pipeline's buffers.
     pub width: usize,
     /// Frame height (pixels).
     pub height: usize,
-    /// Pyramid levels, the frame included (`cfg.target.lk.max_level + 1` is enough).
+    /// Pyramid levels, the frame included (`lk.max_level + 1` is enough).
     pub levels: usize,
-    /// The camera's intrinsics and distortion.
-    pub camera: Camera<f32>,
-    /// The target's `width x height` (metres): its corners are `(0, 0), (w, 0), (w, h), (0, h)`.
-    pub target_size: [f32; 2],
-    /// Tracking parameters (`target.lk.win` must match the pipeline's flow scratch).
-    pub target: TargetConfig,
+    /// The target, its camera and the tracking parameters, checked once.
+    pub target: TargetParams,
     /// The AR cube.
     pub cube: CubeConfig,
     /// How the cube is drawn.
@@ -150,13 +120,15 @@ pub struct StageCosts {
     pub capture: u32,
     /// The pyramid of the new frame.
     pub pyramid: u32,
-    /// KLT, forward and back.
+    /// The acquisition step (a detector; nothing when the corners are given).
+    pub acquire: u32,
+    /// KLT (forward and back when checked).
     pub flow: u32,
     /// RANSAC homography.
     pub homography: u32,
     /// IPPE and its refinement.
     pub pose: u32,
-    /// Re-detection (after too few tracks, or relocation after a lost frame).
+    /// Feature detection (after an acquisition, with too few tracks, relocation after a loss).
     pub redetect: u32,
     /// Drawing the previous frame's overlay.
     pub draw: u32,
@@ -164,19 +136,59 @@ pub struct StageCosts {
     pub total: u32,
 }
 
+/// The names of [`StageCosts`]' fields, in table order.
+pub const STAGES: [&str; 9] = [
+    "capture",
+    "pyramid",
+    "acquire",
+    "flow",
+    "homography",
+    "pose",
+    "redetect",
+    "draw",
+    "total",
+];
+
 impl StageCosts {
-    /// The stages in table order, with their names.
-    pub fn named(&self) -> [(&'static str, u32); 8] {
+    /// The costs in the order of [`STAGES`].
+    pub const fn to_array(&self) -> [u32; 9] {
         [
-            ("capture", self.capture),
-            ("pyramid", self.pyramid),
-            ("flow", self.flow),
-            ("homography", self.homography),
-            ("pose", self.pose),
-            ("redetect", self.redetect),
-            ("draw", self.draw),
-            ("total", self.total),
+            self.capture,
+            self.pyramid,
+            self.acquire,
+            self.flow,
+            self.homography,
+            self.pose,
+            self.redetect,
+            self.draw,
+            self.total,
         ]
+    }
+
+    /// The inverse of [`Self::to_array`].
+    pub const fn from_array(a: [u32; 9]) -> Self {
+        let [
+            capture,
+            pyramid,
+            acquire,
+            flow,
+            homography,
+            pose,
+            redetect,
+            draw,
+            total,
+        ] = a;
+        Self {
+            capture,
+            pyramid,
+            acquire,
+            flow,
+            homography,
+            pose,
+            redetect,
+            draw,
+            total,
+        }
     }
 }
 
@@ -184,7 +196,7 @@ fn span(from: u64, to: u64) -> u32 {
     u32::try_from(to.saturating_sub(from)).unwrap_or(u32::MAX)
 }
 
-/// Times the stages of [`PlanarTarget::step_probed`].
+/// Times the stages of [`PlanarTarget::step`].
 struct Probe<'a, C: Clock> {
     clock: &'a mut C,
     last: u64,
@@ -197,6 +209,7 @@ impl<C: Clock> StageProbe for Probe<'_, C> {
         let d = span(self.last, now);
         self.last = now;
         let slot = match stage {
+            Stage::Acquire => &mut self.costs.acquire,
             Stage::Flow => &mut self.costs.flow,
             Stage::Homography => &mut self.costs.homography,
             Stage::Pose => &mut self.costs.pose,
@@ -213,16 +226,18 @@ pub struct FrameReport {
     pub index: u32,
     /// The tracker's state after the frame.
     pub state: TargetState,
+    /// The target was acquired on this frame.
+    pub acquired: bool,
     /// Tracks that survived the flow.
     pub tracked: usize,
     /// Homography inliers.
     pub inliers: usize,
-    /// Features added by re-detection or relocation.
+    /// Features added by acquisition, re-detection or relocation.
     pub added: usize,
     /// Features alive after the frame.
     pub features: usize,
-    /// The best planar pose (target → camera), when tracking.
-    pub pose: Option<PoseEstimate<f32>>,
+    /// Both planar poses (target → camera), when tracking.
+    pub pose: Option<PlanarPose<f32>>,
     /// The target's outline in this frame, when tracking.
     pub outline: Option<[Point2<f32>; 4]>,
     /// [`track_checksum`] of the live features after the frame.
@@ -234,7 +249,9 @@ pub struct FrameReport {
 /// FNV-1a (32 bit) over the features' image positions in Q16.16 (`x`, `y` as little-endian
 /// `i32`, [`PlanarTarget::tracks`]), in order: two builds track identically exactly when their
 /// checksums agree on every frame (up to hash collisions).
-pub fn track_checksum<const N: usize>(target: &PlanarTarget<Fixed, N>) -> u32 {
+pub fn track_checksum<const N: usize, const S: usize, const C: usize, const K: usize>(
+    target: &PlanarTarget<Fixed, N, S, C, K>,
+) -> u32 {
     let mut h: u32 = 0x811c_9dc5;
     for q in target.tracks() {
         for b in q.iter().flat_map(|v| v.to_le_bytes()) {
@@ -252,13 +269,27 @@ pub enum AppError<E> {
     Source(E),
     /// The source ended before the start frame.
     NoFrame,
-    /// The configuration does not fit the pipeline's buffers (geometry, window) or the
-    /// source's frame size.
+    /// The configuration does not fit the pipeline's buffers (geometry) or the source's frame
+    /// size.
     Geometry,
     /// [`Pipeline::step`] before [`Pipeline::start`].
     NotStarted,
     /// The core returned an error (a bad configuration or degenerate start corners).
     Core(Error),
+}
+
+impl<E> AppError<E> {
+    /// The error in snake case (`source`, `no_frame`, `geometry`, `not_started`, or the core
+    /// error's [`Error::name`]).
+    pub fn name(&self) -> &'static str {
+        match self {
+            AppError::Source(_) => "source",
+            AppError::NoFrame => "no_frame",
+            AppError::Geometry => "geometry",
+            AppError::NotStarted => "not_started",
+            AppError::Core(e) => e.name(),
+        }
+    }
 }
 
 impl<E> From<Error> for AppError<E> {
@@ -267,7 +298,7 @@ impl<E> From<Error> for AppError<E> {
     }
 }
 
-/// The previous frame: its number, pose and outline (for its overlay).
+/// The previous frame: its number, best pose and outline (what its overlay draws).
 type LastFrame = (u32, Option<PoseEstimate<f32>>, Option<[Point2<f32>; 4]>);
 
 /// The application's state: every buffer, the target, and which buffer holds which frame.
@@ -285,10 +316,7 @@ pub struct Pipeline<
 > {
     frames: [[u8; F]; 2],
     pyramids: [[u8; P]; 2],
-    flow_scratch: [i16; S],
-    corner_scratch: [u32; C],
-    candidates: [Corner; K],
-    target: Slot<PlanarTarget<Fixed, N>>,
+    target: PlanarTarget<Fixed, N, S, C, K>,
     /// The buffer holding the latest frame.
     current: usize,
     /// The latest frame's number and what to draw on it.
@@ -309,33 +337,30 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
     /// Bytes of RAM this pipeline takes (buffers, target, bookkeeping).
     pub const RAM: usize = core::mem::size_of::<Self>();
 
-    /// An empty pipeline: zero buffers and empty [`Slot`]s, so a `static` of it lives in
-    /// `.bss` (no flash image, never built on the stack). Were it to move to `.data`, the
-    /// main job's flash would triple and its size check (`cargo xtask size`) would fail.
+    /// An empty pipeline: zero buffers, a target not acquired and an empty [`Slot`], so a
+    /// `static` of it lives in `.bss` (no flash image, never built on the stack). Were it to
+    /// move to `.data`, the main job's flash would triple and its size check
+    /// (`cargo xtask size`) would fail.
     pub const fn new() -> Self {
         Self {
             frames: [[0; F]; 2],
             pyramids: [[0; P]; 2],
-            flow_scratch: [0; S],
-            corner_scratch: [0; C],
-            candidates: [Corner {
-                x: 0,
-                y: 0,
-                score: 0,
-            }; K],
-            target: Slot::empty(),
+            target: PlanarTarget::new(),
             current: 0,
             last: Slot::empty(),
         }
+    }
+
+    /// The target's state (for a board's own policy or checks).
+    pub fn target(&self) -> &PlanarTarget<Fixed, N, S, C, K> {
+        &self.target
     }
 
     /// Checks `cfg` (and the source's frame size) against the buffers.
     fn check<E>(cfg: &AppConfig, size: (usize, usize)) -> Result<(), AppError<E>> {
         let fits = size == (cfg.width, cfg.height)
             && F == frame_len(cfg.width, cfg.height)
-            && P == pyramid_len(cfg.width, cfg.height, cfg.levels)
-            && S == flow_scratch_len(cfg.target.lk.win)
-            && C == corner_scratch_len(cfg.width);
+            && P == pyramid_len(cfg.width, cfg.height, cfg.levels);
         if fits {
             Ok(())
         } else {
@@ -343,19 +368,19 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         }
     }
 
-    /// Reads the start frame, builds its pyramid and starts the target from its four image
-    /// `corners` (order of [`PlanarTarget::target_corners`]). Returns the start frame's
-    /// report (features found, no pose: the pose comes with the first step). Errors: as
-    /// [`AppError`]; a start that finds too few features is [`AppError::Core`].
+    /// Reads the start frame, builds its pyramid and runs its [`PlanarTarget::step`]: the
+    /// target is acquired through `acquire` (e.g. [`camgeom::target::GivenCorners`]) and its
+    /// pose solved. Returns the start frame's report. Errors: as [`AppError`].
     pub fn start<Src: FrameSource, Clk: Clock>(
         &mut self,
         cfg: &AppConfig,
         source: &mut Src,
-        corners: &[Point2<f32>; 4],
+        acquire: &mut (impl Acquire + ?Sized),
         clock: &mut Clk,
     ) -> Result<FrameReport, AppError<Src::Error>> {
         Self::check(cfg, source.size())?;
-        let mut target = PlanarTarget::<Fixed, N>::new(cfg.target_size[0], cfg.target_size[1])?;
+        self.target.reset();
+        self.current = 0;
         let mut costs = StageCosts::default();
         let t0 = clock.now();
         let [frame, _] = &mut self.frames;
@@ -368,52 +393,36 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         }
         let t1 = clock.now();
         costs.capture = span(t0, t1);
-        let view = ImageView::packed(&frame[..], cfg.width, cfg.height)?;
-        Pyramid::build(view, &mut pyr[..], cfg.levels)?;
-        let t2 = clock.now();
-        costs.pyramid = span(t1, t2);
-        let added = target.init(
-            &view,
-            corners,
-            &cfg.target,
-            &mut self.candidates[..],
-            &mut self.corner_scratch[..],
-        )?;
-        let t3 = clock.now();
-        costs.redetect = span(t2, t3);
-        costs.total = span(t1, t3);
-        let report = FrameReport {
-            index: 0,
-            state: target.state(),
-            tracked: 0,
-            inliers: 0,
-            added,
-            features: target.features().count(),
-            pose: None,
-            outline: Some(*corners),
-            checksum: track_checksum(&target),
-            costs,
+        let out = {
+            let view = ImageView::packed(&frame[..], cfg.width, cfg.height)?;
+            let next = Pyramid::build(view, &mut pyr[..], cfg.levels)?;
+            let t2 = clock.now();
+            costs.pyramid = span(t1, t2);
+            let mut probe = Probe {
+                clock: &mut *clock,
+                last: t2,
+                costs: &mut costs,
+            };
+            self.target
+                .step(&cfg.target, None, &next, acquire, &mut probe)?
         };
-        self.target.set(target);
-        self.current = 0;
-        self.last.set((0, None, Some(*corners)));
-        Ok(report)
+        costs.total = span(t1, clock.now());
+        self.last.set((0, out.pose.map(|p| p.best), out.outline));
+        Ok(self.report(0, &out, costs))
     }
 
     /// Runs one frame (see the module documentation). Returns `Ok(None)` once the source has
-    /// ended. `overlay` receives the previous frame's number and its picture with the outline
-    /// and cube drawn.
+    /// ended. `acquire` is asked when the target is lost; `overlay` receives the previous
+    /// frame's number and its picture with the outline and cube drawn.
     pub fn step<Src: FrameSource, Clk: Clock>(
         &mut self,
         cfg: &AppConfig,
         source: &mut Src,
+        acquire: &mut (impl Acquire + ?Sized),
         clock: &mut Clk,
         overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
     ) -> Result<Option<FrameReport>, AppError<Src::Error>> {
-        Self::check(cfg, source.size())?;
-        let (Some(target), Some((prev_index, prev_pose, prev_outline))) =
-            (self.target.get_mut(), self.last.get().copied())
-        else {
+        let Some((prev_index, prev_pose, prev_outline)) = self.last.get().copied() else {
             return Err(AppError::NotStarted);
         };
         let index = prev_index.saturating_add(1);
@@ -436,8 +445,11 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         let t1 = clock.now();
         costs.capture = span(t0, t1);
         let out = {
-            let next_view = ImageView::packed(&next_frame[..], w, h)?;
-            let next = Pyramid::build(next_view, &mut next_pyr[..], levels)?;
+            let next = Pyramid::build(
+                ImageView::packed(&next_frame[..], w, h)?,
+                &mut next_pyr[..],
+                levels,
+            )?;
             let prev_view = ImageView::packed(&prev_frame[..], w, h)?;
             let prev = Pyramid::from_buffer(prev_view, &prev_pyr[..], levels)?;
             let t2 = clock.now();
@@ -447,29 +459,8 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
                 last: t2,
                 costs: &mut costs,
             };
-            let mut out = target.step_probed(
-                &prev,
-                &next,
-                &cfg.camera,
-                &cfg.target,
-                &mut self.flow_scratch[..],
-                &mut self.candidates[..],
-                &mut self.corner_scratch[..],
-                &mut probe,
-            )?;
-            if out.state == TargetState::Lost {
-                // Look for the target around its last outline on this frame.
-                let t = probe.clock.now();
-                out.added += target.relocate(
-                    &next_view,
-                    &cfg.target,
-                    &mut self.candidates[..],
-                    &mut self.corner_scratch[..],
-                )?;
-                let d = span(t, probe.clock.now());
-                costs.redetect = costs.redetect.saturating_add(d);
-            }
-            out
+            self.target
+                .step(&cfg.target, Some(&prev), &next, acquire, &mut probe)?
         };
         // The previous frame has served as the template: draw its overlay into it.
         let t3 = clock.now();
@@ -478,21 +469,31 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         let t4 = clock.now();
         costs.draw = span(t3, t4);
         costs.total = span(t1, t4);
-        let pose = out.pose.map(|p| p.best);
         self.current = 1 - self.current;
-        self.last.set((index, pose, out.outline));
-        Ok(Some(FrameReport {
+        self.last
+            .set((index, out.pose.map(|p| p.best), out.outline));
+        Ok(Some(self.report(index, &out, costs)))
+    }
+
+    fn report(
+        &self,
+        index: u32,
+        out: &camgeom::target::TargetFrame,
+        costs: StageCosts,
+    ) -> FrameReport {
+        FrameReport {
             index,
             state: out.state,
+            acquired: out.acquired,
             tracked: out.tracked,
             inliers: out.inliers,
             added: out.added,
-            features: target.features().count(),
-            pose,
+            features: out.features,
+            pose: out.pose,
             outline: out.outline,
-            checksum: track_checksum(target),
+            checksum: track_checksum(&self.target),
             costs,
-        }))
+        }
     }
 
     /// Draws the latest frame's overlay and hands it to `overlay` (after the source ended).
@@ -531,7 +532,14 @@ fn draw_overlay(
     }
     if let Some(p) = pose {
         let (vertices, edges) = cube(cfg.cube.x, cfg.cube.y, cfg.cube.size);
-        written += draw_wireframe(&mut img, &cfg.camera, &p.pose, &vertices, &edges, &cfg.wire)?;
+        written += draw_wireframe(
+            &mut img,
+            cfg.target.camera(),
+            &p.pose,
+            &vertices,
+            &edges,
+            &cfg.wire,
+        )?;
     }
     Ok(written)
 }

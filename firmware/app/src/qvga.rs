@@ -6,6 +6,7 @@
 //! per-frame path for that target.
 
 use camgeom::image::{ImageMut, ImageView};
+use camgeom::target::Acquire;
 
 use crate::pipeline::{AppConfig, AppError, FrameReport, NoClock};
 use crate::run::{CANDIDATES, LEVELS, TRACKS, WIN};
@@ -69,7 +70,10 @@ pub fn step_qvga(
     pipeline: &mut Qvga,
     cfg: &AppConfig,
     source: &mut SliceSource<'_>,
+    acquire: &mut dyn Acquire,
     overlay: &mut dyn FnMut(u32, &ImageView<'_, u8>),
 ) -> Result<Option<FrameReport>, AppError<FrameMismatch>> {
-    pipeline.step(cfg, source, &mut NoClock, &mut |i, img| overlay(i, img))
+    pipeline.step(cfg, source, acquire, &mut NoClock, &mut |i, img| {
+        overlay(i, img)
+    })
 }

@@ -16,7 +16,7 @@ use camgeom::Error;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::draw::WireframeConfig;
 use camgeom::nalgebra::Point2;
-use camgeom::target::TargetConfig;
+use camgeom::target::{TargetConfig, TargetParams};
 
 use crate::pipeline::{AppConfig, CubeConfig};
 
@@ -135,8 +135,8 @@ impl RunSpec {
 
     /// The application's configuration for this run: its camera and target, the default
     /// tracking parameters, [`LEVELS`] pyramid levels, and a cube of side 0.4 x the target's
-    /// shorter side standing in the target's middle. Errors: as [`Intrinsics::new`] and
-    /// [`Distortion::from_opencv`].
+    /// shorter side standing in the target's middle, all checked once. Errors: as
+    /// [`Intrinsics::new`], [`Distortion::from_opencv`] and [`TargetParams::new`].
     pub fn app_config(&self) -> Result<AppConfig, Error> {
         let [fx, fy, cx, cy] = self.intrinsics;
         let camera = Camera::new(
@@ -164,9 +164,7 @@ impl RunSpec {
             width: self.width as usize,
             height: self.height as usize,
             levels: LEVELS,
-            camera,
-            target_size: self.target_size,
-            target,
+            target: TargetParams::new(&target, camera, self.target_size)?,
             cube: CubeConfig {
                 x: 0.5 * (tw - size),
                 y: 0.5 * (th - size),

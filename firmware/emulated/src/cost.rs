@@ -152,7 +152,14 @@ struct Row {
     items: u32,
 }
 
+impl<const N: usize> Default for CostTable<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl<const N: usize> CostTable<N> {
+    /// An empty table.
     pub const fn new() -> Self {
         Self {
             rows: [Row {

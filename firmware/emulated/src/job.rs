@@ -1,16 +1,17 @@
 //! The emulated board's main job: the `camgeom-fw-app` pipeline over a recorded sequence.
 //!
 //! Reads the run description (`run.bin`) and the frames (`frames.raw`) from the host over
-//! semihosting ([`crate::semihost`]), runs [`Pipeline`] on every frame, logs each frame's
-//! state, counts, track checksum, pose and per-stage cost (instructions, SysTick under QEMU
-//! `-icount`), saves every `overlay_every`-th overlay back to the host as
-//! `overlay-NNNN.raw`, and ends with the cost table (mean and worst per stage), the RAM of the
-//! pipeline and the stack high-water mark. `cargo xtask run` parses these lines: keep their
-//! wording in step with `xtask/src/mainjob.rs`.
+//! semihosting ([`crate::semihost`]), runs [`Pipeline`] on every frame and writes what it
+//! found back as binary records ([`camgeom_fw_app::report`]: one per frame with state, counts,
+//! track checksum, poses, outline and per-stage cost in instructions, then a summary with the
+//! pipeline's RAM and the stack high-water mark) to `report.bin`. Every `overlay_every`-th
+//! overlay goes back as `overlay-NNNN.raw`. The defmt log says the same for people (one line a
+//! frame at `debug`, the summary at `info`); `cargo xtask run` reads only the records.
 
 use camgeom::image::ImageView;
-use camgeom::target::TargetState;
-use camgeom_fw_app::pipeline::{AppError, Clock, FrameReport, Pipeline, StageCosts};
+use camgeom::target::{GivenCorners, TargetState};
+use camgeom_fw_app::pipeline::{AppError, Clock, FrameReport, Pipeline};
+use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 use camgeom_fw_app::run::{RUN_SPEC_LEN, RunSpec};
 
 use crate::semihost::{HostError, HostFile, RecordedCamera};
@@ -19,6 +20,9 @@ use crate::{board, cost};
 /// Pyramid levels, KLT window, corner candidates and tracks of the main job (shared with the
 /// host replay).
 pub use camgeom_fw_app::run::{CANDIDATES, LEVELS, TRACKS, WIN};
+
+/// The file the records go to, in QEMU's working directory.
+pub const REPORT_FILE: &str = "report.bin";
 
 /// SysTick, in instructions (QEMU `-icount`) or cycles (hardware).
 struct SysTickClock;
@@ -37,80 +41,24 @@ fn fail_host(what: &str, e: HostError) -> ! {
 fn fail_app(what: &str, e: AppError<HostError>) -> ! {
     match e {
         AppError::Source(h) => defmt::error!("{=str}: frame source: {}", what, h),
-        AppError::NoFrame => defmt::error!("{=str}: the sequence has no frame", what),
-        AppError::Geometry => {
-            defmt::error!("{=str}: the run does not fit the pipeline's buffers", what)
-        }
-        AppError::NotStarted => defmt::error!("{=str}: not started", what),
         AppError::Core(c) => defmt::error!("{=str}: {}", what, c),
+        other => defmt::error!("{=str}: {=str}", what, other.name()),
     }
     board::exit_failure()
 }
 
-/// Mean and worst per stage over the frames.
-#[derive(Default)]
-struct Totals {
-    frames: u32,
-    sum: [u64; 8],
-    worst: [u32; 8],
-    tracking: u32,
-}
-
-impl Totals {
-    fn add(&mut self, r: &FrameReport) {
-        self.frames += 1;
-        self.tracking += u32::from(r.state == TargetState::Tracking);
-        for ((s, w), (_, c)) in self
-            .sum
-            .iter_mut()
-            .zip(self.worst.iter_mut())
-            .zip(r.costs.named())
-        {
-            *s += u64::from(c);
-            *w = (*w).max(c);
-        }
-    }
-}
-
 fn log_frame(recorded: usize, r: &FrameReport) {
-    defmt::info!(
-        "frame {=u32} (recorded {=usize}): {} tracked {=usize} inliers {=usize} added {=usize} features {=usize} q16 {=u32:#010x}",
+    defmt::debug!(
+        "frame {=u32} (recorded {=usize}): {=str} tracked {=usize} inliers {=usize} added {=usize} features {=usize} q16 {=u32:#010x} total {=u32}",
         r.index,
         recorded,
-        r.state,
+        r.state.name(),
         r.tracked,
         r.inliers,
         r.added,
         r.features,
-        r.checksum
-    );
-    if let Some(p) = r.pose {
-        let t = p.pose.translation();
-        let v = p.pose.rotation_vector();
-        defmt::info!(
-            "pose {=u32}: t {=f32} {=f32} {=f32} r {=f32} {=f32} {=f32} rms {=f32}",
-            r.index,
-            t.x,
-            t.y,
-            t.z,
-            v.x,
-            v.y,
-            v.z,
-            p.rms_px
-        );
-    }
-    let c = r.costs;
-    defmt::info!(
-        "cost {=u32}: capture {=u32} pyramid {=u32} flow {=u32} homography {=u32} pose {=u32} redetect {=u32} draw {=u32} total {=u32}",
-        r.index,
-        c.capture,
-        c.pyramid,
-        c.flow,
-        c.homography,
-        c.pose,
-        c.redetect,
-        c.draw,
-        c.total
+        r.checksum,
+        r.costs.total
     );
 }
 
@@ -130,6 +78,20 @@ fn save_overlay(recorded: usize, img: &ImageView<'_, u8>) -> Result<(), HostErro
     Ok(())
 }
 
+fn read_spec() -> RunSpec {
+    let mut bytes = [0u8; RUN_SPEC_LEN];
+    if let Err(e) = HostFile::open_read("run.bin").and_then(|mut f| f.read_exact(&mut bytes)) {
+        fail_host("run.bin", e)
+    }
+    match RunSpec::parse(&bytes) {
+        Ok(s) => s,
+        Err(e) => {
+            defmt::error!("run.bin: {}", e);
+            board::exit_failure()
+        }
+    }
+}
+
 /// Runs the main job on `app` (a `static`) for `W x H` frames; exits the emulator.
 pub fn run<
     const F: usize,
@@ -144,17 +106,7 @@ pub fn run<
     height: usize,
 ) -> ! {
     cost::start();
-    let mut spec_bytes = [0u8; RUN_SPEC_LEN];
-    if let Err(e) = HostFile::open_read("run.bin").and_then(|mut f| f.read_exact(&mut spec_bytes)) {
-        fail_host("run.bin", e)
-    }
-    let spec = match RunSpec::parse(&spec_bytes) {
-        Ok(s) => s,
-        Err(e) => {
-            defmt::error!("run.bin: {}", e);
-            board::exit_failure()
-        }
-    };
+    let spec = read_spec();
     let cfg = match spec.app_config() {
         Ok(c) => c,
         Err(e) => {
@@ -162,14 +114,13 @@ pub fn run<
             board::exit_failure()
         }
     };
-    if (cfg.width, cfg.height) != (width, height) || cfg.target.lk.win != WIN {
+    if (cfg.width, cfg.height) != (width, height) {
         defmt::error!(
-            "run.bin is for {=usize}x{=usize}, this firmware for {=usize}x{=usize} (window {=usize})",
+            "run.bin is for {=usize}x{=usize}, this firmware for {=usize}x{=usize}",
             cfg.width,
             cfg.height,
             width,
-            height,
-            WIN
+            height
         );
         board::exit_failure()
     }
@@ -179,6 +130,10 @@ pub fn run<
             Ok(c) => c,
             Err(e) => fail_host("frames.raw", e),
         };
+    let mut report = match HostFile::create(REPORT_FILE) {
+        Ok(f) => f,
+        Err(e) => fail_host(REPORT_FILE, e),
+    };
     defmt::info!(
         "main job: {=usize}x{=usize}, {=usize} frames (stride {=usize}), {=usize} pyramid levels, KLT {=usize}x{=usize} Q16.16, {=usize} tracks; pipeline RAM {=usize} bytes (const sizes)",
         width,
@@ -199,25 +154,29 @@ pub fn run<
     let mut overlay = |index: u32, img: &ImageView<'_, u8>| {
         let i = index as usize;
         if overlay_every > 0 && (i.is_multiple_of(overlay_every) || i + 1 == count) {
-            let recorded = i * stride;
-            match save_overlay(recorded, img) {
+            match save_overlay(i * stride, img) {
                 Ok(()) => saved += 1,
                 Err(e) => overlay_error = Some(e),
             }
         }
     };
-    let mut totals = Totals::default();
-    let start = match app.start(&cfg, &mut camera, &spec.start_corners(), &mut clock) {
-        Ok(r) => r,
-        Err(e) => fail_app("start", e),
+    let mut summary = SummaryRecord::default();
+    let mut record = |r: &FrameReport| {
+        log_frame(r.index as usize * stride, r);
+        summary.frames += 1;
+        summary.tracking += u32::from(r.state == TargetState::Tracking);
+        if let Err(e) = report.write_all(&FrameRecord::of(r).encode()) {
+            fail_host(REPORT_FILE, e)
+        }
     };
-    log_frame(0, &start);
+    let mut acquire = GivenCorners::new(spec.start_corners());
+    match app.start(&cfg, &mut camera, &mut acquire, &mut clock) {
+        Ok(r) => record(&r),
+        Err(e) => fail_app("start", e),
+    }
     loop {
-        match app.step(&cfg, &mut camera, &mut clock, &mut overlay) {
-            Ok(Some(r)) => {
-                log_frame(camera.recorded_index(r.index as usize), &r);
-                totals.add(&r);
-            }
+        match app.step(&cfg, &mut camera, &mut acquire, &mut clock, &mut overlay) {
+            Ok(Some(r)) => record(&r),
             Ok(None) => break,
             Err(e) => fail_app("step", e),
         }
@@ -228,34 +187,22 @@ pub fn run<
     if let Some(e) = overlay_error {
         fail_host("overlay", e)
     }
-
-    let n = u64::from(totals.frames.max(1));
-    defmt::info!(
-        "cost per frame over {=u32} frames (instructions, +-{=u32}; mean, worst):",
-        totals.frames,
-        cost::per_tick()
-    );
-    for ((name, _), (sum, worst)) in StageCosts::default()
-        .named()
-        .iter()
-        .zip(totals.sum.iter().zip(totals.worst.iter()))
-    {
-        defmt::info!(
-            "  stage {=str}: mean {=u64} worst {=u32}",
-            name,
-            sum / n,
-            *worst
-        );
-    }
     let (stack, stack_size) = board::stack_usage();
-    defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
-    defmt::info!("overlays saved: {=u32}", saved);
+    summary.pipeline_ram = Pipeline::<F, P, S, C, K, N>::RAM as u32;
+    summary.stack_used = stack;
+    summary.stack_size = stack_size;
+    summary.overlays = saved;
+    if let Err(e) = report.write_all(&summary.encode()) {
+        fail_host(REPORT_FILE, e)
+    }
     defmt::info!(
-        "main job: {=u32} frames, {=u32} tracking, pipeline RAM {=usize} bytes, stack {=u32} bytes",
-        totals.frames + 1,
-        totals.tracking,
-        Pipeline::<F, P, S, C, K, N>::RAM,
-        stack
+        "main job: {=u32} frames, {=u32} tracking, pipeline RAM {=u32} bytes, stack {=u32} of {=u32} bytes, {=u32} overlays",
+        summary.frames,
+        summary.tracking,
+        summary.pipeline_ram,
+        stack,
+        stack_size,
+        saved
     );
     board::exit_success()
 }

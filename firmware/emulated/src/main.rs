@@ -7,26 +7,19 @@
 #![no_std]
 #![no_main]
 
-mod board;
-// The main job times its stages with the clock, not with the bench's cost table.
-#[allow(dead_code)]
-mod cost;
-mod job;
-mod once;
-mod semihost;
+use camgeom_fw_emulated::job;
 
 use cortex_m_rt::entry;
-use defmt_semihosting as _;
 
-use crate::job::{CANDIDATES, LEVELS, TRACKS, WIN};
-use crate::once::Once;
+use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use static_cell::ConstStaticCell;
 
 const W: usize = 320;
 const H: usize = 240;
 
 /// Every buffer of the pipeline, in `.bss`: the linker checks it against `memory.x`.
-static APP: Once<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
-    Once::new(camgeom_fw_app::Pipeline::new());
+static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
+    ConstStaticCell::new(camgeom_fw_app::Pipeline::new());
 
 #[entry]
 fn main() -> ! {

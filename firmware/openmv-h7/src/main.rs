@@ -36,7 +36,7 @@ use panic_probe as _;
 use static_cell::ConstStaticCell;
 
 use crate::camera::{CAPTURE_WORDS, Camera};
-use crate::tracker::{DwtClock, LostCounter};
+use crate::tracker::DwtClock;
 
 bind_interrupts!(struct Irqs {
     DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
@@ -152,43 +152,32 @@ async fn main(_spawner: Spawner) {
     };
     let app = tracker::pipeline();
     let mut clock = DwtClock::default();
-    let corners = tracker::first_corners();
+    // The card held in the middle half of the view; after a second lost, held there again.
+    let mut acquire = tracker::acquire();
     loop {
-        // Start (or start again) from the card held in the middle half of the view.
-        match app.start(&cfg, &mut cam, &corners, &mut clock) {
-            Ok(r) => defmt::info!(
-                "target started with {=usize} features ({=u32} cycles)",
-                r.features,
-                r.costs.total
-            ),
-            Err(e) => {
-                // A blank view (too few features) or a failed capture: try the next frame.
-                tracker::log_error("start", &e);
-                continue;
+        match app.start(&cfg, &mut cam, &mut acquire, &mut clock) {
+            Ok(r) => {
+                defmt::info!(
+                    "first frame: {=usize} features ({=u32} cycles)",
+                    r.features,
+                    r.costs.total
+                );
+                break;
             }
+            // A failed capture: try the next frame.
+            Err(e @ AppError::Source(_)) => tracker::log_error("start", &e),
+            // The configuration does not fit the buffers: nothing to run.
+            Err(e) => defmt::panic!("start: {=str}", e.name()),
         }
-        let mut lost = LostCounter::default();
-        loop {
-            match app.step(&cfg, &mut cam, &mut clock, &mut |_, _| {}) {
-                Ok(Some(r)) => {
-                    log(&r);
-                    if lost.restart_after(&r) {
-                        defmt::info!(
-                            "target lost for {=u32} frames: starting again",
-                            tracker::RESTART_AFTER_LOST
-                        );
-                        break;
-                    }
-                }
-                // A camera never ends.
-                Ok(None) => break,
-                // A failed capture leaves the pipeline as it was: go on with the next frame.
-                Err(e @ AppError::Source(_)) => tracker::log_error("frame", &e),
-                Err(e) => {
-                    tracker::log_error("frame", &e);
-                    break;
-                }
-            }
+    }
+    loop {
+        match app.step(&cfg, &mut cam, &mut acquire, &mut clock, &mut |_, _| {}) {
+            Ok(Some(r)) => log(&r),
+            // A camera never ends.
+            Ok(None) => {}
+            // A failed capture (or a frame the core rejects) leaves the pipeline as it was: go
+            // on with the next frame.
+            Err(e) => tracker::log_error("frame", &e),
         }
     }
 }
@@ -199,13 +188,14 @@ async fn main(_spawner: Spawner) {
 fn log(r: &FrameReport) {
     let c = &r.costs;
     match r.pose {
-        Some(pose) => {
+        Some(p) => {
+            let pose = p.best;
             let t = pose.pose.translation();
             let rv = pose.pose.rotation_vector();
             defmt::info!(
-                "frame {=u32}: {}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles (flow {=u32}, homography {=u32}, pose {=u32}, redetect {=u32}, draw {=u32})",
+                "frame {=u32}: {=str}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles (flow {=u32}, homography {=u32}, pose {=u32}, redetect {=u32}, draw {=u32})",
                 r.index,
-                r.state,
+                r.state.name(),
                 r.inliers,
                 t.x,
                 t.y,
@@ -223,9 +213,9 @@ fn log(r: &FrameReport) {
             )
         }
         None => defmt::info!(
-            "frame {=u32}: {}, {=usize} tracked, no pose, {=u32} cycles",
+            "frame {=u32}: {=str}, {=usize} tracked, no pose, {=u32} cycles",
             r.index,
-            r.state,
+            r.state.name(),
             r.tracked,
             c.total
         ),

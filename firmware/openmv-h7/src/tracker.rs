@@ -9,8 +9,8 @@
 //! ([`Qvga::RAM`] bytes, in `.bss`).
 
 use camgeom::nalgebra::Point2;
-use camgeom::target::TargetState;
-use camgeom_fw_app::pipeline::{AppConfig, AppError, Clock, FrameReport};
+use camgeom::target::GivenCorners;
+use camgeom_fw_app::pipeline::{AppConfig, AppError, Clock};
 use camgeom_fw_app::qvga::Qvga;
 use camgeom_fw_app::run::RunSpec;
 use static_cell::ConstStaticCell;
@@ -63,9 +63,11 @@ pub fn config() -> Result<AppConfig, camgeom::Error> {
     .app_config()
 }
 
-/// Where the target starts.
-pub fn first_corners() -> [Point2<f32>; 4] {
-    FIRST_CORNERS.map(|[x, y]| Point2::new(x, y))
+/// Where the target starts, and starts again after [`RESTART_AFTER_LOST`] lost frames in a
+/// row (the core's [`GivenCorners::again_after`]; until then a lost target is looked for
+/// around its last outline).
+pub fn acquire() -> GivenCorners {
+    GivenCorners::new(FIRST_CORNERS.map(|[x, y]| Point2::new(x, y))).again_after(RESTART_AFTER_LOST)
 }
 
 /// The core's cycle counter (DWT `CYCCNT`, enabled at start-up), extended to 64 bits: it wraps
@@ -84,23 +86,6 @@ impl Clock for DwtClock {
         }
         self.last = c;
         (self.wraps << 32) | u64::from(c)
-    }
-}
-
-/// Counts consecutive lost frames: says when the target should start again.
-#[derive(Debug, Default)]
-pub struct LostCounter(u32);
-
-impl LostCounter {
-    /// Records a frame's state; `true` once [`RESTART_AFTER_LOST`] lost frames have followed
-    /// each other.
-    pub fn restart_after(&mut self, report: &FrameReport) -> bool {
-        self.0 = if report.state == TargetState::Lost {
-            self.0.saturating_add(1)
-        } else {
-            0
-        };
-        self.0 >= RESTART_AFTER_LOST
     }
 }
 

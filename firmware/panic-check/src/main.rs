@@ -133,7 +133,9 @@ fn run_calc_flow_fixed() {
     let pts = black_box([[10i32 << 16, 12 << 16]; 8]);
     let mut flows = black_box([Flow::<i32>::default(); 8]);
     let mut scratch = black_box([0i16; 4096]);
-    let cfg = black_box(LkConfig::default());
+    let Ok(cfg) = black_box(LkConfig::default()).check() else {
+        return;
+    };
     black_box(
         calc_flow::<Fixed>(
             &pa,
@@ -216,11 +218,13 @@ fn run_draw_wireframe() {
 
 #[cfg(feature = "target_step")]
 fn run_target_step() {
-    use camgeom::corners::Corner;
     use camgeom::image::ImageView;
     use camgeom::klt::Fixed;
     use camgeom::pyramid::Pyramid;
-    use camgeom::target::{PlanarTarget, TargetConfig};
+    use camgeom::target::{
+        GivenCorners, PlanarTarget, TargetConfig, TargetParams, corner_scratch_len,
+        flow_scratch_len,
+    };
     let Some(cam) = camera() else { return };
     let a = black_box([0u8; W * H]);
     let b = black_box([0u8; W * H]);
@@ -233,49 +237,34 @@ fn run_target_step() {
     ) else {
         return;
     };
-    let mut candidates = black_box([Corner::default(); 64]);
-    let mut scratch = black_box([0u32; 6 * W]);
-    let mut flow_scratch = black_box([0i16; 4096]);
     let cfg = black_box(TargetConfig::default());
-    let (tw, th) = black_box((0.2f32, 0.15f32));
-    let Ok(mut target) = PlanarTarget::<Fixed, 32>::new(tw, th) else {
+    let size = black_box([0.2f32, 0.15f32]);
+    let Ok(params) = TargetParams::new(&cfg, cam, size) else {
         return;
     };
-    let corners = black_box([
+    let mut target = black_box(PlanarTarget::<
+        Fixed,
+        32,
+        { flow_scratch_len(15) },
+        { corner_scratch_len(W) },
+        64,
+    >::new());
+    let mut acquire = GivenCorners::new(black_box([
         Point2::new(10.0f32, 10.0),
         Point2::new(50.0, 10.0),
         Point2::new(50.0, 40.0),
         Point2::new(10.0, 40.0),
-    ]);
-    if target
-        .init(
-            &va,
-            &corners,
-            &cfg,
-            black_box(&mut candidates[..]),
-            black_box(&mut scratch[..]),
-        )
-        .is_err()
-    {
-        return;
-    }
+    ]));
     let (Ok(pa), Ok(pb)) = (
         Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
         Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
     ) else {
         return;
     };
+    black_box(target.step(&params, None, &pa, &mut acquire, &mut ()).ok());
     black_box(
         target
-            .step(
-                &pa,
-                &pb,
-                &cam,
-                &cfg,
-                black_box(&mut flow_scratch[..]),
-                black_box(&mut candidates[..]),
-                black_box(&mut scratch[..]),
-            )
+            .step(&params, Some(&pa), &pb, &mut acquire, &mut ())
             .ok(),
     );
 }

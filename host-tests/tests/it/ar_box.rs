@@ -1,4 +1,4 @@
-//! The AR loop end to end on recorded data: `PlanarTarget` over the 150 frames of the box
+//! The AR loop end to end on recorded data: `PlanarTarget::step` over the 150 frames of the box
 //! sequence (320x240, a hand-held box whose lid is the target), from the lid corners picked by
 //! hand in frame 0 and the nominal camera of OpenCV's real-time pose tutorial (see
 //! `host-tests/data/README.md`). There is no ground-truth pose for this sequence, so the test
@@ -8,7 +8,7 @@
 //! draws the same run (`docs/ar-box.png`).
 
 use camgeom::nalgebra::Point2;
-use camgeom::target::{TargetConfig, TargetState};
+use camgeom::target::{GivenCorners, TargetConfig, TargetState};
 use camgeom_host::ar::{ArFrame, ArOptions, run_ar};
 use camgeom_host::data_dir;
 use camgeom_host::images::{GrayImage, load_gray};
@@ -49,7 +49,14 @@ fn run_on(
         target: TargetConfig::default(),
     };
     (
-        run_ar(&frames, &corners, &camera, &opts, |_| {}).unwrap(),
+        run_ar(
+            &frames,
+            &mut GivenCorners::new(corners),
+            &camera,
+            &opts,
+            |_| {},
+        )
+        .unwrap(),
         camera,
     )
 }

@@ -6,7 +6,7 @@
 //! - RANSAC on [`RANSAC_N`] correspondences (50 % outliers), configured to draw exactly
 //!   [`RANSAC_ITERATIONS`] samples (see [`ransac_config`]),
 //!
-//! then, at 320x240 on synthetic textured frames ([`camgeom::klt::synthetic::textured_frame`],
+//! then, at 320x240 on synthetic textured frames ([`camgeom_fw_app::texture::textured_frame`],
 //! frame B shifted by a known sub-pixel amount), see [`klt_bench`]:
 //!
 //! - a 4-level pyramid build,
@@ -27,23 +27,17 @@
     allow(dead_code, unused_imports, unused_mut)
 )]
 
-#[path = "../board.rs"]
-mod board;
-#[path = "../cost.rs"]
-mod cost;
-#[path = "../once.rs"]
-mod once;
+use camgeom_fw_emulated::{board, cost};
 
 use core::hint::black_box;
 
 use camgeom::nalgebra::{Matrix3, Point2, Vector3};
 use camgeom::rng::Pcg32;
 use cortex_m_rt::entry;
-use defmt_semihosting as _;
 
-use crate::cost::CostTable;
+use camgeom_fw_emulated::cost::CostTable;
 #[cfg(not(feature = "size-baseline"))]
-use crate::cost::measure;
+use camgeom_fw_emulated::cost::measure;
 
 /// 4-point solves in the measured loop (one solve is below the ±40-instruction resolution's
 /// comfort zone).
@@ -236,22 +230,24 @@ mod klt_bench {
     use core::hint::black_box;
 
     use camgeom::camera::{Camera, Intrinsics};
-    use camgeom::corners::{self, Corner};
     use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
     use camgeom::image::{ImageMut, ImageView};
-    use camgeom::klt::synthetic::textured_frame;
     use camgeom::klt::{
         Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow, pipeline_ram,
         scratch_len,
     };
     use camgeom::nalgebra::{Point2, Vector2, Vector3};
     use camgeom::pyramid::{Pyramid, buffer_len};
-    use camgeom::target::{PlanarTarget, TargetConfig, TargetState};
+    use camgeom::target::{
+        GivenCorners, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
+        flow_scratch_len,
+    };
+    use camgeom_fw_app::texture::textured_frame;
 
     use super::check;
-    use crate::board;
-    use crate::cost::{CostTable, measure};
-    use crate::once::Once;
+    use camgeom_fw_emulated::board;
+    use camgeom_fw_emulated::cost::{CostTable, measure};
+    use static_cell::ConstStaticCell;
 
     const W: usize = 320;
     const H: usize = 240;
@@ -273,20 +269,16 @@ mod klt_bench {
     const CY: f32 = 119.5;
 
     const PYR_LEN: usize = buffer_len(W, H, LEVELS);
-    static FRAME_A: Once<[u8; W * H]> = Once::new([0; W * H]);
-    static FRAME_B: Once<[u8; W * H]> = Once::new([0; W * H]);
-    static PYR_A: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
-    static PYR_B: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
-    static FLOW_SCRATCH: Once<[i16; scratch_len(WIN)]> = Once::new([0; scratch_len(WIN)]);
-    static CORNER_SCRATCH: Once<[u32; corners::scratch_len(W)]> =
-        Once::new([0; corners::scratch_len(W)]);
-    static CANDIDATE_BUF: Once<[Corner; CANDIDATES]> = Once::new(
-        [Corner {
-            x: 0,
-            y: 0,
-            score: 0,
-        }; CANDIDATES],
-    );
+    static FRAME_A: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
+    static FRAME_B: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
+    static PYR_A: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
+    static PYR_B: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
+    static FLOW_SCRATCH: ConstStaticCell<[i16; scratch_len(WIN)]> =
+        ConstStaticCell::new([0; scratch_len(WIN)]);
+    /// The planar target of the loop, with its work buffers.
+    type Target =
+        PlanarTarget<Fixed, 32, { flow_scratch_len(WIN) }, { corner_scratch_len(W) }, CANDIDATES>;
+    static TARGET: ConstStaticCell<Target> = ConstStaticCell::new(Target::new());
 
     /// The summary figures.
     pub struct Summary {
@@ -326,10 +318,15 @@ mod klt_bench {
             [A::from_px(x as i32), A::from_px(y as i32)]
         }));
         let mut flows = [Flow::<A::Coord>::default(); K];
-        let cfg = black_box(LkConfig {
+        let cfg = match (LkConfig {
             max_level,
             ..LkConfig::default()
-        });
+        })
+        .check()
+        {
+            Ok(c) => black_box(c),
+            Err(e) => fail(name, e),
+        };
         let (r, cost) = measure(|| {
             calc_flow::<A>(
                 pa,
@@ -409,8 +406,7 @@ mod klt_bench {
         let pyr_a = PYR_A.take();
         let pyr_b = PYR_B.take();
         let fscr = FLOW_SCRATCH.take();
-        let cscr = CORNER_SCRATCH.take();
-        let cand = CANDIDATE_BUF.take();
+        let target = TARGET.take();
         defmt::info!(
             "klt bench: {=usize}x{=usize}, {=usize} levels, shift ({=i32}, {=i32})/256 px; pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) = {=usize} bytes",
             W,
@@ -467,15 +463,15 @@ mod klt_bench {
             Err(e) => fail("intrinsics", e),
         };
         let camera = black_box(Camera::pinhole(intrinsics));
-        let cfg = black_box(TargetConfig::default());
-        let mut target = match PlanarTarget::<Fixed, 32>::new(TARGET_W, TARGET_H) {
-            Ok(t) => t,
+        let params = match TargetParams::new(&TargetConfig::default(), camera, [TARGET_W, TARGET_H])
+        {
+            Ok(p) => black_box(p),
             Err(e) => fail("target", e),
         };
-        let rect = RECT.map(|(x, y)| Point2::new(x, y));
-        match target.init(&view_a, &rect, &cfg, &mut cand[..], &mut cscr[..]) {
-            Ok(n) => defmt::info!("target: init found {=usize} features", n),
-            Err(e) => fail("target init", e),
+        let mut given = GivenCorners::new(RECT.map(|(x, y)| Point2::new(x, y)));
+        match target.step(&params, None, &pa, &mut given, &mut ()) {
+            Ok(r) => defmt::info!("target: acquisition found {=usize} features", r.added),
+            Err(e) => fail("target acquisition", e),
         }
         // A 0.1 m cube standing in the middle of the target.
         let (vertices, edges) = cube(0.05f32, 0.025, 0.1);
@@ -491,17 +487,8 @@ mod klt_bench {
                     Ok(p) => p,
                     Err(e) => fail("pyramid B", e),
                 };
-                let (out, step_cost) = measure(|| {
-                    target.step(
-                        &pa,
-                        &pb,
-                        &camera,
-                        &cfg,
-                        &mut fscr[..],
-                        &mut cand[..],
-                        &mut cscr[..],
-                    )
-                });
+                let (out, step_cost) =
+                    measure(|| target.step(&params, Some(&pa), &pb, &mut given, &mut ()));
                 (out, pyr_b_cost, step_cost)
             };
             let out = match out {

@@ -16,10 +16,7 @@
 #![no_std]
 #![no_main]
 
-#[path = "../board.rs"]
-mod board;
-#[path = "../cost.rs"]
-mod cost;
+use camgeom_fw_emulated::{board, cost};
 
 use core::hint::black_box;
 
@@ -33,9 +30,8 @@ use camgeom::twoview::{
     recover_pose, seven_point, triangulate_optimal,
 };
 use cortex_m_rt::entry;
-use defmt_semihosting as _;
 
-use crate::cost::{CostTable, measure};
+use camgeom_fw_emulated::cost::{CostTable, measure};
 
 const EIGHT_N: usize = 64;
 /// Minimal samples solved in each measured loop.

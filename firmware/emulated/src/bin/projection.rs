@@ -8,12 +8,7 @@
 #![no_std]
 #![no_main]
 
-#[path = "../board.rs"]
-mod board;
-#[path = "../chessboard.rs"]
-mod chessboard;
-#[path = "../cost.rs"]
-mod cost;
+use camgeom_fw_emulated::{board, cost};
 
 use core::hint::black_box;
 
@@ -22,13 +17,12 @@ use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::transform::Pose;
 use cortex_m_rt::entry;
-use defmt_semihosting as _;
 
-use crate::chessboard::{
+use camgeom_fw_emulated::chessboard::{
     COLS, CORNERS, CX, CY, DISTORTION, FX, FY, HEIGHT, OPENCV_PROJECTIONS, RVEC, SQUARE, TVEC,
     WIDTH,
 };
-use crate::cost::{CostTable, measure};
+use camgeom_fw_emulated::cost::{CostTable, measure};
 
 /// f32 projections must agree with the f64 ones, and with OpenCV's, to this many pixels.
 const F32_TOLERANCE_PX: f64 = 0.01;

@@ -14,14 +14,7 @@
 #![no_std]
 #![no_main]
 
-#[path = "../board.rs"]
-mod board;
-// Only `cost::start` is used here.
-#[allow(dead_code)]
-#[path = "../cost.rs"]
-mod cost;
-#[path = "../once.rs"]
-mod once;
+use camgeom_fw_emulated::{board, cost};
 
 use core::hint::black_box;
 
@@ -31,7 +24,6 @@ use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
 use camgeom::homography::find_homography;
 use camgeom::image::{ImageMut, ImageView};
-use camgeom::klt::synthetic::textured_frame;
 use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow, scratch_len};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::pose::{PlanarConfig, solve_planar, solve_pnp_ransac};
@@ -39,16 +31,18 @@ use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::ransac::RansacConfig;
 use camgeom::rng::Pcg32;
 use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
-use camgeom::target::{PlanarTarget, TargetConfig};
+use camgeom::target::{
+    GivenCorners, PlanarTarget, TargetConfig, TargetParams, corner_scratch_len, flow_scratch_len,
+};
 use camgeom::transform::{Pose, Transform};
 use camgeom::twoview::{
     View1, eight_point, find_essential, find_fundamental, five_point, recover_pose, seven_point,
     triangulate_dlt, triangulate_optimal,
 };
+use camgeom_fw_app::texture::textured_frame;
 use cortex_m_rt::entry;
-use defmt_semihosting as _;
 
-use crate::once::Once;
+use static_cell::ConstStaticCell;
 
 const W: usize = 320;
 const H: usize = 240;
@@ -120,22 +114,24 @@ fn call<R>(f: impl FnOnce() -> R) -> R {
 }
 
 const PYR_LEN: usize = buffer_len(W, H, LEVELS);
-static FRAME_A: Once<[u8; W * H]> = Once::new([0; W * H]);
-static FRAME_B: Once<[u8; W * H]> = Once::new([0; W * H]);
-static PYR_A: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
-static PYR_B: Once<[u8; PYR_LEN]> = Once::new([0; PYR_LEN]);
-static FLOW_SCRATCH: Once<[i16; scratch_len(WIN)]> = Once::new([0; scratch_len(WIN)]);
-static CORNER_SCRATCH: Once<[u32; corners::scratch_len(W)]> =
-    Once::new([0; corners::scratch_len(W)]);
+static FRAME_A: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
+static FRAME_B: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
+static PYR_A: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
+static PYR_B: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
+static FLOW_SCRATCH: ConstStaticCell<[i16; scratch_len(WIN)]> =
+    ConstStaticCell::new([0; scratch_len(WIN)]);
+static CORNER_SCRATCH: ConstStaticCell<[u32; corners::scratch_len(W)]> =
+    ConstStaticCell::new([0; corners::scratch_len(W)]);
 const NO_CORNER: Corner = Corner {
     x: 0,
     y: 0,
     score: 0,
 };
-static CANDIDATE_BUF: Once<[Corner; CANDIDATES]> = Once::new([NO_CORNER; CANDIDATES]);
-static CORNERS_OUT: Once<Vec<Corner, N_TRACK>> = Once::new(Vec::new());
-static FIXED_PTS: Once<[[i32; 2]; N_TRACK]> = Once::new([[0; 2]; N_TRACK]);
-static FIXED_FLOWS: Once<[Flow<i32>; N_TRACK]> = Once::new(
+static CANDIDATE_BUF: ConstStaticCell<[Corner; CANDIDATES]> =
+    ConstStaticCell::new([NO_CORNER; CANDIDATES]);
+static CORNERS_OUT: ConstStaticCell<Vec<Corner, N_TRACK>> = ConstStaticCell::new(Vec::new());
+static FIXED_PTS: ConstStaticCell<[[i32; 2]; N_TRACK]> = ConstStaticCell::new([[0; 2]; N_TRACK]);
+static FIXED_FLOWS: ConstStaticCell<[Flow<i32>; N_TRACK]> = ConstStaticCell::new(
     [Flow {
         x: 0,
         y: 0,
@@ -143,8 +139,8 @@ static FIXED_FLOWS: Once<[Flow<i32>; N_TRACK]> = Once::new(
         err: 0,
     }; N_TRACK],
 );
-static F32_PTS: Once<[[f32; 2]; N_TRACK]> = Once::new([[0.0; 2]; N_TRACK]);
-static F32_FLOWS: Once<[Flow<f32>; N_TRACK]> = Once::new(
+static F32_PTS: ConstStaticCell<[[f32; 2]; N_TRACK]> = ConstStaticCell::new([[0.0; 2]; N_TRACK]);
+static F32_FLOWS: ConstStaticCell<[Flow<f32>; N_TRACK]> = ConstStaticCell::new(
     [Flow {
         x: 0.0,
         y: 0.0,
@@ -153,11 +149,14 @@ static F32_FLOWS: Once<[Flow<f32>; N_TRACK]> = Once::new(
     }; N_TRACK],
 );
 const ORIGIN2: Point2<f32> = Point2::new(0.0, 0.0);
-static H_SRC: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
-static H_DST: Once<[Point2<f32>; N_TRACK]> = Once::new([ORIGIN2; N_TRACK]);
-static H_MASK: Once<[bool; N_TRACK]> = Once::new([false; N_TRACK]);
-static TARGET: Once<Option<PlanarTarget<Fixed, N_TARGET>>> = Once::new(None);
-static SFM: Once<Option<SfmWorkspace<f32, N_PAIRS>>> = Once::new(None);
+static H_SRC: ConstStaticCell<[Point2<f32>; N_TRACK]> = ConstStaticCell::new([ORIGIN2; N_TRACK]);
+static H_DST: ConstStaticCell<[Point2<f32>; N_TRACK]> = ConstStaticCell::new([ORIGIN2; N_TRACK]);
+static H_MASK: ConstStaticCell<[bool; N_TRACK]> = ConstStaticCell::new([false; N_TRACK]);
+/// The planar target with its work buffers (the default 15x15 windows fit the 21x21 scratch).
+type Target =
+    PlanarTarget<Fixed, N_TARGET, { flow_scratch_len(WIN) }, { corner_scratch_len(W) }, CANDIDATES>;
+static TARGET: ConstStaticCell<Target> = ConstStaticCell::new(Target::new());
+static SFM: ConstStaticCell<Option<SfmWorkspace<f32, N_PAIRS>>> = ConstStaticCell::new(None);
 
 fn fail(what: &str, e: camgeom::Error) -> ! {
     defmt::error!("{=str}: {}", what, e);
@@ -271,7 +270,10 @@ fn main() -> ! {
 
     // ---- KLT, 200 points on a grid, 21x21, max level 3 ----
     let fscr = FLOW_SCRATCH.take();
-    let cfg = black_box(LkConfig::default());
+    let cfg = match LkConfig::default().check() {
+        Ok(c) => black_box(c),
+        Err(e) => fail("lk", e),
+    };
     let fpts = FIXED_PTS.take();
     let ffl = FIXED_FLOWS.take();
     let gpts = F32_PTS.take();
@@ -381,16 +383,12 @@ fn main() -> ! {
     }
 
     // ---- one planar-target frame (KLT both ways, RANSAC, IPPE + LM, re-detection) ----
-    let slot = TARGET.take();
-    *slot = match PlanarTarget::<Fixed, N_TARGET>::new(0.2, 0.15) {
-        Ok(t) => Some(t),
+    let target = TARGET.take();
+    let params = match TargetParams::new(&TargetConfig::default(), Camera::pinhole(k), [0.2, 0.15])
+    {
+        Ok(p) => black_box(p),
         Err(e) => fail("target", e),
     };
-    let Some(target) = slot.as_mut() else {
-        board::exit_failure()
-    };
-    let tcfg = black_box(TargetConfig::default());
-    let pinhole = black_box(Camera::pinhole(k));
     let rect = [
         (70.0f32, 50.0f32),
         (250.0, 50.0),
@@ -398,22 +396,17 @@ fn main() -> ! {
         (70.0, 185.0),
     ]
     .map(|(x, y)| Point2::new(x, y));
-    let (r, s) = measure(|| target.init(&va, &rect, &tcfg, &mut cand[..], &mut cscr[..]));
-    row("PlanarTarget::<Fixed, 32>::init", s, &mut rows);
+    let mut given = GivenCorners::new(rect);
+    let (r, s) = measure(|| target.step(&params, None, &pa, &mut given, &mut ()));
+    row(
+        "PlanarTarget::<Fixed, 32>::step (acquisition)",
+        s,
+        &mut rows,
+    );
     if let Err(e) = r {
-        fail("target init", e)
+        fail("target acquisition", e)
     }
-    let (r, s) = measure(|| {
-        target.step(
-            &pa,
-            &pb,
-            &pinhole,
-            &tcfg,
-            &mut fscr[..],
-            &mut cand[..],
-            &mut cscr[..],
-        )
-    });
+    let (r, s) = measure(|| target.step(&params, Some(&pa), &pb, &mut given, &mut ()));
     row("PlanarTarget::<Fixed, 32>::step", s, &mut rows);
     if let Err(e) = r {
         fail("target step", e)

@@ -1,9 +1,9 @@
-//! A textured test frame computed in integers, for measuring the tracker on a board without
+//! A textured test frame computed in integers (the board benches' and stack probes' input), for measuring the tracker on a board without
 //! image data in flash: `I(x, y) = T(x - dx, y - dy)` for a sub-pixel shift `(dx, dy)` in
 //! 1/256 pixel, with `T` a sum of triangle waves of prime periods (corners everywhere,
 //! exact sub-pixel motion).
 
-use crate::image::ImageMut;
+use camgeom::image::ImageMut;
 
 /// Triangle wave of period `2 p` pixels at `u` (1/256 px), in `0 ..= 256 p`.
 fn tri(u: i32, p: i32) -> i32 {
@@ -30,10 +30,10 @@ pub fn textured_frame(frame: &mut ImageMut<'_, u8>, dx: i32, dy: i32) {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
     use super::*;
-    use crate::image::ImageView;
-    use crate::pyramid::{Pyramid, buffer_len};
+    use camgeom::image::ImageView;
+    use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
+    use camgeom::pyramid::{Pyramid, buffer_len};
 
     #[test]
     fn shifted_texture_is_tracked() {
@@ -57,7 +57,9 @@ mod tests {
         let cfg = LkConfig {
             max_level: 2,
             ..LkConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         calc_flow::<Fixed>(&p0, &p1, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
         for (p, r) in pts.iter().zip(&f) {
             assert_eq!(r.status, FlowStatus::Tracked);
