@@ -135,6 +135,27 @@ fn steps() -> Vec<Step> {
             run(locked(&mut cmd).env("RUSTDOCFLAGS", "-D warnings"))
         }),
     );
+    add(
+        "examples: each runs (cargo run -p camgeom --example NAME)",
+        Box::new(|| {
+            // The test profile's camgeom (opt-level 2, built by the test step) serves them too.
+            for example in [
+                "project_points",
+                "homography",
+                "planar_pose",
+                "klt_two_frames",
+                "track_box",
+            ] {
+                let mut cmd = root_cargo(&["run", "-q", "-p", "camgeom", "--example", example]);
+                run(locked(&mut cmd))?;
+            }
+            Ok(())
+        }),
+    );
+    add(
+        "package: cargo package -p camgeom (the published crate builds on its own)",
+        Box::new(|| run(locked(&mut root_cargo(&["package", "-p", "camgeom"])))),
+    );
     // Measured from a clean target directory on the shared 2-core machine (load average 5):
     // panic check ~40 s (one release LTO link of all eight entry points, most of it building), fuzz
     // smoke ~120 s (build ~95 s, then 5 s per target); a fresh machine also spends ~95 s in
