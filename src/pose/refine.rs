@@ -32,9 +32,12 @@ pub fn reprojection_rms<T: Real>(
 /// is no singular parameterisation. Each residual contributes the rows
 /// `∂u/∂(δω, δt) = J_π [-[R X]ₓ | I]`.
 ///
+/// When the squared error at `pose` overflows the float type (residuals beyond `√MAX`, e.g.
+/// ~1.8e19 px in f32) LM cannot run; `pose` is returned with its error.
+///
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 3 points (6 unknowns);
-/// [`Error::NonFinite`]; [`Error::BehindCamera`] when the starting pose puts a point behind
-/// the camera.
+/// [`Error::NonFinite`] for non-finite input or a residual that overflows;
+/// [`Error::BehindCamera`] when the starting pose puts a point behind the camera.
 pub fn refine_pose<T: Real>(
     camera: &Camera<T>,
     pose: &Pose<T>,
@@ -102,15 +105,35 @@ where
     }
     let n = T::lit(used as f64);
     let Some(m) = lm::minimise(&problem, *pose, max_iterations)? else {
-        return Err(Error::BehindCamera);
+        // The cost is undefined at the start: a point behind the camera (that error), or a sum
+        // of squares beyond the float range, where LM cannot run in this precision: the start
+        // pose is returned with its (overflow-safe) error.
+        let rms_px = rms_with(camera, pose, pixels, &problem.world)?;
+        return Ok(PoseEstimate {
+            pose: *pose,
+            rms_px,
+        });
+    };
+    let rms_px = (m.final_cost / n).sqrt();
+    let rms_px = if rms_px.finite() {
+        rms_px
+    } else {
+        // The sum of squares overflowed: the overflow-safe RMS of the pose reached.
+        rms_with(camera, &m.params, pixels, &problem.world)?
     };
     Ok(PoseEstimate {
         pose: m.params,
-        rms_px: (m.final_cost / n).sqrt(),
+        rms_px,
     })
 }
 
 /// RMS reprojection error with the world points given by index, as [`refine_pose_with`].
+///
+/// Finite whenever every residual is: a residual of more than `√f32::MAX ≈ 1.8e19` px (a far-off
+/// pose, or extreme intrinsics) would overflow the sum of squares, so that case is summed
+/// again with the residuals scaled by the largest, `rms = m √(Σ (rᵢ / m)² / n)`. Errors:
+/// [`Error::TooFewPoints`] without a point; as [`Camera::project`]; [`Error::NonFinite`] when a
+/// residual itself overflows (a projection and its pixel of opposite signs near `f32::MAX`).
 pub(crate) fn rms_with<T, W>(
     camera: &Camera<T>,
     pose: &Pose<T>,
@@ -121,17 +144,36 @@ where
     T: Real,
     W: Fn(usize) -> Option<Point3<T>>,
 {
+    let residuals = || {
+        pixels
+            .iter()
+            .enumerate()
+            .filter_map(|(i, u)| world(i).map(|x| camera.project(pose, &x).map(|p| p - u)))
+    };
     let (mut sum, mut used) = (T::zero(), 0usize);
-    for (i, u) in pixels.iter().enumerate() {
-        if let Some(x) = world(i) {
-            sum += (camera.project(pose, &x)? - u).norm_squared();
-            used += 1;
-        }
+    for r in residuals() {
+        sum += r?.norm_squared();
+        used += 1;
     }
     if used == 0 {
         return Err(Error::TooFewPoints);
     }
-    Ok((sum / T::lit(used as f64)).sqrt())
+    let n = T::lit(used as f64);
+    if sum.finite() {
+        return Ok((sum / n).sqrt());
+    }
+    let mut largest = T::zero();
+    for r in residuals() {
+        largest = largest.max(r?.amax());
+    }
+    if !largest.finite() {
+        return Err(Error::NonFinite);
+    }
+    let mut scaled = T::zero();
+    for r in residuals() {
+        scaled += (r? / largest).norm_squared();
+    }
+    Ok(largest * (scaled / n).sqrt())
 }
 
 struct Reprojection<'a, T: Real, W> {
@@ -198,6 +240,25 @@ impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6, 7>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rms_of_residuals_beyond_the_square_root_of_f32_max_is_finite() {
+        // fx = 1e25: a unit of normalised error is 1e25 px, whose square overflows f32.
+        let cam = Camera::pinhole(Intrinsics::new(1e25f32, 1e25, 0.0, 0.0).unwrap());
+        let pose = Pose::identity();
+        let world = [Point3::new(1.0f32, 0.0, 1.0), Point3::new(0.0, -2.0, 1.0)];
+        let pixels = [Point2::new(0.0f32, 0.0); 2];
+        let rms = rms_with(&cam, &pose, &pixels, |i| world.get(i).copied()).unwrap();
+        // Residuals 1e25 and 2e25 px: RMS √((1 + 4) / 2) 1e25, to f32 rounding.
+        assert!((rms / 1e25 - 2.5f32.sqrt()).abs() < 1e-5, "{rms}");
+        // Residuals that overflow themselves are an error, not an infinite RMS.
+        let far = [Point2::new(-f32::MAX, 0.0); 2];
+        let big = Camera::pinhole(Intrinsics::new(f32::MAX, 1.0, 0.0, 0.0).unwrap());
+        assert_eq!(
+            rms_with(&big, &pose, &far, |i| world.get(i).copied()),
+            Err(Error::NonFinite)
+        );
+    }
     use crate::camera::{Distortion, Intrinsics};
     use crate::rng::Pcg32;
 

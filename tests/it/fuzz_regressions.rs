@@ -107,3 +107,47 @@ fn poses_from_nearly_orthonormal_matrices_are_rotations() {
         }
     }
 }
+
+/// `solve_planar` returned `Ok` with the alternative's RMS `inf` (`cargo xtask fuzz 240`, target
+/// `pose`, after about 2.2 million runs): the unrefined second IPPE solution's residuals were
+/// beyond `√f32::MAX` pixels and their sum of squares overflowed. With `fx = 1e22` a pixel is
+/// 1e-22 of normalised error, so the second solution of a tilted target misses by ~1e21 px.
+/// Without refinement (the fuzzer's `refine_iterations` was 0) the best pose is IPPE's own and
+/// its error finite; with it, LM's Jacobian (1e22 px per unit) overflows first, a typed error.
+#[test]
+fn solve_planar_alternative_rms_is_finite_when_its_squares_overflow() {
+    use camgeom::nalgebra::{Point3, Vector3};
+    use camgeom::pose::{PlanarConfig, solve_planar};
+    use camgeom::transform::Pose;
+    let cam = Camera::pinhole(Intrinsics::new(1e22f32, 1e22, 0.0, 0.0).unwrap());
+    let truth =
+        Pose::from_rodrigues(Vector3::new(0.5f32, 0.2, 0.0), Vector3::new(0.0, 0.0, 2.0)).unwrap();
+    let model: Vec<Point2<f32>> = (0..9)
+        .map(|k| Point2::new((k % 3) as f32 * 0.1 - 0.1, (k / 3) as f32 * 0.1 - 0.1))
+        .collect();
+    let pixels: Vec<Point2<f32>> = model
+        .iter()
+        .map(|m| cam.project(&truth, &Point3::new(m.x, m.y, 0.0)).unwrap())
+        .collect();
+    let mut scratch = vec![Point2::origin(); model.len()];
+    for ratio in [0, 4, u8::MAX] {
+        let cfg = PlanarConfig {
+            refine_iterations: 0,
+            alternative_ratio: ratio,
+        };
+        match solve_planar(&cam, &model, &pixels, &mut scratch, &cfg) {
+            Ok(p) => {
+                for e in [p.best, p.alternative] {
+                    assert!(e.rms_px.is_finite() && e.rms_px >= 0.0, "{ratio}: {p:?}");
+                }
+                // The second solution really is that far off: its error is not capped.
+                assert!(p.alternative.rms_px > 1e18, "{ratio}: {p:?}");
+            }
+            Err(e) => panic!("{ratio}: {e:?}"),
+        }
+    }
+    let refined = PlanarConfig::default();
+    if let Ok(p) = solve_planar(&cam, &model, &pixels, &mut scratch, &refined) {
+        assert!(p.best.rms_px.is_finite() && p.alternative.rms_px.is_finite());
+    }
+}
