@@ -95,6 +95,13 @@ pub trait Estimator {
         None
     }
 
+    /// Whether [`Self::refit`] depends on the inlier mask only (a linear fit such as a DLT), not
+    /// on the model it starts from (an iterative fit). Local optimisation then skips a refit of
+    /// a mask it has just refitted. Default: `false`.
+    fn refit_is_mask_only(&self) -> bool {
+        false
+    }
+
     /// Final polish of the best model on its inliers (e.g. nonlinear least squares); `None`
     /// to keep it. Default: none.
     fn refine(&self, _model: &Self::Model, _inliers: &[bool]) -> Option<Self::Model> {
@@ -325,6 +332,8 @@ fn local_optimisation<T: Real, E: Estimator<Scalar = T>>(
     let one = T::one();
     let t2 = config.threshold * config.threshold;
     let rounds = config.local_optimization;
+    // After a refit: whether it replaced `current`. `mask` then holds the mask it was fitted on.
+    let mut last: Option<bool> = None;
     for k in 0..rounds {
         let m = config.lo_threshold_multiplier;
         let frac = if rounds > 1 {
@@ -333,16 +342,38 @@ fn local_optimisation<T: Real, E: Estimator<Scalar = T>>(
             one
         };
         let tk = config.threshold * (m - (m - one) * frac);
-        write_mask(estimator, &current.0, tk * tk, mask);
+        let changed = rewrite_mask(estimator, &current.0, tk * tk, mask);
+        // The same mask as the last refit's and the same start (the refit was rejected, or
+        // the fit ignores its start): the refit would reproduce a model already ranked, and
+        // leave `current` as it is. Skipping it changes no result.
+        if let Some(accepted) = last
+            && !changed
+            && (!accepted || estimator.refit_is_mask_only())
+        {
+            continue;
+        }
         let Some(refit) = estimator.refit(&current.0, mask) else {
             break;
         };
         let (c, k) = score(estimator, &refit, t2);
-        if order.better((c, k), (current.1, current.2)) {
+        let accepted = order.better((c, k), (current.1, current.2));
+        if accepted {
             current = (refit, c, k);
         }
+        last = Some(accepted);
     }
     current
+}
+
+/// [`write_mask`] that also says whether any entry changed.
+fn rewrite_mask<E: Estimator>(e: &E, model: &E::Model, t2: E::Scalar, mask: &mut [bool]) -> bool {
+    let mut changed = false;
+    for (i, m) in mask.iter_mut().enumerate() {
+        let new = e.residual_sq(model, i).is_some_and(|r| r < t2);
+        changed |= new != *m;
+        *m = new;
+    }
+    changed
 }
 
 /// `⌈log(1 - p) / log(1 - wˢ)⌉` samples for inlier ratio `w = inliers / n`, capped at `cap`.

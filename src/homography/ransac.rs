@@ -110,6 +110,11 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
             .ok()
     }
 
+    /// A DLT on the inliers: the model it starts from plays no part.
+    fn refit_is_mask_only(&self) -> bool {
+        true
+    }
+
     fn refine(&self, m: &Self::Model, inliers: &[bool]) -> Option<Self::Model> {
         refine_masked(&m.h, self.src, self.dst, inliers, self.refine_iterations)
             .and_then(|r| HomographyModel::new(r.homography))

@@ -139,6 +139,11 @@ impl<T: Real> Estimator for EssentialEstimator<'_, T> {
         self.model(Essential::from_matrix(f.matrix()).ok()?)
     }
 
+    /// The eight-point fit on the inliers: the model it starts from plays no part.
+    fn refit_is_mask_only(&self) -> bool {
+        true
+    }
+
     fn scoring(&self) -> Scoring {
         self.scoring
     }

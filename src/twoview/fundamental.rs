@@ -231,6 +231,11 @@ impl<T: Real> Estimator for FundamentalEstimator<'_, T> {
         eight_point_masked(self.x1, self.x2, inliers).ok()
     }
 
+    /// The eight-point fit on the inliers: the model it starts from plays no part.
+    fn refit_is_mask_only(&self) -> bool {
+        true
+    }
+
     fn refine(&self, f: &Self::Model, inliers: &[bool]) -> Option<Self::Model> {
         let pairs = self
             .x1
