@@ -108,22 +108,13 @@ fn steps() -> Vec<Step> {
     );
     // The core has no target-specific code (no `cfg(target_*)`), so one compilation per feature
     // set and instruction set is what catches a `std` leak or a missing `core` item. The firmware
-    // steps below compile it in release for thumbv7em with `defmt` (the emulated board, the
-    // OpenMV H7) and for thumbv6m and thumbv8m.main without (the pipeline cross-compile); these
-    // two cover the RISC-V target no firmware builds, in both feature sets. Checking all four
-    // targets in both sets took 83 s more for nothing the firmware builds miss.
+    // steps below compile it in release with `defmt` for every emulated board's target
+    // (thumbv7em, thumbv7m, thumbv8m.main, riscv32imac) and the OpenMV H7, and without it for
+    // thumbv6m (the pipeline cross-compile); this one is RISC-V without `defmt`.
     add(
-        "build camgeom --no-default-features for riscv32imac-unknown-none-elf (no firmware covers it)",
+        "build camgeom --no-default-features for riscv32imac-unknown-none-elf (the firmware builds it with defmt)",
         Box::new(|| {
             let mut cmd = root_cargo(&["build", "-p", "camgeom", "--no-default-features"]);
-            cmd.args(["--target", "riscv32imac-unknown-none-elf"]);
-            run(locked(&mut cmd))
-        }),
-    );
-    add(
-        "check camgeom --features defmt for riscv32imac-unknown-none-elf",
-        Box::new(|| {
-            let mut cmd = root_cargo(&["check", "-p", "camgeom", "--features", "defmt"]);
             cmd.args(["--target", "riscv32imac-unknown-none-elf"]);
             run(locked(&mut cmd))
         }),
@@ -175,20 +166,42 @@ fn steps() -> Vec<Step> {
         Box::new(crate::openmv::build_and_check),
     );
     add(
-        "firmware pipeline cross-compile (thumbv6m: RP2040 class, thumbv8m.main: RP2350 class)",
+        "firmware pipeline cross-compile (thumbv6m: RP2040's Cortex-M0+, no emulated board)",
         Box::new(|| {
             // `camgeom-fw-app` instantiates the 320x240 pipeline (`qvga::step_qvga`), so this
-            // compiles and optimises the whole per-frame path for each target.
-            for target in ["thumbv6m-none-eabi", "thumbv8m.main-none-eabihf"] {
-                let mut cmd = firmware_cargo("build");
-                cmd.args(["--release", "-p", "camgeom-fw-app", "--target", target]);
-                run(locked(&mut cmd))?;
-            }
-            Ok(())
+            // compiles and optimises the whole per-frame path. The other cores run it in the
+            // main job.
+            let mut cmd = firmware_cargo("build");
+            cmd.args([
+                "--release",
+                "-p",
+                "camgeom-fw-app",
+                "--target",
+                "thumbv6m-none-eabi",
+            ]);
+            run(locked(&mut cmd))
         }),
     );
     add(
-        "main job: firmware on QEMU over the box sequence, checked against the host replay",
+        "clippy (emulated board firmware for riscv32imac: its own runtime code)",
+        Box::new(|| {
+            let mut cmd = firmware_cargo("clippy");
+            cmd.args([
+                "-p",
+                "camgeom-fw-emulated",
+                "--lib",
+                "--bin",
+                "camgeom-fw-emulated",
+                "--bin",
+                "camgeom-fw-qqvga",
+                "--target",
+                "riscv32imac-unknown-none-elf",
+            ]);
+            run(locked(&mut cmd).args(["--", "-D", "warnings"]))
+        }),
+    );
+    add(
+        "main job: firmware on every emulated board over the box sequence, checked against the host replay",
         Box::new(|| crate::mainjob::run(&crate::mainjob::Options::full())),
     );
     steps

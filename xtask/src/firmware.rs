@@ -15,7 +15,7 @@ use anyhow::{Context, Result, bail};
 use defmt_decoder::{DecodeError, Table};
 use object::{Object, ObjectSection, SectionFlags, elf};
 
-use crate::setup::{FIRMWARE_TARGET, QEMU};
+use crate::jobs::{Board, M7};
 use crate::util::{cargo, locked, root, run};
 
 pub const PACKAGE: &str = "camgeom-fw-emulated";
@@ -29,11 +29,6 @@ const SUMMARY_REST: &str = " points, cost ";
 /// The bench binary's summary line.
 const BENCH_SUMMARY: &str = "homography bench: ";
 const BENCH_SUMMARY_REST: &str = " instructions";
-
-/// RAM starts here on the emulated board (see `memory.x`): sections at or above it take RAM.
-const RAM_ORIGIN: u64 = 0x2000_0000;
-const FLASH_LEN: u64 = 2 * 1024 * 1024;
-const RAM_LEN: u64 = 512 * 1024;
 
 pub fn firmware_dir() -> PathBuf {
     root().join("firmware")
@@ -60,15 +55,28 @@ pub fn firmware_cargo(subcommand: &str) -> Command {
     cmd
 }
 
-/// Builds binary `bin` of the firmware package (release) with extra cargo arguments; returns
-/// its ELF.
+/// Builds binary `bin` of the firmware package (release) for the reference board with extra
+/// cargo arguments; returns its ELF.
 pub fn build_bin(bin: &str, extra: &[&str]) -> Result<PathBuf> {
+    build_bin_for(M7, bin, extra)
+}
+
+/// [`build_bin`] for `board`.
+pub fn build_bin_for(board: Board, bin: &str, extra: &[&str]) -> Result<PathBuf> {
     let mut cmd = firmware_cargo("build");
-    cmd.args(["--release", "-p", PACKAGE, "--bin", bin])
-        .args(extra);
+    cmd.args([
+        "--release",
+        "-p",
+        PACKAGE,
+        "--bin",
+        bin,
+        "--target",
+        board.target,
+    ])
+    .args(extra);
     run(locked(&mut cmd))?;
     let elf = firmware_target_dir()
-        .join(FIRMWARE_TARGET)
+        .join(board.target)
         .join("release")
         .join(bin);
     if !elf.is_file() {
@@ -117,19 +125,23 @@ fn timeout() -> Duration {
 /// Runs `elf` on QEMU and checks its log; its summary line starts with `summary` and contains
 /// `summary_rest`.
 pub fn run_on_qemu_checked(elf: &Path, summary_start: &str, summary_rest: &str) -> Result<String> {
-    run_on_qemu_in(elf, None, summary_start, summary_rest, &|_| true).map(|(s, _)| s)
+    run_on_qemu_in(M7, elf, None, summary_start, summary_rest, Some(&|_| true)).map(|(s, _)| s)
 }
 
-/// [`run_on_qemu_checked`] with QEMU started in `dir` (where the firmware's semihosting file
-/// calls land), printing only the log lines `show` accepts; returns the summary line and every
-/// decoded message.
+/// [`run_on_qemu_checked`] on `board` with QEMU started in `dir` (where the firmware's
+/// semihosting file calls land), printing the command and the log lines `show` accepts (and
+/// every warning and error); with `show` `None` only warnings, errors and, on failure, the
+/// command. Returns the summary line and every decoded message.
 pub fn run_on_qemu_in(
+    board: Board,
     elf: &Path,
     dir: Option<&Path>,
     summary_start: &str,
     summary_rest: &str,
-    show: &dyn Fn(&str) -> bool,
+    show: Option<&dyn Fn(&str) -> bool>,
 ) -> Result<(String, Vec<String>)> {
+    let verbose = show.is_some();
+    let show = show.unwrap_or(&|_| false);
     let image = fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let table = Table::parse(&image)
         .context("cannot read the defmt table")?
@@ -137,8 +149,10 @@ pub fn run_on_qemu_in(
     // Locations need the debug info; without it the log still decodes.
     let locations = table.get_locations(&image).unwrap_or_default();
 
-    let mut cmd = Command::new(QEMU);
-    cmd.args(["-cpu", "cortex-m7", "-machine", "mps2-an500", "-nographic"])
+    let qemu = board.qemu;
+    let mut cmd = Command::new(qemu);
+    cmd.args(board.machine)
+        .arg("-nographic")
         .args(["-semihosting-config", "enable=on,target=native"])
         // One virtual nanosecond per instruction: SysTick then counts instructions (see
         // firmware/README.md), and runs are deterministic.
@@ -150,10 +164,12 @@ pub fn run_on_qemu_in(
         .stdout(Stdio::piped())
         .stderr(Stdio::piped());
     let shown = crate::util::show(&cmd);
-    println!("$ {shown}");
+    if verbose {
+        println!("$ {shown}");
+    }
     let mut child = cmd
         .spawn()
-        .with_context(|| format!("cannot start {QEMU} (run `cargo xtask setup`)"))?;
+        .with_context(|| format!("cannot start {qemu} (run `cargo xtask setup`)"))?;
     let mut stdout = child.stdout.take().context("no stdout")?;
     let mut stderr = child.stderr.take().context("no stderr")?;
     let out_reader = thread::spawn(move || {
@@ -189,7 +205,9 @@ pub fn run_on_qemu_in(
     let mut summary = None;
     let mut messages = Vec::new();
     let (mut lines, mut malformed, mut error_logs) = (0usize, 0usize, 0usize);
-    println!("---- firmware log (defmt) ----");
+    if verbose {
+        println!("---- firmware log (defmt) ----");
+    }
     loop {
         match decoder.decode() {
             Ok(frame) => {
@@ -219,20 +237,25 @@ pub fn run_on_qemu_in(
             Err(DecodeError::Malformed) => malformed += 1,
         }
     }
-    println!(
-        "---- end of log ({lines} frames, {} bytes) ----",
-        bytes.len()
-    );
+    if verbose {
+        println!(
+            "---- end of log ({lines} frames, {} bytes) ----",
+            bytes.len()
+        );
+    }
     let errors = String::from_utf8_lossy(&errors);
     if !errors.trim().is_empty() {
-        println!("---- {QEMU} stderr ----\n{}", errors.trim_end());
+        println!("---- {qemu} stderr ----\n{}", errors.trim_end());
     }
 
     let Some(status) = status else {
-        bail!("{QEMU} did not finish within {} s", limit.as_secs());
+        bail!(
+            "{qemu} did not finish within {} s: $ {shown}",
+            limit.as_secs()
+        );
     };
     if !status.success() {
-        bail!("the firmware failed: {QEMU} exited with {status}");
+        bail!("the firmware failed: {qemu} exited with {status}: $ {shown}");
     }
     if malformed > 0 {
         bail!("{malformed} defmt frame(s) could not be decoded: the log is corrupted");
@@ -243,7 +266,9 @@ pub fn run_on_qemu_in(
     let Some(summary) = summary else {
         bail!("the log has no summary line (`{summary_start}...{summary_rest}...`)");
     };
-    println!("firmware run OK: {summary}");
+    if verbose {
+        println!("firmware run OK: {summary}");
+    }
     Ok((summary, messages))
 }
 
@@ -288,13 +313,24 @@ pub fn section_list(sections: &[Section]) -> String {
     rows.join(" ")
 }
 
-/// Prints what the ELF takes of the board's flash and RAM (from its allocated sections);
-/// returns `(flash, static RAM)` in bytes.
+/// Prints what the ELF takes of the reference board's flash and RAM (from its allocated
+/// sections); returns `(flash, static RAM)` in bytes.
 pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
+    let (flash, ram, line) = size_of(M7, elf)?;
+    println!("{line}");
+    Ok((flash, ram))
+}
+
+/// What the ELF built for `board` takes of its flash and RAM: `(flash, static RAM, a line
+/// saying so)` in bytes.
+pub fn size_of(board: Board, elf: &Path) -> Result<(u64, u64, String)> {
     let sections = alloc_sections(elf)?;
     let (mut flash, mut ram) = (0u64, 0u64);
-    for s in &sections {
-        let in_ram = s.address >= RAM_ORIGIN;
+    // riscv-rt's linker script reserves the heap and the stack as sections of their own
+    // (cortex-m-rt leaves them to the rest of RAM): they are not static data.
+    let reserved = |name: &str| name == ".stack" || name == ".heap";
+    for s in sections.iter().filter(|s| !reserved(&s.name)) {
+        let in_ram = s.address >= board.ram_origin;
         if in_ram {
             ram += s.size;
         }
@@ -302,15 +338,16 @@ pub fn size_report(elf: &Path) -> Result<(u64, u64)> {
             flash += s.size;
         }
     }
-    println!(
-        "firmware size: flash {flash} B of {} KiB ({:.1}%), static RAM {ram} B of {} KiB, \
+    let line = format!(
+        "firmware size ({}): flash {flash} B of {} KiB ({:.1}%), static RAM {ram} B of {} KiB, \
          the rest of RAM is stack [{}]",
-        FLASH_LEN / 1024,
-        100.0 * flash as f64 / FLASH_LEN as f64,
-        RAM_LEN / 1024,
+        board.name,
+        board.flash_len / 1024,
+        100.0 * flash as f64 / board.flash_len as f64,
+        board.ram_len / 1024,
         section_list(&sections)
     );
-    Ok((flash, ram))
+    Ok((flash, ram, line))
 }
 
 /// The two-view bench binary (`cargo xtask bench-fw`, after the homography bench).

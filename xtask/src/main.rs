@@ -3,7 +3,7 @@
 //! | command | what |
 //! |---|---|
 //! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
-//! | `cargo xtask run` | the main job: the firmware over the recorded sequence on QEMU, checked against the host replay |
+//! | `cargo xtask run [--board NAME]` | the main job: the firmware over the recorded sequence on every emulated board (or one), checked against the host replay |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
@@ -32,8 +32,10 @@ const USAGE: &str = "usage: cargo xtask <command>
 
 commands:
   setup   install the rustup targets and components and qemu-system-arm the other commands need
-  run     the main job: the firmware over the recorded box sequence on QEMU mps2-an500
-          (320x240 and 160x120), per-stage cost, overlays, checked against the host replay
+  run [--board NAME]  the main job: the firmware over the recorded box sequence on every
+          emulated board (mps2-an500 Cortex-M7, mps2-an385 Cortex-M3, mps2-an505 Cortex-M33,
+          virt RV32IMAC; or only NAME), 320x240 and 160x120, per-stage cost, overlays, each
+          checked against the host replay
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
@@ -44,37 +46,54 @@ commands:
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let result = match args.first().map(String::as_str) {
-        Some("setup") => setup::setup(),
-        Some("run") => setup::setup().and_then(|()| mainjob::run(&mainjob::Options::full())),
-        Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
-        Some("build-openmv") => openmv::build_and_check(),
-        Some("size") => {
-            setup::setup().and_then(|()| size::size(args.get(1).is_some_and(|a| a == "--update")))
-        }
-        Some("stack") => setup::setup().and_then(|()| firmware::stack()),
-        Some("panic-check") => panic_check::check(),
-        Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
-            None => fuzz::fuzz(fuzz::SMOKE_SECONDS),
-            Some(Ok(secs)) => fuzz::fuzz(secs),
-            Some(Err(_)) => {
-                eprintln!("xtask: fuzz takes a number of seconds per target");
+    let result =
+        match args.first().map(String::as_str) {
+            Some("setup") => setup::setup(),
+            Some("run") => match args.get(1).map(String::as_str) {
+                None => setup::setup().and_then(|()| mainjob::run(&mainjob::Options::full())),
+                Some("--board") => match args.get(2).and_then(|n| jobs::board(n)) {
+                    Some(b) => setup::setup()
+                        .and_then(|()| mainjob::run(&mainjob::Options::boards(vec![b]))),
+                    None => {
+                        eprintln!(
+                            "xtask: run --board takes one of: {}",
+                            jobs::BOARDS.map(|b| b.name).join(", ")
+                        );
+                        return ExitCode::from(2);
+                    }
+                },
+                Some(other) => {
+                    eprintln!("xtask: unknown argument to run: `{other}`\n\n{USAGE}");
+                    return ExitCode::from(2);
+                }
+            },
+            Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
+            Some("build-openmv") => openmv::build_and_check(),
+            Some("size") => setup::setup()
+                .and_then(|()| size::size(args.get(1).is_some_and(|a| a == "--update"))),
+            Some("stack") => setup::setup().and_then(|()| firmware::stack()),
+            Some("panic-check") => panic_check::check(),
+            Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
+                None => fuzz::fuzz(fuzz::SMOKE_SECONDS),
+                Some(Ok(secs)) => fuzz::fuzz(secs),
+                Some(Err(_)) => {
+                    eprintln!("xtask: fuzz takes a number of seconds per target");
+                    return ExitCode::from(2);
+                }
+            },
+            Some("ci") => ci::ci(),
+            Some("help" | "-h" | "--help") => {
+                println!("{USAGE}");
+                return ExitCode::SUCCESS;
+            }
+            other => {
+                if let Some(cmd) = other {
+                    eprintln!("xtask: unknown command `{cmd}`\n");
+                }
+                eprintln!("{USAGE}");
                 return ExitCode::from(2);
             }
-        },
-        Some("ci") => ci::ci(),
-        Some("help" | "-h" | "--help") => {
-            println!("{USAGE}");
-            return ExitCode::SUCCESS;
-        }
-        other => {
-            if let Some(cmd) = other {
-                eprintln!("xtask: unknown command `{cmd}`\n");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
-    };
+        };
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

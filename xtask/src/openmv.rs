@@ -10,7 +10,7 @@ use anyhow::{Context, Result, bail};
 use object::{Object, ObjectSection};
 
 use crate::firmware::{alloc_sections, firmware_cargo, firmware_target_dir, section_list};
-use crate::setup::FIRMWARE_TARGET;
+use crate::jobs::M7;
 use crate::util::{locked, run};
 
 const PACKAGE: &str = "camgeom-fw-openmv-h7";
@@ -24,7 +24,7 @@ pub fn build() -> Result<PathBuf> {
     cmd.args(["--release", "-p", PACKAGE]);
     run(locked(&mut cmd))?;
     let elf = firmware_target_dir()
-        .join(FIRMWARE_TARGET)
+        .join(M7.target)
         .join("release")
         .join(PACKAGE);
     if !elf.is_file() {

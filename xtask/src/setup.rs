@@ -7,21 +7,16 @@ use anyhow::{Result, bail};
 
 use crate::util::{output, run};
 
-/// The targets the core must build for (CI builds it for each); the firmware uses the second.
-pub const TARGETS: [&str; 4] = [
+/// The targets the core must build for (CI builds it for each) and the emulated boards run.
+pub const TARGETS: [&str; 5] = [
     "thumbv6m-none-eabi",
+    "thumbv7m-none-eabi",
     "thumbv7em-none-eabihf",
     "thumbv8m.main-none-eabihf",
     "riscv32imac-unknown-none-elf",
 ];
 
-/// The firmware's target.
-pub const FIRMWARE_TARGET: &str = "thumbv7em-none-eabihf";
-
 const COMPONENTS: [&str; 2] = ["rustfmt", "clippy"];
-
-/// The emulator.
-pub const QEMU: &str = "qemu-system-arm";
 
 pub fn setup() -> Result<()> {
     rustup()?;
@@ -65,27 +60,46 @@ fn rustup() -> Result<()> {
     Ok(())
 }
 
+/// Every emulator binary the boards need, with the Debian package that has it.
+const EMULATORS: [(&str, &str); 2] = [
+    ("qemu-system-arm", "qemu-system-arm"),
+    ("qemu-system-riscv32", "qemu-system-misc"),
+];
+
 fn qemu() -> Result<()> {
-    if output(QEMU, ["--version"]).is_some() {
+    let missing: Vec<(&str, &str)> = EMULATORS
+        .into_iter()
+        .filter(|(bin, _)| output(bin, ["--version"]).is_none())
+        .collect();
+    if missing.is_empty() {
         return Ok(());
     }
+    let packages: Vec<&str> = missing.iter().map(|(_, p)| *p).collect();
     let root = output("id", ["-u"]).is_some_and(|u| u.trim() == "0");
     let apt = output("apt-get", ["--version"]).is_some();
     if !(root && apt) {
         bail!(
-            "{QEMU} is missing: install it (Debian/Ubuntu: `sudo apt-get install -y {QEMU}`), \
-             then run again"
+            "{} missing: install (Debian/Ubuntu) `sudo apt-get install -y {}`, then run again",
+            missing
+                .iter()
+                .map(|(b, _)| *b)
+                .collect::<Vec<_>>()
+                .join(", "),
+            packages.join(" ")
         );
     }
-    println!("setup: {QEMU} is missing, installing it with apt-get");
+    println!("setup: installing {} with apt-get", packages.join(" "));
     run(Command::new("apt-get")
         .args(["update", "-q"])
         .env("DEBIAN_FRONTEND", "noninteractive"))?;
     run(Command::new("apt-get")
-        .args(["install", "-y", "-q", "--no-install-recommends", QEMU])
+        .args(["install", "-y", "-q", "--no-install-recommends"])
+        .args(&packages)
         .env("DEBIAN_FRONTEND", "noninteractive"))?;
-    if output(QEMU, ["--version"]).is_none() {
-        bail!("{QEMU} still does not run after installing it");
+    for (bin, _) in &missing {
+        if output(bin, ["--version"]).is_none() {
+            bail!("{bin} still does not run after installing it");
+        }
     }
     Ok(())
 }

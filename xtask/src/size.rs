@@ -12,8 +12,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 
-use crate::firmware::{build_bin, firmware_dir, size_report};
-use crate::jobs::{FULL, HALF};
+use crate::firmware::{build_bin_for, firmware_dir, size_of};
+use crate::jobs::{BOARDS, FULL, HALF, snapshot_key};
 
 /// Growth allowed before the comparison fails (compiler updates move sizes by a few tenths of
 /// a percent; a real regression, such as a buffer doubling or a panic path pulling in
@@ -49,18 +49,19 @@ fn read_snapshot() -> Result<BTreeMap<String, (u64, u64)>> {
 }
 
 /// Compares `(bin, flash, ram)` with the snapshot; fails on growth beyond the margin.
-pub fn compare(measured: &[(&str, u64, u64)]) -> Result<()> {
+pub fn compare(measured: &[(String, u64, u64)]) -> Result<()> {
     let snap = read_snapshot()?;
     let mut bad = Vec::new();
     println!("size vs firmware/size-snapshot.txt (fails above +{MARGIN_PERCENT} %):");
-    for &(bin, flash, ram) in measured {
+    for (bin, flash, ram) in measured {
+        let (bin, flash, ram) = (bin.as_str(), *flash, *ram);
         let Some(&(f0, r0)) = snap.get(bin) else {
             bail!("{bin} is not in firmware/size-snapshot.txt: run cargo xtask size --update");
         };
         let pct = |now: u64, was: u64| 100.0 * (now as f64 - was as f64) / (was.max(1) as f64);
         let (df, dr) = (pct(flash, f0), pct(ram, r0));
         println!(
-            "  {bin:<22} flash {f0} -> {flash} B ({df:+.2} %), static RAM {r0} -> {ram} B ({dr:+.2} %)"
+            "  {bin:<34} flash {f0} -> {flash} B ({df:+.2} %), static RAM {r0} -> {ram} B ({dr:+.2} %)"
         );
         if df > MARGIN_PERCENT || dr > MARGIN_PERCENT {
             bad.push(bin);
@@ -76,13 +77,17 @@ pub fn compare(measured: &[(&str, u64, u64)]) -> Result<()> {
     Ok(())
 }
 
-/// Builds the main-job binaries and returns `(bin, flash, ram)` for each.
-fn measure() -> Result<Vec<(&'static str, u64, u64)>> {
+/// Builds the main-job binaries for every board and returns `(snapshot key, flash, ram)` for
+/// each.
+fn measure() -> Result<Vec<(String, u64, u64)>> {
     let mut out = Vec::new();
-    for size in [FULL, HALF] {
-        let elf = build_bin(size.bin, &[])?;
-        let (flash, ram) = size_report(&elf)?;
-        out.push((size.bin, flash, ram));
+    for board in BOARDS {
+        for size in [FULL, HALF] {
+            let elf = build_bin_for(board, size.bin, &[])?;
+            let (flash, ram, line) = size_of(board, &elf)?;
+            println!("{line}");
+            out.push((snapshot_key(board, size.bin), flash, ram));
+        }
     }
     Ok(out)
 }
@@ -94,9 +99,9 @@ pub fn size(update: bool) -> Result<()> {
         return compare(&measured);
     }
     let mut text = String::from(
-        "# Flash and static RAM (bytes) of the main-job firmware, release build for\n\
-         # thumbv7em-none-eabihf: compared by `cargo xtask run` / CI, rewritten by\n\
-         # `cargo xtask size --update`.\n",
+        "# Flash and static RAM (bytes) of the main-job firmware, release builds: `bin` for the\n\
+         # Cortex-M7 (thumbv7em-none-eabihf), `bin@board` for the other emulated boards.\n\
+         # Compared by `cargo xtask run` / CI, rewritten by `cargo xtask size --update`.\n",
     );
     for (bin, flash, ram) in &measured {
         text.push_str(&format!("{bin} flash={flash} ram={ram}\n"));

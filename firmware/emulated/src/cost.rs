@@ -1,124 +1,160 @@
-//! Cost measurement with SysTick.
+//! Cost measurement: an instruction counter on every emulated core.
 //!
-//! SysTick runs free from the core clock as a 24-bit down-counter (reload `0xFF_FFFF`); its
-//! exception counts the wraps, so [`now`] is a 64-bit tick count that never wraps in practice.
+//! **Arm** (`mps2-an385`, `-an500`, `-an505`): SysTick runs free from the core clock as a
+//! 24-bit down-counter (reload `0xFF_FFFF`); its exception counts the wraps, so [`now`] is a
+//! 64-bit tick count that never wraps in practice. On QEMU with `-icount shift=0` every
+//! instruction advances virtual time by exactly 1 ns, and the MPS2 core clock that drives
+//! SysTick is 25 MHz: one tick is 40 instructions. The ratio is not hard-coded: [`start`]
+//! measures a loop of known length and keeps the instructions-per-tick it finds, so
+//! [`measure`] reports instructions (to within one tick). On real hardware the same code
+//! counts core cycles per tick (1), see firmware/README.md.
 //!
-//! On QEMU with `-icount shift=0` every instruction advances virtual time by exactly 1 ns, and
-//! the mps2-an500 core clock that drives SysTick is 25 MHz: one tick is 40 instructions. The
-//! ratio is not hard-coded: [`init`] measures a loop of known length and keeps the
-//! instructions-per-tick it finds, so [`measure`] reports instructions (to within one tick).
-//! On real hardware the same code counts core cycles per tick (1), see firmware/README.md.
+//! **RISC-V** (`virt`): the `minstret` counter (instructions retired, 64 bits) is read
+//! directly: one tick is one instruction, exactly (QEMU derives it from `-icount`).
 
 use core::hint::black_box;
-use core::sync::atomic::{AtomicU32, Ordering, compiler_fence};
+use core::sync::atomic::{Ordering, compiler_fence};
 
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m::peripheral::{SCB, SYST};
-use cortex_m_rt::exception;
+pub use counter::{Calibration, now, per_tick, start};
 
-const RELOAD: u32 = 0x00FF_FFFF;
+#[cfg(target_arch = "arm")]
+mod counter {
+    use core::sync::atomic::{AtomicU32, Ordering};
 
-/// Completed SysTick periods (the counter reached zero), counted by the exception.
-static WRAPS: AtomicU32 = AtomicU32::new(0);
-/// Instructions (QEMU -icount) or cycles (hardware) per SysTick tick, from [`init`].
-static PER_TICK: AtomicU32 = AtomicU32::new(1);
+    use cortex_m::peripheral::syst::SystClkSource;
+    use cortex_m::peripheral::{SCB, SYST};
+    use cortex_m_rt::exception;
 
-#[exception]
-fn SysTick() {
-    WRAPS.fetch_add(1, Ordering::Relaxed);
-}
+    const RELOAD: u32 = 0x00FF_FFFF;
 
-/// The calibration loop runs `2 * CALIBRATION_LOOPS` instructions (`subs` + `bne`).
-const CALIBRATION_LOOPS: u32 = 100_000;
+    /// Completed SysTick periods (the counter reached zero), counted by the exception.
+    static WRAPS: AtomicU32 = AtomicU32::new(0);
+    /// Instructions (QEMU -icount) or cycles (hardware) per SysTick tick, from [`init`].
+    static PER_TICK: AtomicU32 = AtomicU32::new(1);
 
-/// What [`init`] found.
-pub struct Calibration {
-    /// Instructions the calibration loop ran.
-    pub instructions: u32,
-    /// SysTick ticks it took.
-    pub ticks: u32,
-    /// Instructions per tick, rounded.
-    pub per_tick: u32,
-}
-
-/// Board start-up shared by every binary: takes the core peripherals, starts and calibrates
-/// SysTick with [`init`] and logs the calibration. Exits with failure if the peripherals were
-/// already taken.
-pub fn start() -> Calibration {
-    let Some(cp) = cortex_m::Peripherals::take() else {
-        defmt::error!("core peripherals already taken");
-        crate::board::exit_failure()
-    };
-    let cal = init(cp.SYST);
-    defmt::info!(
-        "SysTick calibrated: {=u32} instructions in {=u32} ticks, 1 tick = {=u32} instructions",
-        cal.instructions,
-        cal.ticks,
-        cal.per_tick
-    );
-    cal
-}
-
-/// Starts SysTick as a free-running counter from the core clock and calibrates it.
-pub fn init(mut syst: SYST) -> Calibration {
-    syst.disable_counter();
-    syst.set_clock_source(SystClkSource::Core);
-    syst.set_reload(RELOAD);
-    syst.clear_current();
-    syst.enable_interrupt();
-    syst.enable_counter();
-
-    let instructions = 2 * CALIBRATION_LOOPS;
-    let start = now();
-    spin(CALIBRATION_LOOPS);
-    let ticks = (now() - start).max(1);
-    let per_tick = ((u64::from(instructions) + ticks / 2) / ticks).max(1);
-    let per_tick = u32::try_from(per_tick).unwrap_or(u32::MAX);
-    PER_TICK.store(per_tick, Ordering::Relaxed);
-    Calibration {
-        instructions,
-        ticks: u32::try_from(ticks).unwrap_or(u32::MAX),
-        per_tick,
+    #[exception]
+    fn SysTick() {
+        WRAPS.fetch_add(1, Ordering::Relaxed);
     }
-}
 
-/// Runs `2 * n` instructions (`n >= 1`): a `subs`/`bne` loop the compiler cannot change.
-#[inline(never)]
-fn spin(n: u32) {
-    // SAFETY: register-only loop; touches no memory and no stack.
-    unsafe {
-        core::arch::asm!(
-            "2:",
-            "subs {n}, #1",
-            "bne 2b",
-            n = inout(reg) n => _,
-            options(nomem, nostack),
+    /// The calibration loop runs `2 * CALIBRATION_LOOPS` instructions (`subs` + `bne`).
+    const CALIBRATION_LOOPS: u32 = 100_000;
+
+    /// What [`init`] found.
+    pub struct Calibration {
+        /// Instructions the calibration loop ran.
+        pub instructions: u32,
+        /// SysTick ticks it took.
+        pub ticks: u32,
+        /// Instructions per tick, rounded.
+        pub per_tick: u32,
+    }
+
+    /// Board start-up shared by every binary: takes the core peripherals, starts and calibrates
+    /// SysTick with [`init`] and logs the calibration. Exits with failure if the peripherals were
+    /// already taken.
+    pub fn start() -> Calibration {
+        let Some(cp) = cortex_m::Peripherals::take() else {
+            defmt::error!("core peripherals already taken");
+            crate::board::exit_failure()
+        };
+        let cal = init(cp.SYST);
+        defmt::info!(
+            "SysTick calibrated: {=u32} instructions in {=u32} ticks, 1 tick = {=u32} instructions",
+            cal.instructions,
+            cal.ticks,
+            cal.per_tick
         );
+        cal
+    }
+
+    /// Starts SysTick as a free-running counter from the core clock and calibrates it.
+    pub fn init(mut syst: SYST) -> Calibration {
+        syst.disable_counter();
+        syst.set_clock_source(SystClkSource::Core);
+        syst.set_reload(RELOAD);
+        syst.clear_current();
+        syst.enable_interrupt();
+        syst.enable_counter();
+
+        let instructions = 2 * CALIBRATION_LOOPS;
+        let start = now();
+        spin(CALIBRATION_LOOPS);
+        let ticks = (now() - start).max(1);
+        let per_tick = ((u64::from(instructions) + ticks / 2) / ticks).max(1);
+        let per_tick = u32::try_from(per_tick).unwrap_or(u32::MAX);
+        PER_TICK.store(per_tick, Ordering::Relaxed);
+        Calibration {
+            instructions,
+            ticks: u32::try_from(ticks).unwrap_or(u32::MAX),
+            per_tick,
+        }
+    }
+
+    /// Runs `2 * n` instructions (`n >= 1`): a `subs`/`bne` loop the compiler cannot change.
+    #[inline(never)]
+    fn spin(n: u32) {
+        // SAFETY: register-only loop; touches no memory and no stack.
+        unsafe {
+            core::arch::asm!(
+                "2:",
+                "subs {n}, #1",
+                "bne 2b",
+                n = inout(reg) n => _,
+                options(nomem, nostack),
+            );
+        }
+    }
+
+    /// SysTick ticks since [`init`], across wraps.
+    pub fn now() -> u64 {
+        cortex_m::interrupt::free(|_| {
+            // With interrupts off, WRAPS cannot change under us; a wrap that happened since they
+            // were turned off shows as a pending SysTick exception instead.
+            let mut wraps = WRAPS.load(Ordering::Relaxed);
+            let mut value = SYST::get_current();
+            if SCB::is_pendst_pending() {
+                // The counter reached zero before the pending bit was read: count that wrap, and
+                // read the value again so that it is from after the wrap too.
+                wraps += 1;
+                value = SYST::get_current();
+            }
+            // The counter reaches 0 at the end of each period (when the wrap is counted) and
+            // reloads one tick later, so ticks into the current period are (2^24 - value) mod 2^24.
+            (u64::from(wraps) << 24) + u64::from((RELOAD + 1 - value) & RELOAD)
+        })
+    }
+
+    /// Instructions (on QEMU with `-icount`) per tick, as calibrated by [`init`].
+    pub fn per_tick() -> u32 {
+        PER_TICK.load(Ordering::Relaxed)
     }
 }
 
-/// SysTick ticks since [`init`], across wraps.
-pub fn now() -> u64 {
-    cortex_m::interrupt::free(|_| {
-        // With interrupts off, WRAPS cannot change under us; a wrap that happened since they
-        // were turned off shows as a pending SysTick exception instead.
-        let mut wraps = WRAPS.load(Ordering::Relaxed);
-        let mut value = SYST::get_current();
-        if SCB::is_pendst_pending() {
-            // The counter reached zero before the pending bit was read: count that wrap, and
-            // read the value again so that it is from after the wrap too.
-            wraps += 1;
-            value = SYST::get_current();
-        }
-        // The counter reaches 0 at the end of each period (when the wrap is counted) and
-        // reloads one tick later, so ticks into the current period are (2^24 - value) mod 2^24.
-        (u64::from(wraps) << 24) + u64::from((RELOAD + 1 - value) & RELOAD)
-    })
-}
+#[cfg(target_arch = "riscv32")]
+mod counter {
+    /// What [`start`] found: on RISC-V the counter is read directly, one tick an instruction.
+    pub struct Calibration {
+        pub per_tick: u32,
+    }
 
-/// Instructions (on QEMU with `-icount`) per tick, as calibrated by [`init`].
-pub fn per_tick() -> u32 {
-    PER_TICK.load(Ordering::Relaxed)
+    /// Board start-up shared by every binary: paints the stack (riscv-rt does not) and logs the
+    /// counter used.
+    pub fn start() -> Calibration {
+        crate::board::paint_stack();
+        defmt::info!("instruction counter: minstret, 1 tick = 1 instruction");
+        Calibration { per_tick: 1 }
+    }
+
+    /// Instructions retired since reset (costs are differences of two readings).
+    pub fn now() -> u64 {
+        riscv::register::minstret::read64()
+    }
+
+    /// One instruction a tick.
+    pub fn per_tick() -> u32 {
+        1
+    }
 }
 
 /// Runs `f` and returns its result with its cost in instructions (on QEMU `-icount`; core

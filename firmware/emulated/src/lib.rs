@@ -1,4 +1,6 @@
-//! The emulated board (QEMU `mps2-an500`, Cortex-M7): what its binaries share.
+//! The emulated boards (QEMU `mps2-an500` Cortex-M7, `mps2-an385` Cortex-M3, `mps2-an505`
+//! Cortex-M33, `virt` RV32IMAC): what their binaries share. The target a binary is built for
+//! picks the board (`build.rs`); the code is the same on each.
 //!
 //! - [`board`]: exit codes through semihosting, the panic and fault handlers, stack use;
 //! - [`cost`]: SysTick as an instruction counter under QEMU `-icount`, and a cost table;
@@ -19,3 +21,10 @@ pub mod semihost;
 
 // The defmt global logger: every binary of this crate logs over semihosting.
 use defmt_semihosting as _;
+
+/// The runtime's entry-point attribute (cortex-m-rt's on Arm, riscv-rt's on RISC-V), so that a
+/// binary's `main` is the same on every board.
+#[cfg(target_arch = "arm")]
+pub use cortex_m_rt::entry;
+#[cfg(target_arch = "riscv32")]
+pub use riscv_rt::entry;

@@ -1,13 +1,16 @@
 //! Host files over semihosting, and the emulated board's virtual camera.
 //!
-//! QEMU runs with `-semihosting-config enable=on,target=native`: the ARM semihosting calls
-//! `SYS_OPEN`, `SYS_READ`, `SYS_WRITE`, `SYS_SEEK`, `SYS_FLEN` and `SYS_CLOSE` reach the host's
-//! file system, relative to QEMU's working directory (`cargo xtask run` starts QEMU in the run
+//! QEMU runs with `-semihosting-config enable=on,target=native`: the semihosting calls
+//! `SYS_OPEN`, `SYS_READ`, `SYS_WRITE`, `SYS_SEEK`, `SYS_FLEN` and `SYS_CLOSE` (the same on Arm
+//! and RISC-V; made by the `semihosting` crate) reach the host's file system, relative to QEMU's
+//! working directory (`cargo xtask run` starts QEMU in the run
 //! directory it prepared: `target/camgeom-run/<size>/`).
+
+use core::ffi::CStr;
 
 use camgeom::image::ImageMut;
 use camgeom_fw_app::FrameSource;
-use cortex_m_semihosting::{nr, syscall};
+use semihosting::io::{Read as _, Seek as _, SeekFrom, Write as _};
 
 /// A semihosting call failed (the host returned -1, or moved fewer bytes than asked).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -24,87 +27,59 @@ pub enum HostError {
     Name,
 }
 
-/// An open host file.
-pub struct HostFile {
-    fd: usize,
-}
+/// An open host file (closed when dropped).
+pub struct HostFile(semihosting::fs::File);
 
 /// Longest file name (without the NUL the call needs).
 const NAME_MAX: usize = 63;
 
 impl HostFile {
-    fn open(name: &str, mode: usize) -> Result<Self, HostError> {
+    fn open(name: &str, create: bool) -> Result<Self, HostError> {
         let mut buf = [0u8; NAME_MAX + 1];
-        let bytes = name.as_bytes();
-        buf.get_mut(..bytes.len())
+        buf.get_mut(..name.len())
             .ok_or(HostError::Name)?
-            .copy_from_slice(bytes);
-        // SAFETY: SYS_OPEN reads `len` bytes of the NUL-terminated name, which outlives the call.
-        let fd = unsafe { syscall!(OPEN, buf.as_ptr(), mode, bytes.len()) };
-        if fd as isize == -1 {
-            return Err(HostError::Open);
-        }
-        Ok(Self { fd })
+            .copy_from_slice(name.as_bytes());
+        let path = CStr::from_bytes_until_nul(&buf).map_err(|_| HostError::Name)?;
+        let file = if create {
+            semihosting::fs::File::create(path)
+        } else {
+            semihosting::fs::File::open(path)
+        };
+        file.map(Self).map_err(|_| HostError::Open)
     }
 
     /// Opens `name` for reading (binary).
     pub fn open_read(name: &str) -> Result<Self, HostError> {
-        Self::open(name, nr::open::R_BINARY)
+        Self::open(name, false)
     }
 
     /// Creates or truncates `name` for writing (binary).
     pub fn create(name: &str) -> Result<Self, HostError> {
-        Self::open(name, nr::open::W_TRUNC_BINARY)
+        Self::open(name, true)
     }
 
     /// Fills `buf` from the current position.
     pub fn read_exact(&mut self, buf: &mut [u8]) -> Result<(), HostError> {
-        // SAFETY: SYS_READ writes at most `buf.len()` bytes into `buf`.
-        let left = unsafe { syscall!(READ, self.fd, buf.as_mut_ptr(), buf.len()) };
-        // The call returns the number of bytes *not* read.
-        if left == 0 {
-            Ok(())
-        } else {
-            Err(HostError::Read)
-        }
+        self.0.read_exact(buf).map_err(|_| HostError::Read)
     }
 
     /// Writes all of `buf`.
     pub fn write_all(&mut self, buf: &[u8]) -> Result<(), HostError> {
-        // SAFETY: SYS_WRITE reads `buf.len()` bytes from `buf`.
-        let left = unsafe { syscall!(WRITE, self.fd, buf.as_ptr(), buf.len()) };
-        if left == 0 {
-            Ok(())
-        } else {
-            Err(HostError::Write)
-        }
+        self.0.write_all(buf).map_err(|_| HostError::Write)
     }
 
     /// Moves to byte `pos` from the start.
     pub fn seek(&mut self, pos: usize) -> Result<(), HostError> {
-        // SAFETY: no memory is passed.
-        let r = unsafe { syscall!(SEEK, self.fd, pos) };
-        if r == 0 { Ok(()) } else { Err(HostError::Seek) }
+        self.0
+            .seek(SeekFrom::Start(pos as u64))
+            .map(|_| ())
+            .map_err(|_| HostError::Seek)
     }
 
     /// The file's length in bytes.
     pub fn file_len(&self) -> Result<usize, HostError> {
-        // SAFETY: no memory is passed.
-        let r = unsafe { syscall!(FLEN, self.fd) };
-        if r as isize == -1 {
-            Err(HostError::Seek)
-        } else {
-            Ok(r)
-        }
-    }
-}
-
-impl Drop for HostFile {
-    fn drop(&mut self) {
-        // SAFETY: no memory is passed; a failed close leaves nothing to do.
-        unsafe {
-            syscall!(CLOSE, self.fd);
-        }
+        let len = self.0.metadata().map_err(|_| HostError::Seek)?.len();
+        usize::try_from(len).map_err(|_| HostError::Seek)
     }
 }
 

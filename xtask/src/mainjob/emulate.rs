@@ -9,7 +9,7 @@ use anyhow::{Context, Result, bail, ensure};
 use camgeom_fw_app::report::{FrameRecord, RECORD_LEN, Record, SummaryRecord};
 
 use crate::firmware::run_on_qemu_in;
-use crate::jobs::Size;
+use crate::jobs::{Board, Size};
 
 /// Overlay frames by delivered frame number.
 pub type Overlays = BTreeMap<u32, Vec<u8>>;
@@ -76,13 +76,24 @@ pub fn read_overlays(dir: &Path, size: Size, stride: u32) -> Result<Overlays> {
     Ok(out)
 }
 
-/// Runs `elf` on QEMU in `dir` (prepared by [`super::prepare::prepare`]) and reads its report
-/// and overlays. Only the firmware's `info`-level summary and its warnings and errors are
-/// printed; the per-frame figures come from the records.
-pub fn run_board(elf: &Path, dir: &Path, size: Size, stride: u32) -> Result<BoardRun> {
-    run_on_qemu_in(elf, Some(dir), "main job: ", " frames, ", &|m| {
-        m.starts_with("main job: ")
-    })?;
+/// Runs `elf` on `board`'s QEMU in `dir` (prepared by [`super::prepare::prepare`]) and reads
+/// its report and overlays. Only the firmware's warnings and errors are printed; the figures
+/// come from the records.
+pub fn run_board(
+    board: Board,
+    elf: &Path,
+    dir: &Path,
+    size: Size,
+    stride: u32,
+) -> Result<BoardRun> {
+    // Outputs of an earlier run must not be mistaken for this one's.
+    for e in fs::read_dir(dir)?.flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        if n.starts_with("overlay-") || n == "report.bin" {
+            fs::remove_file(e.path())?;
+        }
+    }
+    run_on_qemu_in(board, elf, Some(dir), "main job: ", " frames, ", None)?;
     let (frames, summary) = read_report(&dir.join("report.bin"))?;
     let overlays = read_overlays(dir, size, stride)?;
     ensure!(

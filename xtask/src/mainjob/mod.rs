@@ -1,19 +1,22 @@
-//! `cargo xtask run`: the emulated board's main job, and the host-vs-board check.
+//! `cargo xtask run`: the main job on every emulated board, and the host-vs-board check.
 //!
-//! 1. The projection checks (`camgeom-fw-projection`) run first: small and quick.
+//! 1. The projection checks (`camgeom-fw-projection`) run first on the reference board (the
+//!    Cortex-M7): small and quick.
 //! 2. For each frame size (320x240 and 160x120), [`prepare`] turns the bundled sequence
 //!    `host-tests/data/sequences/box/*.png` into raw grayscale frames (`frames.raw`; 160x120 is
 //!    the `pyrDown` of each frame) and a run description (`run.bin`: the camera from
 //!    `box-camera.yml`, the lid corners from `box-top.csv`, both scaled to the frame size) in
-//!    `target/camgeom-run/<size>/`.
-//! 3. [`emulate`]: the firmware runs on QEMU in that directory, reads both over semihosting and
-//!    writes its binary report (`report.bin`, one record a frame and a summary) and overlay
-//!    frames back; the overlays become PNGs and a contact sheet `overlays.png` here.
-//! 4. [`replay`]: the same `camgeom-fw-app` pipeline, compiled for the host, replays the same
-//!    bytes. [`compare`]: every frame must agree: state, counts and error exactly, the checksum
-//!    of the Q16.16 track positions bit for bit, the overlays byte for byte, and both f32 poses
-//!    within [`compare::POSE_TOLERANCE`].
-//! 5. [`table`]: the per-stage cost table in Markdown (BENCHMARKS.md takes it verbatim).
+//!    `target/camgeom-run/<size>/`, and [`replay`] runs the same `camgeom-fw-app` pipeline,
+//!    compiled for the host, on the same bytes.
+//! 3. [`emulate`]: on each board (`crate::jobs::BOARDS`) the firmware built for its target runs
+//!    on QEMU in that directory, reads both over semihosting and writes its binary report
+//!    (`report.bin`, one record a frame and a summary) and overlay frames back; the reference
+//!    board's overlays become PNGs and a contact sheet `overlays.png` here.
+//! 4. [`compare`]: every board must agree with the host replay on every frame: state, counts
+//!    and error exactly, the checksum of the Q16.16 track positions bit for bit, the overlays
+//!    byte for byte, and both f32 poses within [`compare::POSE_TOLERANCE`].
+//! 5. [`table`]: the per-stage cost table of every board in Markdown (BENCHMARKS.md takes it
+//!    verbatim), each board's ratio to the reference.
 
 mod compare;
 mod emulate;
@@ -29,21 +32,28 @@ use anyhow::{Result, ensure};
 use camgeom_host::ar::{RgbImage, contact_sheet};
 use camgeom_host::images::{GrayImage, save_gray};
 
-use crate::firmware::{build_and_run_projection, build_bin, size_report};
-use crate::jobs::{FULL, HALF, Size};
+use crate::firmware::{build_and_run_projection, build_bin_for, size_of};
+use crate::jobs::{BOARDS, Board, FULL, HALF, M7, Size, snapshot_key};
 use crate::util::root;
 
 /// What `cargo xtask run` (or CI) runs.
 pub struct Options {
+    pub boards: Vec<Board>,
     pub sizes: Vec<Size>,
     /// Every `stride`-th recorded frame.
     pub stride: u32,
 }
 
 impl Options {
-    /// `cargo xtask run`: every frame, both sizes.
+    /// `cargo xtask run`: every board, both sizes, every frame.
     pub fn full() -> Self {
+        Self::boards(BOARDS.to_vec())
+    }
+
+    /// `cargo xtask run --board NAME`: those boards, both sizes, every frame.
+    pub fn boards(boards: Vec<Board>) -> Self {
         Self {
+            boards,
             sizes: vec![FULL, HALF],
             stride: 1,
         }
@@ -78,64 +88,79 @@ fn write_overlays(dir: &Path, size: Size, overlays: &emulate::Overlays) -> Resul
     Ok(sheet)
 }
 
-fn run_size(size: Size, opts: &Options) -> Result<table::Row> {
-    let dir = run_dir(size);
-    let name = size.name();
+/// One board and size: build, run, compare with the host replay; returns its table row.
+fn run_board(
+    board: Board,
+    size: Size,
+    dir: &Path,
+    stride: u32,
+    host: &replay::Replay,
+) -> Result<table::Row> {
+    let elf = build_bin_for(board, size.bin, &[])?;
+    let (flash, ram, _) = size_of(board, &elf)?;
     let t = Instant::now();
-    let spec = prepare::prepare(size, opts.stride, &dir)?;
-    println!(
-        "main job {name}: input prepared in {} ({:.1} s)",
-        shown(&dir),
-        t.elapsed().as_secs_f64()
-    );
-    let elf = build_bin(size.bin, &[])?;
-    let (flash, ram) = size_report(&elf)?;
-    let t = Instant::now();
-    let board = emulate::run_board(&elf, &dir, size, spec.stride)?;
+    let run = emulate::run_board(board, &elf, dir, size, stride)?;
     let qemu_secs = t.elapsed().as_secs_f64();
-    let sheet = write_overlays(&dir, size, &board.overlays)?;
-
-    let t = Instant::now();
-    let raw = fs::read(dir.join("frames.raw"))?;
-    let (host, host_overlays) = replay::replay_size(size, &spec, &raw)?;
-    let host_secs = t.elapsed().as_secs_f64();
-    let verdict = compare::compare(&board.frames, &host, &board.overlays, &host_overlays)?;
-    println!("main job {name}: {verdict}");
-    println!(
-        "main job {name}: QEMU {qemu_secs:.1} s, host replay {host_secs:.1} s; overlays: {}",
-        shown(&sheet)
+    let verdict = compare::compare(&run.frames, &host.0, &run.overlays, &host.1)?;
+    let row = table::Row::new(board, size, &run.frames, &run.summary, flash, ram);
+    ensure!(
+        row.ram >= row.pipeline_ram,
+        "{} {}: static RAM {} B is less than the pipeline's {} B: the buffers are not in statics",
+        board.name,
+        size.name(),
+        row.ram,
+        row.pipeline_ram
     );
-    Ok(table::Row::new(
-        size,
-        &board.frames,
-        &board.summary,
-        flash,
-        ram,
-    ))
+    let sheet = if board == M7 {
+        format!(
+            ", overlays {}",
+            shown(&write_overlays(dir, size, &run.overlays)?)
+        )
+    } else {
+        String::new()
+    };
+    println!(
+        "main job {} {} ({}): {verdict}; {:.2}M instructions a frame, QEMU {qemu_secs:.1} s{sheet}",
+        board.name,
+        size.name(),
+        board.core,
+        row.mean_total() as f64 / 1e6
+    );
+    Ok(row)
 }
 
 /// `cargo xtask run`.
 pub fn run(opts: &Options) -> Result<()> {
-    let summary = build_and_run_projection()?;
-    println!("projection checks: {summary}");
+    if opts.boards.contains(&M7) {
+        let summary = build_and_run_projection()?;
+        println!("projection checks: {summary}");
+    }
     let mut rows = Vec::new();
     for &size in &opts.sizes {
-        let row = run_size(size, opts)?;
-        ensure!(
-            row.ram >= row.pipeline_ram,
-            "static RAM {} B is less than the pipeline's {} B: the buffers are not in statics",
-            row.ram,
-            row.pipeline_ram
+        let dir = run_dir(size);
+        let t = Instant::now();
+        let spec = prepare::prepare(size, opts.stride, &dir)?;
+        let raw = fs::read(dir.join("frames.raw"))?;
+        let host = replay::replay_size(size, &spec, &raw)?;
+        println!(
+            "main job {}: input prepared in {} and replayed on the host ({:.1} s)",
+            size.name(),
+            shown(&dir),
+            t.elapsed().as_secs_f64()
         );
-        rows.push(row);
+        for &board in &opts.boards {
+            rows.push(run_board(board, size, &dir, spec.stride, &host)?);
+        }
     }
     println!(
-        "\n---- main job cost table (Markdown; fps = 480e6 / mean total, assuming about one \
-         instruction per cycle: an estimate) ----\n{}",
+        "\n---- main job cost table (Markdown; fps = 480e6 / mean total on the Cortex-M7, assuming \
+         about one instruction per cycle: an estimate) ----\n{}",
         table::table(&rows, opts.stride)
     );
-    let measured: Vec<(&str, u64, u64)> =
-        rows.iter().map(|r| (r.size.bin, r.flash, r.ram)).collect();
+    let measured: Vec<(String, u64, u64)> = rows
+        .iter()
+        .map(|r| (snapshot_key(r.board, r.size.bin), r.flash, r.ram))
+        .collect();
     crate::size::compare(&measured)?;
     Ok(())
 }

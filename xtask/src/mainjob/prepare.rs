@@ -79,7 +79,7 @@ fn frames(size: Size) -> Result<Vec<u8>> {
 }
 
 /// Writes `frames.raw` and `run.bin` for `size` into `dir` (all recorded frames; the stride is
-/// in `run.bin`) and removes the outputs of an earlier run. Returns the run description.
+/// in `run.bin`). Returns the run description.
 pub fn prepare(size: Size, stride: u32, dir: &Path) -> Result<RunSpec> {
     fs::create_dir_all(dir)?;
     let raw = frames(size)?;
@@ -100,12 +100,5 @@ pub fn prepare(size: Size, stride: u32, dir: &Path) -> Result<RunSpec> {
         corners: box_corners()?.map(|[x, y]| [x * scale, y * scale]),
     };
     fs::write(dir.join("run.bin"), spec.to_bytes())?;
-    // Outputs of an earlier run must not be mistaken for this one's.
-    for e in fs::read_dir(dir)?.flatten() {
-        let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with("overlay-") || n == "report.bin" {
-            fs::remove_file(e.path())?;
-        }
-    }
     Ok(spec)
 }

@@ -7,10 +7,11 @@ use camgeom::target::TargetState;
 use camgeom_fw_app::pipeline::STAGES;
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 
-use crate::jobs::Size;
+use crate::jobs::{Board, M7, Size};
 
-/// One row of the table: a frame size's run.
+/// One row of the table: a board's run at a frame size.
 pub struct Row {
+    pub board: Board,
     pub size: Size,
     pub frames: usize,
     pub tracking: usize,
@@ -26,6 +27,7 @@ pub struct Row {
 impl Row {
     /// The row of a board run's records (`flash` and `ram` from its ELF).
     pub fn new(
+        board: Board,
         size: Size,
         frames: &BTreeMap<u32, FrameRecord>,
         summary: &SummaryRecord,
@@ -47,6 +49,7 @@ impl Row {
             *m /= n;
         }
         Self {
+            board,
             size,
             frames: frames.len(),
             tracking: frames
@@ -67,19 +70,25 @@ impl Row {
         let k = STAGES.iter().position(|s| *s == name).unwrap_or(0);
         (self.mean[k], self.worst[k])
     }
+
+    /// Mean instructions a frame, every stage but the capture.
+    pub fn mean_total(&self) -> u64 {
+        self.stage("total").0
+    }
 }
 
 fn m(v: u64) -> String {
     format!("{:.2}M", v as f64 / 1e6)
 }
 
-/// The table in Markdown.
+/// The tables in Markdown: the per-stage costs of every board and size (with each board's
+/// ratio to the Cortex-M7 at the same size), then memory.
 pub fn table(rows: &[Row], stride: u32) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "Instructions per frame (QEMU `-icount shift=0`, SysTick, +-40), mean / worst over the \
-         frames after the first{}:\n",
+        "Instructions per frame (QEMU `-icount shift=0`; SysTick on Arm, ±40; `minstret` on \
+         RISC-V, exact), mean / worst over the frames after the first{}:\n",
         if stride > 1 {
             format!(" (every {stride}th recorded frame)")
         } else {
@@ -98,10 +107,10 @@ pub fn table(rows: &[Row], stride: u32) -> String {
     ];
     let _ = writeln!(
         s,
-        "| frame | frames (tracking) | {} | est. fps at 480 MHz |",
+        "| board (core) | frame | frames (tracking) | {} | total / M7 |",
         shown.join(" | ")
     );
-    let _ = writeln!(s, "|---|---|{}---|", "---|".repeat(shown.len()));
+    let _ = writeln!(s, "|---|---|---|{}---|", "---|".repeat(shown.len()));
     for r in rows {
         let cells: Vec<String> = shown
             .iter()
@@ -110,10 +119,18 @@ pub fn table(rows: &[Row], stride: u32) -> String {
                 format!("{} / {}", m(mean), m(u64::from(worst)))
             })
             .collect();
-        let fps = 480e6 / r.stage("total").0.max(1) as f64;
+        let reference = rows
+            .iter()
+            .find(|x| x.board == M7 && x.size == r.size)
+            .map(Row::mean_total);
+        let ratio = reference.map_or("-".to_string(), |m7| {
+            format!("{:.2}x", r.mean_total() as f64 / m7.max(1) as f64)
+        });
         let _ = writeln!(
             s,
-            "| {} | {} ({}) | {} | {fps:.1} |",
+            "| {} ({}) | {} | {} ({}) | {} | {ratio} |",
+            r.board.name,
+            r.board.core,
             r.size.name(),
             r.frames,
             r.tracking,
@@ -122,13 +139,20 @@ pub fn table(rows: &[Row], stride: u32) -> String {
     }
     let _ = writeln!(
         s,
-        "\n| frame | flash | static RAM (of which the pipeline, from its const sizes) | stack high-water |"
+        "\n| board (memory capped to) | frame | flash | static RAM (of which the pipeline) | stack high-water | est. fps on the M7 at 480 MHz |"
     );
-    let _ = writeln!(s, "|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|");
     for r in rows {
+        let fps = if r.board == M7 {
+            format!("{:.1}", 480e6 / r.mean_total().max(1) as f64)
+        } else {
+            "-".to_string()
+        };
         let _ = writeln!(
             s,
-            "| {} | {} B | {} B ({} B) | {} B |",
+            "| {} ({}) | {} | {} B | {} B ({} B) | {} B | {fps} |",
+            r.board.name,
+            r.board.class,
             r.size.name(),
             r.flash,
             r.ram,

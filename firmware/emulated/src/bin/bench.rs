@@ -33,7 +33,7 @@ use core::hint::black_box;
 
 use camgeom::nalgebra::{Matrix3, Point2, Vector3};
 use camgeom::rng::Pcg32;
-use cortex_m_rt::entry;
+use camgeom_fw_emulated::entry;
 
 use camgeom_fw_emulated::cost::CostTable;
 #[cfg(not(feature = "size-baseline"))]

@@ -29,7 +29,7 @@ use camgeom::twoview::{
     Essential, RelativePose, View1, eight_point, find_essential, find_fundamental, five_point,
     recover_pose, seven_point, triangulate_optimal,
 };
-use cortex_m_rt::entry;
+use camgeom_fw_emulated::entry;
 
 use camgeom_fw_emulated::cost::{CostTable, measure};
 

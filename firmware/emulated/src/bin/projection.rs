@@ -16,7 +16,7 @@ use camgeom::Error;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::transform::Pose;
-use cortex_m_rt::entry;
+use camgeom_fw_emulated::entry;
 
 use camgeom_fw_emulated::chessboard::{
     COLS, CORNERS, CX, CY, DISTORTION, FX, FY, HEIGHT, OPENCV_PROJECTIONS, RVEC, SQUARE, TVEC,

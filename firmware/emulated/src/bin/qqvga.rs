@@ -5,7 +5,7 @@
 
 use camgeom_fw_emulated::job;
 
-use cortex_m_rt::entry;
+use camgeom_fw_emulated::entry;
 
 use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
 use static_cell::ConstStaticCell;

@@ -40,7 +40,7 @@ use camgeom::twoview::{
     triangulate_dlt, triangulate_optimal,
 };
 use camgeom_fw_app::texture::textured_frame;
-use cortex_m_rt::entry;
+use camgeom_fw_emulated::entry;
 
 use static_cell::ConstStaticCell;
 
