@@ -9,12 +9,13 @@ use camgeom::ransac::RansacConfig;
 use camgeom::target::{GivenCorners, TargetConfig, TargetState};
 use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
 use camgeom_host::klt::Path;
-use camgeom_host::load_camera;
-use camgeom_host::points::{format_float, read_csv};
+use camgeom_host::points::{format_float, read_csv, to_json};
+use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
 use crate::klt_cmd::{frame_files, load_frames, progress_bar};
+use crate::{create_dir, write_file};
 
 #[derive(Args, Debug)]
 pub struct ArArgs {
@@ -76,19 +77,20 @@ pub struct ArArgs {
 }
 
 /// `W,H` or `S`: finite and positive.
-fn parse_size(s: &str) -> Result<[f32; 2], String> {
+fn parse_size(s: &str) -> Result<[f32; 2]> {
+    let expected = || Error::usage(format!("--size: expected W,H or S, got `{s}`"));
     let v: Vec<f32> = s
         .split(',')
         .map(|f| f.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("--size: expected W,H or S, got `{s}`"))?;
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| expected())?;
     let size = match v.as_slice() {
         [s] => [*s, *s],
         [w, h] => [*w, *h],
-        _ => return Err(format!("--size: expected W,H or S, got `{s}`")),
+        _ => return Err(expected()),
     };
     if !size.iter().all(|v| v.is_finite() && *v > 0.0) {
-        return Err(format!("--size must be positive, got `{s}`"));
+        return Err(Error::usage(format!("--size must be positive, got `{s}`")));
     }
     Ok(size)
 }
@@ -106,15 +108,23 @@ struct Summary {
 }
 
 /// The options `camgeom ar` passes to the tracker.
-fn target_config(a: &ArArgs) -> Result<TargetConfig, String> {
+fn target_config(a: &ArArgs) -> Result<TargetConfig> {
     if !(3..=camgeom::klt::MAX_WIN).contains(&a.win) {
-        return Err(format!("--win must be 3..={}", camgeom::klt::MAX_WIN));
+        return Err(Error::usage(format!(
+            "--win must be 3..={}",
+            camgeom::klt::MAX_WIN
+        )));
     }
     if !(a.quality > 0.0 && a.quality <= 1.0) {
-        return Err(format!("--quality must be in (0, 1], got {}", a.quality));
+        return Err(Error::usage(format!(
+            "--quality must be in (0, 1], got {}",
+            a.quality
+        )));
     }
     if !(a.threshold.is_finite() && a.threshold > 0.0 && a.fb.is_finite() && a.fb >= 0.0) {
-        return Err("--threshold must be positive and --fb non-negative".into());
+        return Err(Error::usage(
+            "--threshold must be positive and --fb non-negative",
+        ));
     }
     let d = TargetConfig::default();
     Ok(TargetConfig {
@@ -139,28 +149,31 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig, String> {
     })
 }
 
-/// `camgeom ar`.
-pub fn run(a: &ArArgs) -> Result<String, String> {
+/// `camgeom ar`: writes the overlays, `poses.csv` and the contact sheet, returns the JSON
+/// summary.
+pub fn run(a: &ArArgs) -> Result<String> {
     let size = parse_size(&a.size)?;
     let cube = a.cube.unwrap_or(size[0].min(size[1]));
     if !(cube.is_finite() && cube > 0.0) {
-        return Err(format!("--cube must be positive, got {cube}"));
+        return Err(Error::usage(format!("--cube must be positive, got {cube}")));
     }
     let target = target_config(a)?;
-    let spec = load_camera(&a.intrinsics).map_err(|e| e.to_string())?;
+    let spec = load_camera(&a.intrinsics)?;
     let camera = spec.camera_f32();
-    let table = read_csv(&a.corners, &["x", "y"]).map_err(|e| e.to_string())?;
+    let table = read_csv(&a.corners, &["x", "y"])?;
     if table.rows.len() != 4 {
-        return Err(format!(
-            "{}: expected the target's 4 corners (x,y rows), found {}",
-            a.corners.display(),
-            table.rows.len()
+        return Err(Error::new(
+            &a.corners,
+            ErrorKind::Shape(format!(
+                "expected the target's 4 corners (x,y rows), found {}",
+                table.rows.len()
+            )),
         ));
     }
     let corners: [Point2<f32>; 4] =
         std::array::from_fn(|i| Point2::new(table.rows[i][0] as f32, table.rows[i][1] as f32));
     let files = frame_files(&a.frames)?;
-    std::fs::create_dir_all(&a.out).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    create_dir(&a.out)?;
     let bar = progress_bar(files.len() as u64 * 2);
     let frames = load_frames(&files, &bar)?;
     let opts = ArOptions {
@@ -182,27 +195,24 @@ pub fn run(a: &ArArgs) -> Result<String, String> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| f.frame.to_string());
         if let Err(e) = img.save(a.out.join(format!("{name}.png"))) {
-            write_err.get_or_insert(e.to_string());
+            write_err.get_or_insert(e);
         }
         if sheet_idx.contains(&f.frame) {
             tiles.push((f.frame, img));
         }
     })
-    .map_err(|e| {
-        format!(
-            "{}: tracking failed: {e} ({})",
-            a.frames.display(),
-            camgeom_host::status_name(&e)
-        )
-    })?;
+    .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
     bar.finish_and_clear();
     if let Some(e) = write_err {
         return Err(e);
     }
     if results.first().is_some_and(|f| f.pose.is_none()) {
-        return Err(format!(
-            "{}: the corners enclose too little texture to track (too_few_points)",
-            a.corners.display()
+        return Err(Error::camgeom(
+            format!(
+                "{}: the corners enclose too little texture to track",
+                a.corners.display()
+            ),
+            camgeom::Error::TooFewPoints,
         ));
     }
     let mut csv = String::from(
@@ -247,11 +257,9 @@ pub fn run(a: &ArArgs) -> Result<String, String> {
         ));
     }
     let poses = a.out.join("poses.csv");
-    std::fs::write(&poses, csv).map_err(|e| format!("{}: {e}", poses.display()))?;
+    write_file(&poses, csv)?;
     let sheet_path = a.out.join("contact_sheet.png");
-    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale)
-        .save(&sheet_path)
-        .map_err(|e| e.to_string())?;
+    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale).save(&sheet_path)?;
     let tracking = results
         .iter()
         .filter(|f| f.state == TargetState::Tracking)
@@ -267,7 +275,5 @@ pub fn run(a: &ArArgs) -> Result<String, String> {
         poses: poses.display().to_string(),
         contact_sheet: sheet_path.display().to_string(),
     };
-    let mut s = serde_json::to_string_pretty(&summary).unwrap_or_default();
-    s.push('\n');
-    Ok(s)
+    Ok(to_json(&summary))
 }

@@ -1,15 +1,17 @@
-//! The error type of the host-side loaders: every error names the file (and line when known)
-//! and says what is wrong, in one line.
+//! The error type of the host side, the loaders' and the `camgeom` CLI's: every error names the
+//! file (and line) when there is one and says what is wrong, in one line.
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// What went wrong while reading an input file.
+/// What went wrong.
 #[derive(Debug)]
 #[non_exhaustive]
 pub enum ErrorKind {
     /// The file could not be read.
     Io(std::io::Error),
+    /// An output (a file, a directory, standard output) could not be written.
+    Write(std::io::Error),
     /// The text does not follow the file format (bad YAML/XML/JSON/TOML/CSV syntax, a value that
     /// is not a number where one is required, ...).
     Syntax(String),
@@ -23,12 +25,23 @@ pub enum ErrorKind {
     /// camgeom rejected the values (for example [`camgeom::Error::InvalidIntrinsics`] for a zero
     /// focal length).
     Camera(camgeom::Error),
+    /// A command-line usage error: an option's value out of range, or options that do not go
+    /// together.
+    Usage(String),
+    /// A camgeom operation on the input failed: `context` says which and on what (for example
+    /// `"pts.csv: find_homography failed on 3 correspondences"`).
+    Camgeom {
+        /// What was being done.
+        context: String,
+        /// The error camgeom returned.
+        error: camgeom::Error,
+    },
 }
 
-/// An input error: which file, where in it (when known) and what is wrong.
+/// An error: which file, where in it (when known) and what is wrong.
 #[derive(Debug)]
 pub struct Error {
-    path: PathBuf,
+    path: Option<PathBuf>,
     line: Option<usize>,
     kind: ErrorKind,
 }
@@ -40,7 +53,7 @@ impl Error {
     /// An error about `path`.
     pub fn new(path: impl Into<PathBuf>, kind: ErrorKind) -> Self {
         Self {
-            path: path.into(),
+            path: Some(path.into()),
             line: None,
             kind,
         }
@@ -49,15 +62,37 @@ impl Error {
     /// An error about line `line` (1-based) of `path`.
     pub fn at_line(path: impl Into<PathBuf>, line: usize, kind: ErrorKind) -> Self {
         Self {
-            path: path.into(),
+            path: Some(path.into()),
             line: Some(line),
             kind,
         }
     }
 
-    /// The file the error is about (`-` for standard input).
-    pub fn path(&self) -> &Path {
-        &self.path
+    /// A command-line usage error ([`ErrorKind::Usage`]), about no file.
+    pub fn usage(message: impl Into<String>) -> Self {
+        Self {
+            path: None,
+            line: None,
+            kind: ErrorKind::Usage(message.into()),
+        }
+    }
+
+    /// A failed camgeom operation ([`ErrorKind::Camgeom`]); `context` names the operation and
+    /// its input.
+    pub fn camgeom(context: impl Into<String>, error: camgeom::Error) -> Self {
+        Self {
+            path: None,
+            line: None,
+            kind: ErrorKind::Camgeom {
+                context: context.into(),
+                error,
+            },
+        }
+    }
+
+    /// The file the error is about (`-` for standard input), if any.
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
     }
 
     /// The 1-based line, when the error is tied to one.
@@ -70,29 +105,38 @@ impl Error {
         &self.kind
     }
 
-    /// The camgeom error behind this one, if camgeom rejected the values.
-    pub fn camera_error(&self) -> Option<camgeom::Error> {
+    /// The camgeom error behind this one, if camgeom rejected the values or an operation.
+    pub fn camgeom_error(&self) -> Option<camgeom::Error> {
         match self.kind {
-            ErrorKind::Camera(e) => Some(e),
+            ErrorKind::Camera(e) | ErrorKind::Camgeom { error: e, .. } => Some(e),
             _ => None,
         }
     }
 }
 
+/// How the host names a camgeom error in a message: its stable name, then what it means with
+/// the parameter or buffer it is about (`invalid_parameter (parameter out of range: threshold)`).
+pub fn describe(e: &camgeom::Error) -> String {
+    format!("{} ({e})", e.name())
+}
+
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}", self.path.display())?;
-        if let Some(line) = self.line {
-            write!(f, ":{line}")?;
+        if let Some(path) = &self.path {
+            write!(f, "{}", path.display())?;
+            if let Some(line) = self.line {
+                write!(f, ":{line}")?;
+            }
+            f.write_str(": ")?;
         }
-        f.write_str(": ")?;
         match &self.kind {
             ErrorKind::Io(e) => write!(f, "cannot read: {e}"),
-            ErrorKind::Syntax(m) => write!(f, "{m}"),
+            ErrorKind::Write(e) => write!(f, "cannot write: {e}"),
+            ErrorKind::Syntax(m) | ErrorKind::Shape(m) | ErrorKind::Usage(m) => f.write_str(m),
             ErrorKind::MissingKey(k) => write!(f, "missing key `{k}`"),
-            ErrorKind::Shape(m) => write!(f, "{m}"),
             ErrorKind::Unsupported(m) => write!(f, "unsupported: {m}"),
-            ErrorKind::Camera(e) => write!(f, "camgeom rejected the values: {e} ({e:?})"),
+            ErrorKind::Camera(e) => write!(f, "camgeom rejected the values: {}", describe(e)),
+            ErrorKind::Camgeom { context, error } => write!(f, "{context}: {}", describe(error)),
         }
     }
 }
@@ -100,8 +144,8 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match &self.kind {
-            ErrorKind::Io(e) => Some(e),
-            ErrorKind::Camera(e) => Some(e),
+            ErrorKind::Io(e) | ErrorKind::Write(e) => Some(e),
+            ErrorKind::Camera(e) | ErrorKind::Camgeom { error: e, .. } => Some(e),
             _ => None,
         }
     }
@@ -128,6 +172,36 @@ mod tests {
         assert_eq!(
             status_name(&camgeom::Error::InvalidParameter("lk.win")),
             "invalid_parameter"
+        );
+    }
+
+    #[test]
+    fn messages_name_the_file_and_the_camgeom_error() {
+        let e = Error::at_line(
+            "k.yml",
+            5,
+            ErrorKind::Camera(camgeom::Error::InvalidIntrinsics),
+        );
+        assert_eq!(
+            e.to_string(),
+            "k.yml:5: camgeom rejected the values: invalid_intrinsics (intrinsics do not \
+             describe a camera)"
+        );
+        assert_eq!(e.camgeom_error(), Some(camgeom::Error::InvalidIntrinsics));
+        // The parameter a camgeom error is about is part of the message.
+        let e = Error::camgeom(
+            "m.csv: find_homography failed on 9 correspondences",
+            camgeom::Error::InvalidParameter("threshold"),
+        );
+        assert_eq!(
+            e.to_string(),
+            "m.csv: find_homography failed on 9 correspondences: invalid_parameter (parameter \
+             out of range: threshold)"
+        );
+        assert_eq!(e.path(), None);
+        assert_eq!(
+            Error::usage("--win must be 3..=63").to_string(),
+            "--win must be 3..=63"
         );
     }
 }

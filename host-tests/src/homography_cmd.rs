@@ -14,7 +14,8 @@
 //! [`camgeom::homography::find_homography`] (RANSAC with MSAC scoring, local optimisation and a
 //! final Levenberg-Marquardt polish) with the options below. A failure of camgeom (too few rows,
 //! collinear or coincident points, a parameter out of range) is an input error: status 2 and one
-//! line naming the error (`degenerate`, `too_few_points`, `invalid_parameter`, ...).
+//! line naming the error (`degenerate`, `too_few_points`, `invalid_parameter (parameter out of
+//! range: threshold)`, ...).
 
 use std::path::{Path, PathBuf};
 
@@ -25,8 +26,8 @@ use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
 use camgeom_host::images::load_gray;
-use camgeom_host::points::read_csv;
-use camgeom_host::status_name;
+use camgeom_host::points::{read_csv, to_json};
+use camgeom_host::{Error, ErrorKind, Result};
 use clap::Args;
 use serde::Serialize;
 
@@ -102,43 +103,36 @@ const CROSS_CHECK: MatchConfig = MatchConfig {
 };
 
 /// ORB features of an image file.
-pub fn orb_features(path: &Path) -> Result<Vec<Feature>, String> {
-    let img = load_gray(path).map_err(|e| e.to_string())?;
+pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
+    let img = load_gray(path)?;
     let view = img.view().ok_or_else(|| {
-        format!(
-            "{}: unsupported image size {}x{}",
-            path.display(),
-            img.width,
-            img.height
+        Error::new(
+            path,
+            ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
         )
     })?;
     let config = OrbConfig::default();
     let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
     let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
-    orb::orb_detect(&view, &config, &mut scratch, &mut out).map_err(|e| {
-        format!(
-            "{}: orb_detect failed: {} ({e})",
-            path.display(),
-            status_name(&e)
-        )
-    })?;
+    orb::orb_detect(&view, &config, &mut scratch, &mut out)
+        .map_err(|e| Error::camgeom(format!("{}: orb_detect failed", path.display()), e))?;
     Ok(out.to_vec())
 }
 
 /// Correspondences of two images: their ORB keypoints matched with cross-check.
-pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences, String> {
+pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences> {
     let (fa, fb) = (orb_features(a)?, orb_features(b)?);
     let da: Vec<Descriptor> = fa.iter().map(|f| f.descriptor).collect();
     let db: Vec<Descriptor> = fb.iter().map(|f| f.descriptor).collect();
     let mut ms = vec![Match::default(); da.len()];
     let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
     let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms).map_err(|e| {
-        format!(
-            "{} -> {}: match_descriptors failed: {} ({e})",
+        let what = format!(
+            "{} -> {}: match_descriptors failed",
             a.display(),
-            b.display(),
-            status_name(&e)
-        )
+            b.display()
+        );
+        Error::camgeom(what, e)
     })?;
     let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
     Ok(ms[..n]
@@ -153,7 +147,7 @@ pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences, String> {
 }
 
 /// Reads the correspondences `(x1, y1) -> (x2, y2)` of a CSV file (`-`: stdin).
-pub fn read_matches(path: &PathBuf) -> camgeom_host::Result<Vec<(Point2<f64>, Point2<f64>)>> {
+pub fn read_matches(path: &PathBuf) -> Result<Vec<(Point2<f64>, Point2<f64>)>> {
     Ok(read_csv(path, &COLUMNS)?
         .rows
         .iter()
@@ -167,26 +161,22 @@ pub fn read_matches(path: &PathBuf) -> camgeom_host::Result<Vec<(Point2<f64>, Po
 pub fn read_input(
     images: Option<&[PathBuf]>,
     matches: Option<&PathBuf>,
-) -> Result<(String, Correspondences, bool), String> {
+) -> Result<(String, Correspondences, bool)> {
     match (images, matches) {
         (Some(images), _) => {
             let [ia, ib] = images else {
-                return Err("--images takes two files".into());
+                return Err(Error::usage("--images takes two files"));
             };
             let source = format!("{} -> {}", ia.display(), ib.display());
             Ok((source, match_images(ia, ib)?, true))
         }
-        (None, Some(path)) => Ok((
-            path.display().to_string(),
-            read_matches(path).map_err(|e| e.to_string())?,
-            false,
-        )),
-        (None, None) => Err("one of --matches and --images is required".into()),
+        (None, Some(path)) => Ok((path.display().to_string(), read_matches(path)?, false)),
+        (None, None) => Err(Error::usage("one of --matches and --images is required")),
     }
 }
 
-/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
-pub fn run(a: &HomographyArgs) -> Result<String, String> {
+/// Runs the subcommand: the JSON result.
+pub fn run(a: &HomographyArgs) -> Result<String> {
     let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
     let json = if a.f32 {
         to_json(&estimate::<f32>(a, &source, &matches, from_images)?)
@@ -204,16 +194,13 @@ pub fn estimate<T: Real>(
     source: &str,
     matches: &[(Point2<f64>, Point2<f64>)],
     from_images: bool,
-) -> Result<HomographyOutput<T>, String> {
+) -> Result<HomographyOutput<T>> {
     let cast = |p: &Point2<f64>| Point2::new(T::lit(p.x), T::lit(p.y));
     let src: Vec<Point2<T>> = matches.iter().map(|m| cast(&m.0)).collect();
     let dst: Vec<Point2<T>> = matches.iter().map(|m| cast(&m.1)).collect();
     let fail = |what: &str, e: camgeom::Error| {
-        format!(
-            "{source}: {what} failed: {} ({e}), {} correspondences",
-            status_name(&e),
-            matches.len()
-        )
+        let n = matches.len();
+        Error::camgeom(format!("{source}: {what} failed on {n} correspondences"), e)
     };
     let four = <[Point2<T>; 4]>::try_from(src.as_slice())
         .ok()
@@ -246,12 +233,4 @@ pub fn estimate<T: Real>(
         iterations,
         matches: from_images.then_some(matches.len()),
     })
-}
-
-/// Pretty-printed JSON with a final newline.
-fn to_json<S: Serialize>(value: &S) -> String {
-    // Numbers, booleans and strings only: serialising cannot fail.
-    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
-    s.push('\n');
-    s
 }

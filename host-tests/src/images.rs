@@ -82,7 +82,7 @@ pub fn save_gray(img: &GrayImage, path: impl AsRef<Path>) -> Result<()> {
             )
         })?;
     buf.save(path).map_err(|e| match e {
-        image::ImageError::IoError(io) => Error::new(path, ErrorKind::Io(io)),
+        image::ImageError::IoError(io) => Error::new(path, ErrorKind::Write(io)),
         other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
     })
 }

@@ -58,10 +58,7 @@ impl CameraSpec {
     /// Pretty-printed JSON of [`Self::to_file`] (ends with a newline). Floats are written with
     /// the shortest text that reads back to the same `f64`.
     pub fn to_json(&self) -> String {
-        // Serialising a struct of plain numbers cannot fail.
-        let mut s = serde_json::to_string_pretty(&self.to_file()).unwrap_or_default();
-        s.push('\n');
-        s
+        crate::points::to_json(&self.to_file())
     }
 
     /// TOML of [`Self::to_file`].

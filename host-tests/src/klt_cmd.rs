@@ -6,9 +6,12 @@ use camgeom::corners::CornerConfig;
 use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_sequence};
-use camgeom_host::points::{format_float, read_csv};
+use camgeom_host::points::{format_float, read_csv, to_json};
+use camgeom_host::{Error, ErrorKind, Result};
 use clap::Args;
 use serde::Serialize;
+
+use crate::{create_dir, write_file};
 
 /// Flow options shared by `flow` and `track` (OpenCV's calcOpticalFlowPyrLK parameters).
 #[derive(Args, Debug)]
@@ -37,19 +40,24 @@ pub struct LkOpt {
 }
 
 impl LkOpt {
-    fn config(&self) -> Result<LkConfig, String> {
+    fn config(&self) -> Result<LkConfig> {
         if !(3..=camgeom::klt::MAX_WIN).contains(&self.win) {
-            return Err(format!(
+            return Err(Error::usage(format!(
                 "--win must be 3..={}, got {}",
                 camgeom::klt::MAX_WIN,
                 self.win
-            ));
+            )));
         }
         if !(1..=100).contains(&self.iters) {
-            return Err(format!("--iters must be 1..=100, got {}", self.iters));
+            return Err(Error::usage(format!(
+                "--iters must be 1..=100, got {}",
+                self.iters
+            )));
         }
         if !(self.eps.is_finite() && self.eps >= 0.0 && self.min_eig.is_finite()) {
-            return Err("--eps and --min-eig must be finite, --eps >= 0".into());
+            return Err(Error::usage(
+                "--eps and --min-eig must be finite, --eps >= 0",
+            ));
         }
         Ok(LkConfig {
             win: self.win,
@@ -132,29 +140,32 @@ fn status(s: FlowStatus) -> &'static str {
     }
 }
 
-fn load(path: &std::path::Path) -> Result<GrayImage, String> {
-    load_gray(path).map_err(|e| e.to_string())
-}
-
-/// `camgeom flow`.
-pub fn run_flow(a: &FlowArgs) -> Result<String, String> {
+/// `camgeom flow`: the CSV (or JSON) of the tracked points.
+pub fn run_flow(a: &FlowArgs) -> Result<String> {
     let cfg = a.lk.config()?;
-    let pts = read_csv(&a.points, &["x", "y"]).map_err(|e| e.to_string())?;
+    let pts = read_csv(&a.points, &["x", "y"])?;
     let pts: Vec<[f64; 2]> = pts.rows.iter().map(|r| [r[0], r[1]]).collect();
-    let from = load(&a.from)?;
-    let to = load(&a.to)?;
+    let from = load_gray(&a.from)?;
+    let to = load_gray(&a.to)?;
     if (from.width, from.height) != (to.width, to.height) {
-        return Err(format!(
-            "{}: {}x{} does not match {}: {}x{}",
-            a.to.display(),
-            to.width,
-            to.height,
-            a.from.display(),
-            from.width,
-            from.height
+        return Err(Error::new(
+            &a.to,
+            ErrorKind::Shape(format!(
+                "{}x{} does not match {}: {}x{}",
+                to.width,
+                to.height,
+                a.from.display(),
+                from.width,
+                from.height
+            )),
         ));
     }
-    let res = flow(&from, &to, &pts, &cfg, a.lk.path()).map_err(|e| e.to_string())?;
+    let res = flow(&from, &to, &pts, &cfg, a.lk.path()).map_err(|e| {
+        Error::camgeom(
+            format!("{} -> {}: flow failed", a.from.display(), a.to.display()),
+            e,
+        )
+    })?;
     let f32_out = a.lk.path() == Path::F32;
     let num = |v: f64| {
         if f32_out {
@@ -176,9 +187,7 @@ pub fn run_flow(a: &FlowArgs) -> Result<String, String> {
                 }
             })
             .collect();
-        let mut s = serde_json::to_string_pretty(&JsonPoints { points }).unwrap_or_default();
-        s.push('\n');
-        return Ok(s);
+        return Ok(to_json(&JsonPoints { points }));
     }
     let mut out = String::from("x,y,status\n");
     for p in &res {
@@ -200,9 +209,9 @@ struct TrackSummary {
 }
 
 /// The PNG and JPEG files of `dir`, in file-name order.
-pub fn frame_files(dir: &std::path::Path) -> Result<Vec<PathBuf>, String> {
+pub fn frame_files(dir: &std::path::Path) -> Result<Vec<PathBuf>> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
-        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .map_err(|e| Error::new(dir, ErrorKind::Io(e)))?
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
             p.extension()
@@ -212,7 +221,10 @@ pub fn frame_files(dir: &std::path::Path) -> Result<Vec<PathBuf>, String> {
         .collect();
     files.sort();
     if files.is_empty() {
-        return Err(format!("{}: no PNG or JPEG frames", dir.display()));
+        return Err(Error::new(
+            dir,
+            ErrorKind::Shape("no PNG or JPEG frames".into()),
+        ));
     }
     Ok(files)
 }
@@ -229,20 +241,17 @@ pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
 }
 
 /// Loads `files` as grey frames of one size, advancing `bar` by one per frame.
-pub fn load_frames(
-    files: &[PathBuf],
-    bar: &indicatif::ProgressBar,
-) -> Result<Vec<GrayImage>, String> {
+pub fn load_frames(files: &[PathBuf], bar: &indicatif::ProgressBar) -> Result<Vec<GrayImage>> {
     bar.set_message("loading");
     let mut frames: Vec<GrayImage> = Vec::with_capacity(files.len());
     for f in files {
-        let img = load(f)?;
+        let img = load_gray(f)?;
         if let Some(first) = frames.first()
             && (first.width, first.height) != (img.width, img.height)
         {
-            return Err(format!(
-                "{}: frame size differs from the first frame",
-                f.display()
+            return Err(Error::new(
+                f,
+                ErrorKind::Shape("frame size differs from the first frame".into()),
             ));
         }
         frames.push(img);
@@ -252,16 +261,19 @@ pub fn load_frames(
 }
 
 /// `camgeom track`: writes the CSV (and overlays), prints a JSON summary.
-pub fn run_track(a: &TrackArgs) -> Result<String, String> {
+pub fn run_track(a: &TrackArgs) -> Result<String> {
     let lk = a.lk.config()?;
     if !(1..=1024).contains(&a.max_tracks) {
-        return Err(format!(
+        return Err(Error::usage(format!(
             "--max-tracks must be 1..=1024, got {}",
             a.max_tracks
-        ));
+        )));
     }
     if !(a.quality > 0.0 && a.quality <= 1.0) {
-        return Err(format!("--quality must be in (0, 1], got {}", a.quality));
+        return Err(Error::usage(format!(
+            "--quality must be in (0, 1], got {}",
+            a.quality
+        )));
     }
     let files = frame_files(&a.frames)?;
     let bar = progress_bar(files.len() as u64 * 2);
@@ -277,7 +289,7 @@ pub fn run_track(a: &TrackArgs) -> Result<String, String> {
         max_tracks: a.max_tracks,
     };
     if let Some(dir) = &a.overlay {
-        std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        create_dir(dir)?;
     }
     bar.set_message("tracking");
     let mut history: Vec<Vec<TrackRow>> = Vec::new();
@@ -294,10 +306,10 @@ pub fn run_track(a: &TrackArgs) -> Result<String, String> {
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| k.to_string());
         if let Err(e) = save_gray(&img, dir.join(format!("{name}.png"))) {
-            overlay_err.get_or_insert(e.to_string());
+            overlay_err.get_or_insert(e);
         }
     })
-    .map_err(|e| e.to_string())?;
+    .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
     bar.finish_and_clear();
     if let Some(e) = overlay_err {
         return Err(e);
@@ -312,15 +324,12 @@ pub fn run_track(a: &TrackArgs) -> Result<String, String> {
             format_float(r.y)
         ));
     }
-    std::fs::write(&a.out, csv).map_err(|e| format!("{}: {e}", a.out.display()))?;
+    write_file(&a.out, csv)?;
     let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.id).collect();
-    let mut s = serde_json::to_string_pretty(&TrackSummary {
+    Ok(to_json(&TrackSummary {
         frames: frames.len(),
         tracks: ids.len(),
         rows: rows.len(),
         out: a.out.display().to_string(),
-    })
-    .unwrap_or_default();
-    s.push('\n');
-    Ok(s)
+    }))
 }

@@ -3,12 +3,12 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`storage`] | OpenCV `FileStorage` (YAML and XML) parser, plain-text matrices |
+//! | [`storage`] | OpenCV `FileStorage` files (YAML via saphyr-parser, XML via roxmltree) as a tree and matrices, plain-text matrices |
 //! | [`intrinsics`] | camera files (OpenCV calibration YAML/XML, camgeom JSON/TOML) to a [`intrinsics::CameraSpec`] |
 //! | [`points`] | point lists as CSV, the CLI's number formatting |
 //! | [`images`] | grayscale PNG/JPEG images to and from camgeom views |
 //! | [`klt`] | camgeom's KLT flow and tracker on owned images (tests, benches, `flow`/`track`) |
-//! | [`bench`] | the criterion benches' input files and the answers they leave for the peer harness |
+//! | [`bench`](mod@bench) | the criterion benches' input files and the answers they leave for the peer harness |
 //! | [`known_motion`] | known warps of a frame and an independent bilinear warp, for KLT accuracy |
 //! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence, its overlays and contact sheet (`ar`) |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
@@ -25,7 +25,7 @@ pub mod known_motion;
 pub mod points;
 pub mod storage;
 
-pub use error::{Error, ErrorKind, Result, status_name};
+pub use error::{Error, ErrorKind, Result, describe, status_name};
 pub use intrinsics::{CameraSpec, load_camera};
 pub use storage::{FileStorage, Matrix, read_matrix_text};
 

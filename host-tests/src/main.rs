@@ -3,10 +3,13 @@
 //! Conventions shared by every subcommand are in `host-tests/CLI.md`: point lists are CSV in and
 //! out (optional header on input, a header on output), structured results are pretty-printed
 //! JSON, and a usage or input error exits with status 2 and one line on stderr.
+//!
+//! Every subcommand returns its standard output or a [`camgeom_host::Error`]; [`exit_code`] maps
+//! an error to the exit status, in one place.
 
 use std::fmt::Debug;
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use camgeom::Real;
@@ -14,8 +17,8 @@ use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point3, Vector3};
 use camgeom::transform::Pose;
 use camgeom_host::intrinsics::CameraSpec;
-use camgeom_host::points::{format_float, parse_vector, read_points3};
-use camgeom_host::{load_camera, status_name};
+use camgeom_host::points::{format_float, parse_vector, read_points3, to_json};
+use camgeom_host::{Error, ErrorKind, Result, load_camera, status_name};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
@@ -161,117 +164,107 @@ struct CameraArgs {
     toml: bool,
 }
 
-/// A failure: the exit status and the one-line message.
-struct Failure {
-    code: u8,
-    message: String,
-}
-
-impl From<camgeom_host::Error> for Failure {
-    fn from(e: camgeom_host::Error) -> Self {
-        Failure {
-            code: EXIT_INPUT,
-            message: e.to_string(),
-        }
+/// The exit status of an error: [`EXIT_OUTPUT`] when an output could not be written,
+/// [`EXIT_INPUT`] for everything else (usage errors, unreadable or malformed input, inputs camgeom
+/// rejects).
+fn exit_code(e: &Error) -> u8 {
+    match e.kind() {
+        ErrorKind::Write(_) => EXIT_OUTPUT,
+        _ => EXIT_INPUT,
     }
 }
 
 fn main() -> ExitCode {
-    let cli = match Cli::try_parse() {
-        Ok(cli) => cli,
-        Err(e) => {
-            use clap::error::ErrorKind as K;
-            if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion) {
-                // Help and version go to stdout with status 0.
-                let _ = e.print();
-                return ExitCode::SUCCESS;
-            }
-            let message = if e.kind() == K::DisplayHelpOnMissingArgumentOrSubcommand {
-                // Bare `camgeom`: clap would print the whole help; keep to one line.
-                let names: Vec<String> = <Cli as clap::CommandFactory>::command()
-                    .get_subcommands()
-                    .map(|c| c.get_name().to_string())
-                    .filter(|n| n != "help")
-                    .collect();
-                format!("a subcommand is required: {}", names.join(", "))
-            } else {
-                // clap's message is the paragraph before `Usage:`; join it into one line.
-                let text = e.to_string();
-                let para: Vec<&str> = text
-                    .lines()
-                    .map(str::trim)
-                    .skip_while(|l| l.is_empty())
-                    .take_while(|l| !l.is_empty())
-                    .collect();
-                let joined = para.join(" ");
-                joined
-                    .strip_prefix("error: ")
-                    .unwrap_or(&joined)
-                    .to_string()
-            };
-            eprintln!("camgeom: error: {message} (see `camgeom --help`)");
-            return ExitCode::from(EXIT_INPUT);
-        }
+    let result = match parse_args() {
+        // `--help` or `--version`, printed.
+        Ok(None) => return ExitCode::SUCCESS,
+        Ok(Some(cli)) => run(&cli.command).and_then(|out| write_stdout(&out)),
+        Err(e) => Err(e),
     };
-    let result = match &cli.command {
-        Command::Project(a) => project(a),
-        Command::Camera(a) => camera(a),
-        Command::Homography(a) => homography_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Warp(a) => warp_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Flow(a) => klt_cmd::run_flow(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Track(a) => klt_cmd::run_track(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Pose(a) => pose_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Ar(a) => ar_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Twoview(a) => twoview_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-        Command::Sfm(a) => sfm_cmd::run(a).map_err(|message| Failure {
-            code: EXIT_INPUT,
-            message,
-        }),
-    };
-    match result.and_then(|out| write_stdout(&out)) {
+    match result {
         Ok(()) => ExitCode::SUCCESS,
-        Err(f) => {
-            eprintln!("camgeom: error: {}", f.message);
-            ExitCode::from(f.code)
+        Err(e) => {
+            eprintln!("camgeom: error: {e}");
+            ExitCode::from(exit_code(&e))
         }
     }
 }
 
-fn write_stdout(s: &str) -> Result<(), Failure> {
+/// The command line, or `None` once `--help` or `--version` is printed (to stdout). A usage
+/// error becomes one line (clap would print several).
+fn parse_args() -> Result<Option<Cli>> {
+    let e = match Cli::try_parse() {
+        Ok(cli) => return Ok(Some(cli)),
+        Err(e) => e,
+    };
+    use clap::error::ErrorKind as K;
+    if matches!(e.kind(), K::DisplayHelp | K::DisplayVersion) {
+        let _ = e.print();
+        return Ok(None);
+    }
+    let message = if e.kind() == K::DisplayHelpOnMissingArgumentOrSubcommand {
+        // Bare `camgeom`: clap would print the whole help; keep to one line.
+        let names: Vec<String> = <Cli as clap::CommandFactory>::command()
+            .get_subcommands()
+            .map(|c| c.get_name().to_string())
+            .filter(|n| n != "help")
+            .collect();
+        format!("a subcommand is required: {}", names.join(", "))
+    } else {
+        // clap's message is the paragraph before `Usage:`; join it into one line.
+        let text = e.to_string();
+        let para: Vec<&str> = text
+            .lines()
+            .map(str::trim)
+            .skip_while(|l| l.is_empty())
+            .take_while(|l| !l.is_empty())
+            .collect();
+        let joined = para.join(" ");
+        joined
+            .strip_prefix("error: ")
+            .unwrap_or(&joined)
+            .to_string()
+    };
+    Err(Error::usage(format!("{message} (see `camgeom --help`)")))
+}
+
+/// Runs a subcommand: its standard output, or the error that stopped it.
+fn run(command: &Command) -> Result<String> {
+    match command {
+        Command::Project(a) => project(a),
+        Command::Camera(a) => camera(a),
+        Command::Homography(a) => homography_cmd::run(a),
+        Command::Warp(a) => warp_cmd::run(a),
+        Command::Flow(a) => klt_cmd::run_flow(a),
+        Command::Track(a) => klt_cmd::run_track(a),
+        Command::Pose(a) => pose_cmd::run(a),
+        Command::Ar(a) => ar_cmd::run(a),
+        Command::Twoview(a) => twoview_cmd::run(a),
+        Command::Sfm(a) => sfm_cmd::run(a),
+    }
+}
+
+fn write_stdout(s: &str) -> Result<()> {
     let mut out = std::io::stdout().lock();
     match out.write_all(s.as_bytes()).and_then(|_| out.flush()) {
         Ok(()) => Ok(()),
         // A closed pipe (`camgeom ... | head`) is not an error of ours.
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-        Err(e) => Err(Failure {
-            code: EXIT_OUTPUT,
-            message: format!("cannot write the output: {e}"),
-        }),
+        Err(e) => Err(Error::new("standard output", ErrorKind::Write(e))),
     }
 }
 
-fn project(a: &ProjectArgs) -> Result<String, Failure> {
+/// Writes an output file of a subcommand.
+pub(crate) fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
+    std::fs::write(path, contents).map_err(|e| Error::new(path, ErrorKind::Write(e)))
+}
+
+/// Creates an output directory of a subcommand (and its parents).
+pub(crate) fn create_dir(path: &Path) -> Result<()> {
+    std::fs::create_dir_all(path).map_err(|e| Error::new(path, ErrorKind::Write(e)))
+}
+
+fn project(a: &ProjectArgs) -> Result<String> {
     let spec = load_camera(&a.camera.intrinsics)?;
     let points = read_points3(&a.points)?;
     let rvec = a.pose.rvec.unwrap_or([0.0; 3]);
@@ -302,12 +295,10 @@ fn project_as<T: Real + Serialize + Debug>(
     tvec: [f64; 3],
     points: &[Point3<f64>],
     json: bool,
-) -> Result<String, Failure> {
+) -> Result<String> {
     let v3 = |a: [f64; 3]| Vector3::new(T::lit(a[0]), T::lit(a[1]), T::lit(a[2]));
-    let pose = Pose::<T>::from_rodrigues(v3(rvec), v3(tvec)).map_err(|e| Failure {
-        code: EXIT_INPUT,
-        message: format!("invalid pose: {e}"),
-    })?;
+    let pose = Pose::<T>::from_rodrigues(v3(rvec), v3(tvec))
+        .map_err(|e| Error::camgeom("invalid pose (--rvec, --tvec)", e))?;
     let projected: Vec<ProjectedPoint<T>> = points
         .iter()
         .map(|p| {
@@ -337,19 +328,11 @@ fn project_as<T: Real + Serialize + Debug>(
     Ok(out)
 }
 
-fn camera(a: &CameraArgs) -> Result<String, Failure> {
+fn camera(a: &CameraArgs) -> Result<String> {
     let spec: CameraSpec = load_camera(&a.camera.intrinsics)?;
     Ok(if a.toml {
         spec.to_toml()
     } else {
         spec.to_json()
     })
-}
-
-/// Pretty-printed JSON with a final newline.
-fn to_json<S: Serialize>(value: &S) -> String {
-    // The output types hold only numbers, strings and options: serialising cannot fail.
-    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
-    s.push('\n');
-    s
 }

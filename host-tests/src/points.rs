@@ -9,6 +9,7 @@
 //!
 //! Output numbers are written by [`format_float`]: the shortest text that reads back to the same
 //! value (Rust's `{:?}`: `342.28315473308373`, `320.0`, `1e-7`), and `nan` for a missing value.
+//! Structured results are JSON, written by [`to_json`].
 
 use std::fmt::Debug;
 use std::path::Path;
@@ -136,6 +137,17 @@ pub fn parse_vector<const N: usize>(s: &str) -> std::result::Result<[f64; N], St
             .ok_or_else(|| format!("`{f}` is not a finite number"))?;
     }
     Ok(out)
+}
+
+/// The CLI's JSON: pretty-printed (2-space indent) with a final newline. Floats are written with
+/// the shortest text that reads back to the same value; NaN and infinities, which JSON lacks,
+/// become `null`.
+pub fn to_json<S: serde::Serialize>(value: &S) -> String {
+    // The CLI's outputs hold numbers, strings, booleans, options and lists, with string keys:
+    // serde_json cannot fail on them.
+    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
+    s.push('\n');
+    s
 }
 
 /// Formats a float for CSV output: the shortest text that reads back to the same value, `nan`

@@ -9,8 +9,8 @@ use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point2, Point3};
 use camgeom::pose::{PlanarConfig, PoseEstimate, solve_planar, solve_pnp, solve_pnp_ransac};
 use camgeom::ransac::RansacConfig;
-use camgeom_host::load_camera;
-use camgeom_host::points::read_csv;
+use camgeom_host::points::{read_csv, to_json};
+use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
@@ -90,8 +90,9 @@ fn json_pose<T: Real>(e: &PoseEstimate<T>) -> JsonPose<T> {
     }
 }
 
-/// What the core's error means for this command, in words.
-fn explain(e: camgeom::Error, planar: bool) -> String {
+/// What the core's error means for this command, in words, with the error itself: `src: no
+/// pose, <why>: <name> (<what camgeom says>)`.
+fn no_pose(src: &impl std::fmt::Display, e: camgeom::Error, planar: bool) -> Error {
     use camgeom::Error as E;
     let what = match e {
         E::Degenerate if planar => "the points are collinear or the plane is seen edge-on",
@@ -105,28 +106,30 @@ fn explain(e: camgeom::Error, planar: bool) -> String {
         E::NoConvergence => "the solver did not converge",
         _ => "the solver failed",
     };
-    format!("no pose: {what} ({})", camgeom_host::status_name(&e))
+    Error::camgeom(format!("{src}: no pose, {what}"), e)
 }
 
-/// `camgeom pose`.
-pub fn run(a: &PoseArgs) -> Result<String, String> {
-    let spec = load_camera(&a.intrinsics).map_err(|e| e.to_string())?;
-    let table = read_csv(&a.points, &["X", "Y", "Z", "u", "v"]).map_err(|e| e.to_string())?;
+/// `camgeom pose`: the JSON result.
+pub fn run(a: &PoseArgs) -> Result<String> {
+    let spec = load_camera(&a.intrinsics)?;
+    let table = read_csv(&a.points, &["X", "Y", "Z", "u", "v"])?;
     let n = table.rows.len();
-    let src = a.points.display();
     // 4 points: the fewest IPPE and EPnP accept (6 pose unknowns, 2 equations a point, and
     // one more point than P3P to single out its solution).
     if n < 4 {
-        return Err(format!(
-            "{src}: a pose needs at least 4 points (X,Y,Z,u,v rows), found {n}"
+        return Err(Error::new(
+            &a.points,
+            ErrorKind::Shape(format!(
+                "a pose needs at least 4 points (X,Y,Z,u,v rows), found {n}"
+            )),
         ));
     }
     if let Some(t) = a.ransac
         && !(t.is_finite() && t > 0.0)
     {
-        return Err(format!(
+        return Err(Error::usage(format!(
             "--ransac must be a positive number of pixels, got {t}"
-        ));
+        )));
     }
     let world: Vec<Point3<f64>> = table
         .rows
@@ -147,7 +150,7 @@ fn solve<T: Real + Serialize>(
     world: &[Point3<f64>],
     pixels: &[Point2<f64>],
     a: &PoseArgs,
-) -> Result<String, String> {
+) -> Result<String> {
     let src = a.points.display();
     let world: Vec<Point3<T>> = world
         .iter()
@@ -169,7 +172,7 @@ fn solve<T: Real + Serialize>(
         let mut mask = vec![false; n];
         let (est, report) =
             solve_pnp_ransac(camera, &world, &pixels, &mut scratch, &cfg, &mut mask)
-                .map_err(|e| format!("{src}: {}", explain(e, false)))?;
+                .map_err(|e| no_pose(&src, e, false))?;
         let p = json_pose(&est);
         JsonResult {
             r: p.r,
@@ -191,7 +194,7 @@ fn solve<T: Real + Serialize>(
             &mut scratch,
             &PlanarConfig::default(),
         )
-        .map_err(|e| format!("{src}: {}", explain(e, true)))?;
+        .map_err(|e| no_pose(&src, e, true))?;
         let p = json_pose(&sol.best);
         JsonResult {
             r: p.r,
@@ -206,7 +209,7 @@ fn solve<T: Real + Serialize>(
         }
     } else {
         let est = solve_pnp(camera, &world, &pixels, &mut scratch)
-            .map_err(|e| format!("{src}: {}", explain(e, false)))?;
+            .map_err(|e| no_pose(&src, e, false))?;
         let p = json_pose(&est);
         JsonResult {
             r: p.r,
@@ -220,7 +223,5 @@ fn solve<T: Real + Serialize>(
             inlier_mask: None,
         }
     };
-    let mut s = serde_json::to_string_pretty(&result).unwrap_or_default();
-    s.push('\n');
-    Ok(s)
+    Ok(to_json(&result))
 }

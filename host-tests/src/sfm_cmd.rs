@@ -27,11 +27,13 @@ use camgeom::sfm::{
     PointBlock, SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views,
 };
 use camgeom::transform::Pose;
-use camgeom_host::{load_camera, status_name};
+use camgeom_host::points::to_json;
+use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
 use crate::homography_cmd::orb_features;
+use crate::{create_dir, write_file};
 
 /// Most tracks (three images of at most 500 ORB features each give fewer).
 const MAX_TRACKS: usize = 1024;
@@ -122,17 +124,13 @@ pub struct SfmOutput {
 }
 
 /// Cross-checked matches of two feature sets, `(index in a, index in b)`.
-fn match_pairs(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>, String> {
+fn match_pairs(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>> {
     let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
     let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
     let mut ms = vec![Match::default(); da.len()];
     let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms).map_err(|e| {
-        format!(
-            "{what}: match_descriptors failed: {} ({e})",
-            status_name(&e)
-        )
-    })?;
+    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms)
+        .map_err(|e| Error::camgeom(format!("{what}: match_descriptors failed"), e))?;
     Ok(ms[..n]
         .iter()
         .map(|m| (usize::from(m.query), usize::from(m.train)))
@@ -181,12 +179,12 @@ pub fn build_tracks(
     tracks
 }
 
-/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
-pub fn run(a: &SfmArgs) -> Result<String, String> {
+/// Runs the subcommand: writes the files, returns the JSON summary.
+pub fn run(a: &SfmArgs) -> Result<String> {
     let [ia, ib, ic] = a.images.as_slice() else {
-        return Err("--images takes three files".into());
+        return Err(Error::usage("--images takes three files"));
     };
-    let spec = load_camera(&a.intrinsics).map_err(|e| e.to_string())?;
+    let spec = load_camera(&a.intrinsics)?;
     let feats = [orb_features(ia)?, orb_features(ib)?, orb_features(ic)?];
     let [fa, fb, fc] = &feats;
     let ab = match_pairs(fa, fb, "A-B")?;
@@ -209,11 +207,11 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
     let mut ws: Box<SfmWorkspace<f64, MAX_TRACKS>> = Box::default();
     let source = format!("{} {} {}", ia.display(), ib.display(), ic.display());
     let r = reconstruct_three_views(&spec.camera, &tracks, &config, &mut ws).map_err(|e| {
-        format!(
-            "{source}: reconstruct_three_views failed: {} ({e}), {} tracks",
-            status_name(&e),
+        let what = format!(
+            "{source}: reconstruct_three_views failed on {} tracks",
             tracks.len()
-        )
+        );
+        Error::camgeom(what, e)
     })?;
     let n = tracks.len();
     let mut poses = r.poses;
@@ -228,7 +226,7 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
         &mut blocks,
         a.bundle_iterations,
     )
-    .map_err(|e| format!("{source}: bundle_adjust failed: {} ({e})", status_name(&e)))?;
+    .map_err(|e| Error::camgeom(format!("{source}: bundle_adjust failed"), e))?;
     let mean_after = mean_error(&spec.camera, &poses, &tracks, &ws.points, &ws.used);
     let points: Vec<Point3<f64>> = ws.points.iter().take(n).flatten().copied().collect();
     let views: Vec<View> = poses
@@ -250,8 +248,7 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
             }
         })
         .collect();
-    std::fs::create_dir_all(&a.out)
-        .map_err(|e| format!("{}: cannot create the directory: {e}", a.out.display()))?;
+    create_dir(&a.out)?;
     let ply = a.out.join("points.ply");
     let plot = a.out.join("plot.png");
     write_ply(&ply, &points, &views)?;
@@ -274,9 +271,7 @@ pub fn run(a: &SfmArgs) -> Result<String, String> {
         ply: ply.display().to_string(),
         plot: plot.display().to_string(),
     };
-    let mut s = serde_json::to_string_pretty(&summary).unwrap_or_default();
-    s.push('\n');
-    Ok(s)
+    Ok(to_json(&summary))
 }
 
 /// Mean pixel reprojection error (through the lens model) of the used observations of the
@@ -308,7 +303,7 @@ fn mean_error(
 const CAMERA_RGB: [[u8; 3]; 3] = [[230, 40, 40], [40, 180, 40], [40, 90, 230]];
 
 /// ASCII PLY: `x y z red green blue` per vertex, the points (grey) then the camera centres.
-fn write_ply(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<(), String> {
+fn write_ply(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> {
     let mut s = String::new();
     let n = points.len() + views.len();
     let _ = write!(
@@ -326,7 +321,7 @@ fn write_ply(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<(), 
         let [x, y, z] = v.center;
         let _ = writeln!(s, "{x} {y} {z} {r} {g} {b}");
     }
-    std::fs::write(path, s).map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    write_file(path, s)
 }
 
 /// An RGB canvas with clipped pixel, line and disc drawing.
@@ -377,7 +372,7 @@ impl Canvas {
 /// Two orthographic panels side by side: top-down (`X` right, `Z` up) and side (`Z` right,
 /// `-Y` up, so the camera's up is up), each fitted to the points' 2nd..98th percentiles and the
 /// cameras; cameras as discs with a line along their optical axis.
-fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<(), String> {
+fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> {
     const PANEL: u32 = 480;
     const MARGIN: f64 = 24.0;
     let mut canvas = Canvas {
@@ -436,8 +431,8 @@ fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<(),
         (i64::from(PANEL), i64::from(PANEL) - 1),
         [0, 0, 0],
     );
-    canvas
-        .img
-        .save(path)
-        .map_err(|e| format!("{}: cannot write: {e}", path.display()))
+    canvas.img.save(path).map_err(|e| match e {
+        image::ImageError::IoError(io) => Error::new(path, ErrorKind::Write(io)),
+        other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
+    })
 }

@@ -1,26 +1,39 @@
 //! OpenCV `FileStorage` files, YAML and XML, read into one small tree.
 //!
-//! serde_yaml is deprecated and rejects OpenCV's `%YAML:1.0` directive, so this is a small parser
-//! for the subset OpenCV writes:
+//! The syntax is read by maintained parsers, [saphyr-parser] (YAML 1.2) and [roxmltree] (XML);
+//! this module maps what they read onto [`Node`]s the way OpenCV lays its files out, and an
+//! `opencv-matrix` node onto a [`Matrix`]:
 //!
-//! * YAML: an optional `%YAML:1.0` (or `%YAML 1.0`) line and `---`; block mappings
-//!   `key: value` nested by indentation; block sequences `- item` (also `- key: value` items);
-//!   flow sequences `[a, b, ...]` and flow mappings `{ k: v, ... }` that may span lines; tags such
-//!   as `!!opencv-matrix` before a block or flow mapping; plain, `"double"` and `'single'`
-//!   quoted scalars; `#` comments. Block scalars (`|`, `>`), anchors and multi-line plain scalars
-//!   are not part of OpenCV's output and are rejected with an error.
-//! * XML: `<opencv_storage>` with one element per key; `type_id="opencv-matrix"` elements with
-//!   `<rows>`, `<cols>`, `<dt>`, `<data>`; whitespace-separated numbers in text form a sequence;
-//!   elements named `_` are sequence items.
+//! * YAML: OpenCV 3 and 4 start the file with `%YAML:1.0`, which no YAML 1.2 parser accepts, and
+//!   OpenCV writes flow mappings as `{ a:1, b:2 }`, which YAML 1.2 reads as the single keys
+//!   `"a:1"` and `"b:2"`. Both are rewritten before parsing (the directive becomes an empty
+//!   line, the flow keys get a space after their `:`), keeping every line where it was so that
+//!   messages give the file's own line numbers. Matrices are mappings tagged `!!opencv-matrix`
+//!   with `rows`, `cols`, `dt` and `data` (a flow or block sequence). Aliases are rejected; a
+//!   file holds one document whose top level is a mapping. (OpenCV's YAML writer puts a matrix
+//!   inside a flow mapping as a block mapping, which is no YAML and which OpenCV's own reader
+//!   rejects too: such a file is an error here.)
+//! * XML: the root is `<opencv_storage>` with one element per key. An element with named
+//!   children is a mapping; `<_>` children are sequence items; text is split at whitespace
+//!   (keeping `"quoted strings"` whole) and several tokens form a sequence, one token a scalar.
+//!   OpenCV writes a sequence of scalars and structures as text followed by `<_>` elements: the
+//!   items keep the file's order. `type_id="opencv-matrix"` is the tag.
 //!
 //! [`FileStorage::matrix`] turns an `opencv-matrix` node into a [`Matrix`], checking that `data`
-//! holds `rows * cols * channels` numbers.
+//! holds `rows * cols * channels` numbers. Every error names the file and the line.
+//!
+//! [saphyr-parser]: https://docs.rs/saphyr-parser
+//! [roxmltree]: https://docs.rs/roxmltree
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::Matrix3;
 
 use crate::error::{Error, ErrorKind, Result};
+
+/// Structures nest this deep at most: a bound, so that hostile input cannot exhaust the stack
+/// (dropping a tree recurses). OpenCV's files nest three or four levels.
+const MAX_DEPTH: usize = 64;
 
 /// A value in a `FileStorage` tree.
 #[derive(Debug, Clone, PartialEq)]
@@ -181,7 +194,7 @@ impl FileStorage {
     /// Parses OpenCV's YAML; `path` is only used in error messages.
     pub fn parse_yaml(text: &str, path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let root = yaml::Parser::new(text, path).document()?;
+        let root = yaml::document(text, path)?;
         Ok(Self {
             path: path.to_path_buf(),
             root,
@@ -191,7 +204,7 @@ impl FileStorage {
     /// Parses OpenCV's XML; `path` is only used in error messages.
     pub fn parse_xml(text: &str, path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref();
-        let root = xml::Parser::new(text, path).document()?;
+        let root = xml::document(text, path)?;
         Ok(Self {
             path: path.to_path_buf(),
             root,
@@ -479,968 +492,432 @@ pub fn parse_matrix_text(text: &str, path: impl AsRef<Path>) -> Result<Matrix> {
     })
 }
 
+/// OpenCV's YAML as YAML 1.2, every line kept where it was (so that a parser's line numbers are
+/// the file's):
+///
+/// * a `%YAML` directive before the document (`%YAML:1.0`, as OpenCV 3 and 4 write it, is not
+///   YAML 1.2 syntax) becomes an empty line: the version changes nothing camgeom reads;
+/// * in a flow mapping, OpenCV writes `key:value` without a space, which YAML 1.2 reads as one
+///   plain scalar `"key:value"` with no value: a space is put after the key's `:`.
+///
+/// Quoted scalars and comments are copied untouched, so a `{` or `:` inside them changes
+/// nothing. All other text is copied as it is. Also returns the innermost `[` or `{` left open
+/// at the end of the text and its line, for messages.
+fn to_yaml12(text: &str) -> (String, Option<(char, usize)>) {
+    let b = text.as_bytes();
+    let mut out = String::with_capacity(text.len() + 16);
+    // The open flow collections, `[` or `{` and its line, innermost last.
+    let mut flow: Vec<(u8, usize)> = Vec::new();
+    let mut line = 1;
+    // Where a node may begin: a line start in block context, after `: `, `- `, `[`, `{`, `,`,
+    // a tag or an anchor.
+    let mut node_start = true;
+    // At the start of an entry of a flow mapping, where OpenCV writes `key:value`.
+    let mut flow_key = false;
+    // Before the document's content, where directives are.
+    let mut prolog = true;
+    let mut i = 0;
+    while let Some(c) = text.get(i..).and_then(|s| s.chars().next()) {
+        let start = i;
+        let blank_after = matches!(b.get(i + 1), None | Some(b' ' | b'\t' | b'\r' | b'\n'));
+        let at_line_start = i == 0 || b.get(i - 1) == Some(&b'\n');
+        i += c.len_utf8();
+        match c {
+            '%' if prolog && at_line_start => {
+                i = end_of_line(text, start);
+                if text[start..i].starts_with("%YAML") {
+                    continue;
+                }
+            }
+            '\n' => {
+                line += 1;
+                node_start |= flow.is_empty();
+            }
+            ' ' | '\t' | '\r' => {}
+            '#' if start == 0 || matches!(b.get(start - 1), Some(b' ' | b'\t' | b'\n')) => {
+                i = end_of_line(text, start);
+            }
+            '"' | '\'' if node_start => {
+                i = end_of_quoted(b, start);
+                line += text[start..i].matches('\n').count();
+                node_start = false;
+                flow_key = false;
+                prolog = false;
+            }
+            '[' | '{' if node_start => {
+                flow.push((c as u8, line));
+                flow_key = c == '{';
+                prolog = false;
+            }
+            ']' | '}' if !flow.is_empty() => {
+                flow.pop();
+                node_start = false;
+                flow_key = false;
+            }
+            ',' if !flow.is_empty() => {
+                node_start = true;
+                flow_key = matches!(flow.last(), Some((b'{', _)));
+            }
+            ':' if blank_after => {
+                node_start = true;
+                flow_key = false;
+            }
+            '-' if node_start && blank_after && flow.is_empty() => prolog = false,
+            '!' | '&' if node_start => {
+                // A tag or an anchor: a node follows it.
+                let len = text[i..]
+                    .find(|c: char| c.is_whitespace() || ",[]{}".contains(c))
+                    .unwrap_or(text.len() - i);
+                i += len;
+                prolog = false;
+            }
+            _ => {
+                prolog = false;
+                node_start = false;
+                if std::mem::take(&mut flow_key) {
+                    // A plain key: up to the first indicator.
+                    let len = text[start..]
+                        .find(|c: char| ":,[]{}#\n".contains(c))
+                        .unwrap_or(text.len() - start);
+                    let colon = start + len;
+                    let adjacent = b.get(colon) == Some(&b':')
+                        && !matches!(
+                            b.get(colon + 1),
+                            None | Some(b' ' | b'\t' | b'\r' | b'\n' | b',' | b']' | b'}')
+                        );
+                    if adjacent {
+                        out.push_str(&text[start..=colon]);
+                        out.push(' ');
+                        i = colon + 1;
+                        node_start = true;
+                        continue;
+                    }
+                }
+            }
+        }
+        out.push_str(&text[start..i]);
+    }
+    let unclosed = flow.last().map(|&(c, line)| (char::from(c), line));
+    (out, unclosed)
+}
+
+/// The index of the `\n` ending the line that holds `i` (or the end of the text).
+fn end_of_line(text: &str, i: usize) -> usize {
+    text[i..].find('\n').map_or(text.len(), |n| i + n)
+}
+
+/// Just past the quote closing the scalar that opens at `i` (`"` with `\` escapes, `'` with
+/// `''`); the end of the text if it is never closed (the parser then reports it).
+fn end_of_quoted(b: &[u8], i: usize) -> usize {
+    let q = b.get(i).copied();
+    let mut j = i + 1;
+    while let Some(&c) = b.get(j) {
+        match c {
+            b'\\' if q == Some(b'"') => j += 2,
+            b'\'' if q == Some(b'\'') && b.get(j + 1) == Some(&b'\'') => j += 2,
+            _ if Some(c) == q => return j + 1,
+            _ => j += 1,
+        }
+    }
+    b.len()
+}
+
 mod yaml {
-    //! The YAML subset of OpenCV's `FileStorage` (see the module docs).
+    //! The YAML form: saphyr-parser's events built into a [`Node`] tree.
 
     use std::path::Path;
 
-    use super::{Node, Value};
+    use saphyr_parser::{Event, Parser, ScalarStyle};
+
+    use super::{MAX_DEPTH, Node, Value, to_yaml12};
     use crate::error::{Error, ErrorKind, Result};
 
-    pub(super) struct Parser<'a> {
-        src: &'a str,
-        b: &'a [u8],
-        pos: usize,
-        line: usize,
-        path: &'a Path,
+    /// A structure being read, and (for a mapping) the key whose value comes next.
+    struct Open {
+        node: Node,
+        key: Option<String>,
     }
 
-    /// Flow collections nest this deep at most (a bound, so hostile input cannot overflow the
-    /// stack).
-    const MAX_DEPTH: usize = 64;
-
-    impl<'a> Parser<'a> {
-        pub(super) fn new(src: &'a str, path: &'a Path) -> Self {
-            Self {
-                src,
-                b: src.as_bytes(),
-                pos: 0,
-                line: 1,
-                path,
-            }
-        }
-
-        fn err(&self, msg: impl Into<String>) -> Error {
-            Error::at_line(self.path, self.line, ErrorKind::Syntax(msg.into()))
-        }
-
-        fn peek(&self) -> Option<u8> {
-            self.b.get(self.pos).copied()
-        }
-
-        fn peek_at(&self, off: usize) -> Option<u8> {
-            self.b.get(self.pos + off).copied()
-        }
-
-        fn bump(&mut self) {
-            if self.peek() == Some(b'\n') {
-                self.line += 1;
-            }
-            self.pos += 1;
-        }
-
-        fn col(&self) -> usize {
-            let start = self.b[..self.pos]
-                .iter()
-                .rposition(|&c| c == b'\n')
-                .map_or(0, |p| p + 1);
-            self.pos - start
-        }
-
-        /// Skips spaces and tabs on the current line.
-        fn skip_spaces(&mut self) {
-            while matches!(self.peek(), Some(b' ' | b'\t')) {
-                self.bump();
-            }
-        }
-
-        /// Skips to just past the end of the current line.
-        fn skip_line(&mut self) {
-            while let Some(c) = self.peek() {
-                self.bump();
-                if c == b'\n' {
-                    break;
+    /// Parses OpenCV's YAML into the tree of its one document (an empty mapping for an empty
+    /// file).
+    pub(super) fn document(text: &str, path: &Path) -> Result<Node> {
+        let (yaml, unclosed) = to_yaml12(text);
+        let err = |line: usize, msg: String| Error::at_line(path, line, ErrorKind::Syntax(msg));
+        let mut parser = Parser::new_from_str(&yaml);
+        let mut open: Vec<Open> = Vec::new();
+        let mut root: Option<Node> = None;
+        let mut documents = 0usize;
+        while let Some(event) = parser.next_event() {
+            let (event, span) = event.map_err(|e| {
+                let line = e.marker().line();
+                // saphyr's messages are one line; make sure.
+                let mut msg = e.info().replace('\n', " ");
+                // The parser notices an unclosed `[` where the text stops making sense, often
+                // lines later: say where it was opened.
+                if let Some((c, open)) = unclosed.filter(|&(_, open)| open <= line) {
+                    msg.push_str(&format!(" (the `{c}` on line {open} is never closed)"));
                 }
-            }
-        }
-
-        /// After a value: only spaces and a comment may follow on the line; moves to the start
-        /// of the next line.
-        fn end_of_line(&mut self) -> Result<()> {
-            self.skip_spaces();
-            match self.peek() {
-                None => Ok(()),
-                Some(b'\n') => {
-                    self.bump();
-                    Ok(())
-                }
-                Some(b'#') => {
-                    self.skip_line();
-                    Ok(())
-                }
-                Some(c) => Err(self.err(format!(
-                    "unexpected `{}` after a value",
-                    char::from(c).escape_default()
-                ))),
-            }
-        }
-
-        /// From the start of a line: skips blank and comment-only lines and returns the indent
-        /// of the next content line without consuming it (`None` at the end of the document).
-        fn next_content_indent(&mut self) -> Result<Option<usize>> {
-            loop {
-                let mut i = self.pos;
-                while self.b.get(i) == Some(&b' ') {
-                    i += 1;
-                }
-                match self.b.get(i) {
-                    None => {
-                        self.pos = i;
-                        return Ok(None);
+                err(line, msg)
+            })?;
+            let line = span.start.line();
+            let tag =
+                |t: Option<std::borrow::Cow<'_, saphyr_parser::Tag>>| t.map(|t| t.suffix.clone());
+            let is_seq = matches!(event, Event::SequenceStart(..));
+            let done = match event {
+                Event::Nothing | Event::StreamStart | Event::StreamEnd | Event::DocumentEnd => None,
+                Event::DocumentStart(_) => {
+                    documents += 1;
+                    if documents > 1 {
+                        return Err(err(line, "more than one YAML document in the file".into()));
                     }
-                    Some(b'\n') => {
-                        self.pos = i;
-                        self.bump();
-                    }
-                    Some(b'#') => {
-                        self.pos = i;
-                        self.skip_line();
-                    }
-                    Some(b'\t') => {
-                        self.pos = i;
-                        return Err(self.err("tab in indentation"));
-                    }
-                    Some(_) => {
-                        let indent = i - self.pos;
-                        // The document end marker `...` or a second document `---`.
-                        if indent == 0 && self.is_marker(i) {
-                            return Ok(None);
-                        }
-                        return Ok(Some(indent));
-                    }
+                    None
                 }
-            }
-        }
-
-        fn is_marker(&self, i: usize) -> bool {
-            let rest = &self.b[i..];
-            (rest.starts_with(b"---") || rest.starts_with(b"..."))
-                && matches!(rest.get(3), None | Some(b' ' | b'\n'))
-        }
-
-        fn at_seq_entry(&self) -> bool {
-            self.peek() == Some(b'-') && matches!(self.peek_at(1), None | Some(b' ' | b'\n'))
-        }
-
-        pub(super) fn document(mut self) -> Result<Node> {
-            // Directives (`%YAML:1.0`, `%YAML 1.0`, `%TAG ...`) and the `---` marker.
-            loop {
-                match self.next_content_indent()? {
-                    Some(0) if self.peek() == Some(b'%') => self.skip_line(),
-                    _ => break,
+                Event::Alias(_) => {
+                    return Err(err(line, "aliases (`*name`) are not supported".into()));
                 }
-            }
-            if self.is_marker(self.pos) && self.b[self.pos..].starts_with(b"---") {
-                self.pos += 3;
-                self.skip_spaces();
-                if !matches!(self.peek(), None | Some(b'\n' | b'#')) {
-                    return Err(self.err("content on the `---` line is not supported"));
-                }
-                self.skip_line();
-            }
-            let line = self.line;
-            let root = match self.next_content_indent()? {
-                None => Node {
-                    tag: None,
+                Event::Scalar(text, style, _, t) => Some(Node {
+                    tag: tag(t),
                     line,
-                    value: Value::Map(Vec::new()),
-                },
-                Some(ind) => {
-                    self.pos += ind;
-                    if self.at_seq_entry() {
-                        return Err(self.err("the top level must be a mapping (`key: value`)"));
+                    value: Value::Scalar {
+                        text: text.into_owned(),
+                        quoted: style != ScalarStyle::Plain,
+                    },
+                }),
+                Event::SequenceStart(_, t) | Event::MappingStart(_, t) => {
+                    if open.len() >= MAX_DEPTH {
+                        return Err(err(line, "structures nested too deeply".into()));
                     }
-                    self.block_map(ind)?
-                }
-            };
-            // Anything after the root must be the end of the document.
-            if self.pos < self.b.len() {
-                let rest = &self.b[self.pos..];
-                if rest.starts_with(b"---") {
-                    return Err(self.err("more than one YAML document in the file"));
-                }
-                if !rest.starts_with(b"...") {
-                    return Err(self.err("unexpected content after the document"));
-                }
-            }
-            Ok(root)
-        }
-
-        /// A block node whose first line's content starts at the cursor, in column `ind`.
-        fn block_node(&mut self, ind: usize) -> Result<Node> {
-            if self.at_seq_entry() {
-                self.block_seq(ind)
-            } else {
-                self.block_map(ind)
-            }
-        }
-
-        fn block_map(&mut self, ind: usize) -> Result<Node> {
-            let line = self.line;
-            let mut entries: Vec<(String, Node)> = Vec::new();
-            loop {
-                let key_line = self.line;
-                let key = self.block_key()?;
-                if entries.iter().any(|(k, _)| *k == key) {
-                    return Err(Error::at_line(
-                        self.path,
-                        key_line,
-                        ErrorKind::Syntax(format!("duplicate key `{key}`")),
-                    ));
-                }
-                let value = self.value_after_indicator(ind, true)?;
-                entries.push((key, value));
-                match self.next_content_indent()? {
-                    None => break,
-                    Some(i) if i < ind => break,
-                    Some(i) if i == ind => {
-                        self.pos += i;
-                        if self.at_seq_entry() {
-                            return Err(self.err("a sequence entry `- ` where a key was expected"));
-                        }
-                    }
-                    Some(_) => {
-                        self.skip_spaces();
-                        return Err(self.err(
-                            "unexpected indentation (multi-line plain scalars are not supported)",
-                        ));
-                    }
-                }
-            }
-            Ok(Node {
-                tag: None,
-                line,
-                value: Value::Map(entries),
-            })
-        }
-
-        fn block_seq(&mut self, ind: usize) -> Result<Node> {
-            let line = self.line;
-            let mut items = Vec::new();
-            loop {
-                // At `-`.
-                self.bump();
-                let item = self.value_after_indicator(ind, false)?;
-                items.push(item);
-                match self.next_content_indent()? {
-                    None => break,
-                    Some(i) if i < ind => break,
-                    Some(i) if i == ind => {
-                        self.pos += i;
-                        if !self.at_seq_entry() {
-                            // A key at the same indent belongs to the parent mapping (the
-                            // compact `key:\n- a\n- b` form); give control back.
-                            self.pos -= i;
-                            break;
-                        }
-                    }
-                    Some(_) => {
-                        self.skip_spaces();
-                        return Err(self.err("unexpected indentation in a sequence"));
-                    }
-                }
-            }
-            Ok(Node {
-                tag: None,
-                line,
-                value: Value::Seq(items),
-            })
-        }
-
-        /// A mapping key up to its `:` (which must be followed by a space or the line end);
-        /// consumes the `:`.
-        fn block_key(&mut self) -> Result<String> {
-            if matches!(self.peek(), Some(b'"' | b'\'')) {
-                let key = self.quoted()?;
-                self.skip_spaces();
-                if self.peek() != Some(b':') {
-                    return Err(self.err("expected `:` after a quoted key"));
-                }
-                self.bump();
-                return Ok(key);
-            }
-            let start = self.pos;
-            loop {
-                match self.peek() {
-                    None | Some(b'\n') => {
-                        return Err(self.err(format!(
-                            "expected `key: value`, found `{}`",
-                            self.src[start..self.pos].trim()
-                        )));
-                    }
-                    Some(b':') if matches!(self.peek_at(1), None | Some(b' ' | b'\t' | b'\n')) => {
-                        let key = self.src[start..self.pos].trim_end().to_string();
-                        self.bump();
-                        if key.is_empty() {
-                            return Err(self.err("empty key"));
-                        }
-                        return Ok(key);
-                    }
-                    Some(b'#') if self.pos > start && self.b[self.pos - 1] == b' ' => {
-                        return Err(self.err("expected `key: value` before the comment"));
-                    }
-                    Some(_) => self.bump(),
-                }
-            }
-        }
-
-        /// The value after `key:` (`in_map`) or after `- `; ends at the start of the next line.
-        fn value_after_indicator(&mut self, ind: usize, in_map: bool) -> Result<Node> {
-            self.skip_spaces();
-            let tag = self.tag()?;
-            self.skip_spaces();
-            let line = self.line;
-            let mut node = match self.peek() {
-                None | Some(b'\n') | Some(b'#') => {
-                    self.end_of_line()?;
-                    match self.next_content_indent()? {
-                        Some(i) if i > ind => {
-                            self.pos += i;
-                            self.block_node(i)?
-                        }
-                        Some(i) if i == ind && in_map => {
-                            self.pos += i;
-                            let seq = self.at_seq_entry();
-                            if seq {
-                                self.block_seq(i)?
-                            } else {
-                                self.pos -= i;
-                                Node::scalar("", false, line)
-                            }
-                        }
-                        _ => Node::scalar("", false, line),
-                    }
-                }
-                Some(b'[' | b'{') => {
-                    let n = self.flow_node(0)?;
-                    self.end_of_line()?;
-                    n
-                }
-                Some(b'"' | b'\'') => {
-                    let s = self.quoted()?;
-                    self.skip_spaces();
-                    if !in_map && self.peek() == Some(b':') {
-                        return Err(self.err("quoted keys in sequence items are not supported"));
-                    }
-                    self.end_of_line()?;
-                    Node::scalar(s, true, line)
-                }
-                Some(b'|' | b'>') => {
-                    return Err(self.err("block scalars (`|`, `>`) are not supported"));
-                }
-                Some(b'&' | b'*') => {
-                    return Err(self.err("anchors and aliases are not supported"));
-                }
-                Some(b'-') if !in_map && self.at_seq_entry() => {
-                    // `- - a`: a nested sequence starting on the item's line.
-                    let c = self.col();
-                    self.block_seq(c)?
-                }
-                Some(_) => {
-                    if !in_map && self.line_has_key() {
-                        // `- key: value` starts a mapping in the item's column.
-                        let c = self.col();
-                        self.block_map(c)?
+                    let value = if is_seq {
+                        Value::Seq(Vec::new())
                     } else {
-                        let s = self.plain_block_scalar();
-                        self.end_of_line()?;
-                        Node::scalar(s, false, line)
-                    }
-                }
-            };
-            if tag.is_some() {
-                node.tag = tag;
-            }
-            Ok(node)
-        }
-
-        /// `true` when the rest of the line reads `key: ...`.
-        fn line_has_key(&self) -> bool {
-            let rest = &self.b[self.pos..];
-            let end = rest.iter().position(|&c| c == b'\n').unwrap_or(rest.len());
-            let line = &rest[..end];
-            line.windows(2).any(|w| w == b": ") || line.last() == Some(&b':')
-        }
-
-        /// An optional `!tag` / `!!tag`, returned without the `!`s.
-        fn tag(&mut self) -> Result<Option<String>> {
-            if self.peek() != Some(b'!') {
-                return Ok(None);
-            }
-            let start = self.pos;
-            while matches!(self.peek(), Some(c) if !matches!(c, b' ' | b'\t' | b'\n' | b'{' | b'['))
-            {
-                self.bump();
-            }
-            let t = self.src[start..self.pos].trim_start_matches('!');
-            if t.is_empty() {
-                return Err(self.err("empty tag"));
-            }
-            Ok(Some(t.to_string()))
-        }
-
-        /// A plain scalar to the end of the line or a ` #` comment, trimmed.
-        fn plain_block_scalar(&mut self) -> String {
-            let start = self.pos;
-            while let Some(c) = self.peek() {
-                if c == b'\n' || (c == b'#' && self.pos > start && self.b[self.pos - 1] == b' ') {
-                    break;
-                }
-                self.bump();
-            }
-            self.src[start..self.pos].trim().to_string()
-        }
-
-        /// A `"..."` or `'...'` scalar, unescaped.
-        fn quoted(&mut self) -> Result<String> {
-            let q = self.peek().unwrap_or(b'"');
-            let line = self.line;
-            self.bump();
-            let mut out = String::new();
-            loop {
-                let Some(c) = self.peek() else {
-                    return Err(Error::at_line(
-                        self.path,
-                        line,
-                        ErrorKind::Syntax("unterminated quoted string".to_string()),
-                    ));
-                };
-                if c == q {
-                    if q == b'\'' && self.peek_at(1) == Some(b'\'') {
-                        out.push('\'');
-                        self.bump();
-                        self.bump();
-                        continue;
-                    }
-                    self.bump();
-                    return Ok(out);
-                }
-                if c == b'\\' && q == b'"' {
-                    self.bump();
-                    let e = self.peek().ok_or_else(|| self.err("unterminated escape"))?;
-                    out.push(match e {
-                        b'n' => '\n',
-                        b't' => '\t',
-                        b'r' => '\r',
-                        b'0' => '\0',
-                        b'"' => '"',
-                        b'\\' => '\\',
-                        b'/' => '/',
-                        _ => return Err(self.err("unsupported escape in a quoted string")),
+                        Value::Map(Vec::new())
+                    };
+                    open.push(Open {
+                        node: Node {
+                            tag: tag(t),
+                            line,
+                            value,
+                        },
+                        key: None,
                     });
-                    self.bump();
-                    continue;
+                    None
                 }
-                // Copy one UTF-8 character.
-                let ch = self.src[self.pos..].chars().next().unwrap_or('\u{fffd}');
-                out.push(ch);
-                for _ in 0..ch.len_utf8() {
-                    self.bump();
-                }
-            }
-        }
-
-        /// Skips whitespace, newlines and comments inside a flow collection.
-        fn skip_flow_space(&mut self) -> Result<()> {
-            loop {
-                match self.peek() {
-                    Some(b' ' | b'\t' | b'\n') => self.bump(),
-                    Some(b'#') => self.skip_line(),
-                    None => return Err(self.err("unterminated `[` or `{`")),
-                    Some(_) => return Ok(()),
-                }
-            }
-        }
-
-        fn flow_node(&mut self, depth: usize) -> Result<Node> {
-            if depth > MAX_DEPTH {
-                return Err(self.err("flow collections nested too deeply"));
-            }
-            let tag = self.tag()?;
-            if tag.is_some() {
-                self.skip_flow_space()?;
-            }
-            let line = self.line;
-            let mut node = match self.peek() {
-                Some(b'[') => {
-                    self.bump();
-                    let mut items = Vec::new();
-                    loop {
-                        self.skip_flow_space()?;
-                        if self.peek() == Some(b']') {
-                            self.bump();
-                            break;
-                        }
-                        items.push(self.flow_node(depth + 1)?);
-                        self.skip_flow_space()?;
-                        match self.peek() {
-                            Some(b',') => self.bump(),
-                            Some(b']') => {
-                                self.bump();
-                                break;
-                            }
-                            _ => return Err(self.err("expected `,` or `]` in a flow sequence")),
-                        }
-                    }
-                    Node {
-                        tag: None,
-                        line,
-                        value: Value::Seq(items),
-                    }
-                }
-                Some(b'{') => {
-                    self.bump();
-                    let mut entries: Vec<(String, Node)> = Vec::new();
-                    loop {
-                        self.skip_flow_space()?;
-                        if self.peek() == Some(b'}') {
-                            self.bump();
-                            break;
-                        }
-                        let key = if matches!(self.peek(), Some(b'"' | b'\'')) {
-                            self.quoted()?
-                        } else {
-                            self.plain_flow_scalar(true)
-                        };
-                        if key.is_empty() {
-                            return Err(self.err("expected a key in a flow mapping"));
-                        }
-                        self.skip_flow_space()?;
-                        if self.peek() != Some(b':') {
-                            return Err(self.err(format!("expected `:` after key `{key}`")));
-                        }
-                        self.bump();
-                        self.skip_flow_space()?;
-                        let value = self.flow_node(depth + 1)?;
-                        if entries.iter().any(|(k, _)| *k == key) {
-                            return Err(self.err(format!("duplicate key `{key}`")));
-                        }
-                        entries.push((key, value));
-                        self.skip_flow_space()?;
-                        match self.peek() {
-                            Some(b',') => self.bump(),
-                            Some(b'}') => {
-                                self.bump();
-                                break;
-                            }
-                            _ => return Err(self.err("expected `,` or `}` in a flow mapping")),
-                        }
-                    }
-                    Node {
-                        tag: None,
-                        line,
-                        value: Value::Map(entries),
-                    }
-                }
-                Some(b'"' | b'\'') => Node::scalar(self.quoted()?, true, line),
-                _ => {
-                    let s = self.plain_flow_scalar(false);
-                    if s.is_empty() {
-                        return Err(self.err("expected a value"));
-                    }
-                    Node::scalar(s, false, line)
-                }
+                Event::SequenceEnd | Event::MappingEnd => open.pop().map(|o| o.node),
             };
-            if tag.is_some() {
-                node.tag = tag;
-            }
-            Ok(node)
-        }
-
-        /// A plain scalar inside `[ ]` or `{ }`: ends at `,` `]` `}`, a line end, a ` #`
-        /// comment, or (for keys) `:`.
-        fn plain_flow_scalar(&mut self, key: bool) -> String {
-            let start = self.pos;
-            while let Some(c) = self.peek() {
-                let stop = match c {
-                    b',' | b']' | b'}' | b'\n' => true,
-                    b':' => key || matches!(self.peek_at(1), Some(b' ' | b'\n')),
-                    b'#' => self.pos > start && self.b[self.pos - 1] == b' ',
-                    _ => false,
-                };
-                if stop {
-                    break;
+            let Some(node) = done else { continue };
+            // A complete node: the root, an item, a key or a value.
+            let Some(parent) = open.last_mut() else {
+                root = Some(node);
+                continue;
+            };
+            match (&mut parent.node.value, parent.key.take()) {
+                (Value::Seq(items), _) => items.push(node),
+                (Value::Map(entries), Some(key)) => entries.push((key, node)),
+                (Value::Map(entries), None) => {
+                    let Value::Scalar { text, .. } = node.value else {
+                        return Err(err(node.line, "a mapping key must be a scalar".into()));
+                    };
+                    if entries.iter().any(|(k, _)| *k == text) {
+                        return Err(err(node.line, format!("duplicate key `{text}`")));
+                    }
+                    parent.key = Some(text);
                 }
-                self.bump();
+                (Value::Scalar { .. }, _) => {}
             }
-            self.src[start..self.pos].trim().to_string()
+        }
+        match root {
+            None => Ok(Node {
+                tag: None,
+                line: 1,
+                value: Value::Map(Vec::new()),
+            }),
+            Some(n) if matches!(n.value, Value::Map(_)) => Ok(n),
+            // An empty document (`---` alone) is an empty scalar.
+            Some(n) if n.as_scalar() == Some("") && n.tag.is_none() => Ok(Node {
+                value: Value::Map(Vec::new()),
+                ..n
+            }),
+            Some(n) => Err(err(
+                n.line,
+                "the top level must be a mapping (`key: value`)".into(),
+            )),
         }
     }
 }
 
 mod xml {
-    //! The XML form of OpenCV's `FileStorage`: a small, non-validating element parser.
+    //! The XML form: roxmltree's document mapped onto a [`Node`] tree.
 
     use std::path::Path;
 
-    use super::{Node, Value};
+    use super::{MAX_DEPTH, Node, Value};
     use crate::error::{Error, ErrorKind, Result};
 
-    pub(super) struct Parser<'a> {
-        src: &'a str,
-        pos: usize,
-        path: &'a Path,
-    }
-
-    const MAX_DEPTH: usize = 64;
-
-    struct Element {
-        name: String,
-        type_id: Option<String>,
-        line: usize,
-        children: Vec<Element>,
-        text: String,
-        text_line: usize,
-    }
-
-    impl<'a> Parser<'a> {
-        pub(super) fn new(src: &'a str, path: &'a Path) -> Self {
-            Self { src, pos: 0, path }
-        }
-
-        fn line(&self) -> usize {
-            self.src[..self.pos].bytes().filter(|&c| c == b'\n').count() + 1
-        }
-
-        fn err(&self, msg: impl Into<String>) -> Error {
-            Error::at_line(self.path, self.line(), ErrorKind::Syntax(msg.into()))
-        }
-
-        fn rest(&self) -> &'a str {
-            &self.src[self.pos..]
-        }
-
-        fn skip_ws(&mut self) {
-            let r = self.rest();
-            self.pos += r.len() - r.trim_start().len();
-        }
-
-        /// Skips `<?...?>`, `<!--...-->` and `<!DOCTYPE ...>` with the whitespace around them.
-        fn skip_misc(&mut self) -> Result<()> {
-            loop {
-                self.skip_ws();
-                let r = self.rest();
-                let close = if r.starts_with("<?") {
-                    "?>"
-                } else if r.starts_with("<!--") {
-                    "-->"
-                } else if r.starts_with("<!") {
-                    ">"
-                } else {
-                    return Ok(());
-                };
-                match r.find(close) {
-                    Some(i) => self.pos += i + close.len(),
-                    None => return Err(self.err("unterminated `<?`, `<!--` or `<!`")),
-                }
-            }
-        }
-
-        pub(super) fn document(mut self) -> Result<Node> {
-            self.skip_misc()?;
-            if !self.rest().starts_with('<') {
-                return Err(self.err("expected `<opencv_storage>`"));
-            }
-            let root = self.element(0)?;
-            if root.name != "opencv_storage" {
-                return Err(Error::at_line(
-                    self.path,
-                    root.line,
-                    ErrorKind::Syntax(format!(
-                        "the root element is `<{}>`, expected `<opencv_storage>`",
-                        root.name
-                    )),
-                ));
-            }
-            self.skip_misc()?;
-            if !self.rest().is_empty() {
-                return Err(self.err("unexpected content after `</opencv_storage>`"));
-            }
-            let line = root.line;
-            let mut node = self.to_node(root)?;
-            if !matches!(node.value, Value::Map(_)) {
-                node = Node {
-                    tag: None,
-                    line,
-                    value: Value::Map(Vec::new()),
-                };
-            }
-            Ok(node)
-        }
-
-        fn name(&mut self) -> Result<String> {
-            let r = self.rest();
-            let n = r
-                .find(|c: char| c.is_whitespace() || c == '>' || c == '/' || c == '=')
-                .unwrap_or(r.len());
-            if n == 0 {
-                return Err(self.err("expected an element or attribute name"));
-            }
-            self.pos += n;
-            Ok(r[..n].to_string())
-        }
-
-        fn element(&mut self, depth: usize) -> Result<Element> {
-            if depth > MAX_DEPTH {
-                return Err(self.err("elements nested too deeply"));
-            }
-            let line = self.line();
-            self.pos += 1; // '<'
-            let name = self.name()?;
-            let mut type_id = None;
-            // Attributes.
-            loop {
-                self.skip_ws();
-                let r = self.rest();
-                if r.starts_with("/>") {
-                    self.pos += 2;
-                    return Ok(Element {
-                        name,
-                        type_id,
-                        line,
-                        children: Vec::new(),
-                        text: String::new(),
-                        text_line: line,
-                    });
-                }
-                if r.starts_with('>') {
-                    self.pos += 1;
-                    break;
-                }
-                if r.is_empty() {
-                    return Err(self.err(format!("unterminated tag `<{name}`")));
-                }
-                let attr = self.name()?;
-                self.skip_ws();
-                if !self.rest().starts_with('=') {
-                    return Err(self.err(format!("expected `=` after attribute `{attr}`")));
-                }
-                self.pos += 1;
-                self.skip_ws();
-                let q = self.rest().chars().next();
-                let Some(q @ ('"' | '\'')) = q else {
-                    return Err(self.err(format!("attribute `{attr}` needs a quoted value")));
-                };
-                self.pos += 1;
-                let r = self.rest();
-                let end = r
-                    .find(q)
-                    .ok_or_else(|| self.err("unterminated attribute value"))?;
-                let value = decode_entities(&r[..end]).map_err(|m| self.err(m))?;
-                self.pos += end + 1;
-                if attr == "type_id" {
-                    type_id = Some(value);
-                }
-            }
-            // Content.
-            let mut children = Vec::new();
-            let mut text = String::new();
-            let mut text_line = self.line();
-            loop {
-                let r = self.rest();
-                let lt = r
-                    .find('<')
-                    .ok_or_else(|| self.err(format!("`<{name}>` is never closed")))?;
-                if !r[..lt].trim().is_empty() {
-                    if text.trim().is_empty() {
-                        let chunk = &r[..lt];
-                        let lead = &chunk[..chunk.len() - chunk.trim_start().len()];
-                        text_line = self.line() + lead.bytes().filter(|&c| c == b'\n').count();
-                    }
-                    text.push_str(&decode_entities(&r[..lt]).map_err(|m| self.err(m))?);
-                } else {
-                    text.push(' ');
-                }
-                self.pos += lt;
-                let r = self.rest();
-                if r.starts_with("</") {
-                    self.pos += 2;
-                    let close = self.name()?;
-                    if close != name {
-                        return Err(self.err(format!("`<{name}>` is closed by `</{close}>`")));
-                    }
-                    self.skip_ws();
-                    if !self.rest().starts_with('>') {
-                        return Err(self.err(format!("expected `>` after `</{close}`")));
-                    }
-                    self.pos += 1;
-                    break;
-                } else if r.starts_with("<!--") {
-                    let end = r
-                        .find("-->")
-                        .ok_or_else(|| self.err("unterminated comment"))?;
-                    self.pos += end + 3;
-                } else if r.starts_with("<![CDATA[") {
-                    let end = r
-                        .find("]]>")
-                        .ok_or_else(|| self.err("unterminated CDATA"))?;
-                    text.push_str(&r[9..end]);
-                    self.pos += end + 3;
-                } else {
-                    children.push(self.element(depth + 1)?);
-                }
-            }
-            Ok(Element {
-                name,
-                type_id,
+    /// Parses OpenCV's XML into the tree under `<opencv_storage>`.
+    pub(super) fn document(text: &str, path: &Path) -> Result<Node> {
+        let reader = Reader {
+            path,
+            newlines: text
+                .bytes()
+                .enumerate()
+                .filter_map(|(i, c)| (c == b'\n').then_some(i))
+                .collect(),
+        };
+        let doc = roxmltree::Document::parse(text).map_err(|e| reader.syntax_error(text, &e))?;
+        let root = doc.root_element();
+        let line = reader.line(root.range().start);
+        if root.tag_name().name() != "opencv_storage" {
+            return Err(reader.err(
                 line,
-                children,
-                text,
-                text_line,
-            })
+                format!(
+                    "the root element is `<{}>`, expected `<opencv_storage>`",
+                    root.tag_name().name()
+                ),
+            ));
+        }
+        let node = reader.element(root, 0)?;
+        match node.value {
+            Value::Map(_) => Ok(node),
+            Value::Scalar { ref text, .. } if text.is_empty() => Ok(Node {
+                value: Value::Map(Vec::new()),
+                ..node
+            }),
+            _ => Err(reader.err(
+                line,
+                "`<opencv_storage>` must hold one element per key".into(),
+            )),
+        }
+    }
+
+    struct Reader<'a> {
+        path: &'a Path,
+        /// Byte offsets of the text's line ends, for line numbers.
+        newlines: Vec<usize>,
+    }
+
+    impl Reader<'_> {
+        /// The 1-based line of byte `offset`.
+        fn line(&self, offset: usize) -> usize {
+            self.newlines.partition_point(|&n| n < offset) + 1
         }
 
-        fn to_node(&self, e: Element) -> Result<Node> {
-            let tag = e.type_id.clone();
-            if !e.children.is_empty() {
-                if !e.text.trim().is_empty() {
-                    return Err(Error::at_line(
-                        self.path,
-                        e.text_line,
-                        ErrorKind::Syntax(format!("`<{}>` mixes text with child elements", e.name)),
+        fn err(&self, line: usize, msg: String) -> Error {
+            Error::at_line(self.path, line, ErrorKind::Syntax(msg))
+        }
+
+        /// roxmltree's error, on its line. roxmltree ends most messages with " at LINE:COLUMN"
+        /// (dropped: the line goes in front); for a close tag that does not match, say which
+        /// element is left open and where it was opened.
+        fn syntax_error(&self, text: &str, e: &roxmltree::Error) -> Error {
+            let line = e.pos().row as usize;
+            if let roxmltree::Error::UnexpectedCloseTag(open, close, _) = e {
+                // The last `<open` before the close tag (roxmltree's column counts characters
+                // from 1).
+                let line_start = line
+                    .checked_sub(2)
+                    .and_then(|l| self.newlines.get(l))
+                    .map_or(0, |&n| n + 1);
+                let col = (e.pos().col as usize).saturating_sub(1);
+                let before = text.get(line_start..).map_or(text.len(), |rest| {
+                    line_start + rest.chars().take(col).map(char::len_utf8).sum::<usize>()
+                });
+                let opened = text[..before]
+                    .rmatch_indices(&format!("<{open}"))
+                    .map(|(i, _)| i)
+                    .find(|&i| {
+                        let after = text.as_bytes().get(i + open.len() + 1).copied();
+                        matches!(after, Some(b'>' | b' ' | b'\t' | b'\r' | b'\n'))
+                    });
+                let at = opened.map_or(String::new(), |i| format!(" (line {})", self.line(i)));
+                return self.err(line, format!("`<{open}>`{at} is closed by `</{close}>`"));
+            }
+            let msg = e.to_string();
+            let pos = format!(" at {}", e.pos());
+            self.err(line, msg.strip_suffix(&pos).unwrap_or(&msg).to_string())
+        }
+
+        fn element(&self, e: roxmltree::Node<'_, '_>, depth: usize) -> Result<Node> {
+            let line = self.line(e.range().start);
+            let name = e.tag_name().name();
+            if depth > MAX_DEPTH {
+                return Err(self.err(line, "elements nested too deeply".into()));
+            }
+            // Sequence items in file order (text tokens and `<_>` elements), mapping entries.
+            let mut items: Vec<Node> = Vec::new();
+            let mut entries: Vec<(String, Node)> = Vec::new();
+            let mut tokens = 0usize;
+            for child in e.children() {
+                if child.is_element() {
+                    let node = self.element(child, depth + 1)?;
+                    let key = child.tag_name().name();
+                    if key == "_" {
+                        items.push(node);
+                    } else if entries.iter().any(|(k, _)| k == key) {
+                        return Err(self.err(node.line, format!("duplicate key `{key}`")));
+                    } else {
+                        entries.push((key.to_string(), node));
+                    }
+                } else if let Some(text) = child.text().filter(|_| child.is_text()) {
+                    let first = self.line(child.range().start);
+                    let before = items.len();
+                    tokenize(text, first, &mut items).map_err(|(l, m)| self.err(l, m))?;
+                    tokens += items.len() - before;
+                }
+            }
+            let tag = e.attribute("type_id").map(str::to_string);
+            let value = if !entries.is_empty() {
+                if let Some(item) = items.first() {
+                    return Err(self.err(
+                        item.line,
+                        format!("`<{name}>` mixes named elements with text or `<_>` items"),
                     ));
                 }
-                let seq = e.children.iter().all(|c| c.name == "_");
-                let value = if seq {
-                    Value::Seq(
-                        e.children
-                            .into_iter()
-                            .map(|c| self.to_node(c))
-                            .collect::<Result<_>>()?,
-                    )
-                } else {
-                    let mut entries: Vec<(String, Node)> = Vec::new();
-                    for c in e.children {
-                        if entries.iter().any(|(k, _)| *k == c.name) {
-                            return Err(Error::at_line(
-                                self.path,
-                                c.line,
-                                ErrorKind::Syntax(format!("duplicate key `{}`", c.name)),
-                            ));
-                        }
-                        let name = c.name.clone();
-                        entries.push((name, self.to_node(c)?));
-                    }
-                    Value::Map(entries)
-                };
-                return Ok(Node {
-                    tag,
-                    line: e.line,
-                    value,
-                });
-            }
-            if tag.as_deref() == Some("opencv-matrix") {
-                // A matrix element without children is malformed; let the matrix reader say
-                // which field is missing.
-                return Ok(Node {
-                    tag,
-                    line: e.line,
-                    value: Value::Map(Vec::new()),
-                });
-            }
-            // Text: one token is a scalar, several form a sequence (how OpenCV writes lists of
-            // numbers); a quoted token is a string.
-            let tokens = tokenize(&e.text, e.text_line)
-                .map_err(|m| Error::at_line(self.path, e.text_line, ErrorKind::Syntax(m)))?;
-            let value = match tokens.len() {
-                0 => Value::Scalar {
+                Value::Map(entries)
+            } else if items.len() > tokens || tokens > 1 {
+                Value::Seq(items)
+            } else if tag.as_deref() == Some("opencv-matrix") {
+                // A matrix without its fields: the matrix reader says which one is missing.
+                Value::Map(Vec::new())
+            } else if let Some(item) = items.pop() {
+                item.value
+            } else {
+                Value::Scalar {
                     text: String::new(),
                     quoted: false,
-                },
-                1 => tokens
-                    .into_iter()
-                    .next()
-                    .map(|n| n.value)
-                    .unwrap_or(Value::Seq(Vec::new())),
-                _ => Value::Seq(tokens),
+                }
             };
-            Ok(Node {
-                tag,
-                line: e.line,
-                value,
-            })
+            Ok(Node { tag, line, value })
         }
     }
 
-    /// Splits text into whitespace-separated tokens, keeping `"quoted strings"` whole, each with
-    /// its line.
-    fn tokenize(text: &str, first_line: usize) -> std::result::Result<Vec<Node>, String> {
-        let mut out = Vec::new();
-        let mut line = first_line;
-        let mut chars = text.chars().peekable();
-        // The text may start with the newline after the opening tag, already counted.
-        let mut seen_content = false;
-        while let Some(&c) = chars.peek() {
-            if c.is_whitespace() {
-                if c == '\n' && seen_content {
-                    line += 1;
-                }
-                chars.next();
-                continue;
+    /// Appends the whitespace-separated tokens of `text` (whose first byte is on line `line`)
+    /// to `out`, a `"quoted string"` being one token.
+    fn tokenize(
+        text: &str,
+        mut line: usize,
+        out: &mut Vec<Node>,
+    ) -> std::result::Result<(), (usize, String)> {
+        let mut rest = text;
+        loop {
+            let trimmed = rest.trim_start();
+            line += rest[..rest.len() - trimmed.len()].matches('\n').count();
+            rest = trimmed;
+            if rest.is_empty() {
+                return Ok(());
             }
-            seen_content = true;
-            if c == '"' {
-                chars.next();
-                let mut s = String::new();
-                loop {
-                    match chars.next() {
-                        Some('"') => break,
-                        Some(ch) => s.push(ch),
-                        None => return Err("unterminated quoted string".to_string()),
-                    }
-                }
-                out.push(Node::scalar(s, true, line));
+            let (token, quoted, len) = if let Some(q) = rest.strip_prefix('"') {
+                let end = q
+                    .find('"')
+                    .ok_or_else(|| (line, "unterminated quoted string".to_string()))?;
+                (&q[..end], true, end + 2)
             } else {
-                let mut s = String::new();
-                while let Some(&ch) = chars.peek() {
-                    if ch.is_whitespace() {
-                        break;
-                    }
-                    s.push(ch);
-                    chars.next();
-                }
-                out.push(Node::scalar(s, false, line));
-            }
-        }
-        Ok(out)
-    }
-
-    fn decode_entities(s: &str) -> std::result::Result<String, String> {
-        if !s.contains('&') {
-            return Ok(s.to_string());
-        }
-        let mut out = String::with_capacity(s.len());
-        let mut rest = s;
-        while let Some(i) = rest.find('&') {
-            out.push_str(&rest[..i]);
-            let after = &rest[i + 1..];
-            let semi = after
-                .find(';')
-                .ok_or_else(|| "`&` without `;` (unescaped ampersand?)".to_string())?;
-            let ent = &after[..semi];
-            let ch = match ent {
-                "lt" => '<',
-                "gt" => '>',
-                "amp" => '&',
-                "quot" => '"',
-                "apos" => '\'',
-                _ => {
-                    let code = if let Some(h) = ent.strip_prefix("#x") {
-                        u32::from_str_radix(h, 16).ok()
-                    } else if let Some(d) = ent.strip_prefix('#') {
-                        d.parse().ok()
-                    } else {
-                        None
-                    };
-                    code.and_then(char::from_u32)
-                        .ok_or_else(|| format!("unknown entity `&{ent};`"))?
-                }
+                let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+                (&rest[..end], false, end)
             };
-            out.push(ch);
-            rest = &after[semi + 1..];
+            out.push(Node::scalar(token, quoted, line));
+            line += token.matches('\n').count();
+            rest = &rest[len..];
         }
-        out.push_str(rest);
-        Ok(out)
     }
 }
 
@@ -1459,6 +936,25 @@ mod tests {
         assert_eq!(parse_dt("x"), None);
         assert_eq!(parse_dt("0d"), None);
         assert_eq!(parse_dt(""), None);
+    }
+
+    #[test]
+    fn opencv_yaml_becomes_yaml12_line_for_line() {
+        let (t, unclosed) = to_yaml12(
+            "%YAML:1.0\n---\nf: { a:1, b:[ 1, 2 ], c:\"x:y\", d:{ e:1 }, s:two words }\n\
+             s: \"{ k:v\" # { a:b\nq: 'it''s { a:b'\nu: http://x\n",
+        );
+        assert_eq!(
+            t,
+            "\n---\nf: { a: 1, b: [ 1, 2 ], c: \"x:y\", d: { e: 1 }, s: two words }\n\
+             s: \"{ k:v\" # { a:b\nq: 'it''s { a:b'\nu: http://x\n"
+        );
+        assert_eq!(unclosed, None);
+        // Spaced flow keys and block mappings are left alone; an unclosed `[` is reported.
+        let text = "a: { b: 1 }\nc:\n  d: [ 1,\n    { e:2 }\n";
+        let (t, unclosed) = to_yaml12(text);
+        assert_eq!(t, text.replace("e:2", "e: 2"));
+        assert_eq!(unclosed, Some(('[', 3)));
     }
 
     #[test]
@@ -1511,7 +1007,10 @@ mod tests {
         assert!(e.to_string().contains("duplicate key"), "{e}");
         let e = FileStorage::parse_xml("<opencv_storage><a>1</b></opencv_storage>", "t.xml")
             .unwrap_err();
-        assert!(e.to_string().contains("closed by"), "{e}");
+        assert!(
+            e.to_string().contains("`<a>` (line 1) is closed by `</b>`"),
+            "{e}"
+        );
     }
 
     #[test]

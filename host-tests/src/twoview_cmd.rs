@@ -34,7 +34,8 @@ use camgeom::transform::Transform;
 use camgeom::twoview::{
     View1, find_essential, find_fundamental, recover_pose, triangulate_optimal,
 };
-use camgeom_host::{load_camera, status_name};
+use camgeom_host::points::to_json;
+use camgeom_host::{Error, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
@@ -122,12 +123,12 @@ pub struct TwoviewOutput<T> {
     pub matches: Option<usize>,
 }
 
-/// Runs the subcommand; `Err` is the one-line message of an input error (status 2).
-pub fn run(a: &TwoviewArgs) -> Result<String, String> {
+/// Runs the subcommand: the JSON result.
+pub fn run(a: &TwoviewArgs) -> Result<String> {
     let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
-    let spec1 = load_camera(&a.intrinsics1).map_err(|e| e.to_string())?;
+    let spec1 = load_camera(&a.intrinsics1)?;
     let spec2 = match &a.intrinsics2 {
-        Some(p) => load_camera(p).map_err(|e| e.to_string())?,
+        Some(p) => load_camera(p)?,
         None => spec1,
     };
     let out = if a.f32 {
@@ -167,13 +168,10 @@ pub fn estimate<T: Real>(
     from_images: bool,
     c1: &Camera<T>,
     c2: &Camera<T>,
-) -> Result<TwoviewOutput<T>, String> {
+) -> Result<TwoviewOutput<T>> {
     let fail = |what: &str, e: camgeom::Error| {
-        format!(
-            "{source}: {what} failed: {} ({e}), {} correspondences",
-            status_name(&e),
-            matches.len()
-        )
+        let n = matches.len();
+        Error::camgeom(format!("{source}: {what} failed on {n} correspondences"), e)
     };
     let cast = |p: &Point2<f64>| Point2::new(T::lit(p.x), T::lit(p.y));
     let mut x1 = Vec::with_capacity(matches.len());
@@ -247,12 +245,4 @@ pub fn estimate<T: Real>(
         reprojection_rms_px,
         matches: from_images.then_some(matches.len()),
     })
-}
-
-/// Pretty-printed JSON with a final newline.
-fn to_json<S: Serialize>(value: &S) -> String {
-    // Numbers, booleans and strings only: serialising cannot fail.
-    let mut s = serde_json::to_string_pretty(value).unwrap_or_default();
-    s.push('\n');
-    s
 }

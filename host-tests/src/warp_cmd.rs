@@ -16,8 +16,8 @@ use camgeom::homography::Homography;
 use camgeom::nalgebra::Point2;
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
 use camgeom_host::images::{load_gray, save_gray};
-use camgeom_host::points::read_csv;
-use camgeom_host::status_name;
+use camgeom_host::points::{read_csv, to_json};
+use camgeom_host::{Error, ErrorKind, Result};
 use clap::Args;
 use serde::Serialize;
 
@@ -52,25 +52,24 @@ struct WarpOutput {
     arithmetic: &'static str,
 }
 
-pub fn run(a: &WarpArgs) -> Result<String, String> {
-    let logo = load_gray(&a.logo).map_err(|e| e.to_string())?;
-    let mut frame = load_gray(&a.frame).map_err(|e| e.to_string())?;
-    let table = read_csv(&a.corners, &["x", "y"]).map_err(|e| e.to_string())?;
+/// Runs the subcommand: writes the image, returns the JSON result.
+pub fn run(a: &WarpArgs) -> Result<String> {
+    let logo = load_gray(&a.logo)?;
+    let mut frame = load_gray(&a.frame)?;
+    let table = read_csv(&a.corners, &["x", "y"])?;
     if table.rows.len() != 4 {
-        return Err(format!(
-            "{}: expected 4 corner rows (x,y), found {}",
-            a.corners.display(),
-            table.rows.len()
+        return Err(Error::new(
+            &a.corners,
+            ErrorKind::Shape(format!(
+                "expected 4 corner rows (x,y), found {}",
+                table.rows.len()
+            )),
         ));
     }
     let quad: [Point2<f32>; 4] =
         core::array::from_fn(|i| Point2::new(table.rows[i][0] as f32, table.rows[i][1] as f32));
     let fail = |what: &str, e: camgeom::Error| {
-        format!(
-            "{}: {what} failed: {} ({e})",
-            a.corners.display(),
-            status_name(&e)
-        )
+        Error::camgeom(format!("{}: {what} failed", a.corners.display()), e)
     };
     let (w, h) = ((logo.width - 1) as f64, (logo.height - 1) as f64);
     let src = [
@@ -89,19 +88,17 @@ pub fn run(a: &WarpArgs) -> Result<String, String> {
             Arithmetic::Float
         },
     };
-    let too_big = |p: &PathBuf| format!("{}: image size not supported by camgeom", p.display());
+    let too_big = |p: &PathBuf| Error::new(p, ErrorKind::Unsupported("the image size".into()));
     let logo_view = logo.view().ok_or_else(|| too_big(&a.logo))?;
     let mut frame_view = frame.view_mut().ok_or_else(|| too_big(&a.frame))?;
     let report =
         warp_into_quad(&logo_view, &mut frame_view, &quad, &config).map_err(|e| fail("warp", e))?;
-    save_gray(&frame, &a.out).map_err(|e| e.to_string())?;
+    save_gray(&frame, &a.out)?;
     let m = hom.matrix();
     let out = WarpOutput {
         h: core::array::from_fn(|k| m[(k / 3, k % 3)]),
         written: report.written,
         arithmetic: if a.fixed { "fixed" } else { "float" },
     };
-    let mut s = serde_json::to_string_pretty(&out).unwrap_or_default();
-    s.push('\n');
-    Ok(s)
+    Ok(to_json(&out))
 }

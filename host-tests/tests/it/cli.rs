@@ -279,7 +279,10 @@ fn usage_and_input_errors_exit_2_with_one_line() {
         &["project", "--intrinsics", path(&bad_cam), "--points", good],
         None,
     );
-    assert_usage_error(&out, "InvalidIntrinsics");
+    assert_usage_error(
+        &out,
+        "invalid_intrinsics (intrinsics do not describe a camera)",
+    );
 
     let out = camgeom(
         &[
@@ -313,6 +316,57 @@ fn usage_and_input_errors_exit_2_with_one_line() {
     );
     assert_usage_error(&camgeom(&["frobnicate"], None), "frobnicate"); // an unknown subcommand (`warp` exists now)
     assert_usage_error(&camgeom(&[], None), "subcommand");
+}
+
+/// An output that cannot be written (a file a subcommand writes, or standard output) exits
+/// with status 1 and one line naming it.
+#[test]
+fn output_errors_exit_1_with_one_line() {
+    let features = camgeom_host::data_dir().join("features");
+    let corners = scratch_file("cli-quad.csv", "10,10\n100,12\n98,90\n12,95\n");
+    let out = camgeom(
+        &[
+            "warp",
+            "--logo",
+            path(&features.join("box.png")),
+            "--frame",
+            path(&features.join("box_in_scene.png")),
+            "--corners",
+            path(&corners),
+            "--out",
+            "/no/such/dir/out.png",
+        ],
+        None,
+    );
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert!(out.stdout.is_empty(), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("camgeom: error: /no/such/dir/out.png: cannot write: "),
+        "{err}"
+    );
+
+    // Standard output on a full device (Linux's /dev/full).
+    let Ok(full) = std::fs::OpenOptions::new().write(true).open("/dev/full") else {
+        return;
+    };
+    let out = Command::new(env!("CARGO_BIN_EXE_camgeom"))
+        .args([
+            "camera",
+            "--intrinsics",
+            path(&chessboard("left_intrinsics.yml")),
+        ])
+        .stdout(full)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with("camgeom: error: standard output: cannot write: ")
+            && err.lines().count() == 1,
+        "{err}"
+    );
 }
 
 #[test]

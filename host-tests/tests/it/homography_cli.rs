@@ -168,18 +168,20 @@ fn input_errors_name_the_camgeom_error() {
         &homography("short.csv", "0,0,1,1\n1,0,2\n", &[]),
         "expected 4",
     );
+    // A parameter out of range: the message names it as camgeom's configuration spells it.
     let (csv, _, _) = with_outliers();
     assert_input_error(
         &homography("outliers.csv", &csv, &["--threshold", "0"]),
-        "invalid_parameter",
+        "find_homography failed on 60 correspondences: invalid_parameter (parameter out of \
+         range: ransac.threshold)",
     );
     assert_input_error(
         &homography("outliers.csv", &csv, &["--confidence", "1.5"]),
-        "invalid_parameter",
+        "invalid_parameter (parameter out of range: ransac.confidence)",
     );
     assert_input_error(
         &homography("outliers.csv", &csv, &["--max-iters", "0"]),
-        "invalid_parameter",
+        "invalid_parameter (parameter out of range: ransac.max_iterations)",
     );
 }
 

@@ -6,6 +6,7 @@ mod ar_box;
 mod cli;
 mod common;
 mod features;
+mod filestorage;
 mod homography_cli;
 mod homography_sweep;
 mod klt;

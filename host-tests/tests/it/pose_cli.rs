@@ -209,5 +209,10 @@ fn bad_input_is_a_one_line_error() {
         "singular.json",
         r#"{"fx": 0.0, "fy": 510.0, "cx": 320.0, "cy": 240.0}"#,
     );
-    check(square, singular.to_str().unwrap(), &[], "InvalidIntrinsics");
+    check(
+        square,
+        singular.to_str().unwrap(),
+        &[],
+        "invalid_intrinsics",
+    );
 }
