@@ -86,7 +86,7 @@ pub type HostTarget<A> = PlanarTarget<
 pub const MAX_WIDTH: usize = 4096;
 
 /// Runs the AR loop ([`PlanarTarget::step`], the same per-frame policy as the board) over
-/// `frames`; `acquire` finds the target (e.g. [`GivenCorners`] from the corners picked in
+/// `frames`; `acquire` finds the target (e.g. [`camgeom::target::GivenCorners`] from the corners picked in
 /// frame 0). `on_frame` sees every frame's outcome as it is computed.
 ///
 /// Errors: as [`TargetParams::new`] and [`PlanarTarget::step`]; [`camgeom::Error::InvalidImage`]
@@ -182,7 +182,7 @@ impl RgbImage {
         use image::ImageEncoder;
         use image::codecs::png::{CompressionType, FilterType, PngEncoder};
         let path = path.as_ref();
-        let io = |e: std::io::Error| crate::Error::new(path, crate::ErrorKind::Io(e));
+        let io = |e: std::io::Error| crate::Error::new(path, crate::ErrorKind::Write(e));
         let file = std::fs::File::create(path).map_err(io)?;
         let enc = PngEncoder::new_with_quality(
             std::io::BufWriter::new(file),
