@@ -14,6 +14,7 @@ extern crate std;
 
 pub mod pipeline;
 pub mod qvga;
+pub mod recorded;
 pub mod report;
 pub mod run;
 pub mod slot;
@@ -21,5 +22,5 @@ pub mod source;
 pub mod texture;
 
 pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameReport, Pipeline, StageCosts};
-pub use run::RunSpec;
+pub use run::{RunSpec, drive};
 pub use source::FrameSource;

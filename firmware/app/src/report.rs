@@ -46,6 +46,10 @@ pub struct ErrorCode(pub u8);
 impl ErrorCode {
     /// Codes from this one on are core errors.
     pub const CORE: u8 = 16;
+    /// The camera delivered a frame of the wrong size.
+    pub const WRONG_SIZE: Self = Self(5);
+    /// Reading the frame failed.
+    pub const READ_FAILED: Self = Self(6);
 
     /// The code of a pipeline error.
     pub fn of<E>(e: &AppError<E>) -> Self {
@@ -74,6 +78,8 @@ impl ErrorCode {
             2 => "no_frame",
             3 => "geometry",
             4 => "not_started",
+            5 => "wrong_size",
+            6 => "read_failed",
             c => Error::ALL
                 .get(usize::from(c.wrapping_sub(Self::CORE)))
                 .map_or("unknown", Error::name),
@@ -174,12 +180,12 @@ impl FrameRecord {
         }
     }
 
-    /// The record of frame `index` that failed with `e` while the tracker was in `state`.
-    pub fn failed<E>(index: u32, state: TargetState, e: &AppError<E>) -> Self {
+    /// The record of frame `index` that failed with `error` while the tracker was in `state`.
+    pub fn failed(index: u32, state: TargetState, error: ErrorCode) -> Self {
         Self {
             index,
             state,
-            error: Some(ErrorCode::of(e)),
+            error: Some(error),
             ..Self::default()
         }
     }
@@ -445,6 +451,8 @@ mod tests {
             assert_eq!(ErrorCode::of_core(&e).name(), e.name());
             assert_eq!(ErrorCode::of(&AppError::<()>::Core(e)).name(), e.name());
         }
+        assert_eq!(ErrorCode::WRONG_SIZE.name(), "wrong_size");
+        assert_eq!(ErrorCode::READ_FAILED.name(), "read_failed");
         assert_eq!(ErrorCode(200).name(), "unknown");
     }
 

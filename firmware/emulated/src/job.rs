@@ -1,7 +1,8 @@
 //! The emulated board's main job: the `camgeom-fw-app` pipeline over a recorded sequence.
 //!
-//! Reads the run description (`run.bin`) and the frames (`frames.raw`) from the host over
-//! semihosting ([`crate::semihost`]), runs [`Pipeline`] on every frame and writes what it
+//! Reads the run description (`run.bin`), the frames (`frames.raw`) and, for the fault job, a
+//! fault plan (`faults.bin`) from the host over semihosting ([`crate::semihost`]), runs
+//! [`Pipeline`] on every frame ([`drive`], the loop the host replay runs too) and writes what it
 //! found back as binary records ([`camgeom_fw_app::report`]: one per frame with state, counts,
 //! track checksum, poses, outline and per-stage cost in instructions, then a summary with the
 //! pipeline's RAM and the stack high-water mark) to `report.bin`. Every `overlay_every`-th
@@ -10,11 +11,13 @@
 
 use camgeom::image::ImageView;
 use camgeom::target::{GivenCorners, TargetState};
-use camgeom_fw_app::pipeline::{AppError, Clock, FrameReport, Pipeline};
+use camgeom_fw_app::drive;
+use camgeom_fw_app::pipeline::{AppError, Clock, Pipeline};
+use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 use camgeom_fw_app::run::{RUN_SPEC_LEN, RunSpec};
 
-use crate::semihost::{HostError, HostFile, RecordedCamera};
+use crate::semihost::{HostError, HostFile, HostFrames};
 use crate::{board, cost};
 
 /// Pyramid levels, KLT window, corner candidates and tracks of the main job (shared with the
@@ -38,28 +41,50 @@ fn fail_host(what: &str, e: HostError) -> ! {
     board::exit_failure()
 }
 
-fn fail_app(what: &str, e: AppError<HostError>) -> ! {
+fn fail_app(what: &str, e: AppError<CameraError<HostError>>) -> ! {
     match e {
-        AppError::Source(h) => defmt::error!("{=str}: frame source: {}", what, h),
         AppError::Core(c) => defmt::error!("{=str}: {}", what, c),
         other => defmt::error!("{=str}: {=str}", what, other.name()),
     }
     board::exit_failure()
 }
 
-fn log_frame(recorded: usize, r: &FrameReport) {
-    defmt::debug!(
-        "frame {=u32} (recorded {=usize}): {=str} tracked {=usize} inliers {=usize} added {=usize} features {=usize} q16 {=u32:#010x} total {=u32}",
-        r.index,
-        recorded,
-        r.state.name(),
-        r.tracked,
-        r.inliers,
-        r.added,
-        r.features,
-        r.checksum,
-        r.costs.total
-    );
+/// The fault plan in `faults.bin`, or none when there is no such file (the main job).
+fn read_faults() -> FaultPlan {
+    let mut bytes = [0u8; FAULT_PLAN_LEN];
+    match HostFile::open_read("faults.bin") {
+        Err(_) => FaultPlan::none(),
+        Ok(mut f) => match f.read_exact(&mut bytes).map(|()| FaultPlan::parse(&bytes)) {
+            Ok(Ok(plan)) => plan,
+            Ok(Err(e)) => {
+                defmt::error!("faults.bin: {}", e);
+                board::exit_failure()
+            }
+            Err(e) => fail_host("faults.bin", e),
+        },
+    }
+}
+
+fn log_frame(r: &FrameRecord) {
+    match r.error {
+        Some(e) => defmt::debug!(
+            "frame {=u32}: error {=str} ({=str})",
+            r.index,
+            e.name(),
+            r.state.name()
+        ),
+        None => defmt::debug!(
+            "frame {=u32}: {=str} tracked {=u16} inliers {=u16} added {=u16} features {=u16} q16 {=u32:#010x} total {=u32}",
+            r.index,
+            r.state.name(),
+            r.tracked,
+            r.inliers,
+            r.added,
+            r.features,
+            r.checksum,
+            r.costs.total
+        ),
+    }
 }
 
 /// Writes `overlay-NNNN.raw` (4-digit recorded frame number).
@@ -125,21 +150,23 @@ pub fn run<
         board::exit_failure()
     }
     let stride = spec.stride.max(1) as usize;
-    let mut camera =
-        match RecordedCamera::open("frames.raw", width, height, stride, spec.frames as usize) {
-            Ok(c) => c,
-            Err(e) => fail_host("frames.raw", e),
-        };
+    let plan = read_faults();
+    let frames = match HostFrames::open("frames.raw", width, height) {
+        Ok(f) => f,
+        Err(e) => fail_host("frames.raw", e),
+    };
+    let mut camera = RecordedCamera::new(frames, stride, spec.frames as usize, plan);
     let mut report = match HostFile::create(REPORT_FILE) {
         Ok(f) => f,
         Err(e) => fail_host(REPORT_FILE, e),
     };
     defmt::info!(
-        "main job: {=usize}x{=usize}, {=usize} frames (stride {=usize}), {=usize} pyramid levels, KLT {=usize}x{=usize} Q16.16, {=usize} tracks; pipeline RAM {=usize} bytes (const sizes)",
+        "main job: {=usize}x{=usize}, {=usize} frames (stride {=usize}, {=usize} fault spans), {=usize} pyramid levels, KLT {=usize}x{=usize} Q16.16, {=usize} tracks; pipeline RAM {=usize} bytes (const sizes)",
         width,
         height,
         camera.count(),
         stride,
+        plan.spans().count(),
         LEVELS,
         WIN,
         WIN,
@@ -161,27 +188,24 @@ pub fn run<
         }
     };
     let mut summary = SummaryRecord::default();
-    let mut record = |r: &FrameReport| {
-        log_frame(r.index as usize * stride, r);
+    let mut record = |r: &FrameRecord| {
+        log_frame(r);
         summary.frames += 1;
-        summary.tracking += u32::from(r.state == TargetState::Tracking);
-        if let Err(e) = report.write_all(&FrameRecord::of(r).encode()) {
+        summary.tracking += u32::from(r.state == TargetState::Tracking && r.error.is_none());
+        if let Err(e) = report.write_all(&r.encode()) {
             fail_host(REPORT_FILE, e)
         }
     };
     let mut acquire = GivenCorners::new(spec.start_corners());
-    match app.start(&cfg, &mut camera, &mut acquire, &mut clock) {
-        Ok(r) => record(&r),
-        Err(e) => fail_app("start", e),
-    }
-    loop {
-        match app.step(&cfg, &mut camera, &mut acquire, &mut clock, &mut overlay) {
-            Ok(Some(r)) => record(&r),
-            Ok(None) => break,
-            Err(e) => fail_app("step", e),
-        }
-    }
-    if let Err(e) = app.finish::<HostError>(&cfg, &mut overlay) {
+    if let Err(e) = drive(
+        app,
+        &cfg,
+        &mut camera,
+        &mut acquire,
+        &mut clock,
+        &mut record,
+        &mut overlay,
+    ) {
         fail_app("finish", e)
     }
     if let Some(e) = overlay_error {

@@ -1,4 +1,4 @@
-//! Host files over semihosting, and the emulated board's virtual camera.
+//! Host files over semihosting, and the recorded frames of the emulated board's camera.
 //!
 //! QEMU runs with `-semihosting-config enable=on,target=native`: the semihosting calls
 //! `SYS_OPEN`, `SYS_READ`, `SYS_WRITE`, `SYS_SEEK`, `SYS_FLEN` and `SYS_CLOSE` (the same on Arm
@@ -9,7 +9,7 @@
 use core::ffi::CStr;
 
 use camgeom::image::ImageMut;
-use camgeom_fw_app::FrameSource;
+use camgeom_fw_app::recorded::RecordedFrames;
 use semihosting::io::{Read as _, Seek as _, SeekFrom, Write as _};
 
 /// A semihosting call failed (the host returned -1, or moved fewer bytes than asked).
@@ -83,75 +83,65 @@ impl HostFile {
     }
 }
 
-/// The virtual camera: frames of a recorded sequence, raw `width x height` grayscale bytes one
-/// after the other in one host file, delivered every `stride`-th frame up to `count` frames.
-pub struct RecordedCamera {
+/// A recording in a host file: raw `width x height` grayscale frames one after the other, read
+/// over semihosting (random access, for [`camgeom_fw_app::recorded::RecordedCamera`]).
+pub struct HostFrames {
     file: HostFile,
     width: usize,
     height: usize,
-    stride: usize,
-    count: usize,
-    next: usize,
+    len: usize,
 }
 
-impl RecordedCamera {
-    /// Opens `name`; `count` is capped to the frames the file holds.
-    pub fn open(
-        name: &str,
-        width: usize,
-        height: usize,
-        stride: usize,
-        count: usize,
-    ) -> Result<Self, HostError> {
+impl HostFrames {
+    /// Opens `name` for frames of `width x height`.
+    pub fn open(name: &str, width: usize, height: usize) -> Result<Self, HostError> {
         let file = HostFile::open_read(name)?;
-        let frame = (width * height).max(1);
-        let stride = stride.max(1);
-        let held = file.file_len()? / frame;
+        let len = file.file_len()? / (width * height).max(1);
         Ok(Self {
             file,
             width,
             height,
-            stride,
-            count: count.min(held.div_ceil(stride)),
-            next: 0,
+            len,
         })
-    }
-
-    /// Frames this source delivers in all.
-    pub fn count(&self) -> usize {
-        self.count
-    }
-
-    /// The recorded frame number of the `i`-th delivered frame.
-    pub fn recorded_index(&self, i: usize) -> usize {
-        i * self.stride
     }
 }
 
-impl FrameSource for RecordedCamera {
+/// What [`RecordedFrames::failing_read`] opens: a name no run directory holds, so the host
+/// refuses the call.
+const MISSING: &str = "no-such-frame.raw";
+
+impl RecordedFrames for HostFrames {
     type Error = HostError;
 
     fn size(&self) -> (usize, usize) {
         (self.width, self.height)
     }
 
-    fn next_frame(&mut self, frame: &mut ImageMut<'_, u8>) -> Result<bool, HostError> {
-        if self.next >= self.count {
-            return Ok(false);
-        }
-        if (frame.width(), frame.height()) != (self.width, self.height) {
-            return Err(HostError::Read);
-        }
-        let frame_len = self.width * self.height;
-        if self.stride > 1 {
-            self.file.seek(self.recorded_index(self.next) * frame_len)?;
-        }
-        for y in 0..self.height {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn read_rows(
+        &mut self,
+        index: usize,
+        rows: core::ops::Range<usize>,
+        frame: &mut ImageMut<'_, u8>,
+    ) -> Result<(), HostError> {
+        let w = self.width;
+        self.file.seek((index * self.height + rows.start) * w)?;
+        for y in rows {
             let row = frame.row_mut(y).ok_or(HostError::Read)?;
-            let row = row.get_mut(..self.width).ok_or(HostError::Read)?;
-            self.file.read_exact(row)?;
+            self.file
+                .read_exact(row.get_mut(..w).ok_or(HostError::Read)?)?;
         }
-        self.next += 1;
-        Ok(true)
+        Ok(())
+    }
+
+    fn failing_read(&mut self) -> HostError {
+        match HostFile::open_read(MISSING) {
+            Err(e) => e,
+            // Someone made the file: still a frame that did not arrive.
+            Ok(_) => HostError::Read,
+        }
     }
 }

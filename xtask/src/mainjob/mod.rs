@@ -20,6 +20,7 @@
 
 mod compare;
 mod emulate;
+mod faults;
 mod prepare;
 mod replay;
 mod table;
@@ -29,6 +30,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Result, ensure};
+use camgeom_fw_app::recorded::FaultPlan;
 use camgeom_host::ar::{RgbImage, contact_sheet};
 use camgeom_host::images::{GrayImage, save_gray};
 
@@ -129,6 +131,32 @@ fn run_board(
     Ok(row)
 }
 
+/// The fault job on the reference board (see [`faults`]): prints its table.
+fn fault_job(stride: u32) -> Result<()> {
+    let size = FULL;
+    let dir = root().join("target/camgeom-run/faults");
+    let t = Instant::now();
+    let spec = prepare::prepare(size, stride, &dir)?;
+    let plan = faults::plan()?;
+    fs::write(dir.join("faults.bin"), plan.to_bytes())?;
+    let raw = fs::read(dir.join("frames.raw"))?;
+    let host = replay::replay_size(size, &spec, &plan, &raw)?;
+    let elf = build_bin_for(M7, size.bin, &[])?;
+    let run = emulate::run_board(M7, &elf, &dir, size, stride)?;
+    let verdict = compare::compare(&run.frames, &host.0, &run.overlays, &host.1)?;
+    let rows = faults::check(&plan, &run.frames, host.0.len())?;
+    println!(
+        "fault job {} {} ({} fault spans): {verdict}; every frame reported, the target found again \
+         after every fault ({:.1} s)\n\n{}",
+        M7.name,
+        size.name(),
+        plan.spans().count(),
+        t.elapsed().as_secs_f64(),
+        faults::table(&rows)
+    );
+    Ok(())
+}
+
 /// `cargo xtask run`.
 pub fn run(opts: &Options) -> Result<()> {
     if opts.boards.contains(&M7) {
@@ -141,7 +169,14 @@ pub fn run(opts: &Options) -> Result<()> {
         let t = Instant::now();
         let spec = prepare::prepare(size, opts.stride, &dir)?;
         let raw = fs::read(dir.join("frames.raw"))?;
-        let host = replay::replay_size(size, &spec, &raw)?;
+        let host = replay::replay_size(size, &spec, &FaultPlan::none(), &raw)?;
+        if let Some((k, r)) = host.0.iter().find(|(_, r)| r.error.is_some()) {
+            anyhow::bail!(
+                "main job {}: frame {k} failed with {} on the host",
+                size.name(),
+                r.error.map_or("?", |e| e.name())
+            );
+        }
         println!(
             "main job {}: input prepared in {} and replayed on the host ({:.1} s)",
             size.name(),
@@ -151,6 +186,9 @@ pub fn run(opts: &Options) -> Result<()> {
         for &board in &opts.boards {
             rows.push(run_board(board, size, &dir, spec.stride, &host)?);
         }
+    }
+    if opts.boards.contains(&M7) {
+        fault_job(opts.stride)?;
     }
     println!(
         "\n---- main job cost table (Markdown; fps = 480e6 / mean total on the Cortex-M7, assuming \

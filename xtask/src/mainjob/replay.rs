@@ -4,53 +4,16 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Result, anyhow, bail};
-use camgeom::image::{ImageMut, ImageView};
+use camgeom::image::ImageView;
 use camgeom::target::GivenCorners;
 use camgeom_fw_app::pipeline::{NoClock, Pipeline};
+use camgeom_fw_app::recorded::{FaultPlan, RecordedCamera, SliceFrames};
 use camgeom_fw_app::report::FrameRecord;
 use camgeom_fw_app::run::{CANDIDATES, LEVELS, RunSpec, TRACKS, WIN};
-use camgeom_fw_app::{FrameSource, pipeline_type};
+use camgeom_fw_app::{drive, pipeline_type};
 
 use super::emulate::Overlays;
 use crate::jobs::Size;
-
-/// The host's virtual camera: the same `frames.raw`, the same stride.
-struct HostCamera<'a> {
-    raw: &'a [u8],
-    width: usize,
-    height: usize,
-    stride: usize,
-    count: usize,
-    next: usize,
-}
-
-impl FrameSource for HostCamera<'_> {
-    type Error = String;
-
-    fn size(&self) -> (usize, usize) {
-        (self.width, self.height)
-    }
-
-    fn next_frame(&mut self, frame: &mut ImageMut<'_, u8>) -> Result<bool, String> {
-        if self.next >= self.count {
-            return Ok(false);
-        }
-        let len = self.width * self.height;
-        let start = self.next * self.stride * len;
-        let src = self
-            .raw
-            .get(start..start + len)
-            .ok_or_else(|| "frames.raw too short".to_string())?;
-        for (y, row) in src.chunks_exact(self.width).enumerate() {
-            let dst = frame.row_mut(y).ok_or("frame too small")?;
-            dst.get_mut(..self.width)
-                .ok_or("frame too narrow")?
-                .copy_from_slice(row);
-        }
-        self.next += 1;
-        Ok(true)
-    }
-}
 
 /// Every frame's record and the overlays the board would write.
 pub type Replay = (BTreeMap<u32, FrameRecord>, Overlays);
@@ -65,21 +28,18 @@ fn replay<
 >(
     app: &mut Pipeline<F, P, S, C, K, N>,
     spec: &RunSpec,
+    plan: &FaultPlan,
     raw: &[u8],
 ) -> Result<Replay> {
     let cfg = spec.app_config().map_err(|e| anyhow!("run.bin: {e}"))?;
     let (w, h) = (cfg.width, cfg.height);
-    let stride = spec.stride.max(1) as usize;
-    let held = raw.len() / (w * h);
-    let count = (spec.frames as usize).min(held.div_ceil(stride));
-    let mut cam = HostCamera {
-        raw,
-        width: w,
-        height: h,
-        stride,
-        count,
-        next: 0,
-    };
+    let mut camera = RecordedCamera::new(
+        SliceFrames::new(raw, w, h),
+        spec.stride.max(1) as usize,
+        spec.frames as usize,
+        *plan,
+    );
+    let count = camera.count();
     let mut out = BTreeMap::new();
     let mut overlays = BTreeMap::new();
     let every = spec.overlay_every as usize;
@@ -93,35 +53,37 @@ fn replay<
             overlays.insert(i as u32, v);
         }
     };
+    let mut record = |r: &FrameRecord| {
+        out.insert(r.index, *r);
+    };
     let mut acquire = GivenCorners::new(spec.start_corners());
-    let first = app
-        .start(&cfg, &mut cam, &mut acquire, &mut NoClock)
-        .map_err(|e| anyhow!("host start: {}", e.name()))?;
-    out.insert(0, FrameRecord::of(&first));
-    while let Some(r) = app
-        .step(&cfg, &mut cam, &mut acquire, &mut NoClock, &mut keep)
-        .map_err(|e| anyhow!("host step: {}", e.name()))?
-    {
-        out.insert(r.index, FrameRecord::of(&r));
-    }
-    app.finish::<String>(&cfg, &mut keep)
-        .map_err(|e| anyhow!("host finish: {}", e.name()))?;
+    drive(
+        app,
+        &cfg,
+        &mut camera,
+        &mut acquire,
+        &mut NoClock,
+        &mut record,
+        &mut keep,
+    )
+    .map_err(|e| anyhow!("host replay: {}", e.name()))?;
     Ok((out, overlays))
 }
 
-/// Replays the run of `size` described by `spec` on `raw` (the bytes of `frames.raw`).
-pub fn replay_size(size: Size, spec: &RunSpec, raw: &[u8]) -> Result<Replay> {
+/// Replays the run of `size` described by `spec` and `plan` on `raw` (the bytes of
+/// `frames.raw`).
+pub fn replay_size(size: Size, spec: &RunSpec, plan: &FaultPlan, raw: &[u8]) -> Result<Replay> {
     // The pipeline is a few hundred KB: build it on the heap.
     match (size.width, size.height) {
         (320, 240) => {
             let mut app: Box<pipeline_type!(320, 240, LEVELS, WIN, CANDIDATES, TRACKS)> =
                 Box::default();
-            replay(&mut app, spec, raw)
+            replay(&mut app, spec, plan, raw)
         }
         (160, 120) => {
             let mut app: Box<pipeline_type!(160, 120, LEVELS, WIN, CANDIDATES, TRACKS)> =
                 Box::default();
-            replay(&mut app, spec, raw)
+            replay(&mut app, spec, plan, raw)
         }
         (w, h) => bail!("no host pipeline for {w}x{h}"),
     }
