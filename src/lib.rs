@@ -9,6 +9,7 @@
 //! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
+//! | [`chessboard`] | chessboard detection (saddle response, grid growing, OpenCV's corner order) and `cornerSubPix` refinement |
 //! | [`image`] | borrowed grayscale views with a stride, validated once |
 //! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
 //! | [`gradient`] | Scharr derivatives in `i16`, per level or per window |
@@ -49,6 +50,7 @@
 extern crate std;
 
 pub mod camera;
+pub mod chessboard;
 pub mod corners;
 pub mod draw;
 mod error;

@@ -3,6 +3,7 @@
 //! filter: `cargo test -p camgeom-host --test it pose_sequence:: -- --nocapture`).
 
 mod ar_box;
+mod calib_chessboard;
 mod cli;
 mod common;
 mod features;
