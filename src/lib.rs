@@ -9,6 +9,7 @@
 //! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
+//! | [`calib`] | camera calibration from chessboard views: Zhang's closed form, joint LM over the camera and every pose (Schur structure by QR), Brown-Conrady or fisheye, standard deviations |
 //! | [`chessboard`] | chessboard detection (saddle response, grid growing, OpenCV's corner order) and `cornerSubPix` refinement |
 //! | [`image`] | borrowed grayscale views with a stride, validated once |
 //! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
@@ -49,6 +50,7 @@
 #[cfg(any(feature = "std", test))]
 extern crate std;
 
+pub mod calib;
 pub mod camera;
 pub mod chessboard;
 pub mod corners;

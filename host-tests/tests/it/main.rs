@@ -4,6 +4,7 @@
 
 mod ar_box;
 mod calib_chessboard;
+mod calib_real;
 mod cli;
 mod common;
 mod features;
