@@ -557,6 +557,84 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     /// for bad options, [`Error::NoConvergence`] when the refinement ends with a
     /// non-finite or non-physical camera.
     pub fn solve(&mut self, cfg: &CalibrationConfig) -> Result<CalibrationReport<T, V>> {
+        let aspect = self.check(cfg)?;
+        let p = self.closed_form(cfg, aspect)?;
+        let first = self.refine(cfg, aspect, p);
+        if cfg.model != LensKind::KannalaBrandt {
+            return first;
+        }
+        // A fisheye lens is far from the pinhole the closed form assumes, and the lens
+        // coefficients' cost has more than one valley: also start from OpenCV's fisheye
+        // initialisation (`f = max(w, h) / π`, principal point at the centre) and keep the
+        // lower minimum.
+        let f = T::one() / T::pi();
+        let ratio = aspect.unwrap_or(T::one());
+        let z = T::zero();
+        let alt = Params {
+            cam: [f * ratio, f, z, z, z, z, z, z, z],
+        };
+        let keep_first = first.clone();
+        let first_poses = self.poses;
+        match (first, self.refine(cfg, aspect, alt)) {
+            (Ok(a), Ok(b)) if a.rms_px <= b.rms_px => {
+                self.poses = first_poses;
+                Ok(a)
+            }
+            (_, Ok(b)) => Ok(b),
+            (Ok(_), Err(_)) => {
+                self.poses = first_poses;
+                keep_first
+            }
+            (Err(e), Err(_)) => Err(e),
+        }
+    }
+
+    /// [`Self::solve`] from a given camera instead of the closed form (OpenCV's
+    /// `CALIB_USE_INTRINSIC_GUESS`): its intrinsics and lens coefficients start the joint
+    /// refinement (the model of `cfg` is used; coefficients of the other model are ignored).
+    ///
+    /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess.
+    pub fn solve_with_guess(
+        &mut self,
+        cfg: &CalibrationConfig,
+        guess: &Camera<T>,
+    ) -> Result<CalibrationReport<T, V>> {
+        let aspect = self.check(cfg)?;
+        let (s, c0) = (self.scale(), self.centre());
+        let k = &guess.intrinsics;
+        let c = match (&guess.model, cfg.model) {
+            (LensModel::KannalaBrandt(f), LensKind::KannalaBrandt) => {
+                let [a, b, c, d] = f.to_opencv();
+                [a, b, c, d, T::zero()]
+            }
+            (LensModel::BrownConrady, LensKind::BrownConrady) => guess.distortion.to_opencv(),
+            _ => [T::zero(); 5],
+        };
+        let [c1, c2, c3, c4, c5] = c;
+        let mut cam = [
+            k.fx() / s,
+            k.fy() / s,
+            (k.cx() - c0.x) / s,
+            (k.cy() - c0.y) / s,
+            c1,
+            c2,
+            c3,
+            c4,
+            c5,
+        ];
+        check_finite(&cam)?;
+        if let Some(a) = aspect {
+            cam[0] = a * cam[1];
+        }
+        if cfg.flags.fix_principal_point {
+            cam[2] = T::zero();
+            cam[3] = T::zero();
+        }
+        self.refine(cfg, aspect, Params { cam })
+    }
+
+    /// Validates the options; the fixed aspect ratio.
+    fn check(&self, cfg: &CalibrationConfig) -> Result<Option<T>> {
         if cfg.max_iterations == 0 {
             return Err(Error::InvalidParameter("max_iterations"));
         }
@@ -568,7 +646,11 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         if self.views < 3 {
             return Err(Error::TooFewPoints);
         }
-        let free = self.free(cfg);
+        Ok(aspect)
+    }
+
+    /// Zhang's closed form (or OpenCV's with a known principal point), zero distortion.
+    fn closed_form(&self, cfg: &CalibrationConfig, aspect: Option<T>) -> Result<Params<T>> {
         let n = self.corners();
         // Per-view homographies (board squares to normalised pixels).
         let mut model = [Point2::origin(); P];
@@ -621,6 +703,87 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             p.cam[2] = T::zero();
             p.cam[3] = T::zero();
         }
+        Ok(p)
+    }
+
+    /// Initial poses, then the joint refinement from `p`.
+    fn refine(
+        &mut self,
+        cfg: &CalibrationConfig,
+        aspect: Option<T>,
+        p: Params<T>,
+    ) -> Result<CalibrationReport<T, V>> {
+        if cfg.model != LensKind::KannalaBrandt {
+            return self.refine_with(cfg, aspect, p, &self.free(cfg));
+        }
+        // Fisheye: the four coefficients of an odd polynomial in θ over the limited range
+        // of angles a board covers are nearly dependent, and from a far start LM settles in
+        // one of several shallow valleys. Continuation avoids that: k1 alone first, then
+        // every coefficient from there.
+        let mut stage = self.free(cfg);
+        for k in 5..NC {
+            if let Some(f) = stage.get_mut(k) {
+                *f = false;
+            }
+        }
+        let first = self.refine_with(cfg, aspect, p, &stage)?;
+        let mut q = p;
+        let [fx, fy, cx, cy, c1, ..] = self.normalised(&first.camera);
+        q.cam = [
+            fx,
+            fy,
+            cx,
+            cy,
+            c1,
+            T::zero(),
+            T::zero(),
+            T::zero(),
+            T::zero(),
+        ];
+        self.refine_with(cfg, aspect, q, &self.free(cfg))
+    }
+
+    /// A camera as the normalised parameter vector.
+    fn normalised(&self, camera: &Camera<T>) -> [T; NC] {
+        let (s, c0) = (self.scale(), self.centre());
+        let k = &camera.intrinsics;
+        let c = match &camera.model {
+            LensModel::KannalaBrandt(f) => {
+                let [a, b, c, d] = f.to_opencv();
+                [a, b, c, d, T::zero()]
+            }
+            LensModel::BrownConrady => camera.distortion.to_opencv(),
+        };
+        let [c1, c2, c3, c4, c5] = c;
+        [
+            k.fx() / s,
+            k.fy() / s,
+            (k.cx() - c0.x) / s,
+            (k.cy() - c0.y) / s,
+            c1,
+            c2,
+            c3,
+            c4,
+            c5,
+        ]
+    }
+
+    fn refine_with(
+        &mut self,
+        cfg: &CalibrationConfig,
+        aspect: Option<T>,
+        p: Params<T>,
+        free: &[bool; NC],
+    ) -> Result<CalibrationReport<T, V>> {
+        let free = *free;
+        let n = self.corners();
+        let mut p = p;
+        let mut model = [Point2::origin(); P];
+        for (k, m) in model.iter_mut().take(n).enumerate() {
+            let b = self.board_point(k);
+            *m = Point2::new(b.x, b.y);
+        }
+        let model = model.get(..n).ok_or(Error::LengthMismatch)?;
         // Initial poses through the initial camera.
         let cam0 = self.camera(cfg.model, &p.cam)?;
         let mut scratch = [Point2::origin(); P];
@@ -650,7 +813,9 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         let mut poses = self.poses;
         let mut cost = self.cost(&cam, &poses).ok_or(Error::Degenerate)?;
         let initial_cost = cost;
-        let tol = T::EPSILON.sqrt();
+        // Stop when a step gains less than the rounding of the cost itself: in the curved, narrow
+        // valleys of the lens coefficients a small decrease does not mean the minimum is near.
+        let tol = T::lit(16.0) * T::EPSILON;
         let mut lambda = T::lit(1e-3);
         let mut iterations = 0u8;
         for _ in 0..cfg.max_iterations {
@@ -695,6 +860,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             let Some((np, nposes, c, nc)) = accepted else {
                 break;
             };
+
             let decrease = cost - nc;
             p = np;
             poses = nposes;

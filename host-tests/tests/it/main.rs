@@ -5,6 +5,7 @@
 mod ar_box;
 mod calib_chessboard;
 mod calib_real;
+mod calib_synthetic;
 mod cli;
 mod common;
 mod features;
