@@ -25,6 +25,7 @@
 //! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
 //! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
+//! | [`remap`] | frame undistortion: new camera matrix (alpha / balance), Q10.5 lookup table or a compact grid map, integer bilinear remap |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
 //! | [`resize`] | bilinear resizing with aligned pixel centres, in integers |
 //! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
@@ -67,6 +68,7 @@ pub mod linalg;
 pub mod pose;
 pub mod pyramid;
 pub mod ransac;
+pub mod remap;
 pub mod resize;
 pub mod rng;
 mod scalar;

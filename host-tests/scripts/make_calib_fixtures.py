@@ -173,6 +173,70 @@ def synthetic():
         json.dump(out, f, indent=1)
 
 
+def pattern(w, h):
+    """The remap test's source frame, also computed by the Rust test: 8-px checks with a ramp."""
+    y, x = np.mgrid[0:h, 0:w]
+    return ((((x // 8 + y // 8) % 2) * 150 + (x + 2 * y) % 100)).astype(np.uint8)
+
+
+def undistort():
+    """Frame undistortion references.
+
+    undistort.json: for the bundled camera (left_intrinsics.yml, 640x480)
+    cv2.getOptimalNewCameraMatrix at alpha 0, 0.5, 1; for the synthetic fisheye camera
+    cv2.fisheye.estimateNewCameraMatrixForUndistortRectify at balance 0, 0.5, 1 (R = I).
+    undistort_map.csv: model,x,y,mx,my,qx,qy: cv2.initUndistortRectifyMap (Brown, new K of
+    alpha 0) and cv2.fisheye.initUndistortRectifyMap (new K of balance 0.5) every 16 px, as
+    CV_32FC1 (mx, my) and as CV_16SC2 + CV_16UC1 folded into Q10.5 (qx = 32 m1.x + m2 % 32,
+    qy = 32 m1.y + m2 / 32). undistort_remap.png: cv2.remap of pattern(640, 480) through the
+    Brown CV_16SC2 map, INTER_LINEAR, BORDER_CONSTANT 0.
+    """
+    fs = cv2.FileStorage(os.path.join(DATA, "chessboard", "left_intrinsics.yml"), cv2.FILE_STORAGE_READ)
+    K = fs.getNode("camera_matrix").mat()
+    dist = fs.getNode("distortion_coefficients").mat().reshape(-1)
+    fs.release()
+    size = (640, 480)
+    out = {"brown": {}, "fisheye": {}}
+    for a in (0.0, 0.5, 1.0):
+        nk, _ = cv2.getOptimalNewCameraMatrix(K, dist, size, a, size)
+        out["brown"][str(a)] = [float(nk[0, 0]), float(nk[1, 1]), float(nk[0, 2]), float(nk[1, 2])]
+    fx, fy, cx, cy = SYN_FISHEYE["K"]
+    Kf = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+    Df = np.array(SYN_FISHEYE["dist"])
+    for b in (0.0, 0.5, 1.0):
+        nk = cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(Kf, Df, size, np.eye(3), balance=b)
+        out["fisheye"][str(b)] = [float(nk[0, 0]), float(nk[1, 1]), float(nk[0, 2]), float(nk[1, 2])]
+    with open(os.path.join(OUT, "undistort.json"), "w") as f:
+        json.dump(out, f, indent=1)
+    rows = []
+    nkb, _ = cv2.getOptimalNewCameraMatrix(K, dist, size, 0.0, size)
+    nkf = cv2.fisheye.estimateNewCameraMatrixForUndistortRectify(Kf, Df, size, np.eye(3), balance=0.5)
+    maps = {
+        "brown": (
+            cv2.initUndistortRectifyMap(K, dist, None, nkb, size, cv2.CV_32FC1),
+            cv2.initUndistortRectifyMap(K, dist, None, nkb, size, cv2.CV_16SC2),
+        ),
+        "fisheye": (
+            cv2.fisheye.initUndistortRectifyMap(Kf, Df, np.eye(3), nkf, size, cv2.CV_32FC1),
+            cv2.fisheye.initUndistortRectifyMap(Kf, Df, np.eye(3), nkf, size, cv2.CV_16SC2),
+        ),
+    }
+    for name, ((fx_, fy_), (m1, m2)) in maps.items():
+        for y in range(0, 480, 16):
+            for x in range(0, 640, 16):
+                qx = 32 * int(m1[y, x, 0]) + int(m2[y, x]) % 32
+                qy = 32 * int(m1[y, x, 1]) + int(m2[y, x]) // 32
+                rows.append((name, x, y, float(fx_[y, x]), float(fy_[y, x]), qx, qy))
+    with open(os.path.join(OUT, "undistort_map.csv"), "w") as f:
+        f.write("model,x,y,mx,my,qx,qy\n")
+        for r in rows:
+            f.write(f"{r[0]},{r[1]},{r[2]},{r[3]!r},{r[4]!r},{r[5]},{r[6]}\n")
+    m1, m2 = maps["brown"][1]
+    img = cv2.remap(pattern(640, 480), m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    cv2.imwrite(os.path.join(OUT, "undistort_remap.png"), img)
+    print("undistort: brown", out["brown"], "fisheye", out["fisheye"])
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
     parts = sys.argv[1:] or ["real"]

@@ -6,6 +6,7 @@ mod ar_box;
 mod calib_chessboard;
 mod calib_real;
 mod calib_synthetic;
+mod calib_undistort;
 mod cli;
 mod common;
 mod features;
