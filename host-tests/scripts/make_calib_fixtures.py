@@ -237,6 +237,134 @@ def undistort():
     print("undistort: brown", out["brown"], "fisheye", out["fisheye"])
 
 
+# Rendered cases: name, (w, h), board (cols, rows), lens ("none", "brown", "fisheye"),
+# rvec, tvec (board units: squares), options. Cameras are chosen per size.
+RENDER_CASES = [
+    ("fronto", (640, 480), (9, 6), "none", (0.0, 0.0, 0.0), (-4.0, -2.5, 16.0), {}),
+    ("rot30", (640, 480), (9, 6), "none", (0.1, -0.15, 0.52), (-3.5, -3.0, 15.0), {}),
+    ("rot135", (320, 240), (9, 6), "none", (0.2, 0.1, 2.36), (3.0, 1.0, 18.0), {}),
+    ("rot250", (320, 240), (7, 5), "none", (-0.2, 0.3, 4.36), (-1.0, 4.0, 15.0), {}),
+    ("perspective", (640, 480), (9, 6), "none", (0.95, 0.2, 0.1), (-4.0, -1.5, 11.0), {}),
+    ("perspective2", (320, 240), (9, 6), "none", (-0.2, -1.0, -0.3), (-3.0, -3.0, 13.0), {}),
+    ("uneven", (320, 240), (9, 6), "none", (0.3, -0.3, 0.2), (-4.0, -2.5, 16.0), {"light": True}),
+    ("border", (320, 240), (9, 6), "none", (0.05, 0.05, 0.03), (-4.7, -2.55, 10.2), {}),
+    ("blurry", (320, 240), (9, 6), "none", (0.4, 0.2, -0.3), (-4.0, -2.5, 15.0), {"blur": 1.6, "noise": 3.0}),
+    ("small", (320, 240), (9, 6), "none", (0.3, 0.3, 0.4), (-4.0, -2.5, 40.0), {}),
+    ("brown", (640, 480), (9, 6), "brown", (0.2, -0.3, 0.1), (-4.0, -2.5, 9.5), {}),
+    ("fisheye", (640, 480), (9, 6), "fisheye", (-0.3, 0.4, 0.2), (-4.0, -2.5, 8.5), {}),
+    ("partial", (320, 240), (9, 6), "none", (0.1, -0.1, 0.2), (1.0, -2.5, 14.0), {}),
+    ("absent", (320, 240), (9, 6), "none", (0.0, 0.0, 0.0), (40.0, 40.0, 10.0), {"texture": True}),
+]
+
+
+def render_camera(size, lens):
+    w, h = size
+    f = 0.9 * w
+    K = np.array([[f, 0, (w - 1) / 2 + 3.0], [0, f * 1.01, (h - 1) / 2 - 2.0], [0, 0, 1.0]])
+    if lens == "brown":
+        return K, np.array([-0.3, 0.12, 0.001, -0.0008, -0.02])
+    if lens == "fisheye":
+        K[0, 0], K[1, 1] = 0.45 * w, 0.45 * w * 1.01
+        return K, np.array([0.05, -0.02, 0.01, -0.003])
+    return K, np.zeros(5)
+
+
+def render(case, ss=4, sq=64):
+    """Renders one case without any camgeom code: each of ss x ss supersamples of every pixel
+    is undistorted by OpenCV (cv2.undistortPoints or cv2.fisheye.undistortPoints, 20
+    iterations), its ray intersected with the board plane, the high-resolution board (sq px a
+    square) sampled there by cv2.remap (INTER_LINEAR), the supersamples averaged
+    (cv2.resize INTER_AREA), then optional uneven light, cv2.GaussianBlur and Gaussian noise
+    (numpy seed 3). Truth: cv2.projectPoints / cv2.fisheye.projectPoints of the corners."""
+    name, (w, h), (cols, rows), lens, rvec, tvec, opt = case
+    K, D = render_camera((w, h), lens)
+    m = sq
+    board = np.full(((rows + 1) * sq + 2 * m, (cols + 1) * sq + 2 * m), 235, np.uint8)
+    for j in range(rows + 1):
+        for i in range(cols + 1):
+            if (i + j) % 2 == 0:
+                board[m + j * sq:m + (j + 1) * sq, m + i * sq:m + (i + 1) * sq] = 25
+    ys, xs = np.mgrid[0:h * ss, 0:w * ss].astype(np.float64)
+    pix = np.stack([(xs + 0.5) / ss - 0.5, (ys + 0.5) / ss - 0.5], axis=-1).reshape(-1, 1, 2)
+    crit = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-10)
+    if lens == "fisheye":
+        nrm = cv2.fisheye.undistortPoints(pix, K, D[:4], criteria=crit)
+    else:
+        nrm = cv2.undistortPoints(pix, K, D, None, None, None, crit)
+    nrm = nrm.reshape(-1, 2)
+    R, _ = cv2.Rodrigues(np.array(rvec))
+    t = np.array(tvec)
+    ray = np.concatenate([nrm, np.ones((len(nrm), 1))], axis=1) @ R  # R^T ray per row
+    o = -R.T @ t
+    lam = -o[2] / ray[:, 2]
+    P = o[None, :] + lam[:, None] * ray
+    valid = lam > 0
+    bx = np.where(valid, m + (P[:, 0] + 1) * sq - 0.5, -1e4).reshape(h * ss, w * ss).astype(np.float32)
+    by = np.where(valid, m + (P[:, 1] + 1) * sq - 0.5, -1e4).reshape(h * ss, w * ss).astype(np.float32)
+    bg = 120
+    big = cv2.remap(board, bx, by, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=bg)
+    img = cv2.resize(big.astype(np.float32), (w, h), interpolation=cv2.INTER_AREA)
+    rng = np.random.default_rng(3)
+    if opt.get("texture"):
+        img = cv2.GaussianBlur(rng.uniform(0, 255, (h, w)).astype(np.float32), (0, 0), 2.0) * 1.5 - 60
+    if opt.get("light"):
+        yy, xx = np.mgrid[0:h, 0:w]
+        img = img * (0.25 + 0.75 * xx / w) * (1.0 - 0.3 * ((yy - h / 2) / h) ** 2)
+    img = cv2.GaussianBlur(img, (0, 0), opt.get("blur", 0.7))
+    img = img + rng.normal(0, opt.get("noise", 1.5), img.shape)
+    img = np.clip(np.round(img), 0, 255).astype(np.uint8)
+    obj = np.array([[i, j, 0.0] for j in range(rows) for i in range(cols)])
+    if lens == "fisheye":
+        tr, _ = cv2.fisheye.projectPoints(obj.reshape(-1, 1, 3), np.array(rvec), t, K, D[:4])
+    else:
+        tr, _ = cv2.projectPoints(obj, np.array(rvec), t, K, D)
+    tr = tr.reshape(-1, 2)
+    inside = bool(np.all((tr[:, 0] > 0) & (tr[:, 0] < w - 1) & (tr[:, 1] > 0) & (tr[:, 1] < h - 1)))
+    return img, tr, inside
+
+
+def rendered():
+    """rendered/<case>.png and rendered.csv (see the module docstring); rendered_cases.csv:
+    case,width,height,cols,rows,in_view,half_window,cv_found,sb_found."""
+    d = os.path.join(OUT, "rendered")
+    os.makedirs(d, exist_ok=True)
+    rows_out, cases_out = [], []
+    for case in RENDER_CASES:
+        name, (w, h), (cols, rows) = case[0], case[1], case[2]
+        img, tr, inside = render(case)
+        if name == "absent":
+            inside = False
+        cv2.imwrite(os.path.join(d, name + ".png"), img)
+        half = 5 if w >= 640 else 3
+        ok, c = cv2.findChessboardCorners(img, (cols, rows))
+        if ok:
+            c = cv2.cornerSubPix(img, c, (half, half), (-1, -1), (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 30, 0.001)).reshape(-1, 2)
+        oksb, sb = cv2.findChessboardCornersSB(img, (cols, rows))
+        sb = sb.reshape(-1, 2) if oksb else None
+        cases_out.append((name, w, h, cols, rows, int(inside), half, int(ok), int(oksb)))
+        for k in range(cols * rows):
+            r = [name, k, tr[k, 0], tr[k, 1]]
+            for pts in (c if ok else None, sb):
+                if pts is None:
+                    r += ["", ""]
+                else:
+                    # Each detector's corner nearest the truth (their order is checked apart).
+                    j = int(np.argmin(np.linalg.norm(pts - tr[k], axis=1)))
+                    r += [pts[j, 0], pts[j, 1]]
+            r += [int(np.argmin(np.linalg.norm(c - tr[k], axis=1))) if ok else ""]
+            rows_out.append(r)
+        err = lambda p: np.linalg.norm(p - tr, axis=1) if p is not None else None
+        print(name, "in view", inside, "cv", ok, "sb", oksb)
+    with open(os.path.join(OUT, "rendered.csv"), "w") as f:
+        f.write("case,k,u_true,v_true,u_cv,v_cv,u_sb,v_sb,cv_index\n")
+        for r in rows_out:
+            f.write(",".join(str(x) if isinstance(x, (str, int)) else repr(float(x)) for x in r) + "\n")
+    with open(os.path.join(OUT, "rendered_cases.csv"), "w") as f:
+        f.write("case,width,height,cols,rows,in_view,half_window,cv_found,sb_found\n")
+        for r in cases_out:
+            f.write(",".join(str(x) for x in r) + "\n")
+
+
 def main():
     os.makedirs(OUT, exist_ok=True)
     parts = sys.argv[1:] or ["real"]

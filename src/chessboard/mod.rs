@@ -150,6 +150,12 @@ pub struct DetectConfig {
     /// Sub-pixel refinement of the found corners; `None` leaves the detector's own estimate
     /// (the response maximum, about 0.3 px).
     pub subpix: Option<SubPixConfig>,
+    /// Shrink the refinement window per corner to fit its squares: half window
+    /// `min(subpix.half_window, max(2, ⌊d / 2⌋))` with `d` the distance to the corner's
+    /// nearest grid neighbour, so that a large window (better on sharp, well-lit squares)
+    /// never reaches the next corner where perspective makes squares small. `false` uses one
+    /// window everywhere, as OpenCV's `cornerSubPix`.
+    pub adaptive_window: bool,
 }
 
 impl Default for DetectConfig {
@@ -159,6 +165,7 @@ impl Default for DetectConfig {
             min_contrast: 20,
             max_seeds: 16,
             subpix: Some(SubPixConfig::default()),
+            adaptive_window: false,
         }
     }
 }
@@ -315,7 +322,11 @@ impl<const K: usize> ChessboardDetector<K> {
             let Some(grid) = grid else { continue };
             if let Some(mut found) = self.verify_and_order::<N>(image, &grid, board, cfg) {
                 if let Some(sp) = &cfg.subpix {
-                    corner_subpix(image, &mut found.corners, sp)?;
+                    if cfg.adaptive_window {
+                        refine_adaptive(image, &mut found.corners, board.cols(), sp)?;
+                    } else {
+                        corner_subpix(image, &mut found.corners, sp)?;
+                    }
                 }
                 return Ok(Some(found));
             }
@@ -726,6 +737,49 @@ impl<const K: usize> ChessboardDetector<K> {
             corners,
         })
     }
+}
+
+/// [`corner_subpix`] of each corner with its window shrunk to its squares (see
+/// [`DetectConfig::adaptive_window`]).
+fn refine_adaptive(
+    image: &ImageView<'_, u8>,
+    corners: &mut [Point2<f32>],
+    cols: usize,
+    sp: &SubPixConfig,
+) -> Result<()> {
+    let n = corners.len();
+    let mut windows = [0u8; 4096];
+    for (k, w) in windows.iter_mut().enumerate().take(n) {
+        let p = corners.get(k).copied().unwrap_or(Point2::origin());
+        let (i, j) = (k % cols, k / cols);
+        let mut d = f32::MAX;
+        let mut near = |q: Option<&Point2<f32>>| {
+            if let Some(q) = q {
+                d = d.min((q - p).norm());
+            }
+        };
+        if i > 0 {
+            near(corners.get(k - 1));
+        }
+        if i + 1 < cols {
+            near(corners.get(k + 1));
+        }
+        if j > 0 {
+            near(corners.get(k - cols));
+        }
+        near(corners.get(k + cols));
+        // `max` then `min`: `clamp` would panic for a half window below 2.
+        let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
+        *w = (fit as u8).clamp(1, sp.half_window);
+    }
+    for (c, w) in corners.iter_mut().zip(windows.iter()) {
+        let cfg = SubPixConfig {
+            half_window: *w,
+            ..*sp
+        };
+        corner_subpix(image, core::slice::from_mut(c), &cfg)?;
+    }
+    Ok(())
 }
 
 const SIN_20: f32 = 0.342_020_14;

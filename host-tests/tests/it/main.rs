@@ -5,6 +5,7 @@
 mod ar_box;
 mod calib_chessboard;
 mod calib_real;
+mod calib_rendered;
 mod calib_synthetic;
 mod calib_undistort;
 mod cli;
