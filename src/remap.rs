@@ -12,7 +12,8 @@
 //! RAM for the full map, 4 bytes a pixel ([`map_len`]): 76.8 KB at 160x120, 307 KB at
 //! 320x240, 1.23 MB at 640x480 (beyond a 512 KB board). The compact [`GridMap`] keeps one node
 //! every `2^shift` pixels and interpolates the map per pixel
-//! ([`grid_len`] nodes of 8 bytes: 16-px nodes are 10.8 KB at 640x480, 2.9 KB at 320x240);
+//! ([`grid_len`] nodes of 8 bytes: 8-px nodes are 39.5 KB at 640x480 and 10.2 KB at 320x240,
+//! 16-px nodes 10.2 KB and 2.7 KB);
 //! the error this adds is measured in `docs/notes/calibration.md` (for the bundled camera
 //! at 640x480: mean 0.009 px, max 0.06 px with 8-px nodes; mean 0.03 px, max 0.19 px with
 //! 16-px nodes).
@@ -160,6 +161,7 @@ pub fn remap(
 /// A compact undistortion map: the source position at one node every `2^shift` pixels
 /// (Q.8 fixed point, `i32`), bilinearly interpolated per pixel by [`GridMap::remap`].
 #[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GridMap<'a> {
     nodes: &'a [[i32; 2]],
     width: usize,
