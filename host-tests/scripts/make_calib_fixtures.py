@@ -6,7 +6,7 @@ repository root with
 
     pip install opencv-python-headless numpy
     python3 host-tests/scripts/make_calib_fixtures.py            # everything
-    python3 host-tests/scripts/make_calib_fixtures.py real       # one part: real, rendered, synthetic
+    python3 host-tests/scripts/make_calib_fixtures.py real       # one part: real, synthetic, undistort, rendered
 
 Outputs (host-tests/data/fixtures/calib/):
   real_corners.csv   image,k,u0,v0,u5,v5,u11,v11: cv2.findChessboardCorners (9x6, default flags)
@@ -16,10 +16,13 @@ Outputs (host-tests/data/fixtures/calib/):
                      sb_u, sb_v: cv2.findChessboardCornersSB (default flags) reordered to match.
   real_opencv.json   cv2.calibrateCameraExtended (flags 0) on the 5x5 corners and on the 11x11
                      corners: rms, K, dist (k1 k2 p1 p2 k3), per-view rms, std of the intrinsics.
-  rendered/*.png,    boards rendered by OpenCV (see render()), with truth and OpenCV's corners:
-  rendered.csv       case,k,u_true,v_true,u_cv,v_cv,u_sb,v_sb (empty when OpenCV found nothing).
   synthetic.csv,     calibration with exact ground truth (see synthetic()).
   synthetic_opencv.json
+  undistort.json,    new camera matrices, undistortion maps and a remapped frame (see undistort()).
+  undistort_map.csv, undistort_remap.png
+  rendered/*.png,    boards rendered by OpenCV (see render()), with truth and OpenCV's corners:
+  rendered.csv,      case,k,u_true,v_true,u_cv,v_cv,u_sb,v_sb,cv_index (empty when OpenCV found
+  rendered_cases.csv nothing); the cases' sizes and what each detector found.
 """
 
 import glob
@@ -367,7 +370,7 @@ def rendered():
 
 def main():
     os.makedirs(OUT, exist_ok=True)
-    parts = sys.argv[1:] or ["real"]
+    parts = sys.argv[1:] or ["real", "synthetic", "undistort", "rendered"]
     for p in parts:
         globals()[p]()
     print("OpenCV", cv2.__version__)

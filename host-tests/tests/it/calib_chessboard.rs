@@ -38,12 +38,26 @@ pub fn opencv_views() -> Vec<OpenCvView> {
 
 /// camgeom's corners of one bundled view with the given refinement.
 pub fn detect(name: &str, subpix: Option<SubPixConfig>) -> Option<Vec<Point2<f64>>> {
+    detect_with(name, subpix, false)
+}
+
+/// As [`detect`], the window adapted to each corner's squares.
+pub fn detect_adaptive(name: &str, subpix: SubPixConfig) -> Option<Vec<Point2<f64>>> {
+    detect_with(name, Some(subpix), true)
+}
+
+fn detect_with(
+    name: &str,
+    subpix: Option<SubPixConfig>,
+    adaptive_window: bool,
+) -> Option<Vec<Point2<f64>>> {
     let img =
         camgeom_host::images::load_gray(crate::common::chessboard(&format!("{name}.jpg"))).unwrap();
     let mut det = Box::new(ChessboardDetector::<512>::new());
     let mut scratch = vec![0i32; scratch_len(img.width)];
     let cfg = DetectConfig {
         subpix,
+        adaptive_window,
         ..DetectConfig::default()
     };
     let board = BoardSize::new(9, 6).unwrap();
@@ -99,52 +113,4 @@ fn finds_every_bundled_view_in_opencv_order() {
     );
     // Same order: a corner matched to the wrong OpenCV corner is a square (≥ 20 px) away.
     assert!(max_raw < 2.0);
-}
-
-#[test]
-fn debug_candidates() {
-    for v in opencv_views() {
-        let img =
-            camgeom_host::images::load_gray(crate::common::chessboard(&format!("{}.jpg", v.name)))
-                .unwrap();
-        let mut det = Box::new(ChessboardDetector::<512>::new());
-        let mut scratch = vec![0i32; scratch_len(img.width)];
-        let board = BoardSize::new(9, 6).unwrap();
-        let mr: i32 = std::env::var("MR")
-            .map(|s| s.parse().unwrap())
-            .unwrap_or(16);
-        let cfg = DetectConfig {
-            min_response: mr,
-            ..DetectConfig::default()
-        };
-        let r = det
-            .detect::<54>(&img.view().unwrap(), board, &cfg, &mut scratch)
-            .unwrap();
-        let c: Vec<_> = det.candidates().collect();
-        let near = v
-            .raw
-            .iter()
-            .filter(|p| c.iter().any(|(q, _)| (q.cast::<f64>() - **p).norm() < 1.5))
-            .count();
-        let ok = v
-            .raw
-            .iter()
-            .filter(|p| {
-                c.iter()
-                    .any(|(q, ok)| *ok && (q.cast::<f64>() - **p).norm() < 1.5)
-            })
-            .count();
-        for (k, p) in v.raw.iter().enumerate() {
-            if !c.iter().any(|(q, _)| (q.cast::<f64>() - *p).norm() < 1.5) {
-                println!("  missing {k} at {:.1},{:.1}", p.x, p.y);
-            }
-        }
-        println!(
-            "{} found {} cands {} ok {} near {near} nearok {ok}",
-            v.name,
-            r.is_some(),
-            c.len(),
-            c.iter().filter(|x| x.1).count()
-        );
-    }
 }

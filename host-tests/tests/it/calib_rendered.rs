@@ -168,7 +168,7 @@ fn run(adaptive: bool) {
         // No worse than OpenCV's classic detector + cornerSubPix, within 0.002 px (median) and
         // 0.01 px (max): with the same window both run the same gradient-orthogonality
         // iteration, and what remains is the starting point and the last step (measured up to
-        // 0.0014 px worse on one case, rot250); the adaptive window is better on all but one
+        // 0.0014 px worse, rot250); the adaptive window is better on all but one
         // (perspective, 0.0011 px worse).
         if let Some((cm, cx)) = cv {
             assert!(med <= cm + 0.002, "{}: median {med} vs OpenCV {cm}", c.name);
