@@ -4,13 +4,16 @@
 //! ```sh
 //! cargo build --release -p camgeom-host --example calib_count
 //! valgrind --tool=callgrind --toggle-collect='*ChessboardDetector*detect*' \
-//!     target/release/examples/calib_count detect
+//!     target/release/examples/calib_count detect [cornersubpix]
 //! valgrind --tool=callgrind --toggle-collect='*Calibrator*solve*' \
 //!     target/release/examples/calib_count calibrate
 //! ```
 
 use camgeom::calib::{CalibrationConfig, Calibrator};
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig, SubPixConfig, scratch_len};
+use camgeom::chessboard::{
+    BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
+    scratch_len,
+};
 use camgeom::nalgebra::Point2;
 
 fn main() {
@@ -21,12 +24,17 @@ fn main() {
         let img = camgeom_host::images::load_gray(data.join("chessboard/left01.jpg")).unwrap();
         let mut det = Box::new(ChessboardDetector::<512>::new());
         let mut scratch = vec![0i32; scratch_len(img.width)];
-        let cfg = DetectConfig {
-            subpix: Some(SubPixConfig {
+        let refine = if std::env::args().nth(2).as_deref() == Some("cornersubpix") {
+            Refinement::CornerSubPix(SubPixConfig {
                 half_window: 5,
                 max_iterations: 30,
                 epsilon: 0.1,
-            }),
+            })
+        } else {
+            Refinement::Saddle(SaddleConfig::default())
+        };
+        let cfg = DetectConfig {
+            refine,
             ..DetectConfig::default()
         };
         let found = det

@@ -326,13 +326,29 @@ def render(case, ss=4, sq=64):
     return img, tr, inside
 
 
+def sweep_cases():
+    """A rotation sweep: 24 in-plane rotations (15° apart) of a 9x6 board, tilted 20° about a
+    varying axis, 320x240, light noise."""
+    out = []
+    for k in range(24):
+        roll = np.deg2rad(15 * k)
+        tilt = np.deg2rad(20)
+        axis = np.array([np.cos(roll * 0.7), np.sin(roll * 0.7), 0.0]) * tilt
+        R = cv2.Rodrigues(axis)[0] @ cv2.Rodrigues(np.array([0, 0, roll]))[0]
+        rvec = cv2.Rodrigues(R)[0].reshape(-1)
+        centre = np.array([4.0, 2.5, 0.0])
+        tvec = np.array([0.0, 0.0, 17.0]) - R @ centre
+        out.append((f"sweep{15 * k:03d}", (320, 240), (9, 6), "none", tuple(rvec), tuple(tvec), {"noise": 0.8}))
+    return out
+
+
 def rendered():
     """rendered/<case>.png and rendered.csv (see the module docstring); rendered_cases.csv:
     case,width,height,cols,rows,in_view,half_window,cv_found,sb_found."""
     d = os.path.join(OUT, "rendered")
     os.makedirs(d, exist_ok=True)
     rows_out, cases_out = [], []
-    for case in RENDER_CASES:
+    for case in RENDER_CASES + sweep_cases():
         name, (w, h), (cols, rows) = case[0], case[1], case[2]
         img, tr, inside = render(case)
         if name == "absent":

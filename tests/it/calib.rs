@@ -6,7 +6,10 @@
 use camgeom::Error;
 use camgeom::calib::{CalibrationConfig, CalibrationWarning, Calibrator, LensKind};
 use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig, scratch_len};
+use camgeom::chessboard::{
+    BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, saddle_subpix,
+    scratch_len,
+};
 use camgeom::image::ImageView;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::rng::Pcg32;

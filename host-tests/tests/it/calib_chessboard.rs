@@ -2,7 +2,9 @@
 //! `findChessboardCorners` + `cornerSubPix` (`host-tests/scripts/make_calib_fixtures.py`,
 //! `fixtures/calib/real_corners.csv`).
 
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig, SubPixConfig, scratch_len};
+use camgeom::chessboard::{
+    BoardSize, ChessboardDetector, DetectConfig, Refinement, SubPixConfig, scratch_len,
+};
 use camgeom::nalgebra::Point2;
 
 /// One view of the fixture: OpenCV's corners in its own order.
@@ -37,27 +39,13 @@ pub fn opencv_views() -> Vec<OpenCvView> {
 }
 
 /// camgeom's corners of one bundled view with the given refinement.
-pub fn detect(name: &str, subpix: Option<SubPixConfig>) -> Option<Vec<Point2<f64>>> {
-    detect_with(name, subpix, false)
-}
-
-/// As [`detect`], the window adapted to each corner's squares.
-pub fn detect_adaptive(name: &str, subpix: SubPixConfig) -> Option<Vec<Point2<f64>>> {
-    detect_with(name, Some(subpix), true)
-}
-
-fn detect_with(
-    name: &str,
-    subpix: Option<SubPixConfig>,
-    adaptive_window: bool,
-) -> Option<Vec<Point2<f64>>> {
+pub fn detect(name: &str, refine: Refinement) -> Option<Vec<Point2<f64>>> {
     let img =
         camgeom_host::images::load_gray(crate::common::chessboard(&format!("{name}.jpg"))).unwrap();
     let mut det = Box::new(ChessboardDetector::<512>::new());
     let mut scratch = vec![0i32; scratch_len(img.width)];
     let cfg = DetectConfig {
-        subpix,
-        adaptive_window,
+        refine,
         ..DetectConfig::default()
     };
     let board = BoardSize::new(9, 6).unwrap();
@@ -81,13 +69,14 @@ fn finds_every_bundled_view_in_opencv_order() {
     let mut all_raw = vec![];
     let mut all_sp = vec![];
     for v in opencv_views() {
-        let raw = detect(&v.name, None).unwrap_or_else(|| panic!("{} not found", v.name));
+        let raw =
+            detect(&v.name, Refinement::None).unwrap_or_else(|| panic!("{} not found", v.name));
         let d: Vec<f64> = raw
             .iter()
             .zip(&v.raw)
             .map(|(a, b)| (a - b).norm())
             .collect();
-        let sp = detect(&v.name, Some(sp5)).unwrap();
+        let sp = detect(&v.name, Refinement::CornerSubPix(sp5)).unwrap();
         let e: Vec<f64> = sp
             .iter()
             .zip(&v.subpix5)

@@ -4,10 +4,10 @@
 
 use camgeom::Real;
 use camgeom::calib::{CalibrationConfig, CalibrationReport, Calibrator};
-use camgeom::chessboard::{BoardSize, SubPixConfig};
+use camgeom::chessboard::{BoardSize, Refinement, SaddleConfig, SubPixConfig};
 use camgeom::nalgebra::Point2;
 
-use super::calib_chessboard::{detect, detect_adaptive, opencv_views};
+use super::calib_chessboard::{detect, opencv_views};
 
 fn opencv_json() -> serde_json::Value {
     let path = camgeom_host::data_dir().join("fixtures/calib/real_opencv.json");
@@ -109,7 +109,7 @@ fn own_corners_reach_opencvs_rms() {
     let names: Vec<String> = opencv_views().into_iter().map(|v| v.name).collect();
     let views: Vec<Vec<Point2<f64>>> = names
         .iter()
-        .map(|n| detect(n, Some(sp5)).unwrap())
+        .map(|n| detect(n, Refinement::CornerSubPix(sp5)).unwrap())
         .collect();
     let r = calibrate::<f64>(&views, &CalibrationConfig::default());
     println!("own corners f64: {}", summary(&r));
@@ -125,12 +125,12 @@ fn own_corners_reach_opencvs_rms() {
     };
     let views: Vec<Vec<Point2<f64>>> = names
         .iter()
-        .map(|n| detect(n, Some(sp11)).unwrap())
+        .map(|n| detect(n, Refinement::CornerSubPix(sp11)).unwrap())
         .collect();
     let r11 = calibrate::<f64>(&views, &CalibrationConfig::default());
     let views: Vec<Vec<Point2<f64>>> = names
         .iter()
-        .map(|n| detect_adaptive(n, sp11).unwrap())
+        .map(|n| detect(n, Refinement::AdaptiveCornerSubPix(sp11)).unwrap())
         .collect();
     let ra = calibrate::<f64>(&views, &CalibrationConfig::default());
     let cv11 = opencv_json()["subpix11"]["rms"].as_f64().unwrap();
@@ -139,4 +139,12 @@ fn own_corners_reach_opencvs_rms() {
         r11.rms_px, ra.rms_px
     );
     assert!(r11.rms_px <= cv11 && ra.rms_px <= cv11);
+    // camgeom's default refinement, the saddle fit.
+    let views: Vec<Vec<Point2<f64>>> = names
+        .iter()
+        .map(|n| detect(n, Refinement::Saddle(SaddleConfig::default())).unwrap())
+        .collect();
+    let rs = calibrate::<f64>(&views, &CalibrationConfig::default());
+    println!("saddle fit: camgeom rms {:.4}: {}", rs.rms_px, summary(&rs));
+    assert!(rs.rms_px <= cv);
 }
