@@ -236,6 +236,22 @@ fn detector_errors_and_negatives() {
         BoardSize::new(2, 5).err(),
         Some(Error::InvalidParameter("board.cols"))
     );
+    let bad = DetectConfig {
+        refine: Refinement::Saddle(SaddleConfig {
+            sigma: 0.1,
+            ..SaddleConfig::default()
+        }),
+        ..cfg
+    };
+    assert_eq!(
+        det.detect::<12>(&img, b, &bad, &mut scratch).err(),
+        Some(Error::InvalidParameter("saddle.sigma"))
+    );
+    let mut nan = [Point2::new(f32::NAN, 1.0)];
+    assert_eq!(
+        saddle_subpix(&img, &mut nan, &SaddleConfig::default()),
+        Err(Error::NonFinite)
+    );
     // A flat frame and a noise frame hold no board.
     assert_eq!(det.detect::<12>(&img, b, &cfg, &mut scratch), Ok(None));
     let mut g = Pcg32::new(1);
