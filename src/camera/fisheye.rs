@@ -122,6 +122,8 @@ impl<T: Real> Fisheye<T> {
 
     /// Inverts [`Self::distort`]: Newton's method on `θ_d(θ) = |x_d|` from `θ = |x_d|`
     /// (OpenCV's `fisheye::undistortPoints`), bounded by `cfg`, then `x_n = x_d tan θ / θ_d`.
+    /// Where the model folds (`θ_d` not increasing beyond some angle) two angles share an
+    /// image; the answer is then a preimage where `θ_d` is increasing, as OpenCV's.
     ///
     /// Errors with [`Error::NoConvergence`] where `θ_d(θ)` is not increasing (the model folds
     /// over), when the angle reaches 90° (no pinhole point: the ray is behind the image plane)

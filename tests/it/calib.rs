@@ -300,6 +300,13 @@ proptest! {
             Intrinsics::new(280.0, 282.0, 320.0, 240.0).unwrap(),
             Fisheye::from_opencv(k).unwrap(),
         );
+        // Only where the lens is one to one: θ_d(t) increasing on [0, θ] (beyond a fold two
+        // angles share an image, and back-projection gives the one nearer the axis).
+        let slope = |t: f64| {
+            let t2 = t * t;
+            1.0 + t2 * (3.0 * k[0] + t2 * (5.0 * k[1] + t2 * (7.0 * k[2] + t2 * 9.0 * k[3])))
+        };
+        prop_assume!((0..=100).all(|i| slope(theta * i as f64 / 100.0) > 0.05));
         let ray = Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos());
         let xc = Point3::from(ray * 2.0);
         if f32_path {
