@@ -10,7 +10,7 @@
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
 //! | [`calib`] | camera calibration from chessboard views: Zhang's closed form, joint LM over the camera and every pose (Schur structure by QR), Brown-Conrady or fisheye, standard deviations |
-//! | [`chessboard`] | chessboard detection (saddle response, grid growing, OpenCV's corner order) and `cornerSubPix` refinement |
+//! | [`chessboard`] | chessboard detection (saddle response, grid growing, OpenCV's corner order), saddle-fit or `cornerSubPix` refinement |
 //! | [`image`] | borrowed grayscale views with a stride, validated once |
 //! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
 //! | [`gradient`] | Scharr derivatives in `i16`, per level or per window |
