@@ -9,6 +9,8 @@
 //! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
+//! | [`calib`] | camera calibration from chessboard views: Zhang's closed form, joint LM over the camera and every pose (Schur structure by QR), Brown-Conrady or fisheye, standard deviations |
+//! | [`chessboard`] | chessboard detection (saddle response, grid growing, OpenCV's corner order), saddle-fit or `cornerSubPix` refinement |
 //! | [`image`] | borrowed grayscale views with a stride, validated once |
 //! | [`pyramid`] | Gaussian pyramids (OpenCV's `pyrDown`, bit-exact) into caller buffers |
 //! | [`gradient`] | Scharr derivatives in `i16`, per level or per window |
@@ -23,6 +25,7 @@
 //! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
 //! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
+//! | [`remap`] | frame undistortion: new camera matrix (alpha / balance), Q10.5 lookup table or a compact grid map, integer bilinear remap |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
 //! | [`resize`] | bilinear resizing with aligned pixel centres, in integers |
 //! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
@@ -48,7 +51,9 @@
 #[cfg(any(feature = "std", test))]
 extern crate std;
 
+pub mod calib;
 pub mod camera;
+pub mod chessboard;
 pub mod corners;
 pub mod draw;
 mod error;
@@ -63,6 +68,7 @@ pub mod linalg;
 pub mod pose;
 pub mod pyramid;
 pub mod ransac;
+pub mod remap;
 pub mod resize;
 pub mod rng;
 mod scalar;

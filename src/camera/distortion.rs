@@ -150,6 +150,27 @@ impl<T: Real> Distortion<T> {
         )
     }
 
+    /// `∂(x_d, y_d)/∂(k1, k2, p1, p2, k3)`:
+    /// `[x r², x r⁴, 2xy, r² + 2x², x r⁶; y r², y r⁴, r² + 2y², 2xy, y r⁶]`.
+    pub(crate) fn coefficient_jacobian(x: T, y: T) -> nalgebra::SMatrix<T, 2, 5> {
+        let two = T::lit(2.0);
+        let r2 = x * x + y * y;
+        let r4 = r2 * r2;
+        let xy2 = two * x * y;
+        nalgebra::SMatrix::<T, 2, 5>::new(
+            x * r2,
+            x * r4,
+            xy2,
+            r2 + two * x * x,
+            x * r4 * r2,
+            y * r2,
+            y * r4,
+            r2 + two * y * y,
+            xy2,
+            y * r4 * r2,
+        )
+    }
+
     /// `∂(x_d, y_d)/∂(x, y)`.
     pub(crate) fn jacobian(&self, x: T, y: T) -> Matrix2<T> {
         let two = T::lit(2.0);
@@ -184,6 +205,23 @@ mod tests {
             let fy = (d.eval(x, y + h) - d.eval(x, y - h)) / (2.0 * h);
             assert!((j.column(0) - fx).amax() < 1e-8);
             assert!((j.column(1) - fy).amax() < 1e-8);
+        }
+    }
+
+    #[test]
+    fn coefficient_jacobian_matches_finite_differences() {
+        let h = 1e-6;
+        for &(x, y) in &[(0.1, -0.2), (0.5, 0.4), (-0.6, 0.3)] {
+            let j = Distortion::<f64>::coefficient_jacobian(x, y);
+            for k in 0..5 {
+                let mut c = lens().to_opencv();
+                c[k] += h;
+                let p = Distortion::from_opencv(c).unwrap().eval(x, y);
+                c[k] -= 2.0 * h;
+                let m = Distortion::from_opencv(c).unwrap().eval(x, y);
+                // The model is linear in its coefficients: only rounding (~ε/h) remains.
+                assert!((j.column(k) - (p - m) / (2.0 * h)).amax() < 1e-8);
+            }
         }
     }
 

@@ -4,15 +4,40 @@
 //!
 //! `X_c = R X + t`,  `x_n = (X_c/Z_c, Y_c/Z_c)`,  `x_d = distort(x_n)`,  `u = K x_d`,
 //!
-//! which is OpenCV's `projectPoints` with the 5-coefficient model.
+//! which is OpenCV's `projectPoints` with the 5-coefficient model, or, for a fisheye lens
+//! ([`LensModel::KannalaBrandt`]), `x_d = (θ_d / r) x_n` with `θ_d = θ (1 + k1 θ² + … + k4 θ⁸)`,
+//! `θ = atan |x_n|` (OpenCV's `fisheye::projectPoints`). Every entry point taking a [`Camera`]
+//! (projection, back-projection, pose solvers and refinement, drawing) follows its lens model.
 
 mod distortion;
+mod fisheye;
 mod intrinsics;
 
 pub use distortion::{Distortion, UndistortConfig};
+pub use fisheye::Fisheye;
 pub use intrinsics::Intrinsics;
 
-use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, Unit, Vector3};
+use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, SMatrix, Unit, Vector3};
+
+/// Lens coefficients a [`Camera`] exposes to calibration: Brown-Conrady `(k1, k2, p1, p2, k3)`
+/// or Kannala-Brandt `(k1, k2, k3, k4)` (the fifth unused, zero).
+pub const LENS_COEFFICIENTS: usize = 5;
+
+/// Parameters of a camera as calibration sees them: `fx fy cx cy` and the lens coefficients.
+pub const CAMERA_PARAMETERS: usize = 4 + LENS_COEFFICIENTS;
+
+/// Which lens model a [`Camera`] follows.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LensModel<T: Real = f32> {
+    /// Brown-Conrady: [`Camera::distortion`] applies (all zero: an ideal pinhole).
+    #[default]
+    BrownConrady,
+    /// Kannala-Brandt fisheye with these coefficients; [`Camera::distortion`] must then be all
+    /// zero (projection errors with `InvalidParameter("distortion")` otherwise, rather than
+    /// silently ignoring it).
+    KannalaBrandt(Fisheye<T>),
+}
 
 use crate::scalar::{Real, check_finite};
 use crate::transform::Pose;
@@ -28,6 +53,8 @@ pub struct Camera<T: Real = f32> {
     pub distortion: Distortion<T>,
     /// Bounds of the iterative undistortion used by back-projection.
     pub undistort: UndistortConfig<T>,
+    /// The lens model: Brown-Conrady (`distortion`) or Kannala-Brandt fisheye.
+    pub model: LensModel<T>,
 }
 
 impl<T: Real> Camera<T> {
@@ -37,7 +64,86 @@ impl<T: Real> Camera<T> {
             intrinsics,
             distortion,
             undistort: UndistortConfig::default(),
+            model: LensModel::BrownConrady,
         }
+    }
+
+    /// A fisheye camera (Kannala-Brandt, OpenCV's `cv::fisheye` model).
+    pub fn fisheye(intrinsics: Intrinsics<T>, lens: Fisheye<T>) -> Self {
+        Self {
+            intrinsics,
+            distortion: Distortion::none(),
+            undistort: UndistortConfig::default(),
+            model: LensModel::KannalaBrandt(lens),
+        }
+    }
+
+    /// The fisheye coefficients when the camera follows Kannala-Brandt, after checking that
+    /// the Brown-Conrady coefficients beside them are zero.
+    fn fisheye_lens(&self) -> Result<Option<&Fisheye<T>>> {
+        match &self.model {
+            LensModel::BrownConrady => Ok(None),
+            LensModel::KannalaBrandt(f) if self.distortion.is_none() => Ok(Some(f)),
+            LensModel::KannalaBrandt(_) => Err(Error::InvalidParameter("distortion")),
+        }
+    }
+
+    /// The lens map of normalised coordinates, `x_d = distort(x_n)`, of this camera's model.
+    pub fn distort_normalized(&self, n: &Point2<T>) -> Result<Point2<T>> {
+        match self.fisheye_lens()? {
+            None => self.distortion.distort(n),
+            Some(f) => f.distort(n),
+        }
+    }
+
+    /// Inverts [`Self::distort_normalized`], bounded by [`Self::undistort`].
+    pub fn undistort_normalized(&self, d: &Point2<T>) -> Result<Point2<T>> {
+        match self.fisheye_lens()? {
+            None => self.distortion.undistort(d, &self.undistort),
+            Some(f) => f.undistort(d, &self.undistort),
+        }
+    }
+
+    /// `∂x_d/∂x_n` of the lens model (2x2).
+    fn lens_jacobian(&self, x: T, y: T) -> Matrix2<T> {
+        match &self.model {
+            LensModel::BrownConrady => self.distortion.jacobian(x, y),
+            LensModel::KannalaBrandt(f) => f.jacobian(x, y),
+        }
+    }
+
+    /// [`Self::project_with_jacobian`] and the Jacobian of the pixel with respect to the
+    /// camera's own parameters `(fx, fy, cx, cy, c₁ … c₅)`, the lens coefficients `c` in
+    /// OpenCV's order ([`LENS_COEFFICIENTS`]: Brown-Conrady `k1 k2 p1 p2 k3`, fisheye
+    /// `k1 k2 k3 k4` and a zero column). With `u = fx x_d + s y_d + cx`, `v = fy y_d + cy`:
+    /// `∂u/∂fx = x_d`, `∂v/∂fy = y_d`, `∂u/∂cx = ∂v/∂cy = 1`, `∂u/∂c = K₂ ∂x_d/∂c`. This is what
+    /// calibration linearises.
+    pub fn project_with_parameter_jacobian(
+        &self,
+        xc: &Point3<T>,
+    ) -> Result<(Point2<T>, Matrix2x3<T>, SMatrix<T, 2, CAMERA_PARAMETERS>)> {
+        let (u, j) = self.project_with_jacobian(xc)?;
+        let iz = T::one() / xc.z;
+        let (x, y) = (xc.x * iz, xc.y * iz);
+        let d = self.distort_normalized(&Point2::new(x, y))?;
+        let k = &self.intrinsics;
+        let k2 = Matrix2::new(k.fx(), k.skew(), T::zero(), k.fy());
+        let (z, o) = (T::zero(), T::one());
+        let mut jp = SMatrix::<T, 2, CAMERA_PARAMETERS>::zeros();
+        jp.fixed_view_mut::<2, 4>(0, 0)
+            .copy_from(&nalgebra::Matrix2x4::new(d.x, z, o, z, z, d.y, z, o));
+        match &self.model {
+            LensModel::BrownConrady => {
+                let jc = k2 * Distortion::<T>::coefficient_jacobian(x, y);
+                jp.fixed_view_mut::<2, 5>(0, 4).copy_from(&jc);
+            }
+            LensModel::KannalaBrandt(f) => {
+                let jc = k2 * f.coefficient_jacobian(x, y);
+                jp.fixed_view_mut::<2, 4>(0, 4).copy_from(&jc);
+            }
+        }
+        check_finite(jp.as_slice())?;
+        Ok((u, j, jp))
     }
 
     /// An ideal pinhole camera (no distortion).
@@ -55,7 +161,7 @@ impl<T: Real> Camera<T> {
             return Err(Error::BehindCamera);
         }
         let n = Point2::new(xc.x / xc.z, xc.y / xc.z);
-        let d = self.distortion.distort(&n)?;
+        let d = self.distort_normalized(&n)?;
         let u = self.intrinsics.normalized_to_pixel(&d);
         check_finite(&[u.x, u.y])?;
         Ok(u)
@@ -70,10 +176,10 @@ impl<T: Real> Camera<T> {
         let dn = Matrix2x3::new(iz, T::zero(), -x * iz, T::zero(), iz, -y * iz);
         let k = &self.intrinsics;
         let k2 = Matrix2::new(k.fx(), k.skew(), T::zero(), k.fy());
-        let j = if self.distortion.is_none() {
+        let j = if self.distortion.is_none() && self.model == LensModel::BrownConrady {
             k2 * dn
         } else {
-            k2 * self.distortion.jacobian(x, y) * dn
+            k2 * self.lens_jacobian(x, y) * dn
         };
         check_finite(j.as_slice())?;
         Ok((u, j))
@@ -119,7 +225,7 @@ impl<T: Real> Camera<T> {
     /// NaN/inf input or a result that overflows.
     pub fn distort_pixel(&self, ideal: &Point2<T>) -> Result<Point2<T>> {
         let n = self.intrinsics.pixel_to_normalized(ideal)?;
-        let d = self.distortion.distort(&n)?;
+        let d = self.distort_normalized(&n)?;
         let u = self.intrinsics.normalized_to_pixel(&d);
         check_finite(&[u.x, u.y])?;
         Ok(u)
@@ -128,7 +234,7 @@ impl<T: Real> Camera<T> {
     /// Pixel to undistorted normalised coordinates `x_n = distort⁻¹(K⁻¹ u)`.
     pub fn undistort_to_normalized(&self, pixel: &Point2<T>) -> Result<Point2<T>> {
         let d = self.intrinsics.pixel_to_normalized(pixel)?;
-        self.distortion.undistort(&d, &self.undistort)
+        self.undistort_normalized(&d)
     }
 
     /// Back-projects a pixel to the unit direction of its ray in the camera frame (`z > 0`):
@@ -160,6 +266,15 @@ impl<T: Real> Camera<T> {
             undistort: UndistortConfig {
                 max_iterations: self.undistort.max_iterations,
                 tolerance: c(self.undistort.tolerance),
+            },
+            model: match &self.model {
+                LensModel::BrownConrady => LensModel::BrownConrady,
+                LensModel::KannalaBrandt(f) => LensModel::KannalaBrandt(Fisheye {
+                    k1: c(f.k1),
+                    k2: c(f.k2),
+                    k3: c(f.k3),
+                    k4: c(f.k4),
+                }),
             },
         }
     }
@@ -194,6 +309,87 @@ mod tests {
 
     fn pose(r: [f64; 3], t: [f64; 3]) -> Pose<f64> {
         Pose::from_rodrigues(Vector3::from(r), Vector3::from(t)).unwrap()
+    }
+
+    fn fisheye_camera() -> Camera<f64> {
+        let k = Intrinsics::new(310.0, 305.0, 322.0, 238.0).unwrap();
+        Camera::fisheye(
+            k,
+            Fisheye::from_opencv([-0.013, 0.021, -0.011, 0.002]).unwrap(),
+        )
+    }
+
+    #[test]
+    fn fisheye_camera_round_trips_and_checks_its_model() {
+        let cam = fisheye_camera();
+        // 75° off the axis: far outside what a pinhole lens of this focal length images.
+        let xc = Point3::new(3.0, -2.0, 1.0);
+        let u = cam.project(&Pose::identity(), &xc).unwrap();
+        let ray = cam.back_project(&u).unwrap();
+        assert_relative_eq!(ray.into_inner(), xc.coords.normalize(), epsilon = 1e-12);
+        let mut bad = cam;
+        bad.distortion.k1 = 0.1;
+        assert_eq!(
+            bad.project(&Pose::identity(), &xc),
+            Err(Error::InvalidParameter("distortion"))
+        );
+        assert_eq!(
+            bad.back_project(&u),
+            Err(Error::InvalidParameter("distortion"))
+        );
+    }
+
+    /// `∂u/∂X_c` and `∂u/∂(fx fy cx cy c)` of both models against central differences.
+    #[test]
+    fn parameter_jacobian_matches_finite_differences() {
+        let h = 1e-6;
+        for cam in [chessboard_camera(), fisheye_camera()] {
+            for xc in [Point3::new(0.1, -0.2, 1.0), Point3::new(-0.4, 0.3, 0.8)] {
+                let (u, jx, jp) = cam.project_with_parameter_jacobian(&xc).unwrap();
+                assert_eq!(u, cam.project_camera_point(&xc).unwrap());
+                for k in 0..3 {
+                    let mut a = xc;
+                    a[k] += h;
+                    let mut b = xc;
+                    b[k] -= h;
+                    let num = (cam.project_camera_point(&a).unwrap()
+                        - cam.project_camera_point(&b).unwrap())
+                        / (2.0 * h);
+                    // Pixel derivatives are ~500 px per unit: truncation h² · 500 and
+                    // rounding 500 ε / h stay below 1e-5.
+                    assert!((jx.column(k) - num).amax() < 1e-5);
+                }
+                let param = |c: &Camera<f64>, k: usize, d: f64| {
+                    let mut c = *c;
+                    let i = &c.intrinsics;
+                    let mut kk = [i.fx(), i.fy(), i.cx(), i.cy()];
+                    if k < 4 {
+                        kk[k] += d;
+                    } else {
+                        match &mut c.model {
+                            LensModel::BrownConrady => {
+                                let mut v = c.distortion.to_opencv();
+                                v[k - 4] += d;
+                                c.distortion = Distortion::from_opencv(v).unwrap();
+                            }
+                            LensModel::KannalaBrandt(f) => {
+                                let mut v = f.to_opencv();
+                                if let Some(x) = v.get_mut(k - 4) {
+                                    *x += d;
+                                }
+                                *f = Fisheye::from_opencv(v).unwrap();
+                            }
+                        }
+                    }
+                    c.intrinsics = Intrinsics::new(kk[0], kk[1], kk[2], kk[3]).unwrap();
+                    c.project_camera_point(&xc).unwrap()
+                };
+                for k in 0..CAMERA_PARAMETERS {
+                    let num = (param(&cam, k, h) - param(&cam, k, -h)) / (2.0 * h);
+                    assert!((jp.column(k) - num).amax() < 1e-5, "parameter {k}");
+                }
+            }
+        }
     }
 
     #[test]

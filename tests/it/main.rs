@@ -2,6 +2,7 @@
 //! set of monomorphised solvers instead of one per file (run one subject with a filter:
 //! `cargo test --test it twoview_opencv::`).
 
+mod calib;
 mod common;
 mod fixtures;
 mod fuzz_regressions;

@@ -3,6 +3,11 @@
 //! filter: `cargo test -p camgeom-host --test it pose_sequence:: -- --nocapture`).
 
 mod ar_box;
+mod calib_chessboard;
+mod calib_real;
+mod calib_rendered;
+mod calib_synthetic;
+mod calib_undistort;
 mod cli;
 mod common;
 mod features;

@@ -1,0 +1,346 @@
+//! Sub-pixel corner refinement: gradient orthogonality (OpenCV's `cornerSubPix`) and the
+//! saddle point of a quadratic fit to the smoothed image.
+//!
+//! Both are unbiased for an ideal corner at any angle between its edges. `cornerSubPix` is
+//! here so that results compare one to one with OpenCV's (on OpenCV's corners camgeom's
+//! calibration equals OpenCV's). The saddle fit is camgeom's default because it measured more
+//! accurate: on 38 boards rendered by OpenCV with exact truth (rotation, perspective, lens
+//! distortion, blur, noise, uneven light) its median corner error is 0.005..0.03 px against
+//! 0.02..0.11 px for `cornerSubPix` (fixed or adaptive window) and 0.02..0.27 px for OpenCV's
+//! `findChessboardCornersSB`: the fit uses every sample of a small smoothed window, where
+//! gradient orthogonality leans on the few pixels with a strong gradient and a Gaussian
+//! weight that spans the corner's neighbourhood (`docs/notes/calibration.md`).
+
+use nalgebra::Point2;
+
+use crate::image::ImageView;
+use crate::{Error, Result};
+
+/// Largest half window accepted (a 31x31 window): keeps the per-iteration cost bounded.
+pub const MAX_HALF_WINDOW: u8 = 15;
+
+/// Side of the resampled patch buffer: the largest window plus one pixel each side.
+const PATCH: usize = 2 * MAX_HALF_WINDOW as usize + 3;
+
+/// Parameters of [`corner_subpix`], OpenCV's `winSize`, `zeroZone = (-1, -1)` and
+/// `TermCriteria(COUNT + EPS, max_iterations, epsilon)`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SubPixConfig {
+    /// Half the window side: the window is `(2 h + 1)²` pixels (OpenCV's `winSize = (h, h)`;
+    /// `5` is OpenCV's `(5, 5)`, an 11x11 window). `1..=MAX_HALF_WINDOW`.
+    pub half_window: u8,
+    /// Iterations at most (`1..=100`).
+    pub max_iterations: u8,
+    /// Stop when the squared step `|Δ|²` is at most `epsilon` (OpenCV compares the squared
+    /// step with `epsilon` itself). Finite, `>= 0`.
+    pub epsilon: f32,
+}
+
+impl Default for SubPixConfig {
+    /// OpenCV's calibration sample: 11x11, 30 iterations, 0.001.
+    fn default() -> Self {
+        Self {
+            half_window: 5,
+            max_iterations: 30,
+            epsilon: 1e-3,
+        }
+    }
+}
+
+impl SubPixConfig {
+    /// Errors with `InvalidParameter` naming the field out of range.
+    pub fn validate(&self) -> Result<()> {
+        if self.half_window == 0 || self.half_window > MAX_HALF_WINDOW {
+            return Err(Error::InvalidParameter("subpix.half_window"));
+        }
+        if self.max_iterations == 0 || self.max_iterations > 100 {
+            return Err(Error::InvalidParameter("subpix.max_iterations"));
+        }
+        if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
+            return Err(Error::InvalidParameter("subpix.epsilon"));
+        }
+        Ok(())
+    }
+}
+
+/// Bilinear sample with a replicated border (OpenCV's `getRectSubPix` border).
+#[inline]
+fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
+    let w = img.width() as isize;
+    let xc = x.min(w - 1).max(0) as usize;
+    img.row_clamped(y).get(xc).copied().unwrap_or(0) as f32
+}
+
+/// Refines each corner in place by the gradient-orthogonality condition of OpenCV's
+/// `cornerSubPix`: inside a `(2h+1)²` window around the estimate `q`, every image gradient
+/// `gᵢ` at pixel `pᵢ` is orthogonal to `pᵢ - q` at a true corner, so `q` solves
+///
+/// `(Σ wᵢ gᵢ gᵢᵀ) q = Σ wᵢ gᵢ gᵢᵀ pᵢ`,  `wᵢ = exp(-(dxᵢ/h)² - (dyᵢ/h)²)`,
+///
+/// with gradients by central differences of the window resampled bilinearly at `q`'s
+/// sub-pixel offset. Each iteration re-centres the window; iteration stops after
+/// `max_iterations` or when the squared step is at most `epsilon`. A corner that moves more
+/// than `h` from its start keeps its start (OpenCV's rule for poor convergence), as does one
+/// whose window has no gradient (a flat patch).
+///
+/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+pub fn corner_subpix(
+    image: &ImageView<'_, u8>,
+    corners: &mut [Point2<f32>],
+    cfg: &SubPixConfig,
+) -> Result<()> {
+    cfg.validate()?;
+    if corners
+        .iter()
+        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
+    {
+        return Err(Error::NonFinite);
+    }
+    let h = cfg.half_window as isize;
+    let n = (2 * h + 1) as usize;
+    // Gaussian weights as OpenCV: exp(-((i - h)/h)²) per axis.
+    let mut mask = [0.0f32; 2 * MAX_HALF_WINDOW as usize + 1];
+    for (i, m) in mask.iter_mut().take(n).enumerate() {
+        let t = (i as f32 - h as f32) / h as f32;
+        *m = libm::expf(-t * t);
+    }
+    let (w, ht) = (image.width() as f32, image.height() as f32);
+    for c in corners.iter_mut() {
+        let start = *c;
+        let mut q = start;
+        for _ in 0..cfg.max_iterations {
+            // Window of (2h + 3)² samples at q + (j - h - 1, i - h - 1), bilinear.
+            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
+            let (ax, ay) = (q.x - fx, q.y - fy);
+            let (ix, iy) = (fx as isize, fy as isize);
+            // The resampled window, (2h + 3)² values: OpenCV's `getRectSubPix`.
+            let side = n + 2;
+            let mut patch = [0.0f32; PATCH * PATCH];
+            for (i, row) in patch.chunks_exact_mut(PATCH).take(side).enumerate() {
+                let y = iy + i as isize - h - 1;
+                for (j, v) in row.iter_mut().take(side).enumerate() {
+                    let x = ix + j as isize - h - 1;
+                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
+                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
+                    *v = t * (1.0 - ay) + u * ay;
+                }
+            }
+            let p = |j: usize, i: usize| patch.get(i * PATCH + j).copied().unwrap_or(0.0);
+            let (mut a, mut b, mut cc, mut bb1, mut bb2) = (0.0f64, 0.0f64, 0.0f64, 0.0, 0.0);
+            for (i, my) in mask.iter().take(n).enumerate() {
+                let py = (i as isize - h) as f64;
+                for (j, mx) in mask.iter().take(n).enumerate() {
+                    let px = (j as isize - h) as f64;
+                    let m = (my * mx) as f64;
+                    // Window pixel (j, i) is patch pixel (j + 1, i + 1).
+                    let gx = (p(j + 2, i + 1) - p(j, i + 1)) as f64;
+                    let gy = (p(j + 1, i + 2) - p(j + 1, i)) as f64;
+                    let (gxx, gxy, gyy) = (gx * gx * m, gx * gy * m, gy * gy * m);
+                    a += gxx;
+                    b += gxy;
+                    cc += gyy;
+                    bb1 += gxx * px + gxy * py;
+                    bb2 += gxy * px + gyy * py;
+                }
+            }
+            let det = a * cc - b * b;
+            if det.abs() <= f64::EPSILON * f64::EPSILON {
+                break;
+            }
+            let s = 1.0 / det;
+            let next = Point2::new(
+                (q.x as f64 + cc * s * bb1 - b * s * bb2) as f32,
+                (q.y as f64 - b * s * bb1 + a * s * bb2) as f32,
+            );
+            let err = (next - q).norm_squared();
+            q = next;
+            if q.x < 0.0 || q.x >= w || q.y < 0.0 || q.y >= ht || err <= cfg.epsilon {
+                break;
+            }
+        }
+        let hf = h as f32;
+        if !((q.x - start.x).abs() <= hf && (q.y - start.y).abs() <= hf) {
+            q = start;
+        }
+        *c = q;
+    }
+    Ok(())
+}
+
+/// Parameters of [`saddle_subpix`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SaddleConfig {
+    /// Half side of the fitted window (`1..=4`): `(2r + 1)²` smoothed samples.
+    pub half_window: u8,
+    /// Gaussian smoothing before the fit, px (`0.5..=3`).
+    pub sigma: f32,
+    /// Iterations at most (`1..=100`).
+    pub max_iterations: u8,
+    /// Stop when the squared step is at most this (px²).
+    pub epsilon: f32,
+}
+
+impl Default for SaddleConfig {
+    /// A 5x5 fit after σ = 1 px smoothing, to convergence (20 iterations, 1e-8 px²): the best
+    /// of the settings measured on the rendered boards (r 2..3, σ 1..2), and the only one
+    /// that holds on 10-px squares and uneven light.
+    fn default() -> Self {
+        Self {
+            half_window: 2,
+            sigma: 1.0,
+            max_iterations: 20,
+            epsilon: 1e-8,
+        }
+    }
+}
+
+/// Largest smoothing kernel radius of [`saddle_subpix`] (3σ at σ = 3).
+const SADDLE_KERNEL: usize = 9;
+/// Side of its sample buffer.
+const SADDLE_PATCH: usize = 2 * (4 + SADDLE_KERNEL) + 1;
+
+impl SaddleConfig {
+    /// Errors with `InvalidParameter` naming the field out of range.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=4).contains(&self.half_window) {
+            return Err(Error::InvalidParameter("saddle.half_window"));
+        }
+        if !(self.sigma >= 0.5 && self.sigma <= 3.0) {
+            return Err(Error::InvalidParameter("saddle.sigma"));
+        }
+        if self.max_iterations == 0 || self.max_iterations > 100 {
+            return Err(Error::InvalidParameter("saddle.max_iterations"));
+        }
+        if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
+            return Err(Error::InvalidParameter("saddle.epsilon"));
+        }
+        Ok(())
+    }
+}
+
+/// Refines each corner in place to the saddle point of the smoothed image: around the estimate
+/// `q`, the image is resampled bilinearly on a unit grid, smoothed by a Gaussian of `sigma`,
+/// and `I(x, y) ≈ a + b x + c y + d x² + e x y + f y²` fitted by least squares over
+/// `(2r + 1)²` samples (on the symmetric grid the fit separates into closed-form sums); the
+/// saddle `[2d e; e 2f] δ = -(b, c)` moves `q`. A chessboard corner is point-symmetric
+/// (`I(-p) = I(p)` about the crossing), so the smoothed image has its saddle exactly at the
+/// crossing for any angle between the edges. A corner whose fit is not a saddle
+/// (`4 d f - e² ≥ 0`), or that moves more than the window, keeps its start.
+///
+/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+pub fn saddle_subpix(
+    image: &ImageView<'_, u8>,
+    corners: &mut [Point2<f32>],
+    cfg: &SaddleConfig,
+) -> Result<()> {
+    cfg.validate()?;
+    if corners
+        .iter()
+        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
+    {
+        return Err(Error::NonFinite);
+    }
+    let r = cfg.half_window as usize;
+    let kr = (libm::ceilf(3.0 * cfg.sigma) as usize).min(SADDLE_KERNEL);
+    let mut kernel = [0.0f32; 2 * SADDLE_KERNEL + 1];
+    let mut ksum = 0.0;
+    for (i, k) in kernel.iter_mut().take(2 * kr + 1).enumerate() {
+        let t = i as f32 - kr as f32;
+        *k = libm::expf(-0.5 * t * t / (cfg.sigma * cfg.sigma));
+        ksum += *k;
+    }
+    for k in kernel.iter_mut() {
+        *k /= ksum;
+    }
+    let side = 2 * (r + kr) + 1;
+    let half = (r + kr) as isize;
+    // Fit denominators on the symmetric grid.
+    let rr = r as isize;
+    let m2 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() / (2 * r + 1) as f32;
+    let n1 = (2 * r + 1) as f32;
+    let sx2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() * n1;
+    let s2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum();
+    let sx2y2 = s2 * s2;
+    let sq: f32 = (-rr..=rr)
+        .map(|x| {
+            let t = (x * x) as f32 - m2;
+            t * t
+        })
+        .sum::<f32>()
+        * n1;
+    for c in corners.iter_mut() {
+        let start = *c;
+        let mut q = start;
+        for _ in 0..cfg.max_iterations {
+            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
+            let (ax, ay) = (q.x - fx, q.y - fy);
+            let (ix, iy) = (fx as isize, fy as isize);
+            let mut raw = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
+            for (i, row) in raw.chunks_exact_mut(SADDLE_PATCH).take(side).enumerate() {
+                let y = iy + i as isize - half;
+                for (j, v) in row.iter_mut().take(side).enumerate() {
+                    let x = ix + j as isize - half;
+                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
+                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
+                    *v = t * (1.0 - ay) + u * ay;
+                }
+            }
+            let px = |j: usize, i: usize| raw.get(i * SADDLE_PATCH + j).copied().unwrap_or(0.0);
+            // Horizontal then vertical smoothing, only where the fit needs it.
+            let mut hs = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
+            for i in 0..side {
+                for j in kr..kr + 2 * r + 1 {
+                    let mut s = 0.0;
+                    for (k, w) in kernel.iter().take(2 * kr + 1).enumerate() {
+                        s += w * px(j + k - kr, i);
+                    }
+                    if let Some(o) = hs.get_mut(i * SADDLE_PATCH + j) {
+                        *o = s;
+                    }
+                }
+            }
+            let (mut sb, mut sc, mut se, mut sd, mut sf) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+            for i in kr..kr + 2 * r + 1 {
+                for j in kr..kr + 2 * r + 1 {
+                    let mut s = 0.0;
+                    for (k, w) in kernel.iter().take(2 * kr + 1).enumerate() {
+                        s += w * hs
+                            .get((i + k - kr) * SADDLE_PATCH + j)
+                            .copied()
+                            .unwrap_or(0.0);
+                    }
+                    let (x, y) = ((j - kr) as f32 - r as f32, (i - kr) as f32 - r as f32);
+                    sb += x * s;
+                    sc += y * s;
+                    se += x * y * s;
+                    sd += (x * x - m2) * s;
+                    sf += (y * y - m2) * s;
+                }
+            }
+            let (b, cc, e, d, f) = (sb / sx2, sc / sx2, se / sx2y2, sd / sq, sf / sq);
+            let det = 4.0 * d * f - e * e;
+            // Not a saddle (or NaN): keep the estimate.
+            if det.is_nan() || det >= 0.0 {
+                break;
+            }
+            let dx = (-2.0 * f * b + e * cc) / det;
+            let dy = (e * b - 2.0 * d * cc) / det;
+            if !(dx.abs() <= 1.0 && dy.abs() <= 1.0) {
+                q = start;
+                break;
+            }
+            q = Point2::new(q.x + dx, q.y + dy);
+            if dx * dx + dy * dy <= cfg.epsilon {
+                break;
+            }
+        }
+        let lim = r as f32 + 1.0;
+        if !((q.x - start.x).abs() <= lim && (q.y - start.y).abs() <= lim) {
+            q = start;
+        }
+        *c = q;
+    }
+    Ok(())
+}
