@@ -12,6 +12,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod calibration;
 pub mod pipeline;
 pub mod qvga;
 pub mod recorded;

@@ -18,6 +18,7 @@
 //! 5. [`table`]: the per-stage cost table of every board in Markdown (BENCHMARKS.md takes it
 //!    verbatim), each board's ratio to the reference.
 
+mod calibration;
 mod compare;
 mod emulate;
 mod faults;
@@ -187,14 +188,20 @@ pub fn run(opts: &Options) -> Result<()> {
             rows.push(run_board(board, size, &dir, spec.stride, &host)?);
         }
     }
-    if opts.boards.contains(&M7) {
+    let calibration = if opts.boards.contains(&M7) {
         fault_job(opts.stride)?;
-    }
+        Some(calibration::run()?)
+    } else {
+        None
+    };
     println!(
         "\n---- main job cost table (Markdown; fps = 480e6 / mean total on the Cortex-M7, assuming \
          about one instruction per cycle: an estimate) ----\n{}",
         table::table(&rows, opts.stride)
     );
+    if let Some(c) = calibration {
+        println!("---- calibration job (instructions on the Cortex-M7) ----\n{c}");
+    }
     let measured: Vec<(String, u64, u64)> = rows
         .iter()
         .map(|r| (snapshot_key(r.board, r.size.bin), r.flash, r.ram))
