@@ -48,6 +48,14 @@ fn pairs<T: Real>(name: &str) -> (Vec<Point2<T>>, Vec<Point2<T>>) {
         .unzip()
 }
 
+/// Prints the values (to the last bit) when `SHOW` is set: for comparing two builds.
+fn show<T: Real>(v: &[T]) {
+    if std::env::var_os("SHOW").is_some() {
+        let v: Vec<String> = v.iter().map(|x| format!("{:?}", x.to_f64())).collect();
+        println!("{}", v.join(" "));
+    }
+}
+
 fn run<T: Real>(case: &str, repeats: usize) -> f64 {
     // The camera of both benches: f = 600, c = (320, 240).
     let k = Intrinsics::<T>::new(T::lit(600.0), T::lit(600.0), T::lit(320.0), T::lit(240.0))
@@ -79,6 +87,8 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
             for _ in 0..repeats {
                 let (p, e) = epnp(black_box(&world), black_box(&n)).expect("epnp");
                 sum += p.translation().x.to_f64() + e.to_f64();
+                show(p.rotation().matrix().as_slice());
+                show(p.translation().as_slice());
             }
         }
         "eight_64" => {
@@ -86,6 +96,7 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
             for _ in 0..repeats {
                 let f = eight_point(black_box(&a), black_box(&b)).expect("8-point");
                 sum += f.matrix()[(0, 0)].to_f64();
+                show(f.matrix().as_slice());
             }
         }
         "seven" => {
@@ -95,6 +106,7 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
             for _ in 0..repeats {
                 let f = seven_point(black_box(&a), black_box(&b)).expect("7-point");
                 sum += f.len() as f64;
+                f.iter().for_each(|f| show(f.matrix().as_slice()));
             }
         }
         "five" => {
@@ -110,6 +122,7 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
             for _ in 0..repeats {
                 let e = five_point(black_box(&a), black_box(&b)).expect("5-point");
                 sum += e.len() as f64;
+                e.iter().for_each(|e| show(e.matrix().as_slice()));
             }
         }
         "f_ransac_200" | "e_ransac_200" => {
@@ -117,11 +130,19 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
             let mut mask = vec![false; a.len()];
             for _ in 0..repeats {
                 let r = if case == "f_ransac_200" {
-                    find_fundamental(black_box(&a), black_box(&b), &config, &mut mask)
-                        .map(|(_, r)| r)
+                    find_fundamental(black_box(&a), black_box(&b), &config, &mut mask).map(
+                        |(f, r)| {
+                            show(f.matrix().as_slice());
+                            r
+                        },
+                    )
                 } else {
-                    find_essential(&k, &k, black_box(&a), black_box(&b), &config, &mut mask)
-                        .map(|(_, r)| r)
+                    find_essential(&k, &k, black_box(&a), black_box(&b), &config, &mut mask).map(
+                        |(e, r)| {
+                            show(e.matrix().as_slice());
+                            r
+                        },
+                    )
                 };
                 let r = r.expect("RANSAC");
                 sum += r.inliers as f64 + f64::from(r.iterations) * 1e-3;
