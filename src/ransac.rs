@@ -353,9 +353,17 @@ pub fn iterations_needed<T: Real>(inliers: usize, n: usize, s: usize, p: T, cap:
         // 1 - wˢ rounds to 1: no finite number of samples reaches the confidence.
         return cap;
     }
-    let k = ((T::one() - p).ln() / denom).ceil().to_f64();
-    // `as` saturates: NaN → 0 (then at least one sample), huge → u32::MAX.
-    (k as u32).clamp(1, cap.max(1))
+    let k = ((T::one() - p).ln() / denom).ceil();
+    // Compared and converted in `T` and `f32`, never through `f64` (software on a
+    // single-precision FPU): at or above the cap → the cap (a cap rounded up in `f32` gives
+    // the same, through the saturating `as` and the clamp); NaN fails the comparison and
+    // `as` maps it to 0 (then at least one sample), as it does a negative `k`.
+    let cap = cap.max(1);
+    if k >= nalgebra::convert::<f32, T>(cap as f32) {
+        return cap;
+    }
+    let k: f32 = nalgebra::convert_unchecked(k);
+    (k as u32).clamp(1, cap)
 }
 
 /// MSAC cost and inlier count of a model.
