@@ -34,7 +34,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
 use super::poly::{RootSearch, eval, real_roots_with};
-use crate::linalg::StreamingQr;
+use crate::linalg::{StreamingQr, null_space};
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
 
@@ -437,7 +437,7 @@ fn solve<T: Real>(
             let basis = |k: usize| unvec(&svd.v.column(k).into_owned());
             [basis(5), basis(6), basis(7), basis(8)]
         }
-        NullSpace::GaussJordan => null_space_gj(&rows5, tol.rank)?.map(|v| unvec(&v.into())),
+        NullSpace::GaussJordan => null_space(&rows5, tol.rank)?.map(|v| unvec(&v.into())),
     };
     let mut out = Vec::new();
     let mut failure = None;
@@ -624,92 +624,6 @@ fn constraints<T: Real>(e: &[[Linear<T>; 3]; 3]) -> [Poly<T>; 10] {
         }
     }
     a
-}
-
-/// An orthonormal basis of the null space of five rows of nine (unit rows, full row rank):
-/// Gauss-Jordan elimination with full pivoting brings them to `[I | B]` (columns permuted),
-/// whose null space is spanned by the columns of `[-B; I]`; modified Gram-Schmidt then makes
-/// those four vectors orthonormal (the hidden-variable system is better conditioned on an
-/// orthonormal basis, as the SVD's).
-///
-/// Errors: [`Error::Degenerate`] when a pivot falls below `rank` times the first (largest).
-fn null_space_gj<T: Real>(rows: &[[T; 9]; 5], rank: T) -> Result<[[T; 9]; 4]> {
-    let mut m = *rows;
-    let mut perm: [usize; 9] = core::array::from_fn(|j| j);
-    let mut first = T::zero();
-    for i in 0..5 {
-        // Largest entry of the trailing block.
-        let mut best = (i, i, T::zero());
-        for (r, row) in m.iter().enumerate().skip(i) {
-            for (c, v) in row.iter().enumerate().skip(i) {
-                if v.abs() > best.2 {
-                    best = (r, c, v.abs());
-                }
-            }
-        }
-        let (pr, pc, mag) = best;
-        if i == 0 {
-            first = mag;
-        }
-        if !above(mag, rank * first) || !mag.finite() {
-            return Err(Error::Degenerate);
-        }
-        m.swap(i, pr);
-        for row in m.iter_mut() {
-            row.swap(i, pc);
-        }
-        perm.swap(i, pc);
-        let Some(mut pivot) = m.get(i).copied() else {
-            return Err(Error::Degenerate);
-        };
-        let inv = T::one() / pivot.get(i).copied().unwrap_or(T::one());
-        pivot.iter_mut().for_each(|v| *v *= inv);
-        for (r, row) in m.iter_mut().enumerate() {
-            if r == i {
-                *row = pivot;
-                continue;
-            }
-            let f = row.get(i).copied().unwrap_or(T::zero());
-            row.iter_mut()
-                .zip(pivot.iter())
-                .for_each(|(a, p)| *a -= f * *p);
-        }
-    }
-    // Null vector k (permuted coordinates): -B[:, k] on the pivots, 1 at column 5 + k.
-    let mut basis = [[T::zero(); 9]; 4];
-    for (k, v) in basis.iter_mut().enumerate() {
-        for (i, row) in m.iter().enumerate() {
-            let (Some(&p), Some(&b)) = (perm.get(i), row.get(5 + k)) else {
-                continue;
-            };
-            if let Some(slot) = v.get_mut(p) {
-                *slot = -b;
-            }
-        }
-        if let Some(slot) = perm.get(5 + k).and_then(|p| v.get_mut(*p)) {
-            *slot = T::one();
-        }
-    }
-    // Modified Gram-Schmidt (the vectors are independent: each has its own unit coordinate).
-    for k in 0..4 {
-        let (done, rest) = basis.split_at_mut(k);
-        let Some(v) = rest.first_mut() else {
-            break;
-        };
-        for u in done.iter() {
-            let d = u
-                .iter()
-                .zip(v.iter())
-                .fold(T::zero(), |a, (p, q)| a + *p * *q);
-            v.iter_mut().zip(u.iter()).for_each(|(x, p)| *x -= d * *p);
-        }
-        let n = v.iter().fold(T::zero(), |a, x| a + *x * *x).sqrt();
-        if !above(n, T::zero()) {
-            return Err(Error::Degenerate);
-        }
-        v.iter_mut().for_each(|x| *x /= n);
-    }
-    Ok(basis)
 }
 
 /// Gauss-Newton steps polishing a root on the ten cubics.
