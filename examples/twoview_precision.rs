@@ -27,6 +27,9 @@ const N: usize = 80;
 const OUTLIERS: usize = 24; // round(0.3 N)
 const SUBSETS: usize = 20;
 
+/// Per type: rotation errors, translation errors, gross failures, inliers summed, runs failed.
+type Outcomes = (Vec<f64>, Vec<f64>, usize, usize, usize);
+
 fn truth() -> RelativePose<f64> {
     RelativePose::from_rodrigues(
         Vector3::new(0.05, -0.22, 0.04),
@@ -119,7 +122,7 @@ fn main() {
     println!("|---:|---|---|---|---:|---:|---:|");
     let mut minimal = Vec::new();
     for noise in [0.0, 0.5, 1.0, 2.0] {
-        let mut res: [(Vec<f64>, Vec<f64>, usize, usize, usize); 2] = Default::default();
+        let mut res: [Outcomes; 2] = Default::default();
         let (mut none, mut missed, mut solved64) = (0usize, 0usize, 0usize);
         for _ in 0..draws {
             let mut x1: Vec<Point2<f64>> = Vec::new();
