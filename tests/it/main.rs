@@ -3,6 +3,7 @@
 //! `cargo test --test it twoview_opencv::`).
 
 mod common;
+mod essential_f32;
 mod fixtures;
 mod fuzz_regressions;
 mod homography_dlt;
