@@ -11,22 +11,28 @@
 //!    `⟨x²z⟩ - z ⟨x²⟩`, `⟨y²z⟩ - z ⟨y²⟩`, `⟨xyz⟩ - z ⟨xy⟩` are three equations linear in
 //!    `(x, y, 1)` with coefficients polynomial in `z` (degrees 3, 3, 4): `B(z) (x, y, 1)ᵀ = 0`.
 //! 5. `det B(z) = 0`, a degree-10 polynomial, has the (up to 10) real roots `z`, found by
-//!    derivative isolation and safeguarded Newton ([`super::poly`]), not by an eigen-solver:
-//!    no 10x10 non-symmetric eigenproblem (awkward without allocation), bounded work.
+//!    derivative isolation and a safeguarded iteration ([`super::poly`]), not by an
+//!    eigen-solver: no 10x10 non-symmetric eigenproblem (awkward without allocation), bounded
+//!    work.
 //! 6. For each root, `(x, y, 1) ∝` the null vector of `B(z)` (the largest cross product of two
-//!    of its rows), polished by Gauss-Newton on the ten cubics (which are well conditioned
-//!    where the degree-10 polynomial, with clustered roots, is not), then `E` is projected onto
-//!    the essential manifold and kept if it satisfies the five constraints.
+//!    of its rows), polished by Gauss-Newton (the constraints are well conditioned where the
+//!    degree-10 polynomial, with clustered roots, is not), then `E` is kept if it satisfies the
+//!    constraints and the five epipolar equations.
 //!
-//! `f64` and `f32` run the same steps in their own type; they differ in the null space of
-//! step 1 and in the tolerances ([`Precision`]):
+//! `f64` and `f32` run the same steps in their own type (no conversion to `f64` on an `f32`
+//! call: a board with a single-precision FPU, Cortex-M4F/M7 or ESP32-S3, runs no software
+//! double), with different choices where `f32` needs them ([`Precision`]):
 //!
-//! - `f64`: the last four right singular vectors of the QR + Jacobi SVD of the five rows;
-//! - `f32`: Gauss-Jordan elimination of the five (unit) rows with full pivoting, the four
-//!   vectors `[-B; I]` orthonormalised by modified Gram-Schmidt: a fraction of the SVD's cost,
-//!   and single-precision throughout, so a board with a single-precision FPU (Cortex-M4F/M7,
-//!   ESP32-S3) runs no software double. The polish of step 6 brings the roots that the
-//!   degree-10 polynomial loses in `f32` back to the accuracy of the cubics.
+//! | step | `f64` (results of the first version, to the bit) | `f32` |
+//! |---|---|---|
+//! | 1 | last four right singular vectors of the QR + Jacobi SVD | Gauss-Jordan with full pivoting, `[-B; I]` orthonormalised ([`crate::linalg`]'s `null_space`): a fraction of the cost |
+//! | 5 | Cauchy bound, safeguarded Newton to `2ε` | tight bound, Laguerre with bisection, stop at rounding level (`poly::RootSearch::Fast`) |
+//! | 6 | Gauss-Newton on the reduced cubics, SVD projection onto the manifold | chord-method Gauss-Newton on the constraints evaluated from `E` itself ([`polish_direct`]), accepted at `1e-5`, scaled to `|E| = √2` |
+//! | passes | one | two, the second with another basis vector as `W` |
+//!
+//! In `f32` the elimination and the degree-10 polynomial lose digits; the polish on `E` brings
+//! the roots back to `f32` rounding, and the second pass finds the solutions the first puts
+//! at large `(x, y, z)`. [`SINGLE`] gives the figures.
 
 use heapless::Vec;
 use nalgebra::{Matrix3, Point2, Vector3};

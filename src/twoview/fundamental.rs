@@ -115,10 +115,10 @@ where
 /// The 7-point algorithm: every rank-2 `F` through 7 pairs.
 ///
 /// The 7 epipolar rows (Hartley-normalised) leave a 2-dimensional null space `F̂₁, F̂₂` (an
-/// orthonormal basis by Gauss-Jordan elimination with full pivoting, [`null_space`], a tenth
-/// of the cost of the QR and SVD it replaces); `det(α F̂₁ + (1 - α) F̂₂) = 0` is a cubic in `α` whose
-/// coefficients come from its values at `α = -1, 0, 1, 2`; each real root gives one `F`
-/// (between one and [`MAX_SEVEN_POINT_SOLUTIONS`]).
+/// orthonormal basis by Gauss-Jordan elimination of the unit rows with full pivoting, a
+/// tenth of the cost of the QR and SVD it replaces); `det(α F̂₁ + (1 - α) F̂₂) = 0` is a cubic
+/// in `α` whose coefficients come from its values at `α = -1, 0, 1, 2`; each real root gives
+/// one `F` (between one and [`MAX_SEVEN_POINT_SOLUTIONS`]).
 ///
 /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when the rows have rank below 7 (a
 /// pivot below `√ε` of the largest) or no root gives a rank-2 matrix.
