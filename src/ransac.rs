@@ -247,8 +247,18 @@ pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
             // A full buffer drops the extra solutions: documented on the constant.
             let _ = models.push(m);
         });
+        // The support each ranking must beat; a model that can no longer beat any of them is
+        // dropped part-way through scoring ([`score_bounded`]).
+        let tracks = 1 + usize::from(second.is_some());
         for model in models.iter() {
-            let (cost, count) = score(estimator, model, t2);
+            let rivals = [
+                best.as_ref().map(|b| (first, b.1, b.2)),
+                second.and_then(|o| best_second.as_ref().map(|b| (o, b.1, b.2))),
+            ];
+            let bounds = rivals.get(..tracks).unwrap_or(&[]);
+            let Some((cost, count)) = score_bounded(estimator, model, t2, bounds) else {
+                continue;
+            };
             let tracks = [(&mut best, Some(first)), (&mut best_second, second)];
             for (slot, order) in tracks {
                 let Some(order) = order else {
@@ -391,9 +401,17 @@ pub fn iterations_needed<T: Real>(inliers: usize, n: usize, s: usize, p: T, cap:
         // 1 - wˢ rounds to 1: no finite number of samples reaches the confidence.
         return cap;
     }
-    let k = ((T::one() - p).ln() / denom).ceil().to_f64();
-    // `as` saturates: NaN → 0 (then at least one sample), huge → u32::MAX.
-    (k as u32).clamp(1, cap.max(1))
+    let k = ((T::one() - p).ln() / denom).ceil();
+    // Compared and converted in `T` and `f32`, never through `f64` (software on a
+    // single-precision FPU): at or above the cap → the cap (a cap rounded up in `f32` gives
+    // the same, through the saturating `as` and the clamp); NaN fails the comparison and
+    // `as` maps it to 0 (then at least one sample), as it does a negative `k`.
+    let cap = cap.max(1);
+    if k >= nalgebra::convert::<f32, T>(cap as f32) {
+        return cap;
+    }
+    let k: f32 = nalgebra::convert_unchecked(k);
+    (k as u32).clamp(1, cap)
 }
 
 /// MSAC cost and inlier count of a model.
@@ -410,6 +428,53 @@ fn score<T: Real, E: Estimator<Scalar = T>>(e: &E, model: &E::Model, t2: T) -> (
         }
     }
     (cost, count)
+}
+
+/// [`score`], or `None` as soon as the model cannot rank above any of `rivals` (each a
+/// ranking with the support of its best model so far; `None` there: no model yet, so
+/// everything is scored in full).
+///
+/// Exact, not a heuristic: every point adds a non-negative amount (`r²` or `t²`) to the cost,
+/// and floating-point addition of a non-negative term never lowers a non-negative sum, so a
+/// partial cost already at the rival's is final-or-worse; the inlier count can grow by at
+/// most the points left. A model dropped here would have lost every comparison in full.
+fn score_bounded<T: Real, E: Estimator<Scalar = T>>(
+    e: &E,
+    model: &E::Model,
+    t2: T,
+    rivals: &[Option<(Scoring, T, usize)>],
+) -> Option<(T, usize)> {
+    let n = e.num_points();
+    if rivals.iter().any(Option::is_none) {
+        return Some(score(e, model, t2));
+    }
+    let hopeless = |cost: T, count: usize, left: usize| {
+        rivals
+            .iter()
+            .flatten()
+            .all(|&(order, best_cost, best_count)| match order {
+                Scoring::Msac | Scoring::Adaptive => cost >= best_cost,
+                Scoring::InlierCount => {
+                    let most = count + left;
+                    most < best_count || (most == best_count && cost >= best_cost)
+                }
+            })
+    };
+    let mut cost = T::zero();
+    let mut count = 0;
+    for i in 0..n {
+        match e.residual_sq(model, i) {
+            Some(r) if r < t2 => {
+                cost += r;
+                count += 1;
+            }
+            _ => cost += t2,
+        }
+        if hopeless(cost, count, n - 1 - i) {
+            return None;
+        }
+    }
+    Some((cost, count))
 }
 
 /// Writes `mask[i] = r_i² < t²`; returns the number of inliers.
@@ -506,6 +571,51 @@ mod tests {
         let mut mask2 = [false; 100];
         assert_eq!(ransac(&est, &cfg, &mut mask2).unwrap(), (a, report));
         assert_eq!(mask, mask2);
+    }
+
+    #[test]
+    fn bounded_scoring_drops_only_models_that_lose() {
+        // Random residual tables against random rivals: whenever `score_bounded` gives up,
+        // the full score loses to every rival under its ranking; otherwise it is the full
+        // score, bit for bit.
+        let mut g = Pcg32::new(7);
+        let t2 = 1.0;
+        let mut dropped = 0;
+        for _ in 0..2000 {
+            let n = 1 + g.below(40) as usize;
+            let x: std::vec::Vec<f64> = (0..n).map(|_| 1.0).collect();
+            let y: std::vec::Vec<f64> = (0..n)
+                .map(|_| {
+                    if g.uniform(0.0, 1.0) < 0.5 {
+                        g.uniform(-1.0, 1.0)
+                    } else {
+                        g.uniform(-5.0, 5.0)
+                    }
+                })
+                .collect();
+            let est = Slope { x: &x, y: &y };
+            let full = score(&est, &0.0, t2);
+            let rival = |g: &mut Pcg32, order| {
+                let count = g.below(n as u32 + 1) as usize;
+                Some((order, g.uniform(0.0, n as f64), count))
+            };
+            let orders = [Scoring::Msac, Scoring::InlierCount, Scoring::Adaptive];
+            let a = orders[g.below(3) as usize];
+            let rivals = [rival(&mut g, a), rival(&mut g, Scoring::InlierCount)];
+            let k = 1 + g.below(2) as usize;
+            match score_bounded(&est, &0.0, t2, &rivals[..k]) {
+                Some(got) => assert_eq!(got, full),
+                None => {
+                    dropped += 1;
+                    for (order, c, m) in rivals[..k].iter().flatten() {
+                        assert!(!order.better(full, (*c, *m)));
+                    }
+                }
+            }
+            assert_eq!(score_bounded(&est, &0.0, t2, &[None]), Some(full));
+        }
+        // Both outcomes are exercised.
+        assert!(dropped > 200 && dropped < 1800, "{dropped}");
     }
 
     /// Two fixed candidate models over a table of squared residuals: model 0 has three

@@ -12,9 +12,11 @@
 //! how [`crate::homography`] solves the DLT.
 
 pub mod lm;
+mod nullspace;
 mod qr;
 mod svd;
 
+pub(crate) use nullspace::null_space;
 pub use qr::StreamingQr;
 pub use svd::{MAX_SWEEPS, Svd, svd_jacobi};
 

@@ -4,6 +4,7 @@
 
 mod calib;
 mod common;
+mod essential_f32;
 mod fixtures;
 mod fuzz_regressions;
 mod homography_dlt;
