@@ -77,12 +77,12 @@
 mod zhang;
 
 use heapless::Vec;
-use nalgebra::{Point2, Point3, Rotation3, SMatrix, SVector, Vector3};
+use nalgebra::{Point2, Point3, SMatrix, SVector, Vector3};
 
 use crate::camera::{CAMERA_PARAMETERS, Camera, Distortion, Fisheye, Intrinsics, LensModel};
 use crate::chessboard::{BoardSize, Chessboard};
 use crate::homography::dlt;
-use crate::linalg::StreamingQr;
+use crate::linalg::{StreamingQr, rotation_step};
 use crate::pose::{PlanarConfig, solve_planar};
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::Pose;
@@ -922,7 +922,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             check_finite(dp.as_slice())?;
             let pose = poses.get(v).ok_or(Error::LengthMismatch)?;
             let [w1, w2, w3, t1, t2, t3]: [T; 6] = dp.into();
-            let rot = Rotation3::new(Vector3::new(w1, w2, w3)) * pose.rotation();
+            let rot = rotation_step(&Vector3::new(w1, w2, w3)) * pose.rotation();
             let t = pose.translation() + Vector3::new(t1, t2, t3);
             if let Some(slot) = nposes.get_mut(v) {
                 *slot = Pose::new(rot, t)?;

@@ -128,17 +128,15 @@ pub fn ippe<T: Real>(model: &[Point2<T>], normalized: &[Point2<T>]) -> Result<[(
 
 /// The two rotations of the module docs.
 fn ippe_rotations<T: Real>(v1: T, v2: T, j: &Matrix2<T>) -> Result<[Rotation3<T>; 2]> {
-    // R_v: the rotation about z × (v, 1) taking (0, 0, 1) to (v, 1)/|(v, 1)|.
-    let t = Vector3::new(v1, v2, T::one());
-    let s = t.norm();
-    let axis = Vector3::new(-v2, v1, T::zero());
-    let sin = axis.norm() / s;
-    let rv = if sin > T::EPSILON {
-        let angle = sin.atan2(T::one() / s);
-        Rotation3::new(axis / axis.norm() * angle)
-    } else {
-        Rotation3::identity()
-    };
+    // R_v: the rotation about z × (v, 1) taking (0, 0, 1) to (v, 1)/|(v, 1)|. With
+    // a = (-v2, v1, 0) (|a|² = s² - 1, s = |(v, 1)|), cos θ = 1/s and sin θ = |a|/s, so
+    // Rodrigues' formula I + sin θ [k]ₓ + (1 - cos θ) [k]ₓ² is rational in a and s:
+    // R_v = I + [a]ₓ / s + [a]ₓ² / (s (s + 1)) (no trigonometry; s ≥ 1, no cancellation).
+    let s = Vector3::new(v1, v2, T::one()).norm();
+    let ax = Vector3::new(-v2, v1, T::zero()).cross_matrix();
+    let rv = Rotation3::from_matrix_unchecked(
+        Matrix3::identity() + ax / s + ax * ax / (s * (s + T::one())),
+    );
     let r = rv.matrix();
     let b = Matrix2::new(
         r.m11 - v1 * r.m31,

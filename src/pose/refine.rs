@@ -1,10 +1,10 @@
 //! Levenberg-Marquardt refinement of a pose on the reprojection error.
 
-use nalgebra::{Matrix3, Point2, Point3, Rotation3, SVector, Vector3};
+use nalgebra::{Matrix3, Point2, Point3, SVector, Vector3};
 
 use super::PoseEstimate;
 use crate::camera::Camera;
-use crate::linalg::{StreamingQr, lm};
+use crate::linalg::{StreamingQr, lm, rotation_step};
 use crate::scalar::{Real, check_finite};
 use crate::transform::Pose;
 use crate::{Error, Result};
@@ -231,7 +231,7 @@ impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6, 7>
 
     fn step(&self, p: &Pose<T>, d: &SVector<T, 6>) -> Option<Pose<T>> {
         let [w1, w2, w3, t1, t2, t3]: [T; 6] = (*d).into();
-        let r = Rotation3::new(Vector3::new(w1, w2, w3)) * p.rotation();
+        let r = rotation_step(&Vector3::new(w1, w2, w3)) * p.rotation();
         let t = p.translation() + Vector3::new(t1, t2, t3);
         Pose::new(r, t).ok()
     }

@@ -20,10 +20,11 @@
 //! positive definite; a point block that still cannot be inverted (a point seen once, or on
 //! a ray through both centres) keeps the point fixed for that step.
 
-use nalgebra::{Matrix2x3, Matrix3, Point2, Point3, Rotation3, SMatrix, SVector, Vector3};
+use nalgebra::{Matrix2x3, Matrix3, Point2, Point3, SMatrix, SVector, Vector3};
 
 use super::Track;
 use crate::camera::Camera;
+use crate::linalg::rotation_step;
 use crate::scalar::{Real, above};
 use crate::transform::Pose;
 use crate::twoview::skew;
@@ -127,12 +128,12 @@ fn step_poses<T: Real>(poses: &[Pose<T>; 3], d: &SVector<T, C>) -> Option<[Pose<
         return None;
     }
     let q2 = Pose::new(
-        Rotation3::new(Vector3::new(w1, w2, w3)) * p2.rotation(),
+        rotation_step(&Vector3::new(w1, w2, w3)) * p2.rotation(),
         moved / n,
     )
     .ok()?;
     let q3 = Pose::new(
-        Rotation3::new(Vector3::new(a1, a2, a3)) * p3.rotation(),
+        rotation_step(&Vector3::new(a1, a2, a3)) * p3.rotation(),
         p3.translation() + Vector3::new(t1, t2, t3),
     )
     .ok()?;

@@ -19,7 +19,7 @@ use nalgebra::{Matrix3, Point2, Rotation3, SVector, Vector3};
 use super::{Essential, Fundamental, RelativePose, lift, skew};
 use crate::camera::Intrinsics;
 use crate::homography::Normalization;
-use crate::linalg::{StreamingQr, lm, svd_jacobi};
+use crate::linalg::{StreamingQr, lm, rotation_step, svd_jacobi};
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
 
@@ -230,8 +230,8 @@ where
     fn step(&self, p: &FParams<T>, delta: &SVector<T, 7>) -> Option<FParams<T>> {
         let [a1, a2, a3, b1, b2, b3, ds]: [T; 7] = (*delta).into();
         Some(FParams {
-            u: p.u * Rotation3::new(Vector3::new(a1, a2, a3)),
-            v: p.v * Rotation3::new(Vector3::new(b1, b2, b3)),
+            u: p.u * rotation_step(&Vector3::new(a1, a2, a3)),
+            v: p.v * rotation_step(&Vector3::new(b1, b2, b3)),
             s: p.s + ds,
         })
     }
@@ -355,7 +355,7 @@ where
         if !above(n, T::zero()) {
             return None;
         }
-        let r = Rotation3::new(Vector3::new(w1, w2, w3)) * p.rotation();
+        let r = rotation_step(&Vector3::new(w1, w2, w3)) * p.rotation();
         RelativePose::new(r, moved / n).ok()
     }
 }
