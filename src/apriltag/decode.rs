@@ -253,15 +253,24 @@ impl GrayModel {
 /// Largest `total_width` the decoder's cell grid holds.
 pub const MAX_TOTAL_WIDTH: usize = 12;
 
-/// Reads the payload of the quad `h` maps to (module docs): the read word and the decision
-/// margin, `None` when the border does not fit the family (wrong polarity, or too few border
-/// samples inside the image for the intensity models).
+/// A read payload: the word, the decision margin, and whether every sample of the ring just
+/// outside the detection border (the quiet zone) was inside the image.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reading {
+    pub(crate) rcode: u64,
+    pub(crate) margin: f32,
+    pub(crate) ring_in_view: bool,
+}
+
+/// Reads the payload of the quad `h` maps to (module docs), `None` when the border does not
+/// fit the family (wrong polarity, or too few border samples inside the image for the
+/// intensity models).
 pub(crate) fn read_code(
     img: &ImageView<'_, u8>,
     h: &Matrix3<f32>,
     family: &Family,
     sharpening: f32,
-) -> Option<(u64, f32)> {
+) -> Option<Reading> {
     let wab = usize::from(family.width_at_border);
     let wabf = wab as f32;
     let tw = usize::from(family.total_width);
@@ -281,16 +290,19 @@ pub(crate) fn read_code(
     ];
     let (mut white, mut black) = (GrayModel::default(), GrayModel::default());
     let (w, hgt) = (img.width() as f32, img.height() as f32);
+    let mut ring_in_view = true;
     for &(x0, y0, dx, dy, is_white) in &patterns {
         for i in 0..wab {
             let tx = 2.0 * ((x0 + i as f32 * dx) / wabf - 0.5);
             let ty = 2.0 * ((y0 + i as f32 * dy) / wabf - 0.5);
             let Some(p) = project(h, tx, ty) else {
+                ring_in_view &= !is_white;
                 continue;
             };
             // AprilTag truncates its coordinate: the pixel containing the point.
             let (ix, iy) = (libm::floorf(p.x + 0.5), libm::floorf(p.y + 0.5));
             if !(ix >= 0.0 && iy >= 0.0 && ix < w && iy < hgt) {
+                ring_in_view &= !is_white;
                 continue;
             }
             let v = f32::from(img.get(ix as usize, iy as usize).unwrap_or(0));
@@ -371,7 +383,11 @@ pub(crate) fn read_code(
             bc += 1.0;
         }
     }
-    Some((rcode, (ws / wc).min(bs / bc)))
+    Some(Reading {
+        rcode,
+        margin: (ws / wc).min(bs / bc),
+        ring_in_view,
+    })
 }
 
 /// AprilTag's `value_for_pixel`: bilinear between the pixels around `(x, y)`, also exactly on

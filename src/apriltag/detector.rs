@@ -45,6 +45,11 @@ pub struct DetectorConfig {
     /// Decodes with a smaller decision margin are dropped (default 0: AprilTag keeps every
     /// margin `≥ 0` and leaves filtering to the caller).
     pub min_decision_margin: f32,
+    /// Drop a tag whose quiet zone (the ring of cells just outside the detection border) is not
+    /// entirely inside the frame (default on). Such a tag is cut by the frame edge or touches
+    /// it; its outermost edge may not be seen, and a corner fitted to what is seen can be
+    /// pixels off. AprilTag keeps them (off: the same).
+    pub reject_clipped: bool,
     /// Point batches per frame (default 2; each is one more scan of the frame).
     pub max_batches: u8,
     /// Quads decoded per frame at most (default 256; each costs an edge refinement and a
@@ -65,6 +70,7 @@ impl Default for DetectorConfig {
             critical_angle_deg: 10.0,
             max_line_fit_mse: 10.0,
             min_decision_margin: 0.0,
+            reject_clipped: true,
             max_batches: 2,
             max_quads: 256,
         }
@@ -366,30 +372,39 @@ impl Detector {
             size,
             lab.labels,
             |key, p| {
-                let (x2, y2, _, _) = unpack(p);
-                table.count(key, x2 as u16, y2 as u16);
+                let (x2, y2, gx, gy) = unpack(p);
+                table.count(key, x2 as u16, y2 as u16, gx, gy);
             },
         );
         ws.stats.clusters = table.used as u32;
         ws.stats.cluster_overflow = table.dropped;
         probe.stage_done(Stage::Clusters);
 
-        // Clusters worth a fit; the others are marked done (n = 0).
+        // Clusters worth a fit (point count, closed, of a wanted border kind); the others are
+        // marked done (n = 0).
         let max_pts = (4 * (src.w + src.h))
             .min(ws.keys.len())
             .min(ws.points.len())
             .min(65534);
         let min_pts = usize::from(self.cfg.min_cluster_pixels);
-        let mut kept = 0u32;
+        let (normal, reversed) = (
+            self.families.iter().any(|f| !f.reversed_border),
+            self.families.iter().any(|f| f.reversed_border),
+        );
         for c in table.slots.iter_mut() {
             let n = usize::from(c.n);
-            if c.key == u32::MAX || n < min_pts || n > max_pts {
+            let wanted = c.key != u32::MAX
+                && match c.shape() {
+                    Some(rev) => (rev && reversed) || (!rev && normal),
+                    None => false,
+                };
+            if c.key == u32::MAX || n < min_pts || n > max_pts || !wanted {
                 c.n = 0;
             } else {
-                kept += 1;
+                ws.stats.clusters_kept += 1;
+                ws.stats.cluster_points += n as u32;
             }
         }
-        ws.stats.clusters_kept = kept;
 
         let min_width = self
             .families
@@ -402,8 +417,8 @@ impl Detector {
             max_line_fit_mse: self.cfg.max_line_fit_mse,
             cos_critical: self.cos_critical,
             min_tag_width: (min_width / d as u32).max(3),
-            normal_border: self.families.iter().any(|f| !f.reversed_border),
-            reversed_border: self.families.iter().any(|f| f.reversed_border),
+            normal_border: normal,
+            reversed_border: reversed,
         };
         let mut cursor = 0usize;
         let mut quads = 0u32;
@@ -459,7 +474,14 @@ impl Detector {
                 let Some(pts) = ws.points.get_mut(start..start + fill) else {
                     continue;
                 };
-                let fitted = fit_quad(&src, pts, ws.keys, (c.xmin, c.xmax, c.ymin, c.ymax), &prm);
+                let fitted = fit_quad(
+                    &src,
+                    pts,
+                    ws.keys,
+                    (c.xmin, c.xmax, c.ymin, c.ymax),
+                    c.dot() < 0,
+                    &prm,
+                );
                 probe.stage_done(Stage::QuadFit);
                 let Some(mut q) = fitted else {
                     continue;
@@ -509,11 +531,14 @@ impl Detector {
             if family.reversed_border != q.reversed_border {
                 continue;
             }
-            let Some((rcode, margin)) =
-                read_code(frame, h.matrix(), family, self.cfg.decode_sharpening)
+            let Some(reading) = read_code(frame, h.matrix(), family, self.cfg.decode_sharpening)
             else {
                 continue;
             };
+            if self.cfg.reject_clipped && !reading.ring_in_view {
+                continue;
+            }
+            let (rcode, margin) = (reading.rcode, reading.margin);
             if !crate::scalar::at_most(self.cfg.min_decision_margin.max(0.0), margin) {
                 continue;
             }

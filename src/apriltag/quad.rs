@@ -37,8 +37,9 @@ const EMPTY: u32 = u32::MAX;
 /// A cluster not in the current batch.
 pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
 
-/// One cluster: its key, point count, bounding box (doubled coordinates) and its range of the
-/// point buffer in the current batch.
+/// One cluster: its key, point count, bounding box (doubled coordinates), the sums of its
+/// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
+/// current batch. 28 bytes.
 #[derive(Debug, Clone, Copy)]
 pub struct Cluster {
     pub(crate) key: u32,
@@ -49,6 +50,9 @@ pub struct Cluster {
     pub(crate) xmax: u16,
     pub(crate) ymin: u16,
     pub(crate) ymax: u16,
+    pub(crate) sgx: i16,
+    pub(crate) sgy: i16,
+    pub(crate) spg: i32,
 }
 
 impl Cluster {
@@ -62,7 +66,39 @@ impl Cluster {
         xmax: 0,
         ymin: u16::MAX,
         ymax: 0,
+        sgx: 0,
+        sgy: 0,
+        spg: 0,
     };
+
+    /// `Σ (p - c) · g` about the bounding box centre `c`, in quarter pixels (AprilTag's `dot`
+    /// up to scale): positive when the gradient points away from the centre, i.e. white
+    /// outside (a normal border).
+    pub(crate) fn dot(&self) -> i64 {
+        let xs = i64::from(self.xmin) + i64::from(self.xmax);
+        let ys = i64::from(self.ymin) + i64::from(self.ymax);
+        2 * i64::from(self.spg) - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
+    }
+
+    /// The cluster pre-filter (module docs): `Some(reversed)` for a closed boundary around
+    /// its centre, `None` otherwise.
+    pub(crate) fn shape(&self) -> Option<bool> {
+        let n = i64::from(self.n);
+        let (gx, gy) = (i64::from(self.sgx), i64::from(self.sgy));
+        // Closed: |Σg| ≤ n / 4 (a straight edge has |Σg| ≈ n, a closed boundary ≈ 0).
+        if 16 * (gx * gx + gy * gy) > n * n {
+            return None;
+        }
+        // Around its centre: |dot| ≥ 0.2 n (bw + bh) / 2 in the units of `dot` (a square gives
+        // 1, a rectangle of aspect a about 4a / (1 + a)², 0.2 at a = 1/18).
+        let dot = self.dot();
+        let spread = (i64::from(self.xmax) - i64::from(self.xmin)).max(0)
+            + (i64::from(self.ymax) - i64::from(self.ymin)).max(0);
+        if self.spg.unsigned_abs() < i32::MAX as u32 && 10 * dot.abs() < n * spread {
+            return None;
+        }
+        Some(dot < 0)
+    }
 }
 
 /// Slot of `key` in a table of `len` slots (Fibonacci hashing).
@@ -95,9 +131,10 @@ impl<'a> Table<'a> {
         self.slots.len() - self.slots.len() / 4
     }
 
-    /// Counts a point of `key` at doubled coordinates `(x2, y2)`.
+    /// Counts a point of `key` at doubled coordinates `(x2, y2)` with gradient signs
+    /// `(gx, gy)`.
     #[inline]
-    pub(crate) fn count(&mut self, key: u32, x2: u16, y2: u16) {
+    pub(crate) fn count(&mut self, key: u32, x2: u16, y2: u16, gx: i32, gy: i32) {
         let len = self.slots.len();
         let mut i = home(key, len);
         for _ in 0..len {
@@ -115,6 +152,10 @@ impl<'a> Table<'a> {
                 c.xmax = c.xmax.max(x2);
                 c.ymin = c.ymin.min(y2);
                 c.ymax = c.ymax.max(y2);
+                c.sgx = c.sgx.saturating_add(gx as i16);
+                c.sgy = c.sgy.saturating_add(gy as i16);
+                let pg = i32::from(x2) * gx + i32::from(y2) * gy;
+                c.spg = c.spg.saturating_add(pg);
                 return;
             }
             if c.key == EMPTY {
@@ -432,12 +473,14 @@ const FILTER: [f32; 7] = [
 ];
 
 /// Fits a quad to one cluster's points (module docs). `keys` is scratch of at least
-/// `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates.
+/// `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates; `reversed`
+/// the border kind ([`Cluster::shape`]).
 pub(crate) fn fit_quad(
     src: &Sampled<'_>,
     pts: &mut [u32],
     keys: &mut [u16],
     bbox: (u16, u16, u16, u16),
+    reversed: bool,
     prm: &QuadParams,
 ) -> Option<Quad> {
     let n = pts.len();
@@ -452,19 +495,14 @@ pub(crate) fn fit_quad(
     if i64::from(xmax - xmin) * i64::from(ymax - ymin) < i64::from(prm.min_tag_width) {
         return None;
     }
-    // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis)
-    //    and the border's orientation.
-    let (xs, ys) = (xmin + xmax, ymin + ymax);
-    let mut dot: i64 = 0;
-    for (p, k) in pts.iter().zip(keys.iter_mut()) {
-        let (x2, y2, gx, gy) = unpack(*p);
-        let (dx, dy) = (2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
-        dot += i64::from(dx) * i64::from(gx) + i64::from(dy) * i64::from(gy);
-        *k = pseudo_angle(dx, dy);
-    }
-    let reversed = dot < 0;
     if (reversed && !prm.reversed_border) || (!reversed && !prm.normal_border) {
         return None;
+    }
+    // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
+    let (xs, ys) = (xmin + xmax, ymin + ymax);
+    for (p, k) in pts.iter().zip(keys.iter_mut()) {
+        let (x2, y2, _, _) = unpack(*p);
+        *k = pseudo_angle(2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
     }
     sort_by_key(pts, keys);
     // 2. Weights replace the keys.

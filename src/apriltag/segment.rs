@@ -434,7 +434,8 @@ pub(crate) fn boundary_scan(
                 *cl = l;
             }
         }
-        if y == 0 {
+        // AprilTag's scan: the upper pixel is never in the outermost rows or columns.
+        if y < 2 {
             continue;
         }
         // Pairs with the upper pixel in row y - 1 (AprilTag's DO_CONN from (x, y - 1)).
@@ -442,7 +443,7 @@ pub(crate) fn boundary_scan(
         let cur_cls = &*cur_cls;
         let cur_lab = &*cur_lab;
         let mut connected_last = false;
-        for x in 0..src.w {
+        for x in 1..src.w.saturating_sub(1) {
             let v0 = prev_cls.get(x).copied().unwrap_or(SKIP);
             let r0 = prev_lab.get(x).copied().unwrap_or(NONE);
             if v0 == SKIP || r0 >= SMALL {
@@ -468,7 +469,7 @@ pub(crate) fn boundary_scan(
             };
             conn(prev_cls.get(x + 1), prev_lab.get(x + 1), 1, 0);
             conn(cur_cls.get(x), cur_lab.get(x), 0, 1);
-            if !connected_last && x > 0 {
+            if !connected_last {
                 conn(cur_cls.get(x - 1), cur_lab.get(x - 1), -1, 1);
             }
             connected_last = conn(cur_cls.get(x + 1), cur_lab.get(x + 1), 1, 1);

@@ -21,6 +21,8 @@ pub struct Stats {
     pub cluster_overflow: u32,
     /// Clusters with a plausible point count, handed to the quad fit.
     pub clusters_kept: u32,
+    /// Boundary points of the kept clusters (what `POINTS` would hold in one batch).
+    pub cluster_points: u32,
     /// Kept clusters left unfitted: the point batches (`max_batches` of `POINTS`) ran out.
     pub clusters_skipped: u32,
     /// Boundary scans that stored points (one per batch).
@@ -139,6 +141,7 @@ impl<
                 clusters: 0,
                 cluster_overflow: 0,
                 clusters_kept: 0,
+                cluster_points: 0,
                 clusters_skipped: 0,
                 batches: 0,
                 points: 0,
