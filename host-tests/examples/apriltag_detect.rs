@@ -3,14 +3,15 @@
 //!
 //! ```sh
 //! cargo run -p camgeom-host --example apriltag_detect -- [--decimate N] [--no-refine]
-//!     [--family tag36h11]... [--pose SIZE --camera FILE] [--repeat N] IMAGE...
+//!     [--family tag36h11]... [--pose SIZE --camera FILE] [--repeat N] [--stats] IMAGE...
 //! ```
 //!
 //! Rows: `image,family,id,hamming,margin,x0,y0,x1,y1,x2,y2,x3,y3` (AprilTag's corner order,
 //! camgeom's pixel convention), with `--pose` also `r11..r33,tx,ty,tz,ambiguous` (the best
 //! pose of `camgeom::apriltag::tag_pose`, AprilTag's tag frame). Frames up to 320x240 after
 //! decimation use the board workspace [`Workspace320x240`], larger ones a 1024-wide one.
-//! `--repeat N` runs each detection N times (the output once): callgrind's per-call counts.
+//! `--repeat N` runs each detection N times (the output once): callgrind's per-call counts;
+//! `--stats` prints each frame's [`camgeom::apriltag::Stats`] to stderr.
 
 use camgeom::apriltag::{
     Detection, Detector, DetectorConfig, Family, Workspace, Workspace320x240, families,
@@ -43,6 +44,7 @@ fn main() {
     let mut size = None;
     let mut camera = None;
     let mut repeat = 1usize;
+    let mut stats = false;
     let mut images = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -54,6 +56,7 @@ fn main() {
             "--pose" => size = Some(args.next().unwrap().parse::<f32>().unwrap()),
             "--camera" => camera = Some(args.next().unwrap()),
             "--repeat" => repeat = args.next().unwrap().parse().unwrap(),
+            "--stats" => stats = true,
             _ => images.push(a),
         }
     }
@@ -88,6 +91,14 @@ fn main() {
                 let ws = large.get_or_insert_with(|| Box::new(Large::new()));
                 det.detect(&view, ws).expect("detect")
             };
+        }
+        if stats {
+            let s = if fits {
+                small.stats()
+            } else {
+                large.as_ref().expect("used").stats()
+            };
+            eprintln!("{path}: {s:?}");
         }
         for t in &found {
             let c = &t.corners;

@@ -44,8 +44,10 @@ fn bilinear(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
     if !(x >= 0.0 && y >= 0.0) {
         return None;
     }
-    let (xf, yf) = (libm::floorf(x), libm::floorf(y));
-    let (xi, yi) = (xf as usize, yf as usize);
+    // Non-negative: truncation is the floor (and saturates far outside, which the test below
+    // rejects).
+    let (xi, yi) = (x as usize, y as usize);
+    let (xf, yf) = (xi as f32, yi as f32);
     if xi + 1 >= img.width() || yi + 1 >= img.height() {
         return None;
     }
@@ -161,13 +163,17 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         let nf = cnt as f32;
         let (ex, ey) = (mx / nf, my / nf);
         let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
-        // AprilTag: normal angle ½ atan2(-2 Cxy, Cyy - Cxx).
-        let theta = 0.5 * libm::atan2f(-2.0 * cxy, cyy - cxx);
+        // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
+        // direction from the eigenvectors, as the quad fit computes it).
+        let (_, _, nx, ny) = super::quad::eigen(cxx, cxy, cyy);
+        if nx == 0.0 && ny == 0.0 {
+            continue;
+        }
         *line = Line {
             ex: ex + line.ex,
             ey: ey + line.ey,
-            nx: libm::cosf(theta),
-            ny: libm::sinf(theta),
+            nx,
+            ny,
         };
     }
     let old = q.p;
@@ -300,7 +306,7 @@ pub(crate) fn read_code(
                 continue;
             };
             // AprilTag truncates its coordinate: the pixel containing the point.
-            let (ix, iy) = (libm::floorf(p.x + 0.5), libm::floorf(p.y + 0.5));
+            let (ix, iy) = (p.x + 0.5, p.y + 0.5);
             if !(ix >= 0.0 && iy >= 0.0 && ix < w && iy < hgt) {
                 ring_in_view &= !is_white;
                 continue;
@@ -397,13 +403,13 @@ fn bilinear_or_edge(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
     if !(x >= 0.0 && y >= 0.0) {
         return None;
     }
-    let (x1, y1) = (libm::floorf(x), libm::floorf(y));
-    let (x2, y2) = (libm::ceilf(x), libm::ceilf(y));
-    if x2 >= img.width() as f32 || y2 >= img.height() as f32 {
+    // Non-negative: truncation is the floor.
+    let (x1, y1) = (x as usize, y as usize);
+    let (a, b) = (x - x1 as f32, y - y1 as f32);
+    let (x2, y2) = (x1 + usize::from(a > 0.0), y1 + usize::from(b > 0.0));
+    if x2 >= img.width() || y2 >= img.height() {
         return None;
     }
-    let (a, b) = (x - x1, y - y1);
-    let (x1, x2, y1, y2) = (x1 as usize, x2 as usize, y1 as usize, y2 as usize);
     let p = |xx: usize, yy: usize| f32::from(img.get(xx, yy).unwrap_or(0));
     Some(
         p(x1, y1) * (1.0 - a) * (1.0 - b)

@@ -11,7 +11,9 @@
 //!    `Σ (p - c) · g` (`g` towards white) tells a normal border (white outside) from a
 //!    reversed one;
 //! 2. each point is weighted by `|∇I| + 1` (the 3-tap central difference,
-//!    `|∇| ≈ max + 3/8 min` of the two components) and, for a window of `2k + 1` points around
+//!    `|∇| ≈ max + 3/8 min` of the two components); a cluster whose mean weight is below
+//!    `min_edge_gradient` is not fitted (not AprilTag's: textured and noisy backgrounds give
+//!    thousands of faint boundaries, printed tags a strong one); for a window of `2k + 1` points around
 //!    each (`k = min(20, n / 12)`), the weighted covariance gives the line-fit error
 //!    `N λ_min`; the errors are low-pass filtered (Gaussian, σ = 1 point, 7 taps) and their
 //!    local maxima are corner candidates, the `max_nmaxima` largest kept;
@@ -39,7 +41,7 @@ pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
 
 /// One cluster: its key, point count, bounding box (doubled coordinates), the sums of its
 /// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
-/// current batch. 28 bytes.
+/// current batch. 32 bytes.
 #[derive(Debug, Clone, Copy)]
 pub struct Cluster {
     pub(crate) key: u32,
@@ -52,7 +54,7 @@ pub struct Cluster {
     pub(crate) ymax: u16,
     pub(crate) sgx: i16,
     pub(crate) sgy: i16,
-    pub(crate) spg: i32,
+    pub(crate) spg: i64,
 }
 
 impl Cluster {
@@ -77,7 +79,7 @@ impl Cluster {
     pub(crate) fn dot(&self) -> i64 {
         let xs = i64::from(self.xmin) + i64::from(self.xmax);
         let ys = i64::from(self.ymin) + i64::from(self.ymax);
-        2 * i64::from(self.spg) - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
+        2 * self.spg - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
     }
 
     /// The cluster pre-filter (module docs): `Some(reversed)` for a closed boundary around
@@ -94,10 +96,54 @@ impl Cluster {
         let dot = self.dot();
         let spread = (i64::from(self.xmax) - i64::from(self.xmin)).max(0)
             + (i64::from(self.ymax) - i64::from(self.ymin)).max(0);
-        if self.spg.unsigned_abs() < i32::MAX as u32 && 10 * dot.abs() < n * spread {
+        if 10 * dot.abs() < n * spread {
             return None;
         }
         Some(dot < 0)
+    }
+}
+
+/// Points of one cluster gathered before they go into the [`Table`]: count, bounding box and
+/// the sums of [`Cluster`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tally {
+    pub(crate) n: u32,
+    pub(crate) xmin: u16,
+    pub(crate) xmax: u16,
+    pub(crate) ymin: u16,
+    pub(crate) ymax: u16,
+    pub(crate) sgx: i32,
+    pub(crate) sgy: i32,
+    pub(crate) spg: i64,
+}
+
+impl Tally {
+    /// Nothing.
+    pub(crate) const EMPTY: Self = Self {
+        n: 0,
+        xmin: u16::MAX,
+        xmax: 0,
+        ymin: u16::MAX,
+        ymax: 0,
+        sgx: 0,
+        sgy: 0,
+        spg: 0,
+    };
+
+    /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, with gradient signs `(gx, gy)`.
+    #[inline]
+    pub(crate) fn add_run(&mut self, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
+        let mi = i32::from(m);
+        self.n += u32::from(m);
+        self.xmin = self.xmin.min(x2);
+        self.xmax = self.xmax.max(x2.saturating_add(2 * m.saturating_sub(1)));
+        self.ymin = self.ymin.min(y2);
+        self.ymax = self.ymax.max(y2);
+        self.sgx += mi * gx;
+        self.sgy += mi * gy;
+        // Σ x2 over the run: m x2 + m (m - 1); each term below 2^28 (MAX_DIM = 8192).
+        let sx = mi * i32::from(x2) + mi * (mi - 1);
+        self.spg += i64::from(sx * gx) + i64::from(mi * i32::from(y2) * gy);
     }
 }
 
@@ -115,6 +161,10 @@ pub(crate) struct Table<'a> {
     pub(crate) used: usize,
     /// Points of keys that found no room.
     pub(crate) dropped: u32,
+    /// The slot of the last key looked up: consecutive points mostly share a cluster.
+    last: (u32, usize),
+    /// Slots that may be used (3/4 of them).
+    limit: usize,
 }
 
 impl<'a> Table<'a> {
@@ -124,56 +174,82 @@ impl<'a> Table<'a> {
             slots,
             used: 0,
             dropped: 0,
+            last: (EMPTY, 0),
+            limit: 0,
         }
+        .with_limit()
     }
 
-    fn limit(&self) -> usize {
-        self.slots.len() - self.slots.len() / 4
+    fn with_limit(mut self) -> Self {
+        self.limit = self.slots.len() - self.slots.len() / 4;
+        self
     }
 
-    /// Counts a point of `key` at doubled coordinates `(x2, y2)` with gradient signs
-    /// `(gx, gy)`.
+    /// Adds the points `t` of cluster `key`.
     #[inline]
-    pub(crate) fn count(&mut self, key: u32, x2: u16, y2: u16, gx: i32, gy: i32) {
+    pub(crate) fn add(&mut self, key: u32, t: &Tally) {
+        let i = if self.last.0 == key {
+            self.last.1
+        } else {
+            match self.slot(key) {
+                Some(i) => i,
+                None => {
+                    self.dropped = self.dropped.saturating_add(t.n);
+                    return;
+                }
+            }
+        };
+        let Some(c) = self.slots.get_mut(i) else {
+            return;
+        };
+        c.n = c.n.saturating_add(t.n.min(u32::from(u16::MAX)) as u16);
+        c.xmin = c.xmin.min(t.xmin);
+        c.xmax = c.xmax.max(t.xmax);
+        c.ymin = c.ymin.min(t.ymin);
+        c.ymax = c.ymax.max(t.ymax);
+        let clamp16 = |v: i32| v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
+        c.sgx = clamp16(i32::from(c.sgx) + t.sgx);
+        c.sgy = clamp16(i32::from(c.sgy) + t.sgy);
+        c.spg = c.spg.saturating_add(t.spg);
+    }
+
+    /// The slot of `key`, inserted when new and there is room (and remembered).
+    fn slot(&mut self, key: u32) -> Option<usize> {
         let len = self.slots.len();
         let mut i = home(key, len);
         for _ in 0..len {
-            let full = self.used >= self.limit();
-            let Some(c) = self.slots.get_mut(i) else {
-                break;
-            };
-            if c.key == key || (c.key == EMPTY && !full) {
-                if c.key == EMPTY {
-                    c.key = key;
-                    self.used += 1;
-                }
-                c.n = c.n.saturating_add(1);
-                c.xmin = c.xmin.min(x2);
-                c.xmax = c.xmax.max(x2);
-                c.ymin = c.ymin.min(y2);
-                c.ymax = c.ymax.max(y2);
-                c.sgx = c.sgx.saturating_add(gx as i16);
-                c.sgy = c.sgy.saturating_add(gy as i16);
-                let pg = i32::from(x2) * gx + i32::from(y2) * gy;
-                c.spg = c.spg.saturating_add(pg);
-                return;
+            let c = self.slots.get_mut(i)?;
+            if c.key == key {
+                self.last = (key, i);
+                return Some(i);
             }
             if c.key == EMPTY {
-                break;
+                if self.used >= self.limit {
+                    return None;
+                }
+                c.key = key;
+                self.used += 1;
+                self.last = (key, i);
+                return Some(i);
             }
             i = if i + 1 == len { 0 } else { i + 1 };
         }
-        self.dropped = self.dropped.saturating_add(1);
+        None
     }
 
     /// The cluster of `key`, if it has a slot.
     #[inline]
     pub(crate) fn get_mut(&mut self, key: u32) -> Option<&mut Cluster> {
         let len = self.slots.len();
-        let mut i = home(key, len);
+        let mut i = if self.last.0 == key {
+            self.last.1
+        } else {
+            home(key, len)
+        };
         for _ in 0..len {
             let k = self.slots.get(i)?.key;
             if k == key {
+                self.last = (key, i);
                 return self.slots.get_mut(i);
             }
             if k == EMPTY {
@@ -196,6 +272,8 @@ pub(crate) struct QuadParams {
     pub(crate) min_tag_width: u32,
     pub(crate) normal_border: bool,
     pub(crate) reversed_border: bool,
+    /// Clusters whose mean gradient weight is below this are not fitted.
+    pub(crate) min_edge_gradient: u32,
 }
 
 /// A fitted quad in the sampled image: corners in the order of the sorted boundary (clockwise
@@ -207,7 +285,7 @@ pub(crate) struct Quad {
 }
 
 /// Largest candidate count of the corner search.
-pub const MAX_NMAXIMA: usize = 16;
+pub const MAX_NMAXIMA: usize = 12;
 
 /// Sorts `pts` by `keys` (both moved), in place: an American-flag radix pass on the high byte,
 /// then on the low byte inside buckets of more than 16, insertion sort inside smaller ones.
@@ -308,11 +386,8 @@ fn pseudo_angle(dx: i32, dy: i32) -> u16 {
         (false, true) => (3, ax),
     };
     let s = ax + ay;
-    let frac = if s == 0 {
-        0
-    } else {
-        ((u64::from(t) << 14) / u64::from(s)).min((1 << 14) - 1) as u32
-    };
+    // |dx|, |dy| < 2^16: t 2^14 < 2^30.
+    let frac = (t << 14).checked_div(s).unwrap_or(0).min((1 << 14) - 1);
     ((q << 14) | frac) as u16
 }
 
@@ -364,7 +439,7 @@ impl Moments {
 
 /// `λ_min, λ_max` and the normal of a 2x2 covariance (AprilTag's `fit_line`).
 #[inline]
-fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
+pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
     let d = libm::sqrtf((cxx - cyy) * (cxx - cyy) + 4.0 * cxy * cxy);
     let small = (0.5 * (cxx + cyy - d)).max(0.0);
     let big = 0.5 * (cxx + cyy + d);
@@ -411,17 +486,25 @@ struct Line {
     mse: f32,
 }
 
-/// The line fit of a run from its moments (`i128` covariance numerators: a run can hold a
+/// `w s₂ - a b` exactly (a covariance numerator), in `i64` when it fits (frames up to about
+/// 640x480), else `i128`; then as `f32`.
+#[inline]
+fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
+    match (w.checked_mul(s2), a.checked_mul(b)) {
+        (Some(p), Some(q)) => p.wrapping_sub(q) as f32,
+        _ => (i128::from(w) * i128::from(s2) - i128::from(a) * i128::from(b)) as f32,
+    }
+}
+
+/// The line fit of a run from its moments (exact covariance numerators: a run can hold a
 /// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates.
 fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<Line> {
-    let w = i128::from(m.w);
-    if w <= 0 {
+    if m.w <= 0 {
         return None;
     }
-    let (sx, sy) = (i128::from(m.x), i128::from(m.y));
-    let cxx = (w * i128::from(m.xx) - sx * sx) as f32;
-    let cxy = (w * i128::from(m.xy) - sx * sy) as f32;
-    let cyy = (w * i128::from(m.yy) - sy * sy) as f32;
+    let cxx = cov(m.w, m.xx, m.x, m.x);
+    let cxy = cov(m.w, m.xy, m.x, m.y);
+    let cyy = cov(m.w, m.yy, m.y, m.y);
     let wf = m.w as f32;
     let s = 0.25 / (wf * wf);
     let (small, _, nx, ny) = eigen(cxx * s, cxy * s, cyy * s);
@@ -454,8 +537,10 @@ fn weight(src: &Sampled<'_>, p: u32) -> u16 {
     if ix == 0 || iy == 0 || ix + 1 >= src.w || iy + 1 >= src.h {
         return 1;
     }
-    let gx = i32::from(src.get(ix + 1, iy)) - i32::from(src.get(ix - 1, iy));
-    let gy = i32::from(src.get(ix, iy + 1)) - i32::from(src.get(ix, iy - 1));
+    let px = |r: &[u8], x: usize| i32::from(r.get(x * src.d).copied().unwrap_or(0));
+    let row = src.full_row(iy);
+    let gx = px(row, ix + 1) - px(row, ix - 1);
+    let gy = px(src.full_row(iy + 1), ix) - px(src.full_row(iy - 1), ix);
     let (a, b) = (gx.unsigned_abs(), gy.unsigned_abs());
     let (hi, lo) = if a > b { (a, b) } else { (b, a) };
     (hi + (3 * lo) / 8 + 1) as u16
@@ -498,6 +583,16 @@ pub(crate) fn fit_quad(
     if (reversed && !prm.reversed_border) || (!reversed && !prm.normal_border) {
         return None;
     }
+    let ksz = (n / 12).min(20);
+    if ksz < 2 {
+        return None;
+    }
+    // 0. The edge contrast: the mean gradient weight (recomputed after the sort below, which
+    //    needs the same scratch for its keys).
+    let wsum: u64 = pts.iter().map(|&p| u64::from(weight(src, p))).sum();
+    if wsum < u64::from(prm.min_edge_gradient) * n as u64 {
+        return None;
+    }
     // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
     let (xs, ys) = (xmin + xmax, ymin + ymax);
     for (p, k) in pts.iter().zip(keys.iter_mut()) {
@@ -508,10 +603,6 @@ pub(crate) fn fit_quad(
     // 2. Weights replace the keys.
     for (p, k) in pts.iter().zip(keys.iter_mut()) {
         *k = weight(src, *p);
-    }
-    let ksz = (n / 12).min(20);
-    if ksz < 2 {
-        return None;
     }
     let pts = &*pts;
     let keys = &*keys;
@@ -524,39 +615,45 @@ pub(crate) fn fit_quad(
     let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
     let count = 2 * ksz + 1;
     let start: isize = -4;
+    // The window's points' moments in a ring: the one leaving is the one stored longest.
+    let mut ring = [Moments::default(); 41];
     let mut win = Moments::default();
-    for j in -(ksz as isize)..=(ksz as isize) {
-        win.add(&m_at(wrap(start + j)));
+    for (j, slot) in (-(ksz as isize)..=(ksz as isize)).zip(ring.iter_mut()) {
+        *slot = m_at(wrap(start + j));
+        win.add(slot);
     }
-    let mut errs = [0f32; 7];
-    let mut ys3 = [0f32; 3];
+    // The last 8 errors (index t mod 8) and the last three filtered values.
+    let mut errs = [0f32; 8];
+    let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
     let mut best = [(0u32, 0u32); MAX_NMAXIMA];
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
     let mut nbest = 0usize;
     let mut nmaxima = 0usize;
     for t in 0..n + 8 {
-        let i = start + t as isize;
-        if t > 0 {
-            win.add(&m_at(wrap(i + ksz as isize)));
-            win.sub(&m_at(wrap(i - ksz as isize - 1)));
+        if t > 0
+            && let Some(slot) = ring.get_mut((t - 1) % count)
+        {
+            win.sub(slot);
+            *slot = m_at(wrap(start + t as isize + ksz as isize));
+            win.add(slot);
         }
-        errs.rotate_left(1);
-        errs[6] = window_error(&win, count);
+        if let Some(e) = errs.get_mut(t & 7) {
+            *e = window_error(&win, count);
+        }
         if t >= 6 {
-            let y: f32 = errs.iter().zip(FILTER.iter()).map(|(e, f)| e * f).sum();
-            ys3.rotate_left(1);
-            ys3[2] = y;
+            let mut y = 0.0;
+            for (k, f) in FILTER.iter().enumerate() {
+                y += f * errs.get((t + 2 + k) & 7).copied().unwrap_or(0.0);
+            }
+            (y0, y1, y2) = (y1, y2, y);
         }
-        if t >= 8 {
+        if t >= 8 && y1 > y0 && y1 > y2 {
             // The candidate at position t - 8 in [0, n).
-            let j = t - 8;
-            if ys3[1] > ys3[0] && ys3[1] > ys3[2] {
-                nmaxima += 1;
-                // Non-negative f32 bits order as the values.
-                let item = (ys3[1].to_bits(), j as u32);
-                if let Some(heap) = best.get_mut(..kmax) {
-                    offer_best(heap, &mut nbest, item, |it| i64::from(it.0));
-                }
+            nmaxima += 1;
+            // Non-negative f32 bits order as the values.
+            let item = (y1.to_bits(), (t - 8) as u32);
+            if let Some(heap) = best.get_mut(..kmax) {
+                offer_best(heap, &mut nbest, item, |it| i64::from(it.0));
             }
         }
     }
@@ -607,40 +704,38 @@ pub(crate) fn fit_quad(
     };
     let mse_max = prm.max_line_fit_mse;
     let k = cand.len();
+    // Every run between two candidates fitted once: (normal, λ_min, N λ_min), `None` when
+    // the fit fails or exceeds the bound.
+    let mut fits = [[None::<(f32, f32, f32)>; MAX_NMAXIMA]; MAX_NMAXIMA];
+    for (a, row) in fits.iter_mut().enumerate().take(k) {
+        for (b, f) in row.iter_mut().enumerate().take(k) {
+            if a != b
+                && let Some((l, e)) = fit(a, b)
+                && at_most(l.mse, mse_max)
+            {
+                *f = Some((l.nx, l.ny, e));
+            }
+        }
+    }
+    let get = |a: usize, b: usize| fits.get(a).and_then(|r| r.get(b)).copied().flatten();
     let mut best_err = f32::INFINITY;
     let mut best_idx = [0usize; 4];
     for m0 in 0..k.saturating_sub(3) {
         for m1 in m0 + 1..k.saturating_sub(2) {
-            let Some((l01, e01)) = fit(m0, m1) else {
+            let Some((nx01, ny01, e01)) = get(m0, m1) else {
                 continue;
             };
-            if !at_most(l01.mse, mse_max) {
-                continue;
-            }
             for m2 in m1 + 1..k.saturating_sub(1) {
-                let Some((l12, e12)) = fit(m1, m2) else {
+                let Some((nx12, ny12, e12)) = get(m1, m2) else {
                     continue;
                 };
-                if !at_most(l12.mse, mse_max) {
-                    continue;
-                }
-                let d = l01.nx * l12.nx + l01.ny * l12.ny;
-                if d.abs() > prm.cos_critical {
+                if (nx01 * nx12 + ny01 * ny12).abs() > prm.cos_critical {
                     continue;
                 }
                 for m3 in m2 + 1..k {
-                    let Some((l23, e23)) = fit(m2, m3) else {
+                    let (Some((_, _, e23)), Some((_, _, e30))) = (get(m2, m3), get(m3, m0)) else {
                         continue;
                     };
-                    if !at_most(l23.mse, mse_max) {
-                        continue;
-                    }
-                    let Some((l30, e30)) = fit(m3, m0) else {
-                        continue;
-                    };
-                    if !at_most(l30.mse, mse_max) {
-                        continue;
-                    }
                     let err = e01 + e12 + e23 + e30;
                     if err < best_err {
                         best_err = err;

@@ -74,17 +74,8 @@ impl<'a> Sampled<'a> {
 
     /// Row `y` of the full image that is row `y` here (`None` past the end).
     #[inline]
-    fn full_row(&self, y: usize) -> &'a [u8] {
+    pub(crate) fn full_row(&self, y: usize) -> &'a [u8] {
         self.img.row(y.saturating_mul(self.d)).unwrap_or(&[])
-    }
-
-    /// Pixel `(x, y)` of the sampled image, 0 outside.
-    #[inline]
-    pub(crate) fn get(&self, x: usize, y: usize) -> u8 {
-        self.full_row(y)
-            .get(x.saturating_mul(self.d))
-            .copied()
-            .unwrap_or(0)
     }
 }
 
@@ -126,13 +117,25 @@ pub(crate) fn build_tiles<'t>(
         maxs.fill(0);
         for dy in 0..TILE {
             let row = src.full_row(ty * TILE + dy);
-            let d = src.d;
-            let mut it = row.iter().step_by(d);
-            for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
-                for _ in 0..TILE {
-                    if let Some(&v) = it.next() {
-                        *mn = (*mn).min(v);
-                        *mx = (*mx).max(v);
+            if src.d == 1 {
+                for ((mn, mx), px) in mins
+                    .iter_mut()
+                    .zip(maxs.iter_mut())
+                    .zip(row.chunks_exact(TILE))
+                {
+                    if let [a, b, c, d] = *px {
+                        *mn = (*mn).min(a.min(b).min(c.min(d)));
+                        *mx = (*mx).max(a.max(b).max(c.max(d)));
+                    }
+                }
+            } else {
+                let mut it = row.iter().step_by(src.d);
+                for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
+                    for _ in 0..TILE {
+                        if let Some(&v) = it.next() {
+                            *mn = (*mn).min(v);
+                            *mx = (*mx).max(v);
+                        }
                     }
                 }
             }
@@ -142,36 +145,54 @@ pub(crate) fn build_tiles<'t>(
         return Tiles { thr, tw, th };
     }
     raw(0, ring_min, ring_max);
+    let min_diff = min_diff.max(1);
     for ty in 0..th {
         if ty + 1 < th {
             raw(ty + 1, ring_min, ring_max);
         }
-        let rows = [ty.checked_sub(1), Some(ty), (ty + 1 < th).then_some(ty + 1)];
         let Some(out) = thr.get_mut(ty * tw..ty * tw + tw) else {
             break;
         };
-        for (tx, t) in out.iter_mut().enumerate() {
+        // The 3x3 dilation: vertical over the (up to) three rows, then horizontal.
+        let rows = [ty.checked_sub(1), Some(ty), (ty + 1 < th).then_some(ty + 1)];
+        let mut prev = (255u8, 0u8);
+        let col = |tx: usize| -> (u8, u8) {
             let (mut mn, mut mx) = (255u8, 0u8);
             for r in rows.iter().flatten() {
-                let slot = (r % 3) * tw;
-                for x in tx.saturating_sub(1)..(tx + 2).min(tw) {
-                    mn = mn.min(ring_min.get(slot + x).copied().unwrap_or(255));
-                    mx = mx.max(ring_max.get(slot + x).copied().unwrap_or(0));
-                }
+                let i = (r % 3) * tw + tx;
+                mn = mn.min(ring_min.get(i).copied().unwrap_or(255));
+                mx = mx.max(ring_max.get(i).copied().unwrap_or(0));
             }
-            *t = if mx.saturating_sub(mn) < min_diff.max(1) {
+            (mn, mx)
+        };
+        let mut cur = col(0);
+        for (tx, t) in out.iter_mut().enumerate() {
+            let next = if tx + 1 < tw { col(tx + 1) } else { (255, 0) };
+            let mn = prev.0.min(cur.0).min(next.0);
+            let mx = prev.1.max(cur.1).max(next.1);
+            *t = if mx.saturating_sub(mn) < min_diff {
                 SKIP_TILE
             } else {
                 mn + (mx - mn) / 2
             };
+            prev = cur;
+            cur = next;
         }
     }
     Tiles { thr, tw, th }
 }
 
-/// The classes of row `y` into `out` (`w` entries).
-#[inline]
-pub(crate) fn class_row(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut [u8]) {
+/// The class of a pixel of value `v` in a tile of threshold `t`: `SKIP` (2) for a skipped
+/// tile (`t = 255`, where `v > t` is impossible), else white when `v > t`.
+#[inline(always)]
+fn class(v: u8, t: u8) -> u8 {
+    u8::from(v > t) | (u8::from(t == SKIP_TILE) << 1)
+}
+
+/// Cuts row `y` into runs of one class (module docs: the classes are recomputed from the
+/// tile thresholds, one compare a pixel, never stored); `out` holds at most one per column.
+/// Returns the count.
+pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut [Run]) -> usize {
     let ty = (y / TILE).min(tiles.th.saturating_sub(1));
     let trow = tiles
         .thr
@@ -179,20 +200,54 @@ pub(crate) fn class_row(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mu
         .unwrap_or(&[]);
     let last = trow.last().copied().unwrap_or(SKIP_TILE);
     let row = src.full_row(y);
-    let mut px = row.iter().step_by(src.d);
-    for (x4, chunk) in out.chunks_mut(TILE).enumerate() {
-        let t = trow.get(x4).copied().unwrap_or(last);
-        for c in chunk.iter_mut() {
-            let v = px.next().copied().unwrap_or(0);
-            *c = if t == SKIP_TILE {
-                SKIP
-            } else if v > t {
-                WHITE
-            } else {
-                BLACK
+    let w = src.w;
+    let mut n = 0;
+    let (mut x0, mut cur) = (0usize, u8::MAX);
+    let mut close = |x0: usize, x1: usize, c: u8, n: &mut usize| {
+        if x1 > x0
+            && let Some(r) = out.get_mut(*n)
+        {
+            *r = Run {
+                x0: x0 as u16,
+                x1: x1 as u16,
+                c,
+                lab: NONE,
             };
+            *n += 1;
+        }
+    };
+    let mut x = 0usize;
+    let mut step = |v: u8, t: u8, x: &mut usize, n: &mut usize| {
+        let c = class(v, t);
+        if c != cur {
+            close(x0, *x, cur, n);
+            (x0, cur) = (*x, c);
+        }
+        *x += 1;
+    };
+    if src.d == 1 && row.len() >= w {
+        let full = (trow.len() * TILE).min(w);
+        let (head, tail) = row.split_at(full);
+        for (px, &t) in head.chunks_exact(TILE).zip(trow) {
+            for &v in px {
+                step(v, t, &mut x, &mut n);
+            }
+        }
+        for &v in tail.get(..w - full).unwrap_or(&[]) {
+            step(v, last, &mut x, &mut n);
+        }
+    } else {
+        for (i, &v) in row.iter().step_by(src.d).take(w).enumerate() {
+            step(
+                v,
+                trow.get(i / TILE).copied().unwrap_or(last),
+                &mut x,
+                &mut n,
+            );
         }
     }
+    close(x0, x, cur, &mut n);
+    n
 }
 
 /// Root of `x` with path halving (`x` itself when out of range).
@@ -226,44 +281,77 @@ fn union(parent: &mut [u16], a: u16, b: u16) {
     }
 }
 
-/// The two row buffers of a pass: classes and labels of the previous and current row.
-pub(crate) struct Rows<'a> {
-    pub(crate) cls: [&'a mut [u8]; 2],
-    pub(crate) lab: [&'a mut [u16]; 2],
+/// A run of one class in a row: columns `x0..x1`, its class and its label (provisional in the
+/// labelling pass; the root, or [`SMALL`], in the scans; [`NONE`] for skipped pixels).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Run {
+    pub(crate) x0: u16,
+    pub(crate) x1: u16,
+    pub(crate) c: u8,
+    pub(crate) lab: u16,
 }
 
-/// The same-class neighbours of pixel `x` (class `c`) that a label can come from, in the
-/// order the rule of the module docs takes them: left, up, up-left, up-right (the last two for
-/// white only). Each is `NONE` when absent.
+impl Run {
+    /// An empty run.
+    pub const EMPTY: Self = Self {
+        x0: 0,
+        x1: 0,
+        c: SKIP,
+        lab: NONE,
+    };
+}
+
+/// The row buffers of a pass: the runs of the previous and the current row (each at most one
+/// per column).
+pub(crate) struct Rows<'a> {
+    pub(crate) runs: [&'a mut [Run]; 2],
+}
+
+/// The index of the run of `runs` (from `from` on) that holds column `x`.
 #[inline]
-fn neighbours(
-    c: u8,
-    x: usize,
-    cur_cls: &[u8],
-    cur_lab: &[u16],
-    prev: Option<(&[u8], &[u16])>,
-) -> [u16; 4] {
-    let at = |cls: &[u8], lab: &[u16], i: Option<usize>| -> u16 {
-        match i {
-            Some(i) if cls.get(i) == Some(&c) => lab.get(i).copied().unwrap_or(NONE),
-            _ => NONE,
+fn run_at(runs: &[Run], from: usize, x: usize) -> usize {
+    let mut i = from;
+    while let Some(r) = runs.get(i) {
+        if usize::from(r.x1) > x {
+            return i;
+        }
+        i += 1;
+    }
+    i
+}
+
+/// The columns of the previous row a run `[x0, x1)` of class `c` touches (8-connected white,
+/// 4-connected black), clipped to `w`.
+#[inline]
+fn touched(c: u8, x0: usize, x1: usize, w: usize) -> (usize, usize) {
+    if c == WHITE {
+        (x0.saturating_sub(1), (x1 + 1).min(w))
+    } else {
+        (x0, x1)
+    }
+}
+
+/// The label a run of class `c` starting at `x0` inherits from the previous row `up` (from
+/// run `j` on, `j` holding column `a` of [`touched`]): that of its first pixel's same-class
+/// neighbour up, then (white only) up-left, up-right; `NONE` when it has none. (The pixel left
+/// of a run has another class, so the per-pixel rule of the module docs gives the whole run
+/// this label.)
+#[inline]
+fn inherited(c: u8, x0: usize, up: &[Run], j: usize) -> u16 {
+    let at = |x: usize| {
+        let r = up.get(run_at(up, j, x)).copied().unwrap_or(Run::EMPTY);
+        if r.c == c && x >= usize::from(r.x0) {
+            r.lab
+        } else {
+            NONE
         }
     };
-    let left = at(cur_cls, cur_lab, x.checked_sub(1));
-    let Some((pc, pl)) = prev else {
-        return [left, NONE, NONE, NONE];
-    };
-    let up = at(pc, pl, Some(x));
-    if c == WHITE {
-        [
-            left,
-            up,
-            at(pc, pl, x.checked_sub(1)),
-            at(pc, pl, Some(x + 1)),
-        ]
-    } else {
-        [left, up, NONE, NONE]
+    let v = at(x0);
+    if v != NONE || c != WHITE {
+        return v;
     }
+    let v = if x0 > 0 { at(x0 - 1) } else { NONE };
+    if v != NONE { v } else { at(x0 + 1) }
 }
 
 /// Outcome of the labelling pass.
@@ -275,9 +363,130 @@ pub(crate) struct Labelled {
     pub(crate) exhausted: u32,
 }
 
-/// The labelling pass (module docs): unions into `parent`, pixel counts into `size`
-/// (saturating), then flattens `parent` to roots and sums the counts into the roots.
-/// Capacity: `min(parent.len(), size.len(), MAX_LABELS)` labels.
+/// What a pass does with the labels of [`label_runs`].
+trait Labels {
+    /// Whether [`Labels::join`] does anything (the scans skip the walk over the row above).
+    const JOINS: bool;
+    /// The label of a run no earlier run passes one to; `None`: no label left, the run is
+    /// skipped.
+    fn fresh(&mut self) -> Option<u16>;
+    /// Run label `l` touches label `o` of its class in the previous row.
+    fn join(&mut self, l: u16, o: u16);
+    /// A run of `len` pixels was skipped.
+    fn skipped(&mut self, len: usize);
+}
+
+/// Labels the runs `cur` of a row from the previous row's runs `up` (module docs).
+#[inline]
+fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) {
+    let mut j = 0;
+    for r in cur.iter_mut() {
+        if r.c == SKIP {
+            continue;
+        }
+        let (x0, x1) = (usize::from(r.x0), usize::from(r.x1));
+        let (a, b) = touched(r.c, x0, x1, w);
+        j = run_at(up, j, a);
+        let mut l = inherited(r.c, x0, up, j);
+        if l == NONE {
+            match labels.fresh() {
+                Some(n) => l = n,
+                None => {
+                    r.c = SKIP;
+                    labels.skipped(x1 - x0);
+                    continue;
+                }
+            }
+        }
+        r.lab = l;
+        if !L::JOINS {
+            continue;
+        }
+        let mut last = l;
+        for o in up.get(j..).unwrap_or(&[]) {
+            if usize::from(o.x0) >= b {
+                break;
+            }
+            if o.c == r.c && o.lab != last && o.lab != NONE {
+                labels.join(l, o.lab);
+                last = o.lab;
+            }
+        }
+    }
+}
+
+/// The runs of the previous and the current row for row `y`.
+fn run_rows<'r>(runs: &'r mut [&mut [Run]; 2], y: usize) -> (&'r [Run], &'r mut [Run]) {
+    let [r0, r1] = runs;
+    if y.is_multiple_of(2) {
+        (&**r1, &mut **r0)
+    } else {
+        (&**r0, &mut **r1)
+    }
+}
+
+/// The labelling pass's [`Labels`]: new labels from a counter, unions.
+struct UnionFind<'a> {
+    parent: &'a mut [u16],
+    size: &'a mut [u8],
+    next: usize,
+    cap: usize,
+    exhausted: u32,
+}
+
+impl Labels for UnionFind<'_> {
+    const JOINS: bool = true;
+    fn fresh(&mut self) -> Option<u16> {
+        if self.next >= self.cap {
+            return None;
+        }
+        let l = self.next as u16;
+        if let (Some(p), Some(s)) = (self.parent.get_mut(self.next), self.size.get_mut(self.next)) {
+            *p = l;
+            *s = 0;
+        }
+        self.next += 1;
+        Some(l)
+    }
+    #[inline]
+    fn join(&mut self, l: u16, o: u16) {
+        union(self.parent, l, o);
+    }
+    fn skipped(&mut self, len: usize) {
+        self.exhausted = self.exhausted.saturating_add(len as u32);
+    }
+}
+
+/// The scans' [`Labels`]: the same counter, read as roots (or [`SMALL`]) of the flattened
+/// forest.
+struct Roots<'a> {
+    parent: &'a [u16],
+    size: &'a [u8],
+    next: usize,
+    labels: usize,
+}
+
+impl Labels for Roots<'_> {
+    const JOINS: bool = false;
+    fn fresh(&mut self) -> Option<u16> {
+        if self.next >= self.labels {
+            return None;
+        }
+        let root = self.parent.get(self.next).copied().unwrap_or(NONE);
+        self.next += 1;
+        let big = self.size.get(usize::from(root)).copied().unwrap_or(0) >= MIN_COMPONENT;
+        Some(if big { root } else { SMALL })
+    }
+    #[inline]
+    fn join(&mut self, _: u16, _: u16) {}
+    fn skipped(&mut self, _: usize) {}
+}
+
+/// The labelling pass (module docs), run by run: unions into `parent`, pixel counts into
+/// `size` (saturating), then flattens `parent` to roots and sums the counts into the roots.
+/// Capacity: `min(parent.len(), size.len(), MAX_LABELS)` labels; a run that needs a new label
+/// when none is left is skipped (in every pass alike). Returns also, per row, nothing: the
+/// scans re-derive the runs.
 pub(crate) fn label_pass(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
@@ -288,60 +497,31 @@ pub(crate) fn label_pass(
     let cap = parent.len().min(size.len()).min(MAX_LABELS);
     let mut out = Labelled::default();
     let mut next: usize = 0;
+    let w = src.w;
+    let mut n_up = 0;
     for y in 0..src.h {
-        let [c0, c1] = &mut rows.cls;
-        let [l0, l1] = &mut rows.lab;
-        let (prev_cls, cur_cls, prev_lab, cur_lab) = if y % 2 == 0 {
-            (&**c1, &mut **c0, &**l1, &mut **l0)
-        } else {
-            (&**c0, &mut **c1, &**l0, &mut **l1)
+        let (up, cur) = run_rows(&mut rows.runs, y);
+        let n = row_runs(src, tiles, y, cur);
+        let up = up.get(..n_up).unwrap_or(&[]);
+        let cur = cur.get_mut(..n).unwrap_or(&mut []);
+        let mut uf = UnionFind {
+            parent: &mut *parent,
+            size: &mut *size,
+            next,
+            cap,
+            exhausted: out.exhausted,
         };
-        class_row(src, tiles, y, cur_cls);
-        // The last union made: along runs the same pair comes up pixel after pixel.
-        let mut last = (NONE, NONE);
-        for x in 0..src.w {
-            let c = cur_cls.get(x).copied().unwrap_or(SKIP);
-            if c == SKIP {
-                if let Some(l) = cur_lab.get_mut(x) {
-                    *l = NONE;
-                }
-                continue;
-            }
-            let prev = (y > 0).then_some((prev_cls, prev_lab));
-            let nb = neighbours(c, x, cur_cls, cur_lab, prev);
-            let mut l = nb.iter().copied().find(|&v| v != NONE).unwrap_or(NONE);
-            if l == NONE {
-                if next < cap {
-                    l = next as u16;
-                    if let (Some(p), Some(s)) = (parent.get_mut(next), size.get_mut(next)) {
-                        *p = l;
-                        *s = 0;
-                    }
-                    next += 1;
-                } else {
-                    if let Some(cc) = cur_cls.get_mut(x) {
-                        *cc = SKIP;
-                    }
-                    if let Some(cl) = cur_lab.get_mut(x) {
-                        *cl = NONE;
-                    }
-                    out.exhausted = out.exhausted.saturating_add(1);
-                    continue;
-                }
-            }
-            if let Some(s) = size.get_mut(usize::from(l)) {
-                *s = s.saturating_add(1);
-            }
-            for &o in &nb[1..] {
-                if o != NONE && o != l && (l, o) != last {
-                    union(parent, l, o);
-                    last = (l, o);
-                }
-            }
-            if let Some(cl) = cur_lab.get_mut(x) {
-                *cl = l;
+        label_runs(cur, up, w, &mut uf);
+        next = uf.next;
+        out.exhausted = uf.exhausted;
+        for r in cur.iter() {
+            if r.c != SKIP
+                && let Some(s) = size.get_mut(usize::from(r.lab))
+            {
+                *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
             }
         }
+        n_up = n;
     }
     out.labels = next;
     // Flatten (parents precede children) and total the counts into the roots.
@@ -381,9 +561,44 @@ pub(crate) fn unpack(p: u32) -> (i32, i32, i32, i32) {
     )
 }
 
-/// A boundary scan (module docs): re-derives the labels of [`label_pass`] (which must have run
-/// on the same frame with the same buffers' `parent`/`size`) and calls `emit(key, point)` for
-/// every boundary point, `key = black root << 16 | white root`.
+/// Where a boundary scan sends its points: runs of points along a row, and single points.
+pub(crate) trait Sink {
+    /// `count` points `(x2 + 2i, y2)`, `i = 0..count`, of cluster `key`, all with direction
+    /// `(gx, gy)` towards white.
+    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
+    /// One point.
+    fn point(&mut self, key: u32, x2: usize, y2: usize, gx: i32, gy: i32) {
+        self.run(key, x2, y2, 1, gx, gy);
+    }
+}
+
+/// A run's class and label when it counts for boundaries (not skipped, in a large component).
+#[inline]
+fn valid(r: &Run) -> bool {
+    r.c != SKIP && r.lab < SMALL
+}
+
+/// The cluster key of a black/white pair and the sign `s` of the direction from `a` to `b`
+/// towards white (`+1` when `a` is black).
+#[inline]
+fn key_of(a: &Run, b: &Run) -> (u32, i32) {
+    if a.c == BLACK {
+        (u32::from(a.lab) << 16 | u32::from(b.lab), 1)
+    } else {
+        (u32::from(b.lab) << 16 | u32::from(a.lab), -1)
+    }
+}
+
+/// A boundary scan (module docs): re-derives the runs and labels of [`label_pass`] (which
+/// must have run on the same frame; `parent` flattened, `size[root] ≥ MIN_COMPONENT` marking
+/// the components that count) and sends every boundary point to `sink`,
+/// `key = black root << 16 | white root`.
+///
+/// The points are AprilTag's: for each pixel `p = (x, y)` with `1 ≤ x ≤ w - 2`,
+/// `1 ≤ y ≤ h - 2`, its neighbour right, below and below-right when of the opposite class,
+/// and below-left unless the below-right pair of `(x - 1, y)` gave the same point. They are
+/// found run against run: a pair of overlapping runs of opposite classes gives three runs of
+/// points (below, below-right, below-left) and two rows give `O(runs)` work, not `O(pixels)`.
 pub(crate) fn boundary_scan(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
@@ -391,88 +606,103 @@ pub(crate) fn boundary_scan(
     parent: &[u16],
     size: &[u8],
     labels: usize,
-    mut emit: impl FnMut(u32, u32),
+    sink: &mut impl Sink,
 ) {
     let mut next: usize = 0;
+    let w = src.w;
+    let mut n_up = 0;
     for y in 0..src.h {
-        let [c0, c1] = &mut rows.cls;
-        let [l0, l1] = &mut rows.lab;
-        let (prev_cls, cur_cls, prev_lab, cur_lab) = if y % 2 == 0 {
-            (&**c1, &mut **c0, &**l1, &mut **l0)
-        } else {
-            (&**c0, &mut **c1, &**l0, &mut **l1)
+        let (up, cur) = run_rows(&mut rows.runs, y);
+        let n = row_runs(src, tiles, y, cur);
+        let up = up.get(..n_up).unwrap_or(&[]);
+        let cur = cur.get_mut(..n).unwrap_or(&mut []);
+        let mut roots = Roots {
+            parent,
+            size,
+            next,
+            labels,
         };
-        class_row(src, tiles, y, cur_cls);
-        for x in 0..src.w {
-            let c = cur_cls.get(x).copied().unwrap_or(SKIP);
-            if c == SKIP {
-                if let Some(l) = cur_lab.get_mut(x) {
-                    *l = NONE;
-                }
-                continue;
-            }
-            let prev = (y > 0).then_some((prev_cls, prev_lab));
-            let nb = neighbours(c, x, cur_cls, cur_lab, prev);
-            let mut l = nb.iter().copied().find(|&v| v != NONE).unwrap_or(NONE);
-            if l == NONE {
-                if next < labels {
-                    let root = parent.get(next).copied().unwrap_or(NONE);
-                    let big = size.get(usize::from(root)).copied().unwrap_or(0) >= MIN_COMPONENT;
-                    l = if big { root } else { SMALL };
-                    next += 1;
-                } else {
-                    if let Some(cc) = cur_cls.get_mut(x) {
-                        *cc = SKIP;
-                    }
-                    if let Some(cl) = cur_lab.get_mut(x) {
-                        *cl = NONE;
-                    }
-                    continue;
-                }
-            }
-            if let Some(cl) = cur_lab.get_mut(x) {
-                *cl = l;
-            }
+        label_runs(cur, up, w, &mut roots);
+        next = roots.next;
+        n_up = n;
+        // The upper row y - 1 must be in 1..h - 1 (AprilTag's scan domain).
+        if y >= 2 && w >= 3 {
+            pairs(up, cur, y - 1, w, sink);
         }
-        // AprilTag's scan: the upper pixel is never in the outermost rows or columns.
-        if y < 2 {
+    }
+}
+
+/// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
+/// `lo`), upper pixels in columns `1..w - 1`.
+fn pairs(up: &[Run], lo: &[Run], y: usize, w: usize, sink: &mut impl Sink) {
+    let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
+    // Right neighbours: one point at each boundary between two runs of the upper row.
+    for pair in up.windows(2) {
+        let (Some(a), Some(b)) = (pair.first(), pair.get(1)) else {
+            continue;
+        };
+        let x = usize::from(a.x1) - 1;
+        if valid(a) && valid(b) && a.c != b.c && x >= xmin && x < xmax {
+            let (key, s) = key_of(a, b);
+            sink.point(key, 2 * x + 1, y2, s, 0);
+        }
+    }
+    // Run against run: lower runs within one column of each upper run.
+    let mut j0 = 0;
+    for (i, u) in up.iter().enumerate() {
+        let (ux0, ux1) = (usize::from(u.x0), usize::from(u.x1));
+        while lo.get(j0).is_some_and(|l| usize::from(l.x1) < ux0) {
+            j0 += 1;
+        }
+        if !valid(u) {
             continue;
         }
-        // Pairs with the upper pixel in row y - 1 (AprilTag's DO_CONN from (x, y - 1)).
-        let y2 = 2 * (y - 1);
-        let cur_cls = &*cur_cls;
-        let cur_lab = &*cur_lab;
-        let mut connected_last = false;
-        for x in 1..src.w.saturating_sub(1) {
-            let v0 = prev_cls.get(x).copied().unwrap_or(SKIP);
-            let r0 = prev_lab.get(x).copied().unwrap_or(NONE);
-            if v0 == SKIP || r0 >= SMALL {
-                connected_last = false;
-                continue;
+        let mut j = j0;
+        while let Some(l) = lo.get(j) {
+            let (lx0, lx1) = (usize::from(l.x0), usize::from(l.x1));
+            if lx0 > ux1 {
+                break;
             }
-            let mut conn = |v1: Option<&u8>, r1: Option<&u16>, dx: i32, dy: i32| -> bool {
-                let (Some(&v1), Some(&r1)) = (v1, r1) else {
-                    return false;
-                };
-                if v1 == SKIP || v1 == v0 || r1 >= SMALL {
-                    return false;
+            if valid(l) && l.c != u.c {
+                let (key, s) = key_of(u, l);
+                // Below: x in u and l.
+                let (a, b) = (ux0.max(lx0).max(xmin), ux1.min(lx1).min(xmax));
+                if a < b {
+                    sink.run(key, 2 * a, y2 + 1, b - a, 0, s);
                 }
-                let key = if v0 == BLACK {
-                    u32::from(r0) << 16 | u32::from(r1)
-                } else {
-                    u32::from(r1) << 16 | u32::from(r0)
-                };
-                let s = if v1 == WHITE { 1 } else { -1 };
-                let px = (2 * x as i32 + dx) as usize;
-                emit(key, pack(px, y2 + dy as usize, dx * s, dy * s));
-                true
-            };
-            conn(prev_cls.get(x + 1), prev_lab.get(x + 1), 1, 0);
-            conn(cur_cls.get(x), cur_lab.get(x), 0, 1);
-            if !connected_last {
-                conn(cur_cls.get(x - 1), cur_lab.get(x - 1), -1, 1);
+                // Below-right: x in u, x + 1 in l.
+                let (a, b) = (
+                    ux0.max(lx0.saturating_sub(1)).max(xmin),
+                    ux1.min(lx1 - 1).min(xmax),
+                );
+                if a < b {
+                    sink.run(key, 2 * a + 1, y2 + 1, b - a, s, s);
+                }
+                // Below-left: x in u, x - 1 in l, unless (x - 1, y) and (x, y + 1) are an
+                // opposite pair too (its below-right point is the same). Inside the overlap
+                // they are (u and l), so only the first column of the range (x - 1 left of u,
+                // or x = 1 with no pixel (0, y) in the scan) and x = lx1 (x right of l) can
+                // give a point.
+                let (a, b) = (ux0.max(lx0 + 1).max(xmin), ux1.min(lx1 + 1).min(xmax));
+                if a < b {
+                    let right = lo.get(j + 1);
+                    let left = i.checked_sub(1).and_then(|k| up.get(k));
+                    let mut at = |x: usize| {
+                        let p = if x > ux0 { Some(u) } else { left };
+                        let q = if x < lx1 { Some(l) } else { right };
+                        let shadowed = x >= 2
+                            && matches!((p, q), (Some(p), Some(q)) if valid(p) && valid(q) && p.c != q.c);
+                        if !shadowed {
+                            sink.point(key, 2 * x - 1, y2 + 1, -s, s);
+                        }
+                    };
+                    at(a);
+                    if lx1 > a && lx1 < b {
+                        at(lx1);
+                    }
+                }
             }
-            connected_last = conn(cur_cls.get(x + 1), cur_lab.get(x + 1), 1, 1);
+            j += 1;
         }
     }
 }

@@ -1,7 +1,7 @@
 //! The detector's working memory: fixed-size buffers the caller owns (a `static` on a board).
 
 use super::quad::Cluster;
-use super::segment::{MAX_LABELS, TILE};
+use super::segment::{MAX_LABELS, Run, TILE};
 
 /// Per-frame counts of a detection: what each stage found and what a capacity cut off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -15,6 +15,8 @@ pub struct Stats {
     pub labels: u32,
     /// Pixels left out of every component because the labels ran out (0 when they sufficed).
     pub label_overflow: u32,
+    /// Boundary points between large black and white components (all clusters).
+    pub boundary_points: u32,
     /// Clusters (black/white component pairs with a common boundary) in the table.
     pub clusters: u32,
     /// Boundary points of clusters that found no table slot (0 when `CLUSTERS` sufficed).
@@ -47,9 +49,9 @@ pub struct Stats {
 /// |---|---|---|
 /// | tile thresholds | `TILES ≥ ⌊w/4⌋ ⌊h/4⌋` | 1 each |
 /// | tile min/max ring | `2 W` | 1 each |
-/// | row classes, labels | `2 W`, `2 W` | 1, 2 |
+/// | runs of two rows | `2 W` | 8 |
 /// | union-find parents, sizes | `LABELS` (≤ 65533) | 2 + 1 |
-/// | cluster table | `CLUSTERS` (3/4 usable) | 20 |
+/// | cluster table | `CLUSTERS` (3/4 usable) | 32 |
 /// | boundary points (one batch) | `POINTS` | 4 |
 /// | sort keys (largest cluster) | `SORT` (≤ 65534) | 2 |
 ///
@@ -69,8 +71,7 @@ pub struct Workspace<
     pub(crate) tiles: [u8; TILES],
     pub(crate) ring_min: [u8; W],
     pub(crate) ring_max: [u8; W],
-    pub(crate) cls: [[u8; W]; 2],
-    pub(crate) lab: [[u16; W]; 2],
+    pub(crate) runs: [[Run; W]; 2],
     pub(crate) parent: [u16; LABELS],
     pub(crate) size: [u8; LABELS],
     pub(crate) clusters: [Cluster; CLUSTERS],
@@ -105,7 +106,7 @@ pub const fn workspace_bytes(
     points: usize,
     sort: usize,
 ) -> usize {
-    tiles + 2 * w + 2 * w + 4 * w + 3 * labels + 20 * clusters + 4 * points + 2 * sort
+    tiles + 2 * w + 16 * w + 3 * labels + 32 * clusters + 4 * points + 2 * sort
 }
 
 impl<
@@ -126,8 +127,7 @@ impl<
             tiles: [0; TILES],
             ring_min: [0; W],
             ring_max: [0; W],
-            cls: [[0; W]; 2],
-            lab: [[0; W]; 2],
+            runs: [[Run::EMPTY; W]; 2],
             parent: [0; LABELS],
             size: [0; LABELS],
             clusters: [Cluster::EMPTY; CLUSTERS],
@@ -138,6 +138,7 @@ impl<
                 height: 0,
                 labels: 0,
                 label_overflow: 0,
+                boundary_points: 0,
                 clusters: 0,
                 cluster_overflow: 0,
                 clusters_kept: 0,
@@ -161,14 +162,12 @@ impl<
 
     /// Every buffer as a slice, for the non-generic detector.
     pub(crate) fn parts(&mut self) -> Parts<'_> {
-        let [c0, c1] = &mut self.cls;
-        let [l0, l1] = &mut self.lab;
+        let [r0, r1] = &mut self.runs;
         Parts {
             tiles: &mut self.tiles,
             ring_min: &mut self.ring_min,
             ring_max: &mut self.ring_max,
-            cls: [c0, c1],
-            lab: [l0, l1],
+            runs: [r0, r1],
             parent: &mut self.parent,
             size: &mut self.size,
             clusters: &mut self.clusters,
@@ -199,8 +198,7 @@ pub(crate) struct Parts<'a> {
     pub(crate) tiles: &'a mut [u8],
     pub(crate) ring_min: &'a mut [u8],
     pub(crate) ring_max: &'a mut [u8],
-    pub(crate) cls: [&'a mut [u8]; 2],
-    pub(crate) lab: [&'a mut [u16]; 2],
+    pub(crate) runs: [&'a mut [Run]; 2],
     pub(crate) parent: &'a mut [u16],
     pub(crate) size: &'a mut [u8],
     pub(crate) clusters: &'a mut [Cluster],
@@ -210,13 +208,14 @@ pub(crate) struct Parts<'a> {
     pub(crate) labels_cap: usize,
 }
 
-/// For 320x240 frames at decimation 1 (and 640x480 at 2): 4800 tiles, 12288 labels, 1024
-/// cluster slots, 8192 points a batch, clusters of up to 2240 points;
-/// [`Workspace::BYTES`] ≈ 101 KB.
+/// For 320x240 frames at decimation 1 (and 640x480 at 2): 4800 tiles, 8192 labels, 512
+/// cluster slots, 16384 points a batch, clusters of up to 2240 points. Sized on the bundled
+/// 320x240 recordings and the rendered stills (at most 4230 labels, 151 clusters and 17300
+/// kept points a frame, textured and noisy ones included).
 pub type Workspace320x240 =
-    Workspace<320, { tiles(320, 240, 1) }, 12288, 1024, 8192, { max_cluster_points(320, 240, 1) }>;
+    Workspace<320, { tiles(320, 240, 1) }, 8192, 512, 16384, { max_cluster_points(320, 240, 1) }>;
 
-/// For 640x480 frames at decimation 1: 19200 tiles, 32768 labels, 2048 cluster slots,
-/// 16384 points a batch, clusters of up to 4480 points; [`Workspace::BYTES`] ≈ 263 KB.
+/// For 640x480 frames at decimation 1: 19200 tiles, 24576 labels, 1024 cluster slots,
+/// 32768 points a batch, clusters of up to 4480 points.
 pub type Workspace640x480 =
-    Workspace<640, { tiles(640, 480, 1) }, 32768, 2048, 16384, { max_cluster_points(640, 480, 1) }>;
+    Workspace<640, { tiles(640, 480, 1) }, 24576, 1024, 32768, { max_cluster_points(640, 480, 1) }>;

@@ -131,6 +131,7 @@ fn worst(a: &mut Stats, s: &Stats) {
     a.labels = a.labels.max(s.labels);
     a.label_overflow = a.label_overflow.max(s.label_overflow);
     a.clusters = a.clusters.max(s.clusters);
+    a.boundary_points = a.boundary_points.max(s.boundary_points);
     a.cluster_overflow = a.cluster_overflow.max(s.cluster_overflow);
     a.clusters_kept = a.clusters_kept.max(s.clusters_kept);
     a.cluster_points = a.cluster_points.max(s.cluster_points);
