@@ -4,6 +4,7 @@
     python3 host-tests/scripts/apriltag_study.py            # the study: 760 stills, tables
     python3 host-tests/scripts/apriltag_study.py --fixture  # the committed stills: peers.csv
     python3 host-tests/scripts/apriltag_study.py --sequence # the tag sequence: pose errors
+    python3 host-tests/scripts/apriltag_study.py --sequence --fixture  # also apriltag3.csv
 
 The stills come from apriltag_render.py (the study's 40 a bin into target/apriltag-study/, seed
 12; --fixture: the 3 a bin committed in host-tests/data/apriltag/stills/). Detectors, all on the
@@ -29,7 +30,9 @@ exact projection, over the detected stills (4 per still).
 --sequence runs camgeom and AprilTag 3 on every frame of host-tests/data/sequences/tag with the
 pose (camgeom: `tag_pose`, IPPE + LM through the sequence camera; AprilTag 3: its
 estimate_tag_pose, orthogonal iteration) and prints per-frame rotation / translation errors
-against truth.csv and their summary; --csv PATH writes the per-frame table.
+against truth.csv and their summary; --csv PATH writes the per-frame table; with --fixture it
+writes AprilTag 3's per-frame errors to host-tests/data/sequences/tag/apriltag3.csv
+(`frame,detected,rot_deg,t_mm`), which the host test compares camgeom with.
 """
 import argparse
 import csv
@@ -179,7 +182,7 @@ def rot_err_deg(Ra, Rb):
     return math.degrees(math.acos(max(-1.0, min(1.0, c))))
 
 
-def sequence(csv_out):
+def sequence(csv_out, fixture=False):
     d = os.path.join(ROOT, "host-tests", "data", "sequences", "tag")
     frames = sorted(os.path.join(d, f) for f in os.listdir(d) if f.endswith(".png"))
     truth = {}
@@ -216,6 +219,14 @@ def sequence(csv_out):
             w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
             w.writeheader()
             w.writerows(rows)
+    if fixture:
+        # AprilTag 3's side only: what the host test compares camgeom with.
+        with open(os.path.join(d, "apriltag3.csv"), "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(["frame", "detected", "rot_deg", "t_mm"])
+            for r in rows:
+                ok = r["apriltag3_rot_deg"] != ""
+                w.writerow([r["frame"], int(ok), r["apriltag3_rot_deg"], r["apriltag3_t_mm"]])
     print("| method | frames detected (of 160; tag fully in view: {}) | rotation err median / p90 / max (deg) | translation err median / p90 / max (mm) |".format(
         sum(r["in_view"] for r in rows)))
     print("|---|---|---|---|")
@@ -237,7 +248,7 @@ def main():
     ap.add_argument("--dir")
     args = ap.parse_args()
     if args.sequence:
-        sequence(args.csv)
+        sequence(args.csv, args.fixture)
         return
     if args.fixture:
         d = os.path.join(ROOT, "host-tests", "data", "apriltag", "stills")

@@ -738,7 +738,8 @@ fn merge<const N: usize>(out: &mut Vec<Detection, N>, det: Detection, stats: &mu
 }
 
 /// Whether two quadrilaterals overlap: an edge of one crosses an edge of the other, or one
-/// holds a corner of the other (AprilTag's `g2d_polygon_overlaps_polygon`).
+/// holds a corner or the centre of the other (AprilTag's `g2d_polygon_overlaps_polygon`, plus
+/// the centres).
 pub(crate) fn polygons_overlap(a: &[Point2<f32>; 4], b: &[Point2<f32>; 4]) -> bool {
     let cross = |o: Point2<f32>, p: Point2<f32>, q: Point2<f32>| {
         (p.x - o.x) * (q.y - o.y) - (p.y - o.y) * (q.x - o.x)
@@ -769,5 +770,23 @@ pub(crate) fn polygons_overlap(a: &[Point2<f32>; 4], b: &[Point2<f32>; 4]) -> bo
         }
         c
     };
-    inside(b, at4(a, 0)) || inside(a, at4(b, 0))
+    // A corner or the centre of one inside the other (the centre settles two outlines that
+    // share edges exactly, where the corners sit on the other's boundary).
+    let centre = |v: &[Point2<f32>; 4]| {
+        let s = v
+            .iter()
+            .fold(nalgebra::Vector2::zeros(), |s, p| s + p.coords);
+        Point2::from(s / 4.0)
+    };
+    inside(b, at4(a, 0)) || inside(a, at4(b, 0)) || inside(b, centre(a)) || inside(a, centre(b))
+}
+
+/// [`merge`] for the unit tests.
+#[cfg(test)]
+pub(crate) fn merge_for_tests<const N: usize>(
+    out: &mut Vec<Detection, N>,
+    det: Detection,
+    stats: &mut Stats,
+) {
+    merge(out, det, stats);
 }

@@ -8,10 +8,11 @@
 //! corner, so cells may lie outside the border: tagStandard41h12 has bits at -2), white when
 //! bit `nbits - 1 - i` of the code is set (AprilTag 3's order: `apriltag_to_image`).
 //!
-//! The layouts are built so that turning the tag by 90° is a cyclic shift of the code by
-//! `nbits / 4` ([`rotate90`], AprilTag's `rotate90`, the centre cell fixed when `nbits` is
-//! odd). A read code `r` decodes to id `k` in rotation `q` when
-//! `popcount(rotate90^q(r) ⊕ codes[k]) ≤ max_hamming`.
+//! The layouts are built so that turning the tag a quarter turn is a cyclic shift of the code
+//! by `nbits / 4` ([`rotate90`], AprilTag's `rotate90`: the code of the tag turned a quarter
+//! counter-clockwise on screen, `y` down; the centre cell fixed when `nbits` is odd). A read
+//! code `r` decodes to id `k` in rotation `q` when `popcount(rotate90^q(r) ⊕ codes[k]) ≤
+//! max_hamming`.
 //!
 //! **Lookup** (AprilTag 3's current scheme): the code is cut into 4 chunks of
 //! `⌈nbits / 4⌉` bits; a word within 3 bits of a code agrees with it exactly on at least one
@@ -129,8 +130,9 @@ pub struct Decoded {
     pub rotation: u8,
 }
 
-/// AprilTag's `rotate90`: the code of the same tag turned by a quarter turn, for the layouts
-/// of the module docs (a cyclic shift of the four quadrants, the centre bit fixed when
+/// AprilTag's `rotate90`: the code of the same tag turned a quarter counter-clockwise (on
+/// screen, `y` down; cell `(x, y)` moves to `(y, w - 1 - x)`, `w` the border width), for the
+/// layouts of the module docs (a cyclic shift of the four quadrants, the centre bit fixed when
 /// `nbits` is odd). `nbits` must be in `1..=64`; other values give 0.
 pub const fn rotate90(w: u64, nbits: u32) -> u64 {
     if nbits == 0 || nbits > 64 {

@@ -43,6 +43,7 @@ pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
 /// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
 /// current batch. 32 bytes.
 #[derive(Debug, Clone, Copy)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Cluster {
     pub(crate) key: u32,
     pub(crate) n: u16,

@@ -282,8 +282,10 @@ fn union(parent: &mut [u16], a: u16, b: u16) {
 }
 
 /// A run of one class in a row: columns `x0..x1`, its class and its label (provisional in the
-/// labelling pass; the root, or [`SMALL`], in the scans; [`NONE`] for skipped pixels).
+/// labelling pass; the root, or a marker for small components, in the scans; a marker for
+/// skipped pixels).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Run {
     pub(crate) x0: u16,
     pub(crate) x1: u16,
