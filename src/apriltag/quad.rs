@@ -538,10 +538,10 @@ fn weight(src: &Sampled<'_>, p: u32) -> u16 {
     if ix == 0 || iy == 0 || ix + 1 >= src.w || iy + 1 >= src.h {
         return 1;
     }
-    let px = |r: &[u8], x: usize| i32::from(r.get(x * src.d).copied().unwrap_or(0));
-    let row = src.full_row(iy);
-    let gx = px(row, ix + 1) - px(row, ix - 1);
-    let gy = px(src.full_row(iy + 1), ix) - px(src.full_row(iy - 1), ix);
+    // (ix, iy) is inside the sampled image: one index a pixel.
+    let px = |x: usize, y: usize| i32::from(src.px(x, y));
+    let gx = px(ix + 1, iy) - px(ix - 1, iy);
+    let gy = px(ix, iy + 1) - px(ix, iy - 1);
     let (a, b) = (gx.unsigned_abs(), gy.unsigned_abs());
     let (hi, lo) = if a > b { (a, b) } else { (b, a) };
     (hi + (3 * lo) / 8 + 1) as u16

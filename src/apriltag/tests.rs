@@ -784,3 +784,6 @@ fn workspace_bytes_match_the_table() {
         Workspace640x480::BYTES
     );
 }
+
+/// The workspace is built in a `static` (what a board does with it): `new` is `const`.
+static _WORKSPACE: Workspace<64, { tiles(64, 64, 1) }, 256, 32, 256, 256> = Workspace::new();
