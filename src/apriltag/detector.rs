@@ -241,7 +241,7 @@ impl Detector {
         &self.families
     }
 
-    /// Detects the tags of the detector's families in `frame`, best first by id; at most `N`
+    /// Detects the tags of the detector's families in `frame`, sorted by id; at most `N`
     /// (when more are found, those with the largest Hamming distance and then the smallest
     /// margin are dropped, counted in [`Stats::dropped`]).
     ///

@@ -19,10 +19,10 @@
 //! chunk (pigeonhole), so only the codes sharing a chunk value with the read word are
 //! compared. The index (per chunk, the codes by chunk value) is built at compile time into
 //! flash: `4 (2^⌈nbits/4⌉ + 1) + 4 ncodes` `u16` — 8.8 KB for tag36h11, 1.3 KB for tag25h9,
-//! 0.4 KB for tag16h5, 33 KB for tagStandard41h12 (AprilTag 3.1's hash table of every word
-//! within 2 bits of a code, what pupil-apriltags ships, is ~1.1 MB for tag36h11; AprilTag 2's
-//! about 27 MB for 3 bits). A lookup compares ~`4 · 4 · ncodes / 2^chunk` codes (about 18 for
-//! tag36h11).
+//! 0.4 KB for tag16h5, 33 KB for tagStandard41h12. (AprilTag 3.1, what pupil-apriltags ships,
+//! hashes every word within 2 bits of a code: 3 x 761,339 entries of 12 bytes, about 27 MB for
+//! tag36h11, built at start-up; the current AprilTag uses this chunk index.) A lookup compares
+//! about `4 · 4 · ncodes / 2^chunk` codes (about 18 for tag36h11).
 
 /// Chunks the code is cut into for the lookup (up to 3 corrected bits).
 pub const CHUNKS: usize = 4;
