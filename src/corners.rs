@@ -217,7 +217,7 @@ fn stronger(a: &Corner, b: &Corner) -> core::cmp::Ordering {
 /// Sorts `v` ascending in `order` by heapsort: `O(n log n)`, in place, and without the panic
 /// path of `sort_unstable_by` (core's sorts panic on a comparator that is not a total order,
 /// which the optimiser cannot rule out; `stronger` is one, so the result is the same).
-fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::Ordering) {
+pub(crate) fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::Ordering) {
     let less = |v: &[T], i: usize, j: usize| match (v.get(i), v.get(j)) {
         (Some(a), Some(b)) => order(a, b) == core::cmp::Ordering::Less,
         _ => false,

@@ -86,6 +86,12 @@ impl<'a, P: Copy> ImageView<'a, P> {
         self.stride
     }
 
+    /// The whole buffer: pixel `(x, y)` is element `y * stride + x` (at least
+    /// [`buffer_len`]`(width, height, stride)` elements), for kernels that index it directly.
+    pub fn data(&self) -> &'a [P] {
+        self.data
+    }
+
     /// Row `y` (exactly `width` pixels), `None` when `y >= height`.
     #[inline]
     pub fn row(&self, y: usize) -> Option<&'a [P]> {

@@ -30,6 +30,7 @@
 //! | [`resize`] | bilinear resizing with aligned pixel centres, in integers |
 //! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
 //! | [`features`] | FAST corners, ORB (oriented FAST + steered BRIEF) descriptors, Hamming matching |
+//! | [`apriltag`] | AprilTag detection (tag36h11, tag25h9, tag16h5, tagStandard41h12) in fixed memory, tag pose |
 #![no_std]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
@@ -51,6 +52,7 @@
 #[cfg(any(feature = "std", test))]
 extern crate std;
 
+pub mod apriltag;
 pub mod calib;
 pub mod camera;
 pub mod chessboard;

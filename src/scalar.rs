@@ -64,3 +64,9 @@ pub(crate) fn check_finite<T: Real>(values: &[T]) -> crate::Result<()> {
 pub(crate) fn above<T: Real>(x: T, bound: T) -> bool {
     x > bound
 }
+
+/// `x ≤ bound`, false for NaN: the form of every "within tolerance" test, so that NaN never is.
+#[inline]
+pub(crate) fn at_most<T: Real>(x: T, bound: T) -> bool {
+    x <= bound
+}

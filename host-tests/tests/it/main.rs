@@ -2,6 +2,7 @@
 //! subject, in one test binary: one link instead of one per file (run one subject with a
 //! filter: `cargo test -p camgeom-host --test it pose_sequence:: -- --nocapture`).
 
+mod apriltag;
 mod ar_box;
 mod calib_chessboard;
 mod calib_real;

@@ -1,0 +1,420 @@
+//! Full-resolution work on one quad: edge refinement and payload decoding.
+//!
+//! **Edge refinement** (AprilTag's `refine_edges`): along each edge, at `max(16, len / 8)`
+//! points, the image is sampled across the edge every 1/4 pixel over `±(d + 1)` pixels (`d` the
+//! decimation), with the difference `g = I(s + n̂) - I(s - n̂)` (bilinear) at each offset `s`
+//! (`n̂` the outward normal); offsets where the intensity rises outward are averaged with weight
+//! `g²`, giving one edge point; a line is fitted to the points of each edge and consecutive
+//! lines are intersected into the new corners.
+//!
+//! **Decoding** (AprilTag's `quad_decode`): with `H` mapping tag coordinates `(-1, -1)..(1, 1)`
+//! (the border's outer edge) to pixels, the cells just outside and just inside the border are
+//! sampled (nearest pixel) and two planar intensity models `I = a x + b y + c` are fitted, one
+//! for white and one for black (least squares, 3x3 Cholesky); each payload cell is read
+//! bilinearly at its centre against the mean of the two models there, the readings are
+//! sharpened (`v + s ∇²v`, the 4-neighbour Laplacian over the cell grid) and their signs give
+//! the code. The decision margin is `min(mean white excess, mean black excess)`.
+//!
+//! Coordinates are camgeom's: pixel `(i, j)` has its centre at `(i, j)`. AprilTag's pixel
+//! centres are at `(i + 0.5, j + 0.5)`; the sampling positions here are AprilTag's shifted by
+//! that half pixel, so both read the same pixels.
+
+use nalgebra::{Matrix3, Point2};
+
+use super::family::Family;
+use super::quad::Quad;
+use crate::image::ImageView;
+use crate::scalar::above;
+
+/// Element `i mod 4` of a quad's corners or lines (no bounds check needed).
+#[inline]
+pub(crate) fn at4<T: Copy>(a: &[T; 4], i: usize) -> T {
+    let [a0, a1, a2, a3] = *a;
+    match i & 3 {
+        0 => a0,
+        1 => a1,
+        2 => a2,
+        _ => a3,
+    }
+}
+
+/// Bilinear sample at `(x, y)`; `None` unless the four pixels are inside the image.
+#[inline]
+fn bilinear(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
+    if !(x >= 0.0 && y >= 0.0) {
+        return None;
+    }
+    // Non-negative: truncation is the floor (and saturates far outside, which the test below
+    // rejects).
+    let (xi, yi) = (x as usize, y as usize);
+    let (xf, yf) = (xi as f32, yi as f32);
+    if xi + 1 >= img.width() || yi + 1 >= img.height() {
+        return None;
+    }
+    let (a, b) = (x - xf, y - yf);
+    let r0 = img.row(yi)?;
+    let r1 = img.row(yi + 1)?;
+    let p = |r: &[u8], i: usize| f32::from(r.get(i).copied().unwrap_or(0));
+    Some(
+        (1.0 - a) * (1.0 - b) * p(r0, xi)
+            + a * (1.0 - b) * p(r0, xi + 1)
+            + (1.0 - a) * b * p(r1, xi)
+            + a * b * p(r1, xi + 1),
+    )
+}
+
+/// A line through `(ex, ey)` with unit normal `(nx, ny)`.
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    ex: f32,
+    ey: f32,
+    nx: f32,
+    ny: f32,
+}
+
+/// Intersection of two lines (AprilTag's solve), `None` when `|det| ≤ 0.001`.
+fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
+    let (a00, a01, a10, a11) = (a.ny, -b.ny, -a.nx, b.nx);
+    let (b0, b1) = (b.ex - a.ex, b.ey - a.ey);
+    let det = a00 * a11 - a10 * a01;
+    if !above(det.abs(), 0.001) {
+        return None;
+    }
+    let l0 = (a11 * b0 - a01 * b1) / det;
+    Some(Point2::new(a.ex + l0 * a00, a.ey + l0 * a10))
+}
+
+/// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
+/// whose two lines cannot be intersected stays where it was.
+pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usize) {
+    let mut lines = [Line {
+        ex: 0.0,
+        ey: 0.0,
+        nx: 0.0,
+        ny: 0.0,
+    }; 4];
+    let range = decimate as f32 + 1.0;
+    let steps = 2 * 4 * (decimate + 1) + 1;
+    for (edge, line) in lines.iter_mut().enumerate() {
+        let (pa, pb) = (at4(&q.p, edge), at4(&q.p, edge + 1));
+        let (mut nx, mut ny) = (pb.y - pa.y, -(pb.x - pa.x));
+        let mag = libm::sqrtf(nx * nx + ny * ny);
+        if !above(mag, 0.0) {
+            *line = Line {
+                ex: pa.x,
+                ey: pa.y,
+                nx: 0.0,
+                ny: 0.0,
+            };
+            continue;
+        }
+        nx /= mag;
+        ny /= mag;
+        if q.reversed_border {
+            nx = -nx;
+            ny = -ny;
+        }
+        // Without enough edge points the edge keeps its line.
+        *line = Line {
+            ex: 0.5 * (pa.x + pb.x),
+            ey: 0.5 * (pa.y + pb.y),
+            nx,
+            ny,
+        };
+        let nsamples = ((mag / 8.0) as usize).max(16);
+        let (mut mx, mut my, mut mxx, mut mxy, mut myy, mut cnt) =
+            (0f32, 0f32, 0f32, 0f32, 0f32, 0u32);
+        for s in 0..nsamples {
+            let alpha = (1.0 + s as f32) / (nsamples as f32 + 1.0);
+            let x0 = alpha * pa.x + (1.0 - alpha) * pb.x;
+            let y0 = alpha * pa.y + (1.0 - alpha) * pb.y;
+            let (mut mn, mut mc) = (0f32, 0f32);
+            for step in 0..steps {
+                let n = -range + 0.25 * step as f32;
+                let (Some(g1), Some(g2)) = (
+                    bilinear(img, x0 + (n + 1.0) * nx, y0 + (n + 1.0) * ny),
+                    bilinear(img, x0 + (n - 1.0) * nx, y0 + (n - 1.0) * ny),
+                ) else {
+                    continue;
+                };
+                if g1 < g2 {
+                    continue;
+                }
+                let w = (g2 - g1) * (g2 - g1);
+                mn += w * n;
+                mc += w;
+            }
+            if !above(mc, 0.0) {
+                continue;
+            }
+            let n0 = mn / mc;
+            // Relative to the edge midpoint: small numbers keep the f32 covariance exact enough.
+            let (bx, by) = (x0 + n0 * nx - line.ex, y0 + n0 * ny - line.ey);
+            mx += bx;
+            my += by;
+            mxx += bx * bx;
+            mxy += bx * by;
+            myy += by * by;
+            cnt += 1;
+        }
+        if cnt < 2 {
+            continue;
+        }
+        let nf = cnt as f32;
+        let (ex, ey) = (mx / nf, my / nf);
+        let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
+        // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
+        // direction from the eigenvectors, as the quad fit computes it).
+        let (_, _, nx, ny) = super::quad::eigen(cxx, cxy, cyy);
+        if nx == 0.0 && ny == 0.0 {
+            continue;
+        }
+        *line = Line {
+            ex: ex + line.ex,
+            ey: ey + line.ey,
+            nx,
+            ny,
+        };
+    }
+    let old = q.p;
+    for (i, p) in q.p.iter_mut().enumerate() {
+        // Corner i joins edge i - 1 (from corner i - 1) and edge i.
+        *p = intersect(&at4(&lines, i + 3), &at4(&lines, i)).unwrap_or(at4(&old, i));
+    }
+}
+
+/// `H x` for a tag point, `None` at or beyond the horizon.
+#[inline]
+pub(crate) fn project(h: &Matrix3<f32>, x: f32, y: f32) -> Option<Point2<f32>> {
+    let w = h.m31 * x + h.m32 * y + h.m33;
+    if !above(w, 1e-9) {
+        return None;
+    }
+    Some(Point2::new(
+        (h.m11 * x + h.m12 * y + h.m13) / w,
+        (h.m21 * x + h.m22 * y + h.m23) / w,
+    ))
+}
+
+/// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.
+#[derive(Default, Clone, Copy)]
+struct GrayModel {
+    a: [f32; 6], // xx, xy, x, yy, y, n
+    b: [f32; 3],
+    c: [f32; 3],
+}
+
+impl GrayModel {
+    fn add(&mut self, x: f32, y: f32, g: f32) {
+        let a = &mut self.a;
+        a[0] += x * x;
+        a[1] += x * y;
+        a[2] += x;
+        a[3] += y * y;
+        a[4] += y;
+        a[5] += 1.0;
+        self.b[0] += x * g;
+        self.b[1] += y * g;
+        self.b[2] += g;
+    }
+
+    /// Cholesky solve; `false` when the normal matrix is not positive definite.
+    fn solve(&mut self) -> bool {
+        let [a00, a01, a02, a11, a12, a22] = self.a;
+        let l00 = a00;
+        if !above(l00, 0.0) {
+            return false;
+        }
+        let l00 = libm::sqrtf(l00);
+        let l10 = a01 / l00;
+        let l20 = a02 / l00;
+        let d1 = a11 - l10 * l10;
+        if !above(d1, 0.0) {
+            return false;
+        }
+        let l11 = libm::sqrtf(d1);
+        let l21 = (a12 - l20 * l10) / l11;
+        let d2 = a22 - l20 * l20 - l21 * l21;
+        if !above(d2, 0.0) {
+            return false;
+        }
+        let l22 = libm::sqrtf(d2);
+        let [b0, b1, b2] = self.b;
+        let y0 = b0 / l00;
+        let y1 = (b1 - l10 * y0) / l11;
+        let y2 = (b2 - l20 * y0 - l21 * y1) / l22;
+        let c2 = y2 / l22;
+        let c1 = (y1 - l21 * c2) / l11;
+        let c0 = (y0 - l10 * c1 - l20 * c2) / l00;
+        self.c = [c0, c1, c2];
+        c0.is_finite() && c1.is_finite() && c2.is_finite()
+    }
+
+    #[inline]
+    fn at(&self, x: f32, y: f32) -> f32 {
+        self.c[0] * x + self.c[1] * y + self.c[2]
+    }
+}
+
+/// Largest `total_width` the decoder's cell grid holds.
+pub const MAX_TOTAL_WIDTH: usize = 12;
+
+/// A read payload: the word, the decision margin, and whether every sample of the ring just
+/// outside the detection border (the quiet zone) was inside the image.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Reading {
+    pub(crate) rcode: u64,
+    pub(crate) margin: f32,
+    pub(crate) ring_in_view: bool,
+}
+
+/// Reads the payload of the quad `h` maps to (module docs), `None` when the border does not
+/// fit the family (wrong polarity, or too few border samples inside the image for the
+/// intensity models).
+pub(crate) fn read_code(
+    img: &ImageView<'_, u8>,
+    h: &Matrix3<f32>,
+    family: &Family,
+    sharpening: f32,
+) -> Option<Reading> {
+    let wab = usize::from(family.width_at_border);
+    let wabf = wab as f32;
+    let tw = usize::from(family.total_width);
+    if tw > MAX_TOTAL_WIDTH || wab < 2 {
+        return None;
+    }
+    // { x0, y0, dx, dy, white } in cells from the border's outer corner.
+    let patterns: [(f32, f32, f32, f32, bool); 8] = [
+        (-0.5, 0.5, 0.0, 1.0, true),
+        (0.5, 0.5, 0.0, 1.0, false),
+        (wabf + 0.5, 0.5, 0.0, 1.0, true),
+        (wabf - 0.5, 0.5, 0.0, 1.0, false),
+        (0.5, -0.5, 1.0, 0.0, true),
+        (0.5, 0.5, 1.0, 0.0, false),
+        (0.5, wabf + 0.5, 1.0, 0.0, true),
+        (0.5, wabf - 0.5, 1.0, 0.0, false),
+    ];
+    let (mut white, mut black) = (GrayModel::default(), GrayModel::default());
+    let (w, hgt) = (img.width() as f32, img.height() as f32);
+    let mut ring_in_view = true;
+    for &(x0, y0, dx, dy, is_white) in &patterns {
+        for i in 0..wab {
+            let tx = 2.0 * ((x0 + i as f32 * dx) / wabf - 0.5);
+            let ty = 2.0 * ((y0 + i as f32 * dy) / wabf - 0.5);
+            let Some(p) = project(h, tx, ty) else {
+                ring_in_view &= !is_white;
+                continue;
+            };
+            // AprilTag truncates its coordinate: the pixel containing the point.
+            let (ix, iy) = (p.x + 0.5, p.y + 0.5);
+            if !(ix >= 0.0 && iy >= 0.0 && ix < w && iy < hgt) {
+                ring_in_view &= !is_white;
+                continue;
+            }
+            let v = f32::from(img.get(ix as usize, iy as usize).unwrap_or(0));
+            if is_white {
+                white.add(tx, ty, v);
+            } else {
+                black.add(tx, ty, v);
+            }
+        }
+    }
+    if !white.solve() || !black.solve() {
+        return None;
+    }
+    if (white.at(0.0, 0.0) - black.at(0.0, 0.0) < 0.0) != family.reversed_border {
+        return None;
+    }
+    let min_coord = (wab as i32 - tw as i32) / 2;
+    let mut values = [0f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH];
+    let cell = |x: i8, y: i8| -> Option<usize> {
+        let (cx, cy) = (i32::from(x) - min_coord, i32::from(y) - min_coord);
+        if cx < 0 || cy < 0 || cx >= tw as i32 || cy >= tw as i32 {
+            return None;
+        }
+        Some(cy as usize * tw + cx as usize)
+    };
+    for b in family.layout {
+        let tx = 2.0 * ((f32::from(b.x) + 0.5) / wabf - 0.5);
+        let ty = 2.0 * ((f32::from(b.y) + 0.5) / wabf - 0.5);
+        let Some(p) = project(h, tx, ty) else {
+            continue;
+        };
+        let Some(v) = bilinear_or_edge(img, p.x, p.y) else {
+            continue;
+        };
+        let thresh = 0.5 * (black.at(tx, ty) + white.at(tx, ty));
+        if let Some(slot) = cell(b.x, b.y).and_then(|i| values.get_mut(i)) {
+            *slot = v - thresh;
+        }
+    }
+    if sharpening != 0.0 {
+        let orig = values;
+        for y in 0..tw {
+            for x in 0..tw {
+                let at = |xx: usize, yy: usize| orig.get(yy * tw + xx).copied().unwrap_or(0.0);
+                let mut s = 4.0 * at(x, y);
+                if x > 0 {
+                    s -= at(x - 1, y);
+                }
+                if x + 1 < tw {
+                    s -= at(x + 1, y);
+                }
+                if y > 0 {
+                    s -= at(x, y - 1);
+                }
+                if y + 1 < tw {
+                    s -= at(x, y + 1);
+                }
+                if let Some(v) = values.get_mut(y * tw + x) {
+                    *v += sharpening * s;
+                }
+            }
+        }
+    }
+    let (mut ws, mut bs, mut wc, mut bc) = (0f32, 0f32, 1f32, 1f32);
+    let mut rcode: u64 = 0;
+    for b in family.layout {
+        let v = cell(b.x, b.y)
+            .and_then(|i| values.get(i))
+            .copied()
+            .unwrap_or(0.0);
+        rcode <<= 1;
+        if v > 0.0 {
+            ws += v;
+            wc += 1.0;
+            rcode |= 1;
+        } else {
+            bs -= v;
+            bc += 1.0;
+        }
+    }
+    Some(Reading {
+        rcode,
+        margin: (ws / wc).min(bs / bc),
+        ring_in_view,
+    })
+}
+
+/// AprilTag's `value_for_pixel`: bilinear between the pixels around `(x, y)`, also exactly on
+/// the last row or column.
+#[inline]
+fn bilinear_or_edge(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
+    if !(x >= 0.0 && y >= 0.0) {
+        return None;
+    }
+    // Non-negative: truncation is the floor.
+    let (x1, y1) = (x as usize, y as usize);
+    let (a, b) = (x - x1 as f32, y - y1 as f32);
+    let (x2, y2) = (x1 + usize::from(a > 0.0), y1 + usize::from(b > 0.0));
+    if x2 >= img.width() || y2 >= img.height() {
+        return None;
+    }
+    let p = |xx: usize, yy: usize| f32::from(img.get(xx, yy).unwrap_or(0));
+    Some(
+        p(x1, y1) * (1.0 - a) * (1.0 - b)
+            + p(x2, y1) * a * (1.0 - b)
+            + p(x1, y2) * (1.0 - a) * b
+            + p(x2, y2) * a * b,
+    )
+}

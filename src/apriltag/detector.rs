@@ -1,0 +1,792 @@
+//! The detector: configuration validated once, the per-frame pipeline, the detections.
+
+use heapless::Vec;
+use nalgebra::{Matrix3, Point2};
+
+use super::decode::{at4, project, read_code, refine_edges};
+use super::family::{Family, MAX_CORRECTABLE};
+use super::quad::Cluster;
+use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
+use super::segment::{
+    Rows, Sampled, Sink, boundary_scan, build_tiles, label_pass, pack, tile_count,
+};
+use super::workspace::{Parts, Stats, Workspace};
+use crate::homography::Homography;
+use crate::image::ImageView;
+use crate::{Error, Result};
+
+/// Most families one detector decodes.
+pub const MAX_FAMILIES: usize = 4;
+
+/// Parameters of a [`Detector`] (AprilTag's `apriltag_detector_t` fields where they exist;
+/// its defaults unless said).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DetectorConfig {
+    /// Quads are searched on the frame point-sampled every `decimate` pixels (1..=8; AprilTag's
+    /// integer `quad_decimate`); decoding and edge refinement use the full frame. Default 1
+    /// (AprilTag's is 2): boards run small frames where tags are a few dozen pixels.
+    pub decimate: u8,
+    /// Snap the quad's edges to the strongest nearby gradient in the full frame (default on).
+    pub refine_edges: bool,
+    /// Sharpening of the payload readings (`v + s ∇²v`, default 0.25).
+    pub decode_sharpening: f32,
+    /// Bits corrected (default 2, at most 3 and below half the smallest family distance).
+    pub max_hamming: u8,
+    /// Tiles whose dilated `max - min` is below this are skipped (default 5, at least 1).
+    pub min_white_black_diff: u8,
+    /// Clusters with fewer boundary points are ignored (default 24).
+    pub min_cluster_pixels: u16,
+    /// Corner candidates kept per cluster (default 10, 4..=12).
+    pub max_nmaxima: u8,
+    /// Quads with a corner closer than this to straight (or to a fold), in degrees, are
+    /// rejected (default 10; AprilTag's `cos_critical_rad = cos(10°)`), in `(0, 45)`.
+    pub critical_angle_deg: f32,
+    /// Largest mean squared distance of a side's boundary points to its line, pixels²
+    /// (default 10).
+    pub max_line_fit_mse: f32,
+    /// Decodes with a smaller decision margin are dropped (default 0: AprilTag keeps every
+    /// margin `≥ 0` and leaves filtering to the caller).
+    pub min_decision_margin: f32,
+    /// Clusters whose boundary has a mean gradient `|∇I| + 1` (3-tap central differences, grey
+    /// levels) below this are not fitted (default 15; 0: AprilTag, which fits every cluster).
+    /// Over the bundled photos, stills and sequence every decoded tag had a mean above 66,
+    /// while half of all clusters (texture and noise) are below 13: the fit's work halves.
+    pub min_edge_gradient: u8,
+    /// Drop a tag whose quiet zone (the ring of cells just outside the detection border) is not
+    /// entirely inside the frame (default on). Such a tag is cut by the frame edge or touches
+    /// it; its outermost edge may not be seen, and a corner fitted to what is seen can be
+    /// pixels off. AprilTag keeps them (off: the same).
+    pub reject_clipped: bool,
+    /// Point batches per frame (default 2; each is one more scan of the frame).
+    pub max_batches: u8,
+    /// Quads decoded per frame at most (default 256; each costs an edge refinement and a
+    /// decode per family).
+    pub max_quads: u16,
+}
+
+impl Default for DetectorConfig {
+    fn default() -> Self {
+        Self {
+            decimate: 1,
+            refine_edges: true,
+            decode_sharpening: 0.25,
+            max_hamming: 2,
+            min_white_black_diff: 5,
+            min_cluster_pixels: 24,
+            max_nmaxima: 10,
+            critical_angle_deg: 10.0,
+            max_line_fit_mse: 10.0,
+            min_decision_margin: 0.0,
+            min_edge_gradient: 15,
+            reject_clipped: true,
+            max_batches: 2,
+            max_quads: 256,
+        }
+    }
+}
+
+/// One detected tag.
+///
+/// Coordinates are camgeom's (pixel `(i, j)` centred at `(i, j)`, as OpenCV's): AprilTag
+/// reports the same points plus [`APRILTAG_PIXEL_OFFSET`] in x and y.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Detection {
+    /// The family decoded.
+    pub family: &'static Family,
+    /// Tag id in the family.
+    pub id: u16,
+    /// Bits corrected.
+    pub hamming: u8,
+    /// Mean distance of the payload readings from their threshold (intensity units): how
+    /// clearly the bits were read.
+    pub decision_margin: f32,
+    /// The border's outer corners in AprilTag's order: tag coordinates `(-1, 1)`, `(1, 1)`,
+    /// `(1, -1)`, `(-1, -1)`, i.e. bottom-left, bottom-right, top-right, top-left of the
+    /// upright tag image (counter-clockwise on screen).
+    pub corners: [Point2<f32>; 4],
+    /// The tag centre, `H (0, 0)`.
+    pub center: Point2<f32>,
+    /// `H`: tag coordinates (`(-1, -1)` top-left .. `(1, 1)` bottom-right of the border,
+    /// `y` down the upright tag) to pixels (AprilTag's `H`, up to scale and the half-pixel).
+    pub homography: Homography<f32>,
+}
+
+/// What AprilTag's coordinates add to camgeom's: its pixel centres are at `i + 0.5`.
+pub const APRILTAG_PIXEL_OFFSET: f32 = 0.5;
+
+/// The corner order of [`Detection::corners`] in tag coordinates.
+pub const CORNER_TAG_COORDS: [(f32, f32); 4] = [(-1.0, 1.0), (1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)];
+
+impl Detection {
+    /// The corners in a planar target's order `(0, 0), (w, 0), (w, h), (0, h)`: the tag's
+    /// top-left, top-right, bottom-right, bottom-left (AprilTag corners 3, 2, 1, 0). The
+    /// target's frame then has AprilTag's tag axes (`x` right, `y` down the upright tag, `z`
+    /// into it) with its origin at the top-left corner: for a tag of side `s`,
+    /// `t_target = t_tag - R (s/2, s/2, 0)` and the same `R`.
+    pub fn target_corners(&self) -> [Point2<f32>; 4] {
+        let c = self.corners;
+        [c[3], c[2], c[1], c[0]]
+    }
+}
+
+/// The stages of a detection, in the order they first run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stage {
+    /// Tile min/max, dilation, thresholds (one pass over the frame).
+    Threshold,
+    /// Connected components (one pass).
+    Components,
+    /// Boundary clusters counted (one pass).
+    Clusters,
+    /// Boundary points stored (one pass a batch).
+    Points,
+    /// One cluster's quad fit.
+    QuadFit,
+    /// One quad's edge refinement.
+    Refine,
+    /// One quad's decoding (all families).
+    Decode,
+    /// Ordering the detections.
+    Reconcile,
+}
+
+/// Told when a [`Stage`] ends: the time since the previous call belongs to that stage (the
+/// per-quad stages repeat, interleaved). `()` does nothing.
+pub trait StageProbe {
+    /// `stage` has just finished.
+    fn stage_done(&mut self, stage: Stage);
+}
+
+impl StageProbe for () {
+    fn stage_done(&mut self, _stage: Stage) {}
+}
+
+/// A validated detector: configuration and families. Keeps no per-frame state (that is the
+/// [`Workspace`]'s), so one detector serves any number of workspaces.
+#[derive(Debug, Clone)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Detector {
+    cfg: DetectorConfig,
+    families: Vec<&'static Family, MAX_FAMILIES>,
+    cos_critical: f32,
+}
+
+impl Detector {
+    /// Checks `cfg` against `families` (1..=[`MAX_FAMILIES`], decoded in this order).
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field (`"families"`, `"decimate"`,
+    /// `"max_hamming"` (above [`MAX_CORRECTABLE`] or not below half a family's distance),
+    /// `"min_white_black_diff"`, `"max_nmaxima"`, `"critical_angle_deg"`,
+    /// `"max_line_fit_mse"`, `"decode_sharpening"`, `"min_decision_margin"`, `"max_batches"`).
+    pub fn new(cfg: DetectorConfig, families: &[&'static Family]) -> Result<Self> {
+        if families.is_empty() || families.len() > MAX_FAMILIES {
+            return Err(Error::InvalidParameter("families"));
+        }
+        let mut fams = Vec::new();
+        for &f in families {
+            if f.total_width as usize > super::decode::MAX_TOTAL_WIDTH || f.width_at_border < 3 {
+                return Err(Error::InvalidParameter("families"));
+            }
+            if 2 * u32::from(cfg.max_hamming) >= u32::from(f.min_distance) {
+                return Err(Error::InvalidParameter("max_hamming"));
+            }
+            fams.push(f)
+                .map_err(|_| Error::InvalidParameter("families"))?;
+        }
+        if !(1..=8).contains(&cfg.decimate) {
+            return Err(Error::InvalidParameter("decimate"));
+        }
+        if cfg.max_hamming > MAX_CORRECTABLE {
+            return Err(Error::InvalidParameter("max_hamming"));
+        }
+        if cfg.min_white_black_diff == 0 {
+            return Err(Error::InvalidParameter("min_white_black_diff"));
+        }
+        if !(4..=MAX_NMAXIMA as u8).contains(&cfg.max_nmaxima) {
+            return Err(Error::InvalidParameter("max_nmaxima"));
+        }
+        if !(cfg.critical_angle_deg > 0.0 && cfg.critical_angle_deg < 45.0) {
+            return Err(Error::InvalidParameter("critical_angle_deg"));
+        }
+        if !(cfg.max_line_fit_mse > 0.0 && cfg.max_line_fit_mse.is_finite()) {
+            return Err(Error::InvalidParameter("max_line_fit_mse"));
+        }
+        if !(cfg.decode_sharpening >= 0.0 && cfg.decode_sharpening <= 4.0) {
+            return Err(Error::InvalidParameter("decode_sharpening"));
+        }
+        if !cfg.min_decision_margin.is_finite() {
+            return Err(Error::InvalidParameter("min_decision_margin"));
+        }
+        if cfg.max_batches == 0 {
+            return Err(Error::InvalidParameter("max_batches"));
+        }
+        let cos_critical = libm::cosf(cfg.critical_angle_deg.to_radians());
+        Ok(Self {
+            cfg,
+            families: fams,
+            cos_critical,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DetectorConfig {
+        &self.cfg
+    }
+
+    /// The families decoded.
+    pub fn families(&self) -> &[&'static Family] {
+        &self.families
+    }
+
+    /// Detects the tags of the detector's families in `frame`, sorted by id; at most `N`
+    /// (when more are found, those with the largest Hamming distance and then the smallest
+    /// margin are dropped, counted in [`Stats::dropped`]).
+    ///
+    /// Errors: [`Error::BufferTooSmall`] naming the workspace buffer that cannot hold this frame
+    /// (`"workspace.width"`, `"workspace.tiles"`, `"workspace.labels"`: at least one,
+    /// `"workspace.sort"`). Frames smaller than 8x8 after decimation give no detection.
+    pub fn detect<
+        const N: usize,
+        const W: usize,
+        const T: usize,
+        const L: usize,
+        const C: usize,
+        const P: usize,
+        const S: usize,
+    >(
+        &self,
+        frame: &ImageView<'_, u8>,
+        ws: &mut Workspace<W, T, L, C, P, S>,
+    ) -> Result<Vec<Detection, N>> {
+        let mut out = Vec::new();
+        self.detect_into(frame, ws, &mut (), |_, _| true, &mut out)?;
+        Ok(out)
+    }
+
+    /// [`Self::detect`] into `out` (cleared first), keeping only tags for which
+    /// `keep(family, id)` holds (the others are decoded but never compete for `out`), with
+    /// `probe` told as each stage ends.
+    pub fn detect_into<
+        const N: usize,
+        const W: usize,
+        const T: usize,
+        const L: usize,
+        const C: usize,
+        const P: usize,
+        const S: usize,
+    >(
+        &self,
+        frame: &ImageView<'_, u8>,
+        ws: &mut Workspace<W, T, L, C, P, S>,
+        probe: &mut impl StageProbe,
+        keep: impl Fn(&Family, u16) -> bool,
+        out: &mut Vec<Detection, N>,
+    ) -> Result<()> {
+        out.clear();
+        let mut parts = ws.parts();
+        self.run(frame, &mut parts, probe, &keep, &mut |det, stats| {
+            merge(out, det, stats)
+        })?;
+        probe.stage_done(Stage::Reconcile);
+        crate::corners::heapsort_by(out, |a, b| {
+            (a.id, a.family.name)
+                .cmp(&(b.id, b.family.name))
+                .then(order_corners(a, b))
+        });
+        Ok(())
+    }
+
+    /// The four corners of tag `id` of `family` in a planar target's order (see
+    /// [`Detection::target_corners`]): the acquisition of a target from a frame. `None` when
+    /// the tag is not found (the best of several copies is taken).
+    pub fn find_target<
+        const W: usize,
+        const T: usize,
+        const L: usize,
+        const C: usize,
+        const P: usize,
+        const S: usize,
+    >(
+        &self,
+        frame: &ImageView<'_, u8>,
+        ws: &mut Workspace<W, T, L, C, P, S>,
+        family: &Family,
+        id: u16,
+    ) -> Result<Option<[Point2<f32>; 4]>> {
+        let mut out: Vec<Detection, 1> = Vec::new();
+        self.detect_into(frame, ws, &mut (), |f, i| f == family && i == id, &mut out)?;
+        Ok(out.first().map(Detection::target_corners))
+    }
+
+    fn run(
+        &self,
+        frame: &ImageView<'_, u8>,
+        ws: &mut Parts<'_>,
+        probe: &mut impl StageProbe,
+        keep: &impl Fn(&Family, u16) -> bool,
+        sink: &mut impl FnMut(Detection, &mut Stats),
+    ) -> Result<()> {
+        let d = usize::from(self.cfg.decimate);
+        let src = Sampled::new(*frame, d);
+        *ws.stats = Stats {
+            width: src.w as u16,
+            height: src.h as u16,
+            ..Stats::default()
+        };
+        if src.w < 8 || src.h < 8 {
+            return Ok(());
+        }
+        if ws.runs[0].len() < src.w || ws.runs[1].len() < src.w || ws.ring_min.len() < src.w {
+            return Err(Error::BufferTooSmall("workspace.width"));
+        }
+        if ws.tiles.len() < tile_count(src.w, src.h) {
+            return Err(Error::BufferTooSmall("workspace.tiles"));
+        }
+        if ws.labels_cap == 0 {
+            return Err(Error::BufferTooSmall("workspace.labels"));
+        }
+        if ws.keys.len() < usize::from(self.cfg.min_cluster_pixels).max(24) {
+            return Err(Error::BufferTooSmall("workspace.sort"));
+        }
+        let tiles = build_tiles(
+            &src,
+            self.cfg.min_white_black_diff,
+            ws.tiles,
+            ws.ring_min,
+            ws.ring_max,
+        );
+        probe.stage_done(Stage::Threshold);
+        let [r0, r1] = &mut ws.runs;
+        let mut rows = Rows {
+            runs: [&mut **r0, &mut **r1],
+        };
+        let parent = ws.parent.get_mut(..ws.labels_cap).unwrap_or(&mut []);
+        let size = ws.size.get_mut(..ws.labels_cap).unwrap_or(&mut []);
+        let lab = label_pass(&src, &tiles, &mut rows, parent, size);
+        ws.stats.labels = lab.labels as u32;
+        ws.stats.label_overflow = lab.exhausted;
+        probe.stage_done(Stage::Components);
+
+        let mut table = Table::new(ws.clusters);
+        let mut counter = Counter {
+            table: &mut table,
+            emitted: 0,
+            pending: (u32::MAX, Tally::EMPTY),
+        };
+        boundary_scan(
+            &src,
+            &tiles,
+            &mut rows,
+            parent,
+            size,
+            lab.labels,
+            &mut counter,
+        );
+        counter.finish();
+        let emitted = counter.emitted;
+        ws.stats.boundary_points = emitted;
+        ws.stats.clusters = table.used as u32;
+        ws.stats.cluster_overflow = table.dropped;
+        probe.stage_done(Stage::Clusters);
+
+        // Clusters worth a fit (point count, closed, of a wanted border kind); the others are
+        // marked done (n = 0).
+        let max_pts = (4 * (src.w + src.h))
+            .min(ws.keys.len())
+            .min(ws.points.len())
+            .min(65534);
+        let min_pts = usize::from(self.cfg.min_cluster_pixels);
+        let (normal, reversed) = (
+            self.families.iter().any(|f| !f.reversed_border),
+            self.families.iter().any(|f| f.reversed_border),
+        );
+        for c in table.slots.iter_mut() {
+            let n = usize::from(c.n);
+            let wanted = c.key != u32::MAX
+                && match c.shape() {
+                    Some(rev) => (rev && reversed) || (!rev && normal),
+                    None => false,
+                };
+            if c.key == u32::MAX || n < min_pts || n > max_pts || !wanted {
+                c.n = 0;
+            } else {
+                ws.stats.clusters_kept += 1;
+                ws.stats.cluster_points += n as u32;
+            }
+        }
+
+        let min_width = self
+            .families
+            .iter()
+            .map(|f| u32::from(f.width_at_border))
+            .min()
+            .unwrap_or(3);
+        let prm = QuadParams {
+            max_nmaxima: usize::from(self.cfg.max_nmaxima),
+            max_line_fit_mse: self.cfg.max_line_fit_mse,
+            cos_critical: self.cos_critical,
+            min_tag_width: (min_width / d as u32).max(3),
+            normal_border: normal,
+            reversed_border: reversed,
+            min_edge_gradient: u32::from(self.cfg.min_edge_gradient),
+        };
+        let mut cursor = 0usize;
+        let mut quads = 0u32;
+        for _ in 0..self.cfg.max_batches {
+            // Assign point ranges to the next clusters that fit.
+            let mut offset = 0usize;
+            let mut any = false;
+            while let Some(c) = table.slots.get_mut(cursor) {
+                let n = usize::from(c.n);
+                if n > 0 {
+                    if offset + n > ws.points.len() {
+                        break;
+                    }
+                    c.start = offset as u32;
+                    c.fill = 0;
+                    offset += n;
+                    any = true;
+                }
+                cursor += 1;
+            }
+            if !any {
+                break;
+            }
+            ws.stats.batches += 1;
+            // Only the components of this batch's clusters make points now: their `size` (no
+            // longer needed as a count) becomes the flag the scan tests.
+            size.iter_mut().for_each(|s| *s = 0);
+            for c in table.slots.iter() {
+                if c.start != NOT_IN_BATCH {
+                    for r in [c.key >> 16, c.key & 0xffff] {
+                        if let Some(s) = size.get_mut(r as usize) {
+                            *s = u8::MAX;
+                        }
+                    }
+                }
+            }
+            let mut filler = Filler {
+                table: &mut table,
+                points: ws.points,
+            };
+            boundary_scan(
+                &src,
+                &tiles,
+                &mut rows,
+                parent,
+                size,
+                lab.labels,
+                &mut filler,
+            );
+            ws.stats.points += offset as u32;
+            probe.stage_done(Stage::Points);
+            for c in table.slots.iter_mut() {
+                if c.start == NOT_IN_BATCH {
+                    continue;
+                }
+                let (start, fill) = (c.start as usize, usize::from(c.fill));
+                c.start = NOT_IN_BATCH;
+                c.n = 0;
+                let Some(pts) = ws.points.get_mut(start..start + fill) else {
+                    continue;
+                };
+                let fitted = fit_quad(
+                    &src,
+                    pts,
+                    ws.keys,
+                    (c.xmin, c.xmax, c.ymin, c.ymax),
+                    c.dot() < 0,
+                    &prm,
+                );
+                probe.stage_done(Stage::QuadFit);
+                let Some(mut q) = fitted else {
+                    continue;
+                };
+                ws.stats.quads += 1;
+                if quads >= u32::from(self.cfg.max_quads) {
+                    ws.stats.quads_skipped += 1;
+                    continue;
+                }
+                quads += 1;
+                if d > 1 {
+                    for p in q.p.iter_mut() {
+                        *p = Point2::new(p.x * d as f32, p.y * d as f32);
+                    }
+                }
+                if self.cfg.refine_edges {
+                    refine_edges(frame, &mut q, d);
+                    probe.stage_done(Stage::Refine);
+                }
+                self.decode_quad(frame, &q, keep, ws.stats, sink);
+                probe.stage_done(Stage::Decode);
+            }
+        }
+        ws.stats.clusters_skipped = table.slots.iter().filter(|c| c.n > 0).count() as u32;
+        Ok(())
+    }
+
+    /// Decodes one quad with every family of its border kind, handing each tag to `sink`.
+    fn decode_quad(
+        &self,
+        frame: &ImageView<'_, u8>,
+        q: &Quad,
+        keep: &impl Fn(&Family, u16) -> bool,
+        stats: &mut Stats,
+        sink: &mut impl FnMut(Detection, &mut Stats),
+    ) {
+        let tag = [
+            Point2::new(-1.0, -1.0),
+            Point2::new(1.0, -1.0),
+            Point2::new(1.0, 1.0),
+            Point2::new(-1.0, 1.0),
+        ];
+        let Ok(h) = Homography::from_four_points(&tag, &q.p) else {
+            return;
+        };
+        for &family in &self.families {
+            if family.reversed_border != q.reversed_border {
+                continue;
+            }
+            let Some(reading) = read_code(frame, h.matrix(), family, self.cfg.decode_sharpening)
+            else {
+                continue;
+            };
+            if self.cfg.reject_clipped && !reading.ring_in_view {
+                continue;
+            }
+            let (rcode, margin) = (reading.rcode, reading.margin);
+            if !crate::scalar::at_most(self.cfg.min_decision_margin.max(0.0), margin) {
+                continue;
+            }
+            let Some(dec) = family.decode(rcode, self.cfg.max_hamming) else {
+                continue;
+            };
+            if !keep(family, dec.id) {
+                continue;
+            }
+            // H R(rotation · 90°) (AprilTag's orientation fix), exact in quarter turns.
+            let (c, s) = match dec.rotation & 3 {
+                0 => (1.0, 0.0),
+                1 => (0.0, 1.0),
+                2 => (-1.0, 0.0),
+                _ => (0.0, -1.0),
+            };
+            let r = Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0);
+            let Ok(hd) = Homography::from_matrix(&(h.matrix() * r)) else {
+                continue;
+            };
+            let m = *hd.matrix();
+            let mut corners = [Point2::origin(); 4];
+            let mut ok = true;
+            for (p, &(x, y)) in corners.iter_mut().zip(CORNER_TAG_COORDS.iter()) {
+                match project(&m, x, y) {
+                    Some(v) => *p = v,
+                    None => ok = false,
+                }
+            }
+            let Some(center) = project(&m, 0.0, 0.0) else {
+                continue;
+            };
+            if !ok {
+                continue;
+            }
+            stats.decoded += 1;
+            sink(
+                Detection {
+                    family,
+                    id: dec.id,
+                    hamming: dec.hamming,
+                    decision_margin: margin,
+                    corners,
+                    center,
+                    homography: hd,
+                },
+                stats,
+            );
+        }
+    }
+}
+
+/// The counting scan's sink: every run of points into the cluster table.
+/// Consecutive points mostly share their cluster: they are gathered in `pending` and go into
+/// the table when the key changes (and at [`Counter::finish`]).
+struct Counter<'t, 'a> {
+    table: &'t mut Table<'a>,
+    emitted: u32,
+    pending: (u32, Tally),
+}
+
+impl Counter<'_, '_> {
+    fn finish(&mut self) {
+        let (key, t) = self.pending;
+        if t.n > 0 {
+            self.table.add(key, &t);
+        }
+        self.pending = (u32::MAX, Tally::EMPTY);
+    }
+}
+
+impl Sink for Counter<'_, '_> {
+    #[inline]
+    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+        if key != self.pending.0 {
+            self.finish();
+            self.pending.0 = key;
+        }
+        let m = count.min(usize::from(u16::MAX)) as u16;
+        self.pending.1.add_run(x2 as u16, y2 as u16, m, gx, gy);
+        self.emitted = self.emitted.saturating_add(count as u32);
+    }
+}
+
+/// The storing scan's sink: the points of the clusters of the batch into their ranges.
+struct Filler<'t, 'a, 'p> {
+    table: &'t mut Table<'a>,
+    points: &'p mut [u32],
+}
+
+impl Sink for Filler<'_, '_, '_> {
+    #[inline]
+    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+        let Some(c) = self.table.get_mut(key) else {
+            return;
+        };
+        if c.start == NOT_IN_BATCH {
+            return;
+        }
+        let room = usize::from(c.n.saturating_sub(c.fill)).min(count);
+        let at = c.start as usize + usize::from(c.fill);
+        if let Some(out) = self.points.get_mut(at..at + room) {
+            for (i, p) in out.iter_mut().enumerate() {
+                *p = pack(x2 + 2 * i, y2, gx, gy);
+            }
+            c.fill += room as u16;
+        }
+    }
+}
+
+/// Marks the clusters in `slots` that are in the batch.
+#[allow(dead_code)]
+fn in_batch(c: &Cluster) -> bool {
+    c.start != NOT_IN_BATCH
+}
+
+/// A deterministic order of two detections by their corners (AprilTag's last tie-break).
+fn order_corners(a: &Detection, b: &Detection) -> core::cmp::Ordering {
+    for (p, q) in a.corners.iter().zip(b.corners.iter()) {
+        for (u, v) in [(p.x, q.x), (p.y, q.y)] {
+            match u.partial_cmp(&v) {
+                Some(core::cmp::Ordering::Equal) | None => {}
+                Some(o) => return o,
+            }
+        }
+    }
+    core::cmp::Ordering::Equal
+}
+
+/// `Less` when `a` is the better of two detections: smaller Hamming distance, then larger
+/// margin, then by corners (AprilTag's `prefer_smaller` chain).
+fn better(a: &Detection, b: &Detection) -> bool {
+    match a.hamming.cmp(&b.hamming) {
+        core::cmp::Ordering::Less => return true,
+        core::cmp::Ordering::Greater => return false,
+        core::cmp::Ordering::Equal => {}
+    }
+    if a.decision_margin != b.decision_margin {
+        return a.decision_margin > b.decision_margin;
+    }
+    order_corners(a, b) == core::cmp::Ordering::Less
+}
+
+/// Adds `det` to `out`, removing duplicates: detections of the same family and id whose
+/// outlines overlap keep only the better; a full `out` keeps the best `N`.
+fn merge<const N: usize>(out: &mut Vec<Detection, N>, det: Detection, stats: &mut Stats) {
+    let dup = |o: &Detection| {
+        core::ptr::eq(o.family, det.family)
+            && o.id == det.id
+            && polygons_overlap(&o.corners, &det.corners)
+    };
+    if out.iter().filter(|o| dup(o)).any(|o| !better(&det, o)) {
+        stats.duplicates += 1;
+        return;
+    }
+    let before = out.len();
+    out.retain(|o| !dup(o));
+    stats.duplicates += (before - out.len()) as u32;
+    if out.push(det).is_err() {
+        stats.dropped += 1;
+        // Replace the worst if the new one is better.
+        let worst = out
+            .iter()
+            .enumerate()
+            .fold(None::<(usize, &Detection)>, |w, (i, o)| match w {
+                Some((_, wo)) if better(wo, o) => Some((i, o)),
+                Some(w) => Some(w),
+                None => Some((i, o)),
+            })
+            .map(|(i, _)| i);
+        if let Some(i) = worst
+            && let Some(slot) = out.get_mut(i)
+            && better(&det, slot)
+        {
+            *slot = det;
+        }
+    }
+}
+
+/// Whether two quadrilaterals overlap: an edge of one crosses an edge of the other, or one
+/// holds a corner or the centre of the other (AprilTag's `g2d_polygon_overlaps_polygon`, plus
+/// the centres).
+pub(crate) fn polygons_overlap(a: &[Point2<f32>; 4], b: &[Point2<f32>; 4]) -> bool {
+    let cross = |o: Point2<f32>, p: Point2<f32>, q: Point2<f32>| {
+        (p.x - o.x) * (q.y - o.y) - (p.y - o.y) * (q.x - o.x)
+    };
+    let edge = |v: &[Point2<f32>; 4], i: usize| (at4(v, i), at4(v, i + 1));
+    for i in 0..4 {
+        let (p1, p2) = edge(a, i);
+        for j in 0..4 {
+            let (q1, q2) = edge(b, j);
+            let (d1, d2) = (cross(q1, q2, p1), cross(q1, q2, p2));
+            let (d3, d4) = (cross(p1, p2, q1), cross(p1, p2, q2));
+            if ((d1 > 0.0) != (d2 > 0.0)) && ((d3 > 0.0) != (d4 > 0.0)) {
+                return true;
+            }
+        }
+    }
+    let inside = |poly: &[Point2<f32>; 4], p: Point2<f32>| {
+        // Even-odd rule.
+        let mut c = false;
+        for i in 0..4 {
+            let (u, v) = edge(poly, i);
+            if (u.y > p.y) != (v.y > p.y) {
+                let x = u.x + (p.y - u.y) / (v.y - u.y) * (v.x - u.x);
+                if p.x < x {
+                    c = !c;
+                }
+            }
+        }
+        c
+    };
+    // A corner or the centre of one inside the other (the centre settles two outlines that
+    // share edges exactly, where the corners sit on the other's boundary).
+    let centre = |v: &[Point2<f32>; 4]| {
+        let s = v
+            .iter()
+            .fold(nalgebra::Vector2::zeros(), |s, p| s + p.coords);
+        Point2::from(s / 4.0)
+    };
+    inside(b, at4(a, 0)) || inside(a, at4(b, 0)) || inside(b, centre(a)) || inside(a, centre(b))
+}
+
+/// [`merge`] for the unit tests.
+#[cfg(test)]
+pub(crate) fn merge_for_tests<const N: usize>(
+    out: &mut Vec<Detection, N>,
+    det: Detection,
+    stats: &mut Stats,
+) {
+    merge(out, det, stats);
+}

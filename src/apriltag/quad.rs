@@ -1,0 +1,796 @@
+//! Clusters of boundary points and the quads fitted to them (AprilTag's `fit_quad`).
+//!
+//! **Clusters**: an open-addressing table keyed by (black root, white root), filled by one
+//! boundary scan that counts points and keeps the bounding box; the clusters kept (enough
+//! points, not more than a frame's perimeter twice over) get ranges of the point buffer, in
+//! batches when they do not all fit, and a second scan stores their points.
+//!
+//! **Quad fit** of one cluster of `n` points:
+//! 1. the points are ordered by angle around the bounding box centre (an integer pseudo-angle,
+//!    `q + t/(|dx| + |dy|)` per quadrant, 16 bits, by an in-place radix sort); the sign of
+//!    `Σ (p - c) · g` (`g` towards white) tells a normal border (white outside) from a
+//!    reversed one;
+//! 2. each point is weighted by `|∇I| + 1` (the 3-tap central difference,
+//!    `|∇| ≈ max + 3/8 min` of the two components); a cluster whose mean weight is below
+//!    `min_edge_gradient` is not fitted (not AprilTag's: textured and noisy backgrounds give
+//!    thousands of faint boundaries, printed tags a strong one); for a window of `2k + 1` points around
+//!    each (`k = min(20, n / 12)`), the weighted covariance gives the line-fit error
+//!    `N λ_min`; the errors are low-pass filtered (Gaussian, σ = 1 point, 7 taps) and their
+//!    local maxima are corner candidates, the `max_nmaxima` largest kept;
+//! 3. every 4 of the candidates split the points into 4 runs; each run's line fit must have
+//!    `λ_min ≤ max_line_fit_mse` and neighbouring lines meet at an angle beyond the critical
+//!    one; the split with the least total error wins when its mean error is within the bound;
+//! 4. the corners are the intersections of consecutive lines; the quad must cover
+//!    `0.95 w²` (`w` the narrowest family's border in pixels) and turn the same way at every
+//!    corner with `|cos θ| ≤ cos(critical angle)`.
+//!
+//! All moment sums are exact integers (doubled coordinates relative to the bounding box, `i64`
+//! sums and `i128` products for the covariances); the fits convert to `f32` only at the end.
+
+use nalgebra::Point2;
+
+use super::decode::at4;
+use super::segment::{Sampled, unpack};
+use crate::features::offer_best;
+use crate::scalar::{above, at_most};
+
+/// An empty table slot.
+const EMPTY: u32 = u32::MAX;
+/// A cluster not in the current batch.
+pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
+
+/// One cluster: its key, point count, bounding box (doubled coordinates), the sums of its
+/// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
+/// current batch. 32 bytes.
+#[derive(Debug, Clone, Copy)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Cluster {
+    pub(crate) key: u32,
+    pub(crate) n: u16,
+    pub(crate) fill: u16,
+    pub(crate) start: u32,
+    pub(crate) xmin: u16,
+    pub(crate) xmax: u16,
+    pub(crate) ymin: u16,
+    pub(crate) ymax: u16,
+    pub(crate) sgx: i16,
+    pub(crate) sgy: i16,
+    pub(crate) spg: i64,
+}
+
+impl Cluster {
+    /// A free slot.
+    pub const EMPTY: Self = Self {
+        key: EMPTY,
+        n: 0,
+        fill: 0,
+        start: NOT_IN_BATCH,
+        xmin: u16::MAX,
+        xmax: 0,
+        ymin: u16::MAX,
+        ymax: 0,
+        sgx: 0,
+        sgy: 0,
+        spg: 0,
+    };
+
+    /// `Σ (p - c) · g` about the bounding box centre `c`, in quarter pixels (AprilTag's `dot`
+    /// up to scale): positive when the gradient points away from the centre, i.e. white
+    /// outside (a normal border).
+    pub(crate) fn dot(&self) -> i64 {
+        let xs = i64::from(self.xmin) + i64::from(self.xmax);
+        let ys = i64::from(self.ymin) + i64::from(self.ymax);
+        2 * self.spg - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
+    }
+
+    /// The cluster pre-filter (module docs): `Some(reversed)` for a closed boundary around
+    /// its centre, `None` otherwise.
+    pub(crate) fn shape(&self) -> Option<bool> {
+        let n = i64::from(self.n);
+        let (gx, gy) = (i64::from(self.sgx), i64::from(self.sgy));
+        // Closed: |Σg| ≤ n / 4 (a straight edge has |Σg| ≈ n, a closed boundary ≈ 0).
+        if 16 * (gx * gx + gy * gy) > n * n {
+            return None;
+        }
+        // Around its centre: |dot| ≥ 0.2 n (bw + bh) / 2 in the units of `dot` (a square gives
+        // 1, a rectangle of aspect a about 4a / (1 + a)², 0.2 at a = 1/18).
+        let dot = self.dot();
+        let spread = (i64::from(self.xmax) - i64::from(self.xmin)).max(0)
+            + (i64::from(self.ymax) - i64::from(self.ymin)).max(0);
+        if 10 * dot.abs() < n * spread {
+            return None;
+        }
+        Some(dot < 0)
+    }
+}
+
+/// Points of one cluster gathered before they go into the [`Table`]: count, bounding box and
+/// the sums of [`Cluster`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Tally {
+    pub(crate) n: u32,
+    pub(crate) xmin: u16,
+    pub(crate) xmax: u16,
+    pub(crate) ymin: u16,
+    pub(crate) ymax: u16,
+    pub(crate) sgx: i32,
+    pub(crate) sgy: i32,
+    pub(crate) spg: i64,
+}
+
+impl Tally {
+    /// Nothing.
+    pub(crate) const EMPTY: Self = Self {
+        n: 0,
+        xmin: u16::MAX,
+        xmax: 0,
+        ymin: u16::MAX,
+        ymax: 0,
+        sgx: 0,
+        sgy: 0,
+        spg: 0,
+    };
+
+    /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, with gradient signs `(gx, gy)`.
+    #[inline]
+    pub(crate) fn add_run(&mut self, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
+        let mi = i32::from(m);
+        self.n += u32::from(m);
+        self.xmin = self.xmin.min(x2);
+        self.xmax = self.xmax.max(x2.saturating_add(2 * m.saturating_sub(1)));
+        self.ymin = self.ymin.min(y2);
+        self.ymax = self.ymax.max(y2);
+        self.sgx += mi * gx;
+        self.sgy += mi * gy;
+        // Σ x2 over the run: m x2 + m (m - 1); each term below 2^28 (MAX_DIM = 8192).
+        let sx = mi * i32::from(x2) + mi * (mi - 1);
+        self.spg += i64::from(sx * gx) + i64::from(mi * i32::from(y2) * gy);
+    }
+}
+
+/// Slot of `key` in a table of `len` slots (Fibonacci hashing).
+#[inline]
+fn home(key: u32, len: usize) -> usize {
+    let h = (u64::from(key).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize;
+    if len == 0 { 0 } else { h % len }
+}
+
+/// The cluster table over a caller slice (module docs). New keys are refused once 3/4 of the
+/// slots are used, which bounds every probe sequence.
+pub(crate) struct Table<'a> {
+    pub(crate) slots: &'a mut [Cluster],
+    pub(crate) used: usize,
+    /// Points of keys that found no room.
+    pub(crate) dropped: u32,
+    /// The slot of the last key looked up: consecutive points mostly share a cluster.
+    last: (u32, usize),
+    /// Slots that may be used (3/4 of them).
+    limit: usize,
+}
+
+impl<'a> Table<'a> {
+    pub(crate) fn new(slots: &'a mut [Cluster]) -> Self {
+        slots.iter_mut().for_each(|c| *c = Cluster::EMPTY);
+        Self {
+            slots,
+            used: 0,
+            dropped: 0,
+            last: (EMPTY, 0),
+            limit: 0,
+        }
+        .with_limit()
+    }
+
+    fn with_limit(mut self) -> Self {
+        self.limit = self.slots.len() - self.slots.len() / 4;
+        self
+    }
+
+    /// Adds the points `t` of cluster `key`.
+    #[inline]
+    pub(crate) fn add(&mut self, key: u32, t: &Tally) {
+        let i = if self.last.0 == key {
+            self.last.1
+        } else {
+            match self.slot(key) {
+                Some(i) => i,
+                None => {
+                    self.dropped = self.dropped.saturating_add(t.n);
+                    return;
+                }
+            }
+        };
+        let Some(c) = self.slots.get_mut(i) else {
+            return;
+        };
+        c.n = c.n.saturating_add(t.n.min(u32::from(u16::MAX)) as u16);
+        c.xmin = c.xmin.min(t.xmin);
+        c.xmax = c.xmax.max(t.xmax);
+        c.ymin = c.ymin.min(t.ymin);
+        c.ymax = c.ymax.max(t.ymax);
+        let clamp16 = |v: i32| v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
+        c.sgx = clamp16(i32::from(c.sgx) + t.sgx);
+        c.sgy = clamp16(i32::from(c.sgy) + t.sgy);
+        c.spg = c.spg.saturating_add(t.spg);
+    }
+
+    /// The slot of `key`, inserted when new and there is room (and remembered).
+    fn slot(&mut self, key: u32) -> Option<usize> {
+        let len = self.slots.len();
+        let mut i = home(key, len);
+        for _ in 0..len {
+            let c = self.slots.get_mut(i)?;
+            if c.key == key {
+                self.last = (key, i);
+                return Some(i);
+            }
+            if c.key == EMPTY {
+                if self.used >= self.limit {
+                    return None;
+                }
+                c.key = key;
+                self.used += 1;
+                self.last = (key, i);
+                return Some(i);
+            }
+            i = if i + 1 == len { 0 } else { i + 1 };
+        }
+        None
+    }
+
+    /// The cluster of `key`, if it has a slot.
+    #[inline]
+    pub(crate) fn get_mut(&mut self, key: u32) -> Option<&mut Cluster> {
+        let len = self.slots.len();
+        let mut i = if self.last.0 == key {
+            self.last.1
+        } else {
+            home(key, len)
+        };
+        for _ in 0..len {
+            let k = self.slots.get(i)?.key;
+            if k == key {
+                self.last = (key, i);
+                return self.slots.get_mut(i);
+            }
+            if k == EMPTY {
+                return None;
+            }
+            i = if i + 1 == len { 0 } else { i + 1 };
+        }
+        None
+    }
+}
+
+/// Parameters of [`fit_quad`], in the sampled image's pixels.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct QuadParams {
+    pub(crate) max_nmaxima: usize,
+    pub(crate) max_line_fit_mse: f32,
+    pub(crate) cos_critical: f32,
+    /// AprilTag's `min_tag_width`: the narrowest border of the enabled families, in sampled
+    /// pixels (at least 3).
+    pub(crate) min_tag_width: u32,
+    pub(crate) normal_border: bool,
+    pub(crate) reversed_border: bool,
+    /// Clusters whose mean gradient weight is below this are not fitted.
+    pub(crate) min_edge_gradient: u32,
+}
+
+/// A fitted quad in the sampled image: corners in the order of the sorted boundary (clockwise
+/// on screen), and the border kind.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Quad {
+    pub(crate) p: [Point2<f32>; 4],
+    pub(crate) reversed_border: bool,
+}
+
+/// Largest candidate count of the corner search.
+pub const MAX_NMAXIMA: usize = 12;
+
+/// Sorts `pts` by `keys` (both moved), in place: an American-flag radix pass on the high byte,
+/// then on the low byte inside buckets of more than 16, insertion sort inside smaller ones.
+/// `O(n)` with two 256-entry count tables on the stack; `n ≤ u16::MAX`.
+pub(crate) fn sort_by_key(pts: &mut [u32], keys: &mut [u16]) {
+    let n = pts.len().min(keys.len()).min(usize::from(u16::MAX));
+    let (Some(pts), Some(keys)) = (pts.get_mut(..n), keys.get_mut(..n)) else {
+        return;
+    };
+    let bounds = flag_pass(pts, keys, 8);
+    for b in 0..256 {
+        let s = usize::from(bounds.get(b).copied().unwrap_or(0));
+        let e = usize::from(bounds.get(b + 1).copied().unwrap_or(0));
+        let (Some(p), Some(k)) = (pts.get_mut(s..e), keys.get_mut(s..e)) else {
+            continue;
+        };
+        if e - s > 16 {
+            flag_pass(p, k, 0);
+        } else {
+            insertion(p, k);
+        }
+    }
+}
+
+/// One American-flag pass on digit `(key >> shift) & 255`: returns the 257 bucket bounds.
+fn flag_pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> [u16; 257] {
+    let digit = |k: u16| usize::from((k >> shift) & 255);
+    let mut count = [0u16; 256];
+    for &k in keys.iter() {
+        if let Some(c) = count.get_mut(digit(k)) {
+            *c = c.saturating_add(1);
+        }
+    }
+    let mut bounds = [0u16; 257];
+    for b in 0..256 {
+        let v = bounds.get(b).copied().unwrap_or(0) + count.get(b).copied().unwrap_or(0);
+        if let Some(slot) = bounds.get_mut(b + 1) {
+            *slot = v;
+        }
+    }
+    let mut next = [0u16; 256];
+    next.copy_from_slice(bounds.get(..256).unwrap_or(&[0; 256]));
+    for b in 0..256 {
+        let end = bounds.get(b + 1).copied().unwrap_or(0);
+        // Each swap puts one element into its final bucket: at most n swaps in all.
+        loop {
+            let i = usize::from(next.get(b).copied().unwrap_or(end));
+            if i >= usize::from(end) {
+                break;
+            }
+            let d = keys.get(i).map_or(b, |&k| digit(k));
+            if d == b {
+                if let Some(nb) = next.get_mut(b) {
+                    *nb += 1;
+                }
+            } else {
+                let j = usize::from(next.get(d).copied().unwrap_or(0));
+                if i < keys.len() && j < keys.len() && i < pts.len() && j < pts.len() {
+                    keys.swap(i, j);
+                    pts.swap(i, j);
+                }
+                if let Some(nd) = next.get_mut(d) {
+                    *nd += 1;
+                }
+            }
+        }
+    }
+    bounds
+}
+
+/// Insertion sort of `(pts, keys)` by key (stable).
+fn insertion(pts: &mut [u32], keys: &mut [u16]) {
+    for i in 1..keys.len().min(pts.len()) {
+        let mut j = i;
+        while j > 0 {
+            match (keys.get(j - 1), keys.get(j)) {
+                (Some(a), Some(b)) if a > b => {
+                    keys.swap(j - 1, j);
+                    pts.swap(j - 1, j);
+                }
+                _ => break,
+            }
+            j -= 1;
+        }
+    }
+}
+
+/// Pseudo-angle of `(dx, dy)` (both non-zero), increasing with `atan2(dy, dx)` from `-π`:
+/// quadrant `q` (`-π..-π/2, -π/2..0, 0..π/2, π/2..π`) times `2^14` plus `2^14 t / (|dx| + |dy|)`
+/// with `t` the coordinate that grows across the quadrant.
+#[inline]
+fn pseudo_angle(dx: i32, dy: i32) -> u16 {
+    let (ax, ay) = (dx.unsigned_abs(), dy.unsigned_abs());
+    let (q, t) = match (dx > 0, dy > 0) {
+        (false, false) => (0u32, ay),
+        (true, false) => (1, ax),
+        (true, true) => (2, ay),
+        (false, true) => (3, ax),
+    };
+    let s = ax + ay;
+    // |dx|, |dy| < 2^16: t 2^14 < 2^30.
+    let frac = (t << 14).checked_div(s).unwrap_or(0).min((1 << 14) - 1);
+    ((q << 14) | frac) as u16
+}
+
+/// Weighted moments of a run of points: `Σw`, `Σw u`, `Σw v`, `Σw u²`, `Σw u v`, `Σw v²`
+/// (doubled coordinates relative to the bounding box corner; exact).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Moments {
+    w: i64,
+    x: i64,
+    y: i64,
+    xx: i64,
+    xy: i64,
+    yy: i64,
+}
+
+impl Moments {
+    #[inline]
+    fn of(p: u32, w: u16, x0: i32, y0: i32) -> Self {
+        let (x2, y2, _, _) = unpack(p);
+        let (u, v, w) = (i64::from(x2 - x0), i64::from(y2 - y0), i64::from(w));
+        Self {
+            w,
+            x: w * u,
+            y: w * v,
+            xx: w * u * u,
+            xy: w * u * v,
+            yy: w * v * v,
+        }
+    }
+    #[inline]
+    fn add(&mut self, o: &Self) {
+        self.w += o.w;
+        self.x += o.x;
+        self.y += o.y;
+        self.xx += o.xx;
+        self.xy += o.xy;
+        self.yy += o.yy;
+    }
+    #[inline]
+    fn sub(&mut self, o: &Self) {
+        self.w -= o.w;
+        self.x -= o.x;
+        self.y -= o.y;
+        self.xx -= o.xx;
+        self.xy -= o.xy;
+        self.yy -= o.yy;
+    }
+}
+
+/// `λ_min, λ_max` and the normal of a 2x2 covariance (AprilTag's `fit_line`).
+#[inline]
+pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
+    let d = libm::sqrtf((cxx - cyy) * (cxx - cyy) + 4.0 * cxy * cxy);
+    let small = (0.5 * (cxx + cyy - d)).max(0.0);
+    let big = 0.5 * (cxx + cyy + d);
+    let (nx1, ny1) = (cxx - big, cxy);
+    let (nx2, ny2) = (cxy, cyy - big);
+    let (m1, m2) = (nx1 * nx1 + ny1 * ny1, nx2 * nx2 + ny2 * ny2);
+    let (nx, ny, m) = if m1 > m2 {
+        (nx1, ny1, m1)
+    } else {
+        (nx2, ny2, m2)
+    };
+    let len = libm::sqrtf(m);
+    if len < 1e-12 {
+        (small, big, 0.0, 0.0)
+    } else {
+        (small, big, nx / len, ny / len)
+    }
+}
+
+/// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
+/// points (`Σw < 2^14`, `Σw u² < 2^42`).
+#[inline]
+fn window_error(m: &Moments, count: usize) -> f32 {
+    let w = m.w;
+    if w <= 0 {
+        return 0.0;
+    }
+    let cxx = (w * m.xx - m.x * m.x) as f32;
+    let cxy = (w * m.xy - m.x * m.y) as f32;
+    let cyy = (w * m.yy - m.y * m.y) as f32;
+    // Doubled coordinates: covariances in pixels² are a quarter.
+    let s = 0.25 / ((w as f32) * (w as f32));
+    let (small, _, _, _) = eigen(cxx * s, cxy * s, cyy * s);
+    count as f32 * small
+}
+
+/// A fitted line: a point (the weighted mean, pixels), the unit normal and `λ_min` (px²).
+#[derive(Debug, Clone, Copy)]
+struct Line {
+    ex: f32,
+    ey: f32,
+    nx: f32,
+    ny: f32,
+    mse: f32,
+}
+
+/// `w s₂ - a b` exactly (a covariance numerator), in `i64` when it fits (frames up to about
+/// 640x480), else `i128`; then as `f32`.
+#[inline]
+fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
+    match (w.checked_mul(s2), a.checked_mul(b)) {
+        (Some(p), Some(q)) => p.wrapping_sub(q) as f32,
+        _ => (i128::from(w) * i128::from(s2) - i128::from(a) * i128::from(b)) as f32,
+    }
+}
+
+/// The line fit of a run from its moments (exact covariance numerators: a run can hold a
+/// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates.
+fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<Line> {
+    if m.w <= 0 {
+        return None;
+    }
+    let cxx = cov(m.w, m.xx, m.x, m.x);
+    let cxy = cov(m.w, m.xy, m.x, m.y);
+    let cyy = cov(m.w, m.yy, m.y, m.y);
+    let wf = m.w as f32;
+    let s = 0.25 / (wf * wf);
+    let (small, _, nx, ny) = eigen(cxx * s, cxy * s, cyy * s);
+    Some(Line {
+        ex: 0.5 * (m.x as f32 / wf + x0 as f32),
+        ey: 0.5 * (m.y as f32 / wf + y0 as f32),
+        nx,
+        ny,
+        mse: small,
+    })
+}
+
+/// Intersection of lines `a` and `b` (AprilTag's solve; `None` when `|det| < 0.001`).
+fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
+    let (a00, a01, a10, a11) = (a.ny, -b.ny, -a.nx, b.nx);
+    let (b0, b1) = (b.ex - a.ex, b.ey - a.ey);
+    let det = a00 * a11 - a10 * a01;
+    if !at_most(0.001, det.abs()) {
+        return None;
+    }
+    let l0 = (a11 * b0 - a01 * b1) / det;
+    Some(Point2::new(a.ex + l0 * a00, a.ey + l0 * a10))
+}
+
+/// The gradient weight of a boundary point in the sampled image (module docs).
+#[inline]
+fn weight(src: &Sampled<'_>, p: u32) -> u16 {
+    let (x2, y2, _, _) = unpack(p);
+    let (ix, iy) = (((x2 + 1) >> 1) as usize, ((y2 + 1) >> 1) as usize);
+    if ix == 0 || iy == 0 || ix + 1 >= src.w || iy + 1 >= src.h {
+        return 1;
+    }
+    // (ix, iy) is inside the sampled image: one index a pixel.
+    let px = |x: usize, y: usize| i32::from(src.px(x, y));
+    let gx = px(ix + 1, iy) - px(ix - 1, iy);
+    let gy = px(ix, iy + 1) - px(ix, iy - 1);
+    let (a, b) = (gx.unsigned_abs(), gy.unsigned_abs());
+    let (hi, lo) = if a > b { (a, b) } else { (b, a) };
+    (hi + (3 * lo) / 8 + 1) as u16
+}
+
+/// The Gaussian low-pass of the corner search (σ = 1, AprilTag's 5 % cutoff: 7 taps).
+const FILTER: [f32; 7] = [
+    0.011_108_997,
+    0.135_335_28,
+    0.606_530_66,
+    1.0,
+    0.606_530_66,
+    0.135_335_28,
+    0.011_108_997,
+];
+
+/// Fits a quad to one cluster's points (module docs). `keys` is scratch of at least
+/// `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates; `reversed`
+/// the border kind ([`Cluster::shape`]).
+pub(crate) fn fit_quad(
+    src: &Sampled<'_>,
+    pts: &mut [u32],
+    keys: &mut [u16],
+    bbox: (u16, u16, u16, u16),
+    reversed: bool,
+    prm: &QuadParams,
+) -> Option<Quad> {
+    let n = pts.len();
+    let keys = keys.get_mut(..n)?;
+    let (xmin, xmax, ymin, ymax) = (
+        i32::from(bbox.0),
+        i32::from(bbox.1),
+        i32::from(bbox.2),
+        i32::from(bbox.3),
+    );
+    // AprilTag's first test, in its units (doubled coordinates against the width in cells).
+    if i64::from(xmax - xmin) * i64::from(ymax - ymin) < i64::from(prm.min_tag_width) {
+        return None;
+    }
+    if (reversed && !prm.reversed_border) || (!reversed && !prm.normal_border) {
+        return None;
+    }
+    let ksz = (n / 12).min(20);
+    if ksz < 2 {
+        return None;
+    }
+    // 0. The edge contrast: the mean gradient weight (recomputed after the sort below, which
+    //    needs the same scratch for its keys).
+    let wsum: u64 = pts.iter().map(|&p| u64::from(weight(src, p))).sum();
+    if wsum < u64::from(prm.min_edge_gradient) * n as u64 {
+        return None;
+    }
+    // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
+    let (xs, ys) = (xmin + xmax, ymin + ymax);
+    for (p, k) in pts.iter().zip(keys.iter_mut()) {
+        let (x2, y2, _, _) = unpack(*p);
+        *k = pseudo_angle(2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
+    }
+    sort_by_key(pts, keys);
+    // 2. Weights replace the keys.
+    for (p, k) in pts.iter().zip(keys.iter_mut()) {
+        *k = weight(src, *p);
+    }
+    let pts = &*pts;
+    let keys = &*keys;
+    let m_at = |i: usize| -> Moments {
+        match (pts.get(i), keys.get(i)) {
+            (Some(&p), Some(&w)) => Moments::of(p, w, xmin, ymin),
+            _ => Moments::default(),
+        }
+    };
+    let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
+    let count = 2 * ksz + 1;
+    let start: isize = -4;
+    // The window's points' moments in a ring: the one leaving is the one stored longest.
+    let mut ring = [Moments::default(); 41];
+    let mut win = Moments::default();
+    for (j, slot) in (-(ksz as isize)..=(ksz as isize)).zip(ring.iter_mut()) {
+        *slot = m_at(wrap(start + j));
+        win.add(slot);
+    }
+    // The last 8 errors (index t mod 8) and the last three filtered values.
+    let mut errs = [0f32; 8];
+    let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
+    let mut best = [(0u32, 0u32); MAX_NMAXIMA];
+    let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
+    let mut nbest = 0usize;
+    let mut nmaxima = 0usize;
+    for t in 0..n + 8 {
+        if t > 0
+            && let Some(slot) = ring.get_mut((t - 1) % count)
+        {
+            win.sub(slot);
+            *slot = m_at(wrap(start + t as isize + ksz as isize));
+            win.add(slot);
+        }
+        if let Some(e) = errs.get_mut(t & 7) {
+            *e = window_error(&win, count);
+        }
+        if t >= 6 {
+            let mut y = 0.0;
+            for (k, f) in FILTER.iter().enumerate() {
+                y += f * errs.get((t + 2 + k) & 7).copied().unwrap_or(0.0);
+            }
+            (y0, y1, y2) = (y1, y2, y);
+        }
+        if t >= 8 && y1 > y0 && y1 > y2 {
+            // The candidate at position t - 8 in [0, n).
+            nmaxima += 1;
+            // Non-negative f32 bits order as the values.
+            let item = (y1.to_bits(), (t - 8) as u32);
+            if let Some(heap) = best.get_mut(..kmax) {
+                offer_best(heap, &mut nbest, item, |it| i64::from(it.0));
+            }
+        }
+    }
+    if nmaxima < 4 || nbest < 4 {
+        return None;
+    }
+    let cand = best.get_mut(..nbest)?;
+    crate::corners::heapsort_by(cand, |a, b| a.1.cmp(&b.1));
+    // 3. Prefix moments just before and at each candidate, and the total.
+    let mut pre = [Moments::default(); MAX_NMAXIMA];
+    let mut inc = [Moments::default(); MAX_NMAXIMA];
+    let mut acc = Moments::default();
+    let mut next = 0usize;
+    for i in 0..n {
+        let here = cand.get(next).is_some_and(|c| c.1 as usize == i);
+        if here && let Some(p) = pre.get_mut(next) {
+            *p = acc;
+        }
+        acc.add(&m_at(i));
+        if here {
+            if let Some(p) = inc.get_mut(next) {
+                *p = acc;
+            }
+            next += 1;
+        }
+    }
+    let total = acc;
+    let idx = |a: usize| cand.get(a).map_or(0, |c| c.1 as usize);
+    // Moments and point count of the run from candidate a to candidate b (inclusive, wrapping).
+    let run = |a: usize, b: usize| -> (Moments, usize) {
+        let (pa, ia) = (pre.get(a).copied().unwrap_or_default(), idx(a));
+        let (ib_inc, ib) = (inc.get(b).copied().unwrap_or_default(), idx(b));
+        let mut m = ib_inc;
+        if ia <= ib {
+            m.sub(&pa);
+            (m, ib - ia + 1)
+        } else {
+            let mut t = total;
+            t.sub(&pa);
+            t.add(&ib_inc);
+            (t, n - ia + ib + 1)
+        }
+    };
+    let fit = |a: usize, b: usize| -> Option<(Line, f32)> {
+        let (m, cnt) = run(a, b);
+        let l = fit_line(&m, xmin, ymin)?;
+        Some((l, cnt as f32 * l.mse))
+    };
+    let mse_max = prm.max_line_fit_mse;
+    let k = cand.len();
+    // Every run between two candidates fitted once: (normal, λ_min, N λ_min), `None` when
+    // the fit fails or exceeds the bound.
+    let mut fits = [[None::<(f32, f32, f32)>; MAX_NMAXIMA]; MAX_NMAXIMA];
+    for (a, row) in fits.iter_mut().enumerate().take(k) {
+        for (b, f) in row.iter_mut().enumerate().take(k) {
+            if a != b
+                && let Some((l, e)) = fit(a, b)
+                && at_most(l.mse, mse_max)
+            {
+                *f = Some((l.nx, l.ny, e));
+            }
+        }
+    }
+    let get = |a: usize, b: usize| fits.get(a).and_then(|r| r.get(b)).copied().flatten();
+    let mut best_err = f32::INFINITY;
+    let mut best_idx = [0usize; 4];
+    for m0 in 0..k.saturating_sub(3) {
+        for m1 in m0 + 1..k.saturating_sub(2) {
+            let Some((nx01, ny01, e01)) = get(m0, m1) else {
+                continue;
+            };
+            for m2 in m1 + 1..k.saturating_sub(1) {
+                let Some((nx12, ny12, e12)) = get(m1, m2) else {
+                    continue;
+                };
+                if (nx01 * nx12 + ny01 * ny12).abs() > prm.cos_critical {
+                    continue;
+                }
+                for m3 in m2 + 1..k {
+                    let (Some((_, _, e23)), Some((_, _, e30))) = (get(m2, m3), get(m3, m0)) else {
+                        continue;
+                    };
+                    let err = e01 + e12 + e23 + e30;
+                    if err < best_err {
+                        best_err = err;
+                        best_idx = [m0, m1, m2, m3];
+                    }
+                }
+            }
+        }
+    }
+    if !above(mse_max, best_err / (n as f32)) {
+        return None;
+    }
+    // 4. Lines, corners, and the shape checks.
+    let mut lines = [Line {
+        ex: 0.0,
+        ey: 0.0,
+        nx: 0.0,
+        ny: 0.0,
+        mse: 0.0,
+    }; 4];
+    for (i, l) in lines.iter_mut().enumerate() {
+        let (line, _) = fit(at4(&best_idx, i), at4(&best_idx, i + 1))?;
+        if !at_most(line.mse, mse_max) {
+            return None;
+        }
+        *l = line;
+    }
+    let mut p = [Point2::origin(); 4];
+    for (i, c) in p.iter_mut().enumerate() {
+        *c = intersect(&at4(&lines, i), &at4(&lines, i + 1))?;
+    }
+    let cross = |a: Point2<f32>, b: Point2<f32>, c: Point2<f32>| {
+        (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x)
+    };
+    let [p0, p1, p2, p3] = p;
+    let area = 0.5 * (cross(p0, p1, p2).abs() + cross(p2, p3, p0).abs());
+    let tw = prm.min_tag_width as f32;
+    if !at_most(0.95 * tw * tw, area) {
+        return None;
+    }
+    for i in 0..4 {
+        let (a, b, c) = (at4(&p, i), at4(&p, i + 1), at4(&p, i + 2));
+        let (d1, d2) = (b - a, c - b);
+        let den = libm::sqrtf(d1.norm_squared() * d2.norm_squared());
+        if !above(den, 0.0) {
+            return None;
+        }
+        let cos = d1.dot(&d2) / den;
+        if !at_most(cos.abs(), prm.cos_critical) || d1.x * d2.y < d1.y * d2.x {
+            return None;
+        }
+    }
+    Some(Quad {
+        p,
+        reversed_border: reversed,
+    })
+}

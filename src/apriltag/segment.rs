@@ -1,0 +1,717 @@
+//! The per-pixel stages: decimation, adaptive threshold, connected components and the
+//! black/white boundary points, all in integers and caller buffers.
+//!
+//! **Threshold** (AprilTag's `threshold`): the image is cut into 4x4 tiles; each tile's min and
+//! max are dilated over its 3x3 tile neighbourhood; a pixel of a tile whose dilated
+//! `max - min < min_white_black_diff` is *skipped* (no edge can be there), others are white
+//! when `v > min + (max - min) / 2`, black otherwise. Partial tiles at the right and bottom
+//! use the last full tile. Storage: one byte per tile (the threshold, 255 = skipped) and a ring
+//! of three tile rows of raw min/max; the thresholded image itself is never stored, each pass
+//! recomputes a row (one compare a pixel).
+//!
+//! **Components** (AprilTag's union-find, 8 bytes a pixel there): white pixels are 8-connected,
+//! black ones 4-connected. One raster pass gives every pixel a *provisional label*: that of
+//! its first same-class neighbour among left, up (and for white up-left, up-right), or a new
+//! one; the other same-class neighbours are united with it (union by smaller index, path
+//! halving). Only the labels are stored (a `u16` parent and a saturating `u8` pixel count
+//! each) plus two rows; as labels are only created where no earlier neighbour has the class,
+//! there are far fewer than pixels. Later passes re-derive the same labels row by row (the
+//! rule depends only on the classes) and read the root from the flattened parents. When the
+//! label capacity runs out, pixels that would need a new label are skipped (reported).
+//!
+//! **Boundaries** (AprilTag's `gradient_clusters`): for every pixel `p` of a component of at
+//! least [`MIN_COMPONENT`] pixels and each of its neighbours `q` right, below, below-left and
+//! below-right of the opposite class in such a component, the midpoint `(p + q) / 2` is a
+//! boundary point of the cluster keyed by the pair (black root, white root), with the
+//! direction towards the white pixel (AprilTag's duplicate suppression of the two diagonals
+//! included). Points are packed in a `u32`: doubled coordinates (14 bits each) and the
+//! gradient signs.
+
+use crate::image::ImageView;
+
+/// Pixel classes of the thresholded image.
+pub(crate) const BLACK: u8 = 0;
+pub(crate) const WHITE: u8 = 1;
+pub(crate) const SKIP: u8 = 2;
+
+/// Tile threshold value meaning "skipped": a non-skipped tile has `max - min ≥ 1`, so its
+/// threshold `min + (max - min) / 2` is at most 254.
+const SKIP_TILE: u8 = 255;
+
+/// Tile side in pixels (AprilTag's `tilesz`).
+pub const TILE: usize = 4;
+
+/// Components smaller than this (pixels) make no boundary points (AprilTag's 25).
+pub const MIN_COMPONENT: u8 = 25;
+
+/// A label value for "no component": a skipped pixel.
+pub(crate) const NONE: u16 = u16::MAX;
+/// A label value for a component below [`MIN_COMPONENT`] pixels (boundary scans only).
+pub(crate) const SMALL: u16 = u16::MAX - 1;
+/// Most labels a frame can use: every `u16` but the two markers.
+pub const MAX_LABELS: usize = SMALL as usize;
+
+/// The image the per-pixel stages see: `img` point-sampled every `d` pixels (AprilTag's
+/// integer `quad_decimate`), `w x h = ⌈W / d⌉ x ⌈H / d⌉`.
+#[derive(Clone, Copy)]
+pub(crate) struct Sampled<'a> {
+    pub(crate) img: ImageView<'a, u8>,
+    pub(crate) d: usize,
+    pub(crate) w: usize,
+    pub(crate) h: usize,
+}
+
+impl<'a> Sampled<'a> {
+    pub(crate) fn new(img: ImageView<'a, u8>, d: usize) -> Self {
+        let d = d.max(1);
+        Self {
+            img,
+            d,
+            w: img.width().div_ceil(d),
+            h: img.height().div_ceil(d),
+        }
+    }
+
+    /// Pixel `(x, y)` of the sampled image (0 outside).
+    #[inline]
+    pub(crate) fn px(&self, x: usize, y: usize) -> u8 {
+        let i = (y * self.d) * self.img.stride() + x * self.d;
+        self.img.data().get(i).copied().unwrap_or(0)
+    }
+
+    /// Row `y` of the full image that is row `y` here (`None` past the end).
+    #[inline]
+    pub(crate) fn full_row(&self, y: usize) -> &'a [u8] {
+        self.img.row(y.saturating_mul(self.d)).unwrap_or(&[])
+    }
+}
+
+/// Tile thresholds of a frame: `tw x th` full tiles.
+#[derive(Clone, Copy)]
+pub(crate) struct Tiles<'a> {
+    pub(crate) thr: &'a [u8],
+    pub(crate) tw: usize,
+    pub(crate) th: usize,
+}
+
+/// Number of tiles of a `w x h` sampled image (`⌊w / 4⌋ ⌊h / 4⌋`).
+pub(crate) const fn tile_count(w: usize, h: usize) -> usize {
+    (w / TILE) * (h / TILE)
+}
+
+/// Computes the tile thresholds into `thr` (`tw th` bytes) with the raw min/max of three tile
+/// rows in `ring_min`, `ring_max` (`3 tw` bytes each). `w, h ≥ 4` and the buffers long enough
+/// are the caller's checks; short buffers leave tiles skipped.
+pub(crate) fn build_tiles<'t>(
+    src: &Sampled<'_>,
+    min_diff: u8,
+    thr: &'t mut [u8],
+    ring_min: &mut [u8],
+    ring_max: &mut [u8],
+) -> Tiles<'t> {
+    let (tw, th) = (src.w / TILE, src.h / TILE);
+    thr.iter_mut().for_each(|t| *t = SKIP_TILE);
+    // Raw min/max of tile row `ty` into ring slot `ty % 3`.
+    let raw = |ty: usize, ring_min: &mut [u8], ring_max: &mut [u8]| {
+        let slot = (ty % 3) * tw;
+        let (Some(mins), Some(maxs)) = (
+            ring_min.get_mut(slot..slot + tw),
+            ring_max.get_mut(slot..slot + tw),
+        ) else {
+            return;
+        };
+        mins.fill(255);
+        maxs.fill(0);
+        for dy in 0..TILE {
+            let row = src.full_row(ty * TILE + dy);
+            if src.d == 1 {
+                for ((mn, mx), px) in mins
+                    .iter_mut()
+                    .zip(maxs.iter_mut())
+                    .zip(row.chunks_exact(TILE))
+                {
+                    if let [a, b, c, d] = *px {
+                        *mn = (*mn).min(a.min(b).min(c.min(d)));
+                        *mx = (*mx).max(a.max(b).max(c.max(d)));
+                    }
+                }
+            } else {
+                let mut it = row.iter().step_by(src.d);
+                for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
+                    for _ in 0..TILE {
+                        if let Some(&v) = it.next() {
+                            *mn = (*mn).min(v);
+                            *mx = (*mx).max(v);
+                        }
+                    }
+                }
+            }
+        }
+    };
+    if tw == 0 || th == 0 {
+        return Tiles { thr, tw, th };
+    }
+    raw(0, ring_min, ring_max);
+    let min_diff = min_diff.max(1);
+    for ty in 0..th {
+        if ty + 1 < th {
+            raw(ty + 1, ring_min, ring_max);
+        }
+        let Some(out) = thr.get_mut(ty * tw..ty * tw + tw) else {
+            break;
+        };
+        // The 3x3 dilation: vertical over the (up to) three rows, then horizontal.
+        let rows = [ty.checked_sub(1), Some(ty), (ty + 1 < th).then_some(ty + 1)];
+        let mut prev = (255u8, 0u8);
+        let col = |tx: usize| -> (u8, u8) {
+            let (mut mn, mut mx) = (255u8, 0u8);
+            for r in rows.iter().flatten() {
+                let i = (r % 3) * tw + tx;
+                mn = mn.min(ring_min.get(i).copied().unwrap_or(255));
+                mx = mx.max(ring_max.get(i).copied().unwrap_or(0));
+            }
+            (mn, mx)
+        };
+        let mut cur = col(0);
+        for (tx, t) in out.iter_mut().enumerate() {
+            let next = if tx + 1 < tw { col(tx + 1) } else { (255, 0) };
+            let mn = prev.0.min(cur.0).min(next.0);
+            let mx = prev.1.max(cur.1).max(next.1);
+            *t = if mx.saturating_sub(mn) < min_diff {
+                SKIP_TILE
+            } else {
+                mn + (mx - mn) / 2
+            };
+            prev = cur;
+            cur = next;
+        }
+    }
+    Tiles { thr, tw, th }
+}
+
+/// The class of a pixel of value `v` in a tile of threshold `t`: `SKIP` (2) for a skipped
+/// tile (`t = 255`, where `v > t` is impossible), else white when `v > t`.
+#[inline(always)]
+fn class(v: u8, t: u8) -> u8 {
+    u8::from(v > t) | (u8::from(t == SKIP_TILE) << 1)
+}
+
+/// Cuts row `y` into runs of one class (module docs: the classes are recomputed from the
+/// tile thresholds, one compare a pixel, never stored); `out` holds at most one per column.
+/// Returns the count.
+pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut [Run]) -> usize {
+    let ty = (y / TILE).min(tiles.th.saturating_sub(1));
+    let trow = tiles
+        .thr
+        .get(ty * tiles.tw..ty * tiles.tw + tiles.tw)
+        .unwrap_or(&[]);
+    let last = trow.last().copied().unwrap_or(SKIP_TILE);
+    let row = src.full_row(y);
+    let w = src.w;
+    let mut n = 0;
+    let (mut x0, mut cur) = (0usize, u8::MAX);
+    let mut close = |x0: usize, x1: usize, c: u8, n: &mut usize| {
+        if x1 > x0
+            && let Some(r) = out.get_mut(*n)
+        {
+            *r = Run {
+                x0: x0 as u16,
+                x1: x1 as u16,
+                c,
+                lab: NONE,
+            };
+            *n += 1;
+        }
+    };
+    let mut x = 0usize;
+    let mut step = |v: u8, t: u8, x: &mut usize, n: &mut usize| {
+        let c = class(v, t);
+        if c != cur {
+            close(x0, *x, cur, n);
+            (x0, cur) = (*x, c);
+        }
+        *x += 1;
+    };
+    if src.d == 1 && row.len() >= w {
+        let full = (trow.len() * TILE).min(w);
+        let (head, tail) = row.split_at(full);
+        for (px, &t) in head.chunks_exact(TILE).zip(trow) {
+            for &v in px {
+                step(v, t, &mut x, &mut n);
+            }
+        }
+        for &v in tail.get(..w - full).unwrap_or(&[]) {
+            step(v, last, &mut x, &mut n);
+        }
+    } else {
+        for (i, &v) in row.iter().step_by(src.d).take(w).enumerate() {
+            step(
+                v,
+                trow.get(i / TILE).copied().unwrap_or(last),
+                &mut x,
+                &mut n,
+            );
+        }
+    }
+    close(x0, x, cur, &mut n);
+    n
+}
+
+/// Root of `x` with path halving (`x` itself when out of range).
+#[inline]
+fn find(parent: &mut [u16], mut x: u16) -> u16 {
+    loop {
+        let Some(&p) = parent.get(usize::from(x)) else {
+            return x;
+        };
+        if p == x {
+            return x;
+        }
+        let gp = parent.get(usize::from(p)).copied().unwrap_or(p);
+        if let Some(slot) = parent.get_mut(usize::from(x)) {
+            *slot = gp;
+        }
+        x = gp;
+    }
+}
+
+/// Unites the sets of `a` and `b`: the larger root goes under the smaller (so every parent
+/// index is below its child's, and one increasing pass flattens the forest).
+#[inline]
+fn union(parent: &mut [u16], a: u16, b: u16) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
+    if lo != hi
+        && let Some(slot) = parent.get_mut(usize::from(hi))
+    {
+        *slot = lo;
+    }
+}
+
+/// A run of one class in a row: columns `x0..x1`, its class and its label (provisional in the
+/// labelling pass; the root, or a marker for small components, in the scans; a marker for
+/// skipped pixels).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Run {
+    pub(crate) x0: u16,
+    pub(crate) x1: u16,
+    pub(crate) c: u8,
+    pub(crate) lab: u16,
+}
+
+impl Run {
+    /// An empty run.
+    pub const EMPTY: Self = Self {
+        x0: 0,
+        x1: 0,
+        c: SKIP,
+        lab: NONE,
+    };
+}
+
+/// The row buffers of a pass: the runs of the previous and the current row (each at most one
+/// per column).
+pub(crate) struct Rows<'a> {
+    pub(crate) runs: [&'a mut [Run]; 2],
+}
+
+/// The index of the run of `runs` (from `from` on) that holds column `x`.
+#[inline]
+fn run_at(runs: &[Run], from: usize, x: usize) -> usize {
+    let mut i = from;
+    while let Some(r) = runs.get(i) {
+        if usize::from(r.x1) > x {
+            return i;
+        }
+        i += 1;
+    }
+    i
+}
+
+/// The columns of the previous row a run `[x0, x1)` of class `c` touches (8-connected white,
+/// 4-connected black), clipped to `w`.
+#[inline]
+fn touched(c: u8, x0: usize, x1: usize, w: usize) -> (usize, usize) {
+    if c == WHITE {
+        (x0.saturating_sub(1), (x1 + 1).min(w))
+    } else {
+        (x0, x1)
+    }
+}
+
+/// The label a run of class `c` starting at `x0` inherits from the previous row `up` (from
+/// run `j` on, `j` holding column `a` of [`touched`]): that of its first pixel's same-class
+/// neighbour up, then (white only) up-left, up-right; `NONE` when it has none. (The pixel left
+/// of a run has another class, so the per-pixel rule of the module docs gives the whole run
+/// this label.)
+#[inline]
+fn inherited(c: u8, x0: usize, up: &[Run], j: usize) -> u16 {
+    let at = |x: usize| {
+        let r = up.get(run_at(up, j, x)).copied().unwrap_or(Run::EMPTY);
+        if r.c == c && x >= usize::from(r.x0) {
+            r.lab
+        } else {
+            NONE
+        }
+    };
+    let v = at(x0);
+    if v != NONE || c != WHITE {
+        return v;
+    }
+    let v = if x0 > 0 { at(x0 - 1) } else { NONE };
+    if v != NONE { v } else { at(x0 + 1) }
+}
+
+/// Outcome of the labelling pass.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Labelled {
+    /// Labels used.
+    pub(crate) labels: usize,
+    /// Pixels skipped because the label capacity ran out.
+    pub(crate) exhausted: u32,
+}
+
+/// What a pass does with the labels of [`label_runs`].
+trait Labels {
+    /// Whether [`Labels::join`] does anything (the scans skip the walk over the row above).
+    const JOINS: bool;
+    /// The label of a run no earlier run passes one to; `None`: no label left, the run is
+    /// skipped.
+    fn fresh(&mut self) -> Option<u16>;
+    /// Run label `l` touches label `o` of its class in the previous row.
+    fn join(&mut self, l: u16, o: u16);
+    /// A run of `len` pixels was skipped.
+    fn skipped(&mut self, len: usize);
+}
+
+/// Labels the runs `cur` of a row from the previous row's runs `up` (module docs).
+#[inline]
+fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) {
+    let mut j = 0;
+    for r in cur.iter_mut() {
+        if r.c == SKIP {
+            continue;
+        }
+        let (x0, x1) = (usize::from(r.x0), usize::from(r.x1));
+        let (a, b) = touched(r.c, x0, x1, w);
+        j = run_at(up, j, a);
+        let mut l = inherited(r.c, x0, up, j);
+        if l == NONE {
+            match labels.fresh() {
+                Some(n) => l = n,
+                None => {
+                    r.c = SKIP;
+                    labels.skipped(x1 - x0);
+                    continue;
+                }
+            }
+        }
+        r.lab = l;
+        if !L::JOINS {
+            continue;
+        }
+        let mut last = l;
+        for o in up.get(j..).unwrap_or(&[]) {
+            if usize::from(o.x0) >= b {
+                break;
+            }
+            if o.c == r.c && o.lab != last && o.lab != NONE {
+                labels.join(l, o.lab);
+                last = o.lab;
+            }
+        }
+    }
+}
+
+/// The runs of the previous and the current row for row `y`.
+fn run_rows<'r>(runs: &'r mut [&mut [Run]; 2], y: usize) -> (&'r [Run], &'r mut [Run]) {
+    let [r0, r1] = runs;
+    if y.is_multiple_of(2) {
+        (&**r1, &mut **r0)
+    } else {
+        (&**r0, &mut **r1)
+    }
+}
+
+/// The labelling pass's [`Labels`]: new labels from a counter, unions.
+struct UnionFind<'a> {
+    parent: &'a mut [u16],
+    size: &'a mut [u8],
+    next: usize,
+    cap: usize,
+    exhausted: u32,
+}
+
+impl Labels for UnionFind<'_> {
+    const JOINS: bool = true;
+    fn fresh(&mut self) -> Option<u16> {
+        if self.next >= self.cap {
+            return None;
+        }
+        let l = self.next as u16;
+        if let (Some(p), Some(s)) = (self.parent.get_mut(self.next), self.size.get_mut(self.next)) {
+            *p = l;
+            *s = 0;
+        }
+        self.next += 1;
+        Some(l)
+    }
+    #[inline]
+    fn join(&mut self, l: u16, o: u16) {
+        union(self.parent, l, o);
+    }
+    fn skipped(&mut self, len: usize) {
+        self.exhausted = self.exhausted.saturating_add(len as u32);
+    }
+}
+
+/// The scans' [`Labels`]: the same counter, read as roots (or [`SMALL`]) of the flattened
+/// forest.
+struct Roots<'a> {
+    parent: &'a [u16],
+    size: &'a [u8],
+    next: usize,
+    labels: usize,
+}
+
+impl Labels for Roots<'_> {
+    const JOINS: bool = false;
+    fn fresh(&mut self) -> Option<u16> {
+        if self.next >= self.labels {
+            return None;
+        }
+        let root = self.parent.get(self.next).copied().unwrap_or(NONE);
+        self.next += 1;
+        let big = self.size.get(usize::from(root)).copied().unwrap_or(0) >= MIN_COMPONENT;
+        Some(if big { root } else { SMALL })
+    }
+    #[inline]
+    fn join(&mut self, _: u16, _: u16) {}
+    fn skipped(&mut self, _: usize) {}
+}
+
+/// The labelling pass (module docs), run by run: unions into `parent`, pixel counts into
+/// `size` (saturating), then flattens `parent` to roots and sums the counts into the roots.
+/// Capacity: `min(parent.len(), size.len(), MAX_LABELS)` labels; a run that needs a new label
+/// when none is left is skipped (in every pass alike). Returns also, per row, nothing: the
+/// scans re-derive the runs.
+pub(crate) fn label_pass(
+    src: &Sampled<'_>,
+    tiles: &Tiles<'_>,
+    rows: &mut Rows<'_>,
+    parent: &mut [u16],
+    size: &mut [u8],
+) -> Labelled {
+    let cap = parent.len().min(size.len()).min(MAX_LABELS);
+    let mut out = Labelled::default();
+    let mut next: usize = 0;
+    let w = src.w;
+    let mut n_up = 0;
+    for y in 0..src.h {
+        let (up, cur) = run_rows(&mut rows.runs, y);
+        let n = row_runs(src, tiles, y, cur);
+        let up = up.get(..n_up).unwrap_or(&[]);
+        let cur = cur.get_mut(..n).unwrap_or(&mut []);
+        let mut uf = UnionFind {
+            parent: &mut *parent,
+            size: &mut *size,
+            next,
+            cap,
+            exhausted: out.exhausted,
+        };
+        label_runs(cur, up, w, &mut uf);
+        next = uf.next;
+        out.exhausted = uf.exhausted;
+        for r in cur.iter() {
+            if r.c != SKIP
+                && let Some(s) = size.get_mut(usize::from(r.lab))
+            {
+                *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
+            }
+        }
+        n_up = n;
+    }
+    out.labels = next;
+    // Flatten (parents precede children) and total the counts into the roots.
+    for i in 0..next {
+        let p = parent.get(i).copied().unwrap_or(i as u16);
+        let root = parent.get(usize::from(p)).copied().unwrap_or(p);
+        if let Some(slot) = parent.get_mut(i) {
+            *slot = root;
+        }
+        if usize::from(root) != i {
+            let add = size.get(i).copied().unwrap_or(0);
+            if let Some(s) = size.get_mut(usize::from(root)) {
+                *s = s.saturating_add(add);
+            }
+        }
+    }
+    out
+}
+
+/// Packs a boundary point: doubled coordinates and the signs of the direction to white.
+#[inline]
+pub(crate) fn pack(x2: usize, y2: usize, gx: i32, gy: i32) -> u32 {
+    (x2 as u32 & 0x3fff)
+        | (((gx + 1) as u32 & 3) << 14)
+        | ((y2 as u32 & 0x3fff) << 16)
+        | (((gy + 1) as u32 & 3) << 30)
+}
+
+/// The fields of [`pack`]: `(x2, y2, gx, gy)`.
+#[inline]
+pub(crate) fn unpack(p: u32) -> (i32, i32, i32, i32) {
+    (
+        (p & 0x3fff) as i32,
+        ((p >> 16) & 0x3fff) as i32,
+        ((p >> 14) & 3) as i32 - 1,
+        ((p >> 30) & 3) as i32 - 1,
+    )
+}
+
+/// Where a boundary scan sends its points: runs of points along a row, and single points.
+pub(crate) trait Sink {
+    /// `count` points `(x2 + 2i, y2)`, `i = 0..count`, of cluster `key`, all with direction
+    /// `(gx, gy)` towards white.
+    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
+    /// One point.
+    fn point(&mut self, key: u32, x2: usize, y2: usize, gx: i32, gy: i32) {
+        self.run(key, x2, y2, 1, gx, gy);
+    }
+}
+
+/// A run's class and label when it counts for boundaries (not skipped, in a large component).
+#[inline]
+fn valid(r: &Run) -> bool {
+    r.c != SKIP && r.lab < SMALL
+}
+
+/// The cluster key of a black/white pair and the sign `s` of the direction from `a` to `b`
+/// towards white (`+1` when `a` is black).
+#[inline]
+fn key_of(a: &Run, b: &Run) -> (u32, i32) {
+    if a.c == BLACK {
+        (u32::from(a.lab) << 16 | u32::from(b.lab), 1)
+    } else {
+        (u32::from(b.lab) << 16 | u32::from(a.lab), -1)
+    }
+}
+
+/// A boundary scan (module docs): re-derives the runs and labels of [`label_pass`] (which
+/// must have run on the same frame; `parent` flattened, `size[root] ≥ MIN_COMPONENT` marking
+/// the components that count) and sends every boundary point to `sink`,
+/// `key = black root << 16 | white root`.
+///
+/// The points are AprilTag's: for each pixel `p = (x, y)` with `1 ≤ x ≤ w - 2`,
+/// `1 ≤ y ≤ h - 2`, its neighbour right, below and below-right when of the opposite class,
+/// and below-left unless the below-right pair of `(x - 1, y)` gave the same point. They are
+/// found run against run: a pair of overlapping runs of opposite classes gives three runs of
+/// points (below, below-right, below-left) and two rows give `O(runs)` work, not `O(pixels)`.
+pub(crate) fn boundary_scan(
+    src: &Sampled<'_>,
+    tiles: &Tiles<'_>,
+    rows: &mut Rows<'_>,
+    parent: &[u16],
+    size: &[u8],
+    labels: usize,
+    sink: &mut impl Sink,
+) {
+    let mut next: usize = 0;
+    let w = src.w;
+    let mut n_up = 0;
+    for y in 0..src.h {
+        let (up, cur) = run_rows(&mut rows.runs, y);
+        let n = row_runs(src, tiles, y, cur);
+        let up = up.get(..n_up).unwrap_or(&[]);
+        let cur = cur.get_mut(..n).unwrap_or(&mut []);
+        let mut roots = Roots {
+            parent,
+            size,
+            next,
+            labels,
+        };
+        label_runs(cur, up, w, &mut roots);
+        next = roots.next;
+        n_up = n;
+        // The upper row y - 1 must be in 1..h - 1 (AprilTag's scan domain).
+        if y >= 2 && w >= 3 {
+            pairs(up, cur, y - 1, w, sink);
+        }
+    }
+}
+
+/// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
+/// `lo`), upper pixels in columns `1..w - 1`.
+fn pairs(up: &[Run], lo: &[Run], y: usize, w: usize, sink: &mut impl Sink) {
+    let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
+    // Right neighbours: one point at each boundary between two runs of the upper row.
+    for pair in up.windows(2) {
+        let (Some(a), Some(b)) = (pair.first(), pair.get(1)) else {
+            continue;
+        };
+        let x = usize::from(a.x1) - 1;
+        if valid(a) && valid(b) && a.c != b.c && x >= xmin && x < xmax {
+            let (key, s) = key_of(a, b);
+            sink.point(key, 2 * x + 1, y2, s, 0);
+        }
+    }
+    // Run against run: lower runs within one column of each upper run.
+    let mut j0 = 0;
+    for (i, u) in up.iter().enumerate() {
+        let (ux0, ux1) = (usize::from(u.x0), usize::from(u.x1));
+        while lo.get(j0).is_some_and(|l| usize::from(l.x1) < ux0) {
+            j0 += 1;
+        }
+        if !valid(u) {
+            continue;
+        }
+        let mut j = j0;
+        while let Some(l) = lo.get(j) {
+            let (lx0, lx1) = (usize::from(l.x0), usize::from(l.x1));
+            if lx0 > ux1 {
+                break;
+            }
+            if valid(l) && l.c != u.c {
+                let (key, s) = key_of(u, l);
+                // Below: x in u and l.
+                let (a, b) = (ux0.max(lx0).max(xmin), ux1.min(lx1).min(xmax));
+                if a < b {
+                    sink.run(key, 2 * a, y2 + 1, b - a, 0, s);
+                }
+                // Below-right: x in u, x + 1 in l.
+                let (a, b) = (
+                    ux0.max(lx0.saturating_sub(1)).max(xmin),
+                    ux1.min(lx1 - 1).min(xmax),
+                );
+                if a < b {
+                    sink.run(key, 2 * a + 1, y2 + 1, b - a, s, s);
+                }
+                // Below-left: x in u, x - 1 in l, unless (x - 1, y) and (x, y + 1) are an
+                // opposite pair too (its below-right point is the same). Inside the overlap
+                // they are (u and l), so only the first column of the range (x - 1 left of u,
+                // or x = 1 with no pixel (0, y) in the scan) and x = lx1 (x right of l) can
+                // give a point.
+                let (a, b) = (ux0.max(lx0 + 1).max(xmin), ux1.min(lx1 + 1).min(xmax));
+                if a < b {
+                    let right = lo.get(j + 1);
+                    let left = i.checked_sub(1).and_then(|k| up.get(k));
+                    let mut at = |x: usize| {
+                        let p = if x > ux0 { Some(u) } else { left };
+                        let q = if x < lx1 { Some(l) } else { right };
+                        let shadowed = x >= 2
+                            && matches!((p, q), (Some(p), Some(q)) if valid(p) && valid(q) && p.c != q.c);
+                        if !shadowed {
+                            sink.point(key, 2 * x - 1, y2 + 1, -s, s);
+                        }
+                    };
+                    at(a);
+                    if lx1 > a && lx1 < b {
+                        at(lx1);
+                    }
+                }
+            }
+            j += 1;
+        }
+    }
+}
