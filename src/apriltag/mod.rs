@@ -19,7 +19,8 @@
 //! [`Detector`] holds the validated [`DetectorConfig`] and families; [`Workspace`] the memory;
 //! [`Detector::detect`] returns the [`Detection`]s in a `heapless::Vec`; [`tag_pose`] gives the
 //! metric pose; [`Detector::find_target`] the four corners of one tag in a planar target's
-//! corner order.
+//! corner order, and [`TagTarget`] makes that the AR loop's acquisition step
+//! ([`crate::target::PlanarTarget::step`]).
 //!
 //! **Memory** (the [`Workspace`] table): no byte per pixel is stored. At 320x240 and
 //! decimation 1, [`Workspace320x240`] is 119 KB (AprilTag 3 allocates 8 bytes a pixel for its
@@ -70,6 +71,7 @@
 //! # Ok::<(), camgeom::Error>(())
 //! ```
 
+mod acquire;
 pub mod decode;
 mod detector;
 pub mod families;
@@ -79,6 +81,7 @@ pub mod quad;
 pub mod segment;
 mod workspace;
 
+pub use acquire::TagTarget;
 pub use detector::{
     APRILTAG_PIXEL_OFFSET, CORNER_TAG_COORDS, Detection, Detector, DetectorConfig, MAX_FAMILIES,
     Stage, StageProbe,
