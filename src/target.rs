@@ -19,7 +19,8 @@
 //!    [`TargetConfig::min_tracks`] survive, the new features mapped to the target by `H⁻¹`;
 //! 6. after a **loss** (too few inliers, or no pose): acquisition again, and when it finds
 //!    nothing, re-detection around the last known outline, so that the next frame can pick the
-//!    target up where it was last seen.
+//!    target up where it was last seen ([`TargetConfig::relocate`]; with a detector the next
+//!    frames only acquire).
 //!
 //! The configuration is checked once ([`TargetParams::new`]) and kept apart from the state
 //! ([`PlanarTarget`]), which holds `N` tracks and every work buffer of the loop, sized by
@@ -64,14 +65,14 @@
 //! ```
 
 use heapless::Vec;
-use nalgebra::{Point2, Point3};
+use nalgebra::{Point2, Point3, UnitQuaternion};
 
 use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
 use crate::klt::{FlowArith, FlowBuffers, LkConfig, LkParams};
-use crate::pose::{PlanarConfig, PlanarPose, solve_planar};
+use crate::pose::{PlanarConfig, PlanarPose, PoseEstimate, solve_planar};
 use crate::pyramid::Pyramid;
 use crate::ransac::RansacConfig;
 use crate::{Error, Result};
@@ -110,6 +111,16 @@ pub struct TargetConfig {
     /// there is no target or after a loss). With a detector this bounds the drift of the
     /// tracks; a detection that succeeds starts the features afresh from its corners.
     pub reacquire_every: u32,
+    /// After a loss that the [`Acquire`] step does not end, look for features around the
+    /// last outline (the target is likely still where it was, as after a few dark frames).
+    /// Off for a detector: what is left around the outline of a target that has gone is
+    /// background, and the detector finds the target again by itself.
+    pub relocate: bool,
+    /// When the planar pose is ambiguous (the alternative's error within this factor of the
+    /// best's, [`PlanarPose::is_ambiguous`]), report as best the solution whose rotation is
+    /// nearer the previous frame's: a small or nearly fronto-parallel target flips between
+    /// its two solutions otherwise. `≥ 1`; 0 turns the rule off.
+    pub ambiguity_ratio: f32,
 }
 
 impl Default for TargetConfig {
@@ -142,6 +153,8 @@ impl Default for TargetConfig {
             min_inliers: 8,
             border: 4.0,
             reacquire_every: 0,
+            relocate: true,
+            ambiguity_ratio: 1.5,
         }
     }
 }
@@ -162,8 +175,9 @@ impl TargetParams {
     ///
     /// Errors: as [`LkConfig::check`], [`CornerConfig::check`] and [`RansacConfig::check`];
     /// [`Error::InvalidParameter`] for a `size` that is not finite and positive (`size`), a
-    /// `min_inliers` below 4 (`min_inliers`) or a `border` that is negative or not finite
-    /// (`border`).
+    /// `min_inliers` below 4 (`min_inliers`), a `border` that is negative or not finite
+    /// (`border`) or an `ambiguity_ratio` that is neither 0 nor at least 1
+    /// (`ambiguity_ratio`).
     pub fn new(cfg: &TargetConfig, camera: Camera<f32>, size: [f32; 2]) -> Result<Self> {
         let lk = cfg.lk.check()?;
         cfg.corners.check()?;
@@ -176,6 +190,11 @@ impl TargetParams {
         }
         if !(cfg.border.is_finite() && cfg.border >= 0.0) {
             return Err(Error::InvalidParameter("border"));
+        }
+        if !(cfg.ambiguity_ratio == 0.0 || cfg.ambiguity_ratio >= 1.0)
+            || !cfg.ambiguity_ratio.is_finite()
+        {
+            return Err(Error::InvalidParameter("ambiguity_ratio"));
         }
         Ok(Self {
             cfg: *cfg,
@@ -323,7 +342,9 @@ pub struct TargetFrame {
     /// The target was (re-)acquired on this frame: its features start from the [`Acquire`]
     /// step's corners, and the pose is theirs.
     pub acquired: bool,
-    /// Both planar poses (world = target frame), when tracking.
+    /// Both planar poses (world = target frame), when tracking: `best` the one with the
+    /// lower error or, when the two are ambiguous, the one nearer the previous frame's
+    /// ([`TargetConfig::ambiguity_ratio`]).
     pub pose: Option<PlanarPose<f32>>,
     /// The target's corners `(0, 0), (w, 0), (w, h), (0, h)` in this frame, when tracking.
     pub outline: Option<[Point2<f32>; 4]>,
@@ -395,6 +416,8 @@ pub struct PlanarTarget<
     state: TargetState,
     since_acquired: u32,
     lost_frames: u32,
+    /// The best pose's rotation of the last frame that had one (for the ambiguity rule).
+    last_rotation: Option<UnitQuaternion<f32>>,
     flow_scratch: [i16; S],
     corner_scratch: [u32; C],
     candidates: [Corner; K],
@@ -425,6 +448,7 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             state: TargetState::Uninitialised,
             since_acquired: 0,
             lost_frames: 0,
+            last_rotation: None,
             flow_scratch: [0; S],
             corner_scratch: [0; C],
             candidates: [Corner {
@@ -447,6 +471,7 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
         self.state = TargetState::Uninitialised;
         self.since_acquired = 0;
         self.lost_frames = 0;
+        self.last_rotation = None;
     }
 
     /// Features currently tracked: `(image position, target-plane position)`.
@@ -533,17 +558,35 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             if !due && self.try_acquire(params, &frame, acquire, probe, &mut out)? {
                 return Ok(out);
             }
-            if let Some(h) = self.h {
+            if !params.cfg.relocate {
+                // Nothing left to track: the next frames only acquire.
+                self.features.clear();
+            } else if let Some(h) = self.h {
                 out.added += self.detect(params, &frame, &h)?;
                 probe.stage_done(Stage::Redetect);
             }
         }
-        self.end_frame(&mut out);
+        self.end_frame(params, &mut out);
         Ok(out)
     }
 
-    /// Records the frame's outcome in the state and in `out`.
-    fn end_frame(&mut self, out: &mut TargetFrame) {
+    /// Records the frame's outcome in the state and in `out`, after the ambiguity rule
+    /// ([`TargetConfig::ambiguity_ratio`]) has picked between the two poses.
+    fn end_frame(&mut self, params: &TargetParams, out: &mut TargetFrame) {
+        let ratio = params.cfg.ambiguity_ratio;
+        if let (Some(p), Some(last)) = (out.pose.as_mut(), self.last_rotation)
+            && ratio > 0.0
+            && p.is_ambiguous(ratio)
+        {
+            let near = |e: &PoseEstimate<f32>| e.pose.isometry().rotation.angle_to(&last);
+            if near(&p.alternative) < near(&p.best) {
+                core::mem::swap(&mut p.best, &mut p.alternative);
+            }
+        }
+        self.last_rotation = match (self.state, &out.pose) {
+            (TargetState::Tracking, Some(p)) => Some(p.best.pose.isometry().rotation),
+            _ => None,
+        };
         self.lost_frames = match self.state {
             TargetState::Lost => self.lost_frames.saturating_add(1),
             _ => 0,
@@ -608,7 +651,7 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
         } else {
             TargetState::Lost
         };
-        self.end_frame(out);
+        self.end_frame(params, out);
         Ok(true)
     }
 

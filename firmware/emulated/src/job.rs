@@ -10,12 +10,12 @@
 //! frame at `debug`, the summary at `info`); `cargo xtask run` reads only the records.
 
 use camgeom::image::ImageView;
-use camgeom::target::{GivenCorners, TargetState};
+use camgeom::target::{Acquire, GivenCorners, TargetState};
 use camgeom_fw_app::drive;
 use camgeom_fw_app::pipeline::{AppError, Clock, Pipeline};
 use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
-use camgeom_fw_app::run::{RUN_SPEC_LEN, RunSpec};
+use camgeom_fw_app::run::{Acquisition, RUN_SPEC_LEN, RunSpec};
 
 use crate::semihost::{HostError, HostFile, HostFrames};
 use crate::{board, cost};
@@ -117,7 +117,9 @@ fn read_spec() -> RunSpec {
     }
 }
 
-/// Runs the main job on `app` (a `static`) for `W x H` frames; exits the emulator.
+/// Runs the main job on `app` (a `static`) for `W x H` frames, the target found by what
+/// `acquisition` makes of the run description (`None`: this firmware cannot acquire the
+/// run's target, a failed run); exits the emulator.
 pub fn run<
     const F: usize,
     const P: usize,
@@ -125,10 +127,12 @@ pub fn run<
     const C: usize,
     const K: usize,
     const N: usize,
+    A: Acquire,
 >(
     app: &mut Pipeline<F, P, S, C, K, N>,
     width: usize,
     height: usize,
+    acquisition: impl FnOnce(&RunSpec) -> Option<A>,
 ) -> ! {
     cost::start();
     let spec = read_spec();
@@ -196,7 +200,10 @@ pub fn run<
             fail_host(REPORT_FILE, e)
         }
     };
-    let mut acquire = GivenCorners::new(spec.start_corners());
+    let Some(mut acquire) = acquisition(&spec) else {
+        defmt::error!("run.bin asks for a target this firmware cannot acquire");
+        board::exit_failure()
+    };
     if let Err(e) = drive(
         app,
         &cfg,
@@ -229,4 +236,13 @@ pub fn run<
         saved
     );
     board::exit_success()
+}
+
+/// The acquisition of the box job: the corners the run gives (no tag detector in this
+/// firmware).
+pub fn given_corners(spec: &RunSpec) -> Option<GivenCorners> {
+    match spec.acquisition {
+        Acquisition::Corners => Some(GivenCorners::new(spec.start_corners())),
+        Acquisition::Tag { .. } => None,
+    }
 }

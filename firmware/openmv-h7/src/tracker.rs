@@ -12,7 +12,7 @@ use camgeom::nalgebra::Point2;
 use camgeom::target::GivenCorners;
 use camgeom_fw_app::pipeline::{AppConfig, AppError, Clock};
 use camgeom_fw_app::qvga::Qvga;
-use camgeom_fw_app::run::RunSpec;
+use camgeom_fw_app::run::{Acquisition, RunSpec};
 use static_cell::ConstStaticCell;
 
 use crate::camera::{HEIGHT, WIDTH};
@@ -59,6 +59,8 @@ pub fn config() -> Result<AppConfig, camgeom::Error> {
         distortion: [0.0; 5],
         target_size: TARGET_SIZE_M,
         corners: FIRST_CORNERS,
+        acquisition: Acquisition::Corners,
+        reacquire_every: 0,
     }
     .app_config()
 }

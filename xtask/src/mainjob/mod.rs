@@ -25,6 +25,7 @@ mod faults;
 mod prepare;
 mod replay;
 mod table;
+mod tag;
 
 use std::fs;
 use std::path::{Path, PathBuf};
@@ -188,9 +189,9 @@ pub fn run(opts: &Options) -> Result<()> {
             rows.push(run_board(board, size, &dir, spec.stride, &host)?);
         }
     }
-    let calibration = if opts.boards.contains(&M7) {
+    let extra = if opts.boards.contains(&M7) {
         fault_job(opts.stride)?;
-        Some(calibration::run()?)
+        Some((tag::run(opts.stride)?, calibration::run()?))
     } else {
         None
     };
@@ -199,7 +200,8 @@ pub fn run(opts: &Options) -> Result<()> {
          about one instruction per cycle: an estimate) ----\n{}",
         table::table(&rows, opts.stride)
     );
-    if let Some(c) = calibration {
+    if let Some((t, c)) = extra {
+        println!("---- tag job (instructions on the Cortex-M7) ----\n{t}");
         println!("---- calibration job (instructions on the Cortex-M7) ----\n{c}");
     }
     let measured: Vec<(String, u64, u64)> = rows

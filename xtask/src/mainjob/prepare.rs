@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, anyhow, ensure};
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::pyramid::{down_size, pyr_down};
-use camgeom_fw_app::run::RunSpec;
+use camgeom_fw_app::run::{Acquisition, RunSpec};
 use camgeom_host::images::load_gray;
 use camgeom_host::load_camera;
 use camgeom_host::points::read_points2;
@@ -98,6 +98,8 @@ pub fn prepare(size: Size, stride: u32, dir: &Path) -> Result<RunSpec> {
         distortion,
         target_size: LID_M,
         corners: box_corners()?.map(|[x, y]| [x * scale, y * scale]),
+        acquisition: Acquisition::Corners,
+        reacquire_every: 0,
     };
     fs::write(dir.join("run.bin"), spec.to_bytes())?;
     Ok(spec)

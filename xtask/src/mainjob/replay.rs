@@ -4,12 +4,13 @@
 use std::collections::BTreeMap;
 
 use anyhow::{Result, anyhow, bail};
+use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, Workspace320x240};
 use camgeom::image::ImageView;
-use camgeom::target::GivenCorners;
+use camgeom::target::{Acquire, GivenCorners};
 use camgeom_fw_app::pipeline::{NoClock, Pipeline};
 use camgeom_fw_app::recorded::{FaultPlan, RecordedCamera, SliceFrames};
 use camgeom_fw_app::report::FrameRecord;
-use camgeom_fw_app::run::{CANDIDATES, LEVELS, RunSpec, TRACKS, WIN};
+use camgeom_fw_app::run::{Acquisition, CANDIDATES, LEVELS, RunSpec, TAG_FAMILIES, TRACKS, WIN};
 use camgeom_fw_app::{drive, pipeline_type};
 
 use super::emulate::Overlays;
@@ -56,12 +57,30 @@ fn replay<
     let mut record = |r: &FrameRecord| {
         out.insert(r.index, *r);
     };
-    let mut acquire = GivenCorners::new(spec.start_corners());
+    // The acquisition the board makes of the same run description (job::given_corners, the
+    // tag binary's TagTarget), on the host.
+    let mut given;
+    let (detector, mut workspace, mut tag);
+    let acquire: &mut dyn Acquire = match spec.acquisition {
+        Acquisition::Corners => {
+            given = GivenCorners::new(spec.start_corners());
+            &mut given
+        }
+        Acquisition::Tag { family, id } => {
+            let family = *TAG_FAMILIES
+                .get(usize::from(family))
+                .ok_or_else(|| anyhow!("run.bin: no such tag family"))?;
+            detector = Detector::new(DetectorConfig::default(), &[family])?;
+            workspace = Box::new(Workspace320x240::new());
+            tag = TagTarget::new(&detector, &mut workspace, family, id);
+            &mut tag
+        }
+    };
     drive(
         app,
         &cfg,
         &mut camera,
-        &mut acquire,
+        acquire,
         &mut NoClock,
         &mut record,
         &mut keep,

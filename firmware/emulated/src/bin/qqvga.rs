@@ -19,5 +19,5 @@ static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CA
 
 #[entry]
 fn main() -> ! {
-    job::run(APP.take(), W, H)
+    job::run(APP.take(), W, H, job::given_corners)
 }

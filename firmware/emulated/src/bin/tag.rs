@@ -1,0 +1,42 @@
+//! The second main job: the AR loop on an AprilTag at 320x240 (the rendered tag sequence that
+//! `cargo xtask run` prepares). The target is acquired by the tag detector
+//! ([`camgeom::apriltag::TagTarget`], the loop's acquisition step) on the first frame, after a
+//! loss and every `reacquire_every` frames, and tracked by the same pipeline as the box job in
+//! between; the host replays it bit for bit.
+#![no_std]
+#![no_main]
+
+use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, Workspace320x240};
+use camgeom_fw_app::run::{Acquisition, TAG_FAMILIES};
+use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use camgeom_fw_emulated::{board, entry, job};
+use static_cell::{ConstStaticCell, StaticCell};
+
+const W: usize = 320;
+const H: usize = 240;
+
+/// Every buffer of the pipeline, in `.bss`.
+static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
+    ConstStaticCell::new(camgeom_fw_app::Pipeline::new());
+/// The tag detector's memory (119 KB at 320x240), in `.bss` too.
+static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
+static DETECTOR: StaticCell<Detector> = StaticCell::new();
+
+#[entry]
+fn main() -> ! {
+    let workspace = WORKSPACE.take();
+    job::run(APP.take(), W, H, |spec| match spec.acquisition {
+        Acquisition::Tag { family, id } => {
+            let family = *TAG_FAMILIES.get(usize::from(family))?;
+            let detector = match Detector::new(DetectorConfig::default(), &[family]) {
+                Ok(d) => DETECTOR.init(d),
+                Err(e) => {
+                    defmt::error!("tag detector: {}", e);
+                    board::exit_failure()
+                }
+            };
+            Some(TagTarget::new(detector, workspace, family, id))
+        }
+        Acquisition::Corners => None,
+    })
+}

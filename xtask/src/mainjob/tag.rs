@@ -1,0 +1,238 @@
+//! The tag job: the second main job on the Cortex-M7, the AR loop on an AprilTag.
+//!
+//! The rendered tag sequence (`host-tests/data/sequences/tag/`: 160 frames at 320x240 of a
+//! printed tag36h11, id 42, 8 cm, moving in front of a photo, with motion blur, noise, an
+//! exposure drop, an occlusion, and the tag leaving the view and coming back; exact poses in
+//! `truth.csv`) goes through `camgeom-fw-tag`: the tag detector acquires the target
+//! (`camgeom::apriltag::TagTarget`), KLT tracks it in between, and the detector runs again
+//! after a loss and every [`REACQUIRE_EVERY`] frames. The host replays it bit for bit as the
+//! box job; the poses are compared with the truth.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, ensure};
+use camgeom::nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use camgeom::target::TargetState;
+use camgeom_fw_app::pipeline::STAGES;
+use camgeom_fw_app::recorded::FaultPlan;
+use camgeom_fw_app::report::FrameRecord;
+use camgeom_fw_app::run::{Acquisition, RunSpec};
+use camgeom_host::images::load_gray;
+use camgeom_host::load_camera;
+
+use super::{compare, emulate, replay};
+use crate::firmware::{build_bin_for, size_of};
+use crate::jobs::{M7, Size};
+use crate::util::root;
+
+/// The tag's black square (the sequence's README: 8 cm).
+const TAG_SIZE_M: f32 = 0.08;
+/// The sequence's tag.
+const TAG_ID: u16 = 42;
+/// While tracking, the detector runs again every this many frames, bounding the drift of the
+/// tracks (the sequence's exposure drop and occlusion move them most).
+pub const REACQUIRE_EVERY: u32 = 5;
+
+const SIZE: Size = Size {
+    width: 320,
+    height: 240,
+    bin: "camgeom-fw-tag",
+};
+
+fn sequence() -> PathBuf {
+    camgeom_host::data_dir().join("sequences/tag")
+}
+
+fn prepare(dir: &Path) -> Result<RunSpec> {
+    fs::create_dir_all(dir)?;
+    let seq = sequence();
+    let mut names: Vec<PathBuf> = fs::read_dir(&seq)
+        .with_context(|| format!("cannot read {}", seq.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    names.sort();
+    let mut raw = Vec::new();
+    for n in &names {
+        let img = load_gray(n)?;
+        ensure!(
+            (img.width, img.height) == (320, 240),
+            "{}: not 320x240",
+            n.display()
+        );
+        raw.extend_from_slice(&img.data);
+    }
+    fs::write(dir.join("frames.raw"), &raw)?;
+    let cam = load_camera(seq.join("camera.yml"))?.camera_f32();
+    let k = &cam.intrinsics;
+    let spec = RunSpec {
+        width: 320,
+        height: 240,
+        frames: names.len() as u32,
+        stride: 1,
+        overlay_every: 16,
+        intrinsics: [k.fx(), k.fy(), k.cx(), k.cy()],
+        distortion: cam.distortion.to_opencv(),
+        target_size: [TAG_SIZE_M; 2],
+        corners: [[0.0; 2]; 4],
+        acquisition: Acquisition::Tag {
+            family: 0,
+            id: TAG_ID,
+        },
+        reacquire_every: REACQUIRE_EVERY,
+    };
+    fs::write(dir.join("run.bin"), spec.to_bytes())?;
+    Ok(spec)
+}
+
+/// A pose as the truth gives it: `R` and `t` (`X_cam = R X_tag + t`, AprilTag's tag frame).
+type TruePose = (Matrix3<f64>, Vector3<f64>);
+
+/// Per frame of the truth, its pose.
+fn truth() -> Result<BTreeMap<u32, TruePose>> {
+    let path = sequence().join("truth.csv");
+    let text =
+        fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
+    let cols = [
+        "frame", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", "tx", "ty", "tz",
+    ];
+    let at: Vec<usize> = cols
+        .iter()
+        .map(|c| {
+            header
+                .iter()
+                .position(|h| h == c)
+                .with_context(|| format!("{}: no column {c}", path.display()))
+        })
+        .collect::<Result<_>>()?;
+    let mut out = BTreeMap::new();
+    for (n, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let v: Vec<f64> = at
+            .iter()
+            .map(|&i| {
+                f.get(i)
+                    .and_then(|x| x.trim().parse().ok())
+                    .with_context(|| format!("{}:{}: bad row", path.display(), n + 2))
+            })
+            .collect::<Result<_>>()?;
+        let m = Matrix3::from_row_slice(&v[1..10]);
+        out.insert(v[0] as u32, (m, Vector3::new(v[10], v[11], v[12])));
+    }
+    Ok(out)
+}
+
+/// Rotation (degrees) and translation (mm) errors of the tracked poses against the truth: the
+/// target's frame is the tag's with its origin at the tag's top-left outer corner, so
+/// `t_tag = t + R (s/2, s/2, 0)`.
+fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<Vec<(f64, f64)>> {
+    let truth = truth()?;
+    let mut out = Vec::new();
+    for (k, r) in records {
+        let (Some((best, _)), Some((rt, tt))) = (r.pose, truth.get(k)) else {
+            continue;
+        };
+        let rv = Vector3::new(best.r[0], best.r[1], best.r[2]).cast::<f64>();
+        let rot = Rotation3::new(rv);
+        let half = f64::from(TAG_SIZE_M) / 2.0;
+        let t = Vector3::new(best.t[0], best.t[1], best.t[2]).cast::<f64>()
+            + rot * Vector3::new(half, half, 0.0);
+        let qt = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(*rt));
+        let dr = (UnitQuaternion::from_rotation_matrix(&rot) * qt.inverse())
+            .angle()
+            .to_degrees();
+        out.push((dr, (t - tt).norm() * 1e3));
+    }
+    Ok(out)
+}
+
+fn quantile(v: &mut [f64], q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v.get(((v.len().max(1) - 1) as f64 * q).round() as usize)
+        .copied()
+        .unwrap_or(f64::NAN)
+}
+
+/// `cargo xtask run`'s tag job on the reference board; returns its Markdown tables.
+pub fn run(stride: u32) -> Result<String> {
+    let dir = root().join("target/camgeom-run/tag");
+    let spec = prepare(&dir)?;
+    let raw = fs::read(dir.join("frames.raw"))?;
+    let host = replay::replay_size(SIZE, &spec, &FaultPlan::none(), &raw)?;
+    let elf = build_bin_for(M7, SIZE.bin, &[])?;
+    let (flash, ram, _) = size_of(M7, &elf)?;
+    let board = emulate::run_board(M7, &elf, &dir, SIZE, stride)?;
+    let verdict = compare::compare(&board.frames, &host.0, &board.overlays, &host.1)?;
+    let frames = &board.frames;
+    ensure!(
+        frames.values().all(|r| r.error.is_none()),
+        "the tag job reported an error on a frame"
+    );
+    // The tag leaves the view (frames 104..130) and comes back: it must be found again.
+    let back = frames
+        .values()
+        .filter(|r| r.index > 130 && r.state == TargetState::Tracking)
+        .count();
+    ensure!(
+        back >= 20,
+        "the tag was not found again after leaving the view ({back} frames)"
+    );
+    let mut errors = pose_errors(frames)?;
+    let (mut dr, mut dt): (Vec<f64>, Vec<f64>) = errors.drain(..).unzip();
+    println!(
+        "tag job {} 320x240: {verdict}; {} of {} frames with a pose",
+        M7.name,
+        dr.len(),
+        frames.len()
+    );
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "| frames | stage | {} |\n|---|---|{}",
+        STAGES[1..].join(" | "),
+        "---|".repeat(STAGES.len() - 1)
+    );
+    for (name, detect) in [("detection", true), ("tracking", false)] {
+        let rows: Vec<&FrameRecord> = frames
+            .values()
+            .filter(|r| r.index > 0 && (r.costs.acquire > 0) == detect)
+            .collect();
+        let n = rows.len().max(1) as u64;
+        let cells: Vec<String> = (1..STAGES.len())
+            .map(|k| {
+                let c: Vec<u64> = rows
+                    .iter()
+                    .map(|r| u64::from(r.costs.to_array()[k]))
+                    .collect();
+                let mean = c.iter().sum::<u64>() / n;
+                let worst = c.iter().copied().max().unwrap_or(0);
+                format!("{:.2}M / {:.2}M", mean as f64 / 1e6, worst as f64 / 1e6)
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "| {name} ({}) | mean / worst | {} |",
+            rows.len(),
+            cells.join(" | ")
+        );
+    }
+    let _ = writeln!(
+        s,
+        "\n| poses (of {} frames) | rotation error, median / p95 / max | translation error, median / p95 / max | static RAM | flash | stack |\n|---|---|---|---|---|---|\n| {} | {:.3}° / {:.3}° / {:.3}° | {:.2} / {:.2} / {:.2} mm | {ram} B | {flash} B | {} B |",
+        frames.len(),
+        dr.len(),
+        quantile(&mut dr, 0.5),
+        quantile(&mut dr, 0.95),
+        quantile(&mut dr, 1.0),
+        quantile(&mut dt, 0.5),
+        quantile(&mut dt, 0.95),
+        quantile(&mut dt, 1.0),
+        board.summary.stack_used
+    );
+    Ok(s)
+}
