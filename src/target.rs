@@ -71,7 +71,7 @@ use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
-use crate::klt::{FlowArith, FlowBuffers, LkConfig, LkParams};
+use crate::klt::{Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
 use crate::pose::{PlanarConfig, PlanarPose, PoseEstimate, solve_planar};
 use crate::pyramid::Pyramid;
 use crate::ransac::RansacConfig;
@@ -393,6 +393,16 @@ struct Feature<C> {
     target: Point2<f32>,
 }
 
+impl<C: Copy> FlowItem<C> for Feature<C> {
+    fn position(&self) -> [C; 2] {
+        self.pos
+    }
+
+    fn moved(&mut self, flow: &Flow<C>) {
+        self.pos = [flow.x, flow.y];
+    }
+}
+
 /// The state of a tracked planar target: up to `N` features, arithmetic `A` for the flow
 /// ([`crate::klt::Fixed`] or `f32`), and the loop's work buffers: `S` ≥
 /// [`flow_scratch_len`]`(win)` flow scratch, `C` ≥ [`corner_scratch_len`]`(width)` corner
@@ -666,8 +676,6 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             prev,
             next,
             &mut self.features,
-            |f| f.pos,
-            |f, fl| f.pos = [fl.x, fl.y],
             &params.lk,
             &mut self.flow_scratch,
         )
