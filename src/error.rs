@@ -44,6 +44,23 @@ pub enum Error {
 impl Error {
     /// The error's kind in snake case (`non_finite`, `invalid_parameter`, ...): stable across
     /// releases, for command-line tools, logs and board reports to name errors by.
+    ///
+    /// ```
+    /// use camgeom::Error;
+    /// use camgeom::camera::Intrinsics;
+    ///
+    /// let err = Intrinsics::new(-500.0f32, 500.0, 320.0, 240.0).unwrap_err();
+    /// assert_eq!(err.name(), "invalid_intrinsics");
+    /// // The subject is left out of the name (it is in `subject` and the message).
+    /// let e = Error::BufferTooSmall("scratch");
+    /// assert_eq!((e.name(), e.subject()), ("buffer_too_small", Some("scratch")));
+    /// assert_eq!(e.to_string(), "buffer too small: scratch");
+    /// // Every kind has its own snake-case name.
+    /// for (i, a) in Error::ALL.iter().enumerate() {
+    ///     assert!(a.name().bytes().all(|b| b.is_ascii_lowercase() || b == b'_'));
+    ///     assert!(Error::ALL[..i].iter().all(|b| b.name() != a.name()));
+    /// }
+    /// ```
     pub const fn name(&self) -> &'static str {
         match self {
             Error::NonFinite => "non_finite",

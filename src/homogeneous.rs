@@ -11,6 +11,27 @@
 //! were scaled to unit norm, and a point is ideal when `|w| ≤ 16 ε |(x, y, w)|`: beyond that its
 //! Euclidean position would carry a relative error above 1/16 in the working precision, so
 //! [`Point2h::to_euclidean`] returns [`Error::AtInfinity`] instead of dividing by ~0.
+//!
+//! ```
+//! use camgeom::Error;
+//! use camgeom::homogeneous::{Line2h, Point2h};
+//! use camgeom::nalgebra::Point2;
+//!
+//! let p = |x: f32, y: f32| Point2h::from_euclidean(&Point2::new(x, y));
+//! // The diagonals of the square (0, 0)-(2, 2) meet at its centre.
+//! let d1 = p(0.0, 0.0)?.join(&p(2.0, 2.0)?)?;
+//! let d2 = p(0.0, 2.0)?.join(&p(2.0, 0.0)?)?;
+//! let centre = d1.meet(&d2)?.to_euclidean()?;
+//! assert!((centre - Point2::new(1.0, 1.0)).norm() < 1e-6);
+//! // Two of its parallel sides meet at infinity, in their common direction (0, 1).
+//! let left = p(0.0, 0.0)?.join(&p(0.0, 2.0)?)?;
+//! let right = p(2.0, 0.0)?.join(&p(2.0, 2.0)?)?;
+//! let v = left.meet(&right)?;
+//! assert!(v.is_ideal() && v.to_euclidean() == Err(Error::AtInfinity));
+//! assert!(Line2h::at_infinity().contains(&v, 1e-6));
+//! assert!(v.normalized().coords().x.abs() < 1e-6);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use nalgebra::{Point2, Vector3};
 

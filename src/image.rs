@@ -4,6 +4,25 @@
 //! constructors check the sizes once (non-zero, within [`MAX_DIM`], `stride >= width`, buffer
 //! long enough), so kernels can walk rows without any further failure path: [`ImageView::row`]
 //! cannot miss for `y < height`.
+//!
+//! ```
+//! use camgeom::Error;
+//! use camgeom::image::{ImageView, buffer_len};
+//!
+//! // A 3x2 image in rows of 4 (one byte of padding a row, none after the last).
+//! let data = [10u8, 11, 12, 0, 20, 21, 22];
+//! assert_eq!(buffer_len(3, 2, 4), data.len());
+//! let img = ImageView::new(&data, 3, 2, 4)?;
+//! assert_eq!(img.get(2, 1), Some(22));
+//! assert_eq!(img.get(3, 0), None); // the padding is not a pixel
+//! assert_eq!(img.row(1), Some(&[20u8, 21, 22][..]));
+//! assert_eq!(img.sub(1, 0, 2, 2)?.get(0, 1), Some(21));
+//! // Rejected once, at construction: too short a buffer, a stride below the width, no pixels.
+//! assert_eq!(ImageView::new(&data[..6], 3, 2, 4).err(), Some(Error::InvalidImage));
+//! assert_eq!(ImageView::new(&data, 3, 2, 2).err(), Some(Error::InvalidImage));
+//! assert_eq!(ImageView::packed(&data, 0, 2).err(), Some(Error::InvalidImage));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use crate::{Error, Result};
 

@@ -7,6 +7,28 @@
 //! The frames are marker types, so a world-to-camera pose ([`Transform<World, Camera>`], what
 //! OpenCV's `rvec`/`tvec` hold) cannot be passed where a camera-to-world pose is expected.
 //! Composition follows the arrows: `a_to_b.then(&b_to_c)` is `a_to_c`.
+//!
+//! ```
+//! use camgeom::nalgebra::{Point3, Vector3};
+//! use camgeom::transform::{Camera, Pose, Target, Transform};
+//!
+//! // A quarter turn about z, then 2 along z: (1, 0, 0) goes to (0, 1, 2).
+//! let pose = Pose::<f64>::from_rodrigues(
+//!     Vector3::new(0.0, 0.0, core::f64::consts::FRAC_PI_2),
+//!     Vector3::new(0.0, 0.0, 2.0),
+//! )?;
+//! let p = pose.apply(&Point3::new(1.0, 0.0, 0.0));
+//! assert!((p - Point3::new(0.0, 1.0, 2.0)).norm() < 1e-12);
+//! // The camera centre C = -Rᵀt maps to the camera's origin.
+//! assert!(pose.apply(&pose.camera_center()).coords.norm() < 1e-12);
+//! // World -> Camera -> Target composed with its inverse is the identity.
+//! let cam_to_target: Transform<Camera, Target, f64> =
+//!     Transform::from_rodrigues(Vector3::new(0.3, -0.2, 0.1), Vector3::new(1.0, 2.0, 3.0))?;
+//! let world_to_target = pose.then(&cam_to_target);
+//! let round = world_to_target.then(&world_to_target.inverse());
+//! assert!((round.matrix() - camgeom::nalgebra::Matrix4::identity()).amax() < 1e-12);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use core::fmt;
 use core::marker::PhantomData;

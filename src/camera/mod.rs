@@ -8,6 +8,25 @@
 //! ([`LensModel::KannalaBrandt`]), `x_d = (θ_d / r) x_n` with `θ_d = θ (1 + k1 θ² + … + k4 θ⁸)`,
 //! `θ = atan |x_n|` (OpenCV's `fisheye::projectPoints`). Every entry point taking a [`Camera`]
 //! (projection, back-projection, pose solvers and refinement, drawing) follows its lens model.
+//!
+//! ```
+//! use camgeom::camera::{Camera, Distortion, Intrinsics};
+//! use camgeom::nalgebra::{Point2, Point3};
+//!
+//! let cam = Camera::new(
+//!     Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?,
+//!     Distortion::from_opencv([-0.2, 0.0, 0.0, 0.0, 0.0])?,
+//! );
+//! let x = Point3::new(0.2, -0.1, 2.0);
+//! let u = cam.project_camera_point(&x)?;
+//! // By hand: x_n = (0.1, -0.05), r² = 0.0125, radial factor 1 - 0.2 r² = 0.9975.
+//! let expected = Point2::new(320.0 + 500.0 * 0.1 * 0.9975, 240.0 - 500.0 * 0.05 * 0.9975);
+//! assert!((u - expected).norm() < 1e-9);
+//! // Back-projection undoes the distortion (iteratively): the ray points at `x` again.
+//! let ray = cam.back_project(&u)?;
+//! assert!((ray.into_inner() - x.coords.normalize()).norm() < 1e-9);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 mod distortion;
 mod fisheye;
