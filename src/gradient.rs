@@ -14,6 +14,28 @@
 //!   few KB of scratch. Each window costs `(win + 1)²` derivative evaluations, so this is cheaper
 //!   than a whole level as long as `N (win + 1)² < w h` (for 21x21 windows on 320x240: fewer
 //!   than ~160 features per level). The board default.
+//!
+//! ```
+//! use camgeom::gradient::scharr_level;
+//! use camgeom::image::{ImageMut, ImageView};
+//!
+//! // The ramp I = 3x + 2y: ∂I/∂x = 3, ∂I/∂y = 2, so (Ix, Iy) = 32 (3, 2) = (96, 64).
+//! let (w, h) = (16, 12);
+//! let mut img = [0u8; 16 * 12];
+//! for (i, p) in img.iter_mut().enumerate() {
+//!     *p = (3 * (i % w) + 2 * (i / w)) as u8;
+//! }
+//! let mut d = [[0i16; 2]; 16 * 12];
+//! scharr_level(&ImageView::packed(&img, w, h)?, &mut ImageMut::packed(&mut d, w, h)?)?;
+//! for y in 1..h - 1 {
+//!     for x in 1..w - 1 {
+//!         assert_eq!(d[y * w + x], [96, 64]);
+//!     }
+//! }
+//! // The border reflects (-1 → 1): the first column sees no x slope.
+//! assert_eq!(d[5 * w], [0, 64]);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result};

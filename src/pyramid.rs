@@ -9,6 +9,26 @@
 //! Integer only. The work runs in tiles of [`TILE`] output pixels with the vertical sums in a
 //! fixed stack array, so there is no scratch to provide and no size limit beyond
 //! [`crate::image::MAX_DIM`].
+//!
+//! ```
+//! use camgeom::image::ImageView;
+//! use camgeom::pyramid::{Pyramid, buffer_len, level_size};
+//!
+//! // A single bright pixel at (10, 10): level 1 holds the kernel, (g gᵀ 255 + 128) >> 8.
+//! let mut frame = [0u8; 40 * 30];
+//! frame[10 * 40 + 10] = 255;
+//! let mut buf = [0u8; buffer_len(40, 30, 3)];
+//! let pyr = Pyramid::build(ImageView::packed(&frame, 40, 30)?, &mut buf, 3)?;
+//! let l1 = pyr.level(1).ok_or(camgeom::Error::Degenerate)?;
+//! assert_eq!((l1.width(), l1.height()), (20, 15));
+//! assert_eq!(l1.get(5, 5), Some(36)); // (6·6·255 + 128) >> 8
+//! assert_eq!(l1.get(4, 5), Some(6)); // (1·6·255 + 128) >> 8
+//! assert_eq!(l1.get(4, 4), Some(1)); // (1·1·255 + 128) >> 8
+//! assert_eq!(l1.get(3, 5), Some(0));
+//! let l2 = pyr.level(2).ok_or(camgeom::Error::Degenerate)?;
+//! assert_eq!((l2.width(), l2.height()), level_size(40, 30, 2)); // (10, 8): sizes round up
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use heapless::Vec;
 
