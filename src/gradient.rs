@@ -131,7 +131,7 @@ pub fn scharr_level(img: &ImageView<'_, u8>, dst: &mut ImageMut<'_, [i16; 2]>) -
 
 /// Derivatives on the `w x h` grid of integer pixels starting at `(x0, y0)` (which may stick
 /// out of the image: those pixels get `[0, 0]`), row-major into `out[.. w h]`.
-/// [`Error::InvalidParameter`] when `out` is shorter than `w h`.
+/// [`Error::BufferTooSmall`]`("out")` when `out` is shorter than `w h`.
 pub fn scharr_window(
     img: &ImageView<'_, u8>,
     x0: isize,
