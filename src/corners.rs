@@ -17,6 +17,33 @@
 //! score can still matter (`S <= A + C`, so pixels whose trace is below the running threshold
 //! `quality · max S so far` are skipped; the threshold only rises, so nothing skipped could
 //! have been kept).
+//!
+//! ```
+//! use camgeom::corners::{Corner, CornerConfig, good_features, scratch_len};
+//! use camgeom::heapless::Vec;
+//! use camgeom::image::ImageView;
+//!
+//! // A white square on black, pixels 10..=21: its corners are at 9.5 and 21.5.
+//! let mut img = [0u8; 32 * 32];
+//! for y in 10..22 {
+//!     img[y * 32 + 10..y * 32 + 22].fill(255);
+//! }
+//! let view = ImageView::packed(&img, 32, 32)?;
+//! let cfg = CornerConfig::default();
+//! let (mut cands, mut scratch) = ([Corner::default(); 64], [0u32; scratch_len(32)]);
+//! let mut found: Vec<Corner, 16> = Vec::new();
+//! let none = core::iter::empty();
+//! assert_eq!(good_features(&view, &cfg, none, &mut found, &mut cands, &mut scratch)?, 4);
+//! for [cx, cy] in [[9.5, 9.5], [21.5, 9.5], [9.5, 21.5], [21.5, 21.5]] {
+//!     let d = |c: &Corner| (f32::from(c.x) - cx).abs().max((f32::from(c.y) - cy).abs());
+//!     assert_eq!(found.iter().filter(|c| d(c) <= 1.0).count(), 1);
+//! }
+//! // Replenishing: with those four already tracked there is nothing left to add.
+//! let tracked = found.clone();
+//! let existing = tracked.iter().map(|c| [i32::from(c.x), i32::from(c.y)]);
+//! assert_eq!(good_features(&view, &cfg, existing, &mut found, &mut cands, &mut scratch)?, 0);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use heapless::Vec;
 
