@@ -19,6 +19,26 @@
 //! `|fixed - exact| ≤ 2⁻¹⁵ px` (3.1e-5) for the image of the Q16.16 input; rounding the input
 //! itself to Q16.16 adds at most 2⁻¹⁷ times the local scale of the map. All arithmetic is checked: values out of
 //! range give [`Error::Overflow`], never a wrapped result.
+//!
+//! ```
+//! use camgeom::fixed::{FixedHomography, Q16};
+//! use camgeom::nalgebra::{Matrix3, Vector3};
+//!
+//! let h = Matrix3::new(1.2f64, 0.1, 30.0, -0.05, 0.9, 12.0, 2e-4, -1e-4, 1.0);
+//! let fh = FixedHomography::from_matrix(&h)?; // quantised once, in floating point
+//! for (x, y) in [(0i16, 0i16), (319, 0), (-40, 239), (160, 120), (1000, -700)] {
+//!     // Integer arithmetic only from here on.
+//!     let [u, v] = fh.transfer(&[Q16::from_int(x), Q16::from_int(y)])?;
+//!     // The same transfer in f64: whole-pixel inputs are exact in Q16.16, so the bound is 2⁻¹⁵.
+//!     let p = h * Vector3::new(f64::from(x), f64::from(y), 1.0);
+//!     assert!((u.to_f64() - p.x / p.z).abs() <= 1.0 / 32768.0);
+//!     assert!((v.to_f64() - p.y / p.z).abs() <= 1.0 / 32768.0);
+//! }
+//! // Out of range is an error, never a wrapped coordinate.
+//! let far = FixedHomography::from_matrix(&Matrix3::from_diagonal(&Vector3::new(1e4, 1.0, 1.0)))?;
+//! assert_eq!(far.transfer(&[Q16::from_int(100), Q16::ZERO]), Err(camgeom::Error::Overflow));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 #![deny(clippy::arithmetic_side_effects)]
 
 use nalgebra::Matrix3;
