@@ -12,6 +12,26 @@
 //! - [`refine`], [`refine_masked`]: Levenberg-Marquardt on the symmetric transfer error;
 //! - [`find_homography`]: RANSAC (MSAC, local optimisation, final refinement) on the generic
 //!   [`crate::ransac`] loop, with [`HomographyEstimator`] as its [`crate::ransac::Estimator`].
+//!
+//! ```
+//! use camgeom::homography::Homography;
+//! use camgeom::nalgebra::Point2;
+//!
+//! let p = Point2::new;
+//! let square = [p(0.0f64, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)];
+//! let quad = [p(0.0, 0.0), p(6.0, 0.0), p(3.0, 3.0), p(0.0, 3.0)];
+//! let h = Homography::from_four_points(&square, &quad)?;
+//! for (s, q) in square.iter().zip(&quad) {
+//!     assert!((h.transfer(s)? - q).norm() < 1e-12);
+//! }
+//! // Incidence survives: the square's centre goes to where the quad's diagonals meet,
+//! // y = x and y = 3 - x / 2, that is (2, 2).
+//! assert!((h.transfer(&p(0.5, 0.5))? - p(2.0, 2.0)).norm() < 1e-12);
+//! // Three collinear points fit no homography.
+//! let line = [p(0.0, 0.0), p(1.0, 1.0), p(2.0, 2.0), p(0.0, 1.0)];
+//! assert_eq!(Homography::from_four_points(&line, &quad), Err(camgeom::Error::Degenerate));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 mod dlt;
 mod four_point;

@@ -133,6 +133,32 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
 /// `config.max_iterations`; the same `config.seed` gives the same result everywhere.
 ///
 /// Errors: see [`ransac`] ([`crate::Error::Degenerate`] when no sample gave a model).
+///
+/// ```
+/// use camgeom::homography::{Homography, find_homography};
+/// use camgeom::nalgebra::{Matrix3, Point2, Vector2};
+/// use camgeom::ransac::RansacConfig;
+///
+/// let truth = Homography::from_matrix(&Matrix3::new(
+///     0.9, 0.05, 30.0, -0.04, 1.1, 12.0, 1e-4, 2e-4, 1.0,
+/// ))?;
+/// // A 6x5 grid of exact matches; every fourth is moved 40 px away (an outlier).
+/// let src: Vec<Point2<f32>> =
+///     (0..30).map(|i| Point2::new((i % 6) as f32 * 100.0, (i / 6) as f32 * 100.0)).collect();
+/// let mut dst = Vec::new();
+/// for (i, s) in src.iter().enumerate() {
+///     let off = if i % 4 == 0 { Vector2::new(40.0, -30.0) } else { Vector2::zeros() };
+///     dst.push(truth.transfer(s)? + off);
+/// }
+/// let mut inliers = [false; 30];
+/// let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut inliers)?;
+/// assert_eq!(report.inliers, 22);
+/// assert!(inliers.iter().enumerate().all(|(i, &ok)| ok == (i % 4 != 0)));
+/// // The inliers are exact: what is left is f32 rounding.
+/// let probe = Point2::new(250.0, 180.0);
+/// assert!((h.transfer(&probe)? - truth.transfer(&probe)?).norm() < 0.01);
+/// # Ok::<(), camgeom::Error>(())
+/// ```
 pub fn find_homography<T: Real>(
     src: &[Point2<T>],
     dst: &[Point2<T>],
