@@ -17,6 +17,43 @@
 //!
 //! The same loop serves homographies ([`crate::homography::find_homography`]) and, later,
 //! fundamental and essential matrices: only the [`Estimator`] changes.
+//!
+//! A line `y = a x + b` through points with outliers, as a minimal [`Estimator`]:
+//!
+//! ```
+//! use camgeom::ransac::{Estimator, RansacConfig, ransac};
+//!
+//! struct Line<'a>(&'a [[f32; 2]]);
+//! impl Estimator for Line<'_> {
+//!     type Model = [f32; 2]; // (a, b)
+//!     type Scalar = f32;
+//!     fn num_points(&self) -> usize { self.0.len() }
+//!     fn sample_size(&self) -> usize { 2 }
+//!     fn fit_minimal(&self, s: &[usize], emit: &mut dyn FnMut([f32; 2])) {
+//!         let ([x0, y0], [x1, y1]) = (self.0[s[0]], self.0[s[1]]);
+//!         if x1 != x0 {
+//!             let a = (y1 - y0) / (x1 - x0);
+//!             emit([a, y0 - a * x0]);
+//!         }
+//!     }
+//!     fn residual_sq(&self, [a, b]: &[f32; 2], i: usize) -> Option<f32> {
+//!         let [x, y] = *self.0.get(i)?;
+//!         Some((y - a * x - b).powi(2))
+//!     }
+//! }
+//!
+//! // y = 2x + 1 at x = 0..20, with every fifth point thrown 50 units off it.
+//! let pts: [[f32; 2]; 20] = core::array::from_fn(|i| {
+//!     let x = i as f32;
+//!     [x, 2.0 * x + 1.0 + if i % 5 == 0 { 50.0 } else { 0.0 }]
+//! });
+//! let mut mask = [false; 20];
+//! let ([a, b], report) = ransac(&Line(&pts), &RansacConfig::default(), &mut mask)?;
+//! assert!((a - 2.0).abs() < 1e-5 && (b - 1.0).abs() < 1e-4);
+//! assert_eq!(report.inliers, 16);
+//! assert!(mask.iter().enumerate().all(|(i, &m)| m == (i % 5 != 0)));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use crate::rng::Pcg32;
 use crate::scalar::Real;
