@@ -18,6 +18,35 @@
 //! both. [`Tracker`] keeps tracks across frames.
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
+//!
+//! ```
+//! use camgeom::image::ImageView;
+//! use camgeom::klt::{Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
+//! use camgeom::pyramid::{Pyramid, buffer_len};
+//!
+//! // A smooth texture, and the same texture moved by (+3, +2) pixels.
+//! let tex = |x: f32, y: f32| {
+//!     128.0 + 50.0 * (0.35 * x + 0.2 * y).sin() + 40.0 * (0.3 * x - 0.25 * y).cos()
+//! };
+//! let frame = |dx: f32, dy: f32| -> [u8; 64 * 64] {
+//!     core::array::from_fn(|i| tex((i % 64) as f32 - dx, (i / 64) as f32 - dy).round() as u8)
+//! };
+//! let (a, b) = (frame(0.0, 0.0), frame(3.0, 2.0));
+//! let params = LkConfig { max_level: 1, ..LkConfig::default() }.check()?;
+//! let (mut ba, mut bb) = ([0u8; buffer_len(64, 64, 2)], [0u8; buffer_len(64, 64, 2)]);
+//! let pa = Pyramid::build(ImageView::packed(&a, 64, 64)?, &mut ba, 2)?;
+//! let pb = Pyramid::build(ImageView::packed(&b, 64, 64)?, &mut bb, 2)?;
+//! let pts = [[30.0f32, 30.0], [24.5, 36.0], [40.0, 27.25]];
+//! let mut flows = [Flow::default(); 3];
+//! let mut scratch = [0i16; scratch_len(21)];
+//! calc_flow::<f32>(&pa, &pb, &pts, &mut flows, &params, Gradients::PerWindow, &mut scratch)?;
+//! for (p, f) in pts.iter().zip(&flows) {
+//!     assert_eq!(f.status, FlowStatus::Tracked);
+//!     // Within the stopping step (epsilon = 0.01 px): the texture moves without change.
+//!     assert!((f.x - p[0] - 3.0).abs() < 0.01 && (f.y - p[1] - 2.0).abs() < 0.01);
+//! }
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use crate::{Error, Result};
 
