@@ -13,6 +13,34 @@
 //!   ([`PnpEstimator`]) with EPnP local optimisation (OpenCV's `solvePnP`, `solvePnPRansac`);
 //! - [`refine_pose`]: Levenberg-Marquardt on the reprojection error in pixels (lens
 //!   distortion included), rotation updated as `exp([δω]ₓ) R`.
+//!
+//! ```
+//! use camgeom::camera::{Camera, Distortion, Intrinsics};
+//! use camgeom::nalgebra::{Point2, Point3, Vector3};
+//! use camgeom::pose::{PlanarConfig, solve_planar};
+//! use camgeom::transform::Pose;
+//!
+//! let camera = Camera::new(
+//!     Intrinsics::new(600.0f64, 600.0, 320.0, 240.0)?,
+//!     Distortion::from_opencv([-0.2, 0.05, 0.0, 0.0, 0.0])?,
+//! );
+//! let (rvec, tvec) = (Vector3::new(0.4, -0.3, 0.1), Vector3::new(-0.15, -0.1, 0.8));
+//! let truth = Pose::from_rodrigues(rvec, tvec)?;
+//! // A 4x3 grid of target points 0.1 m apart (Z = 0), imaged through the lens.
+//! let model: [Point2<f64>; 12] =
+//!     core::array::from_fn(|k| Point2::new(0.1 * (k % 4) as f64, 0.1 * (k / 4) as f64));
+//! let mut pixels = [Point2::origin(); 12];
+//! for (m, u) in model.iter().zip(&mut pixels) {
+//!     *u = camera.project(&truth, &Point3::new(m.x, m.y, 0.0))?;
+//! }
+//! let mut scratch = [Point2::origin(); 12];
+//! let p = solve_planar(&camera, &model, &pixels, &mut scratch, &PlanarConfig::default())?;
+//! // Exact pixels: the pose comes back to rounding (the refinement runs on pixel errors).
+//! assert!((p.best.pose.rotation_vector() - truth.rotation_vector()).norm() < 1e-9);
+//! assert!((p.best.pose.translation() - truth.translation()).norm() < 1e-9);
+//! assert!(p.best.rms_px < 1e-6 && !p.is_ambiguous(1.5));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 mod epnp;
 mod from_homography;
