@@ -11,6 +11,50 @@
 //! | [`fast`] | FAST-9 corners on the 16-pixel Bresenham circle with 3x3 non-maximum suppression, integer Harris response |
 //! | [`orb`] | ORB: multi-scale FAST + Harris selection, intensity-centroid orientation, steered 256-bit BRIEF |
 //! | [`matching`] | Hamming distance, brute-force matching with Lowe's ratio test and cross-check |
+//!
+//! ORB features of a drawn scene and of the same scene moved by `(+5, +3)` pixels, matched:
+//!
+//! ```
+//! use camgeom::features::{Feature, Match, MatchConfig, OrbConfig};
+//! use camgeom::features::{match_descriptors, orb, orb_detect};
+//! use camgeom::heapless::Vec;
+//! use camgeom::image::ImageView;
+//!
+//! // Overlapping grey rectangles (x0, y0, x1, y1, grey), blurred by a 3x3 box.
+//! let rects = [(18, 20, 34, 40, 200), (30, 34, 52, 48, 90), (50, 18, 70, 30, 160),
+//!     (58, 40, 78, 62, 220), (22, 52, 44, 70, 140), (46, 60, 60, 78, 60)];
+//! # let rect = |x: usize, y: usize| -> u32 {
+//! #     let inside = |&&(x0, y0, x1, y1, _): &&(usize, usize, usize, usize, u32)| {
+//! #         (x0..x1).contains(&x) && (y0..y1).contains(&y)
+//! #     };
+//! #     rects.iter().rev().find(inside).map_or(30, |r| r.4)
+//! # };
+//! let scene = |dx: usize, dy: usize| -> [u8; 112 * 112] {
+//!     core::array::from_fn(|i| {
+//!         let (x, y) = ((i % 112).wrapping_sub(dx + 1), (i / 112).wrapping_sub(dy + 1));
+//!         let s: u32 = (0..9).map(|k| rect(x.wrapping_add(k % 3), y.wrapping_add(k / 3))).sum();
+//!         (s / 9) as u8
+//!     })
+//! };
+//! let (a, b) = (scene(0, 0), scene(5, 3));
+//! let cfg = OrbConfig { levels: 1, ..OrbConfig::default() };
+//! let mut scratch = [0u8; orb::scratch_len(112, 112, 307)];
+//! let (mut fa, mut fb) = (Vec::<Feature, 64>::new(), Vec::<Feature, 64>::new());
+//! orb_detect(&ImageView::packed(&a, 112, 112)?, &cfg, &mut scratch, &mut fa)?;
+//! orb_detect(&ImageView::packed(&b, 112, 112)?, &cfg, &mut scratch, &mut fb)?;
+//! let da: Vec<_, 64> = fa.iter().map(|f| f.descriptor).collect();
+//! let db: Vec<_, 64> = fb.iter().map(|f| f.descriptor).collect();
+//! let (mut matches, mut ms) = ([Match::default(); 64], [0u32; 64]);
+//! let n = match_descriptors(&da, &db, &MatchConfig::default(), &mut ms, &mut matches)?;
+//! // Most features match (the ratio test drops corners congruent to another one), and every
+//! // match is the feature itself, moved by the shift.
+//! assert!(fa.len() >= 16 && n >= fa.len() * 3 / 4);
+//! for m in &matches[..n] {
+//!     let (p, q) = (fa[m.query as usize].keypoint, fb[m.train as usize].keypoint);
+//!     assert_eq!((q.x - p.x, q.y - p.y, m.distance), (5.0, 3.0, 0));
+//! }
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 pub mod fast;
 pub mod matching;
