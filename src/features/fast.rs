@@ -157,7 +157,8 @@ fn segment_test(v: u8, ring: &[u8; 16], t: u8) -> bool {
 /// Corners lie in `b <= x < width - b`, `b <= y < height - b` with
 /// `b = max(config.border, 3)`. `scratch` must hold [`scratch_len`]`(width)` bytes.
 ///
-/// Errors: [`Error::InvalidParameter`] when `scratch` is too short or `threshold == 0`.
+/// Errors: [`Error::InvalidParameter`] when `threshold == 0`; [`Error::BufferTooSmall`] when
+/// `scratch` is too short.
 pub fn fast_detect(
     img: &ImageView<'_, u8>,
     config: &FastConfig,

@@ -81,9 +81,9 @@ pub const MAX_DESCRIPTORS: usize = u16::MAX as usize;
 /// `out` must hold `query.len()` matches (the most there can be); `scratch` must hold
 /// [`scratch_len`]`(train.len())` words when `config.cross_check`.
 ///
-/// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a side,
-/// a short `scratch`, or a NaN ratio; [`Error::LengthMismatch`] when `out` is shorter than
-/// `query`.
+/// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a side
+/// or a NaN ratio; [`Error::BufferTooSmall`] for a short `scratch`; [`Error::LengthMismatch`]
+/// when `out` is shorter than `query`.
 pub fn match_descriptors(
     query: &[Descriptor],
     train: &[Descriptor],

@@ -251,7 +251,8 @@ impl LevelMap {
 /// split), what a level does not fill passes to the next.
 ///
 /// Errors: [`Error::InvalidParameter`] for `levels` outside `1..=MAX_LEVELS`, `scale_q8`
-/// outside `272..=512`, a zero FAST threshold or a short `scratch`.
+/// outside `272..=512` or a zero FAST threshold; [`Error::BufferTooSmall`] for a short
+/// `scratch`.
 pub fn orb_detect<const N: usize>(
     frame: &ImageView<'_, u8>,
     config: &OrbConfig,
