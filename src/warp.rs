@@ -31,6 +31,30 @@
 //!   of written pixels differs only where a pixel centre is within rounding of the outline.
 //!
 //! Optional constant-alpha blending: `out = (α s + (255 - α) d + 127) / 255`.
+//!
+//! ```
+//! use camgeom::image::{ImageMut, ImageView};
+//! use camgeom::nalgebra::Point2;
+//! use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+//!
+//! // A 5x5 logo, a ramp 0, 50, .. 200 across; into the square (10, 10)-(18, 18): twice as big.
+//! let logo: [u8; 25] = core::array::from_fn(|i| 50 * (i % 5) as u8);
+//! let quad = [(10.0, 10.0), (18.0, 10.0), (18.0, 18.0), (10.0, 18.0)];
+//! let quad = quad.map(|(x, y)| Point2::new(x, y));
+//! for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+//!     let mut frame = [7u8; 32 * 32];
+//!     let mut dst = ImageMut::packed(&mut frame, 32, 32)?;
+//!     let cfg = WarpConfig { arithmetic, ..WarpConfig::default() };
+//!     let report = warp_into_quad(&ImageView::packed(&logo, 5, 5)?, &mut dst, &quad, &cfg)?;
+//!     assert_eq!(report.written, 9 * 9); // the pixel centres 10..=18 on both axes
+//!     for x in 10..=18 {
+//!         // Source column (x - 10) / 2: on a logo pixel, or halfway between two.
+//!         assert_eq!(frame[14 * 32 + x], (25 * (x - 10)) as u8);
+//!     }
+//!     assert_eq!((frame[14 * 32 + 9], frame[14 * 32 + 19], frame[9 * 32 + 14]), (7, 7, 7));
+//! }
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use nalgebra::{Matrix3, Point2, Vector3};
 
