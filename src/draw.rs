@@ -4,6 +4,31 @@
 //! nothing is written outside the frame whatever the endpoints. 3D edges are clipped against a
 //! near plane before projection (a cube edge passing behind the camera still draws its visible
 //! part) and split into short segments so lens distortion bends them as the camera does.
+//!
+//! ```
+//! use camgeom::camera::{Camera, Intrinsics};
+//! use camgeom::draw::{WireframeConfig, cube, draw_line_i32, draw_wireframe};
+//! use camgeom::image::ImageMut;
+//! use camgeom::nalgebra::Vector3;
+//! use camgeom::transform::Pose;
+//!
+//! let mut frame = [0u8; 64 * 64];
+//! let mut img = ImageMut::packed(&mut frame, 64, 64)?;
+//! // A diagonal from far outside to far outside: clipped to the 64 pixels on the frame.
+//! assert_eq!(draw_line_i32(&mut img, -100, -100, 500, 500, 9), 64);
+//! img.fill(0);
+//! // A unit cube 5 units in front of a pinhole camera (f = 100 px, centre (32, 32)): its base
+//! // (depth 5) is the square 32 ± 10, its top (depth 4) the square 32 ± 12.5.
+//! let camera = Camera::pinhole(Intrinsics::new(100.0f32, 100.0, 32.0, 32.0)?);
+//! let pose = Pose::from_rodrigues(Vector3::zeros(), Vector3::new(0.0, 0.0, 5.0))?;
+//! let (vertices, edges) = cube(-0.5, -0.5, 1.0);
+//! draw_wireframe(&mut img, &camera, &pose, &vertices, &edges, &WireframeConfig::default())?;
+//! let on = |x: usize, y: usize| frame[y * 64 + x] == 255;
+//! assert!(on(22, 22) && on(42, 22) && on(42, 42) && on(32, 22) && on(20, 32));
+//! assert!(!on(32, 32) && !on(25, 32)); // inside the base, off every edge
+//! assert!((0..64 * 64).all(|i| !on(i % 64, i / 64) || (19..=45).contains(&(i % 64))));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use nalgebra::{Point2, Point3};
 
