@@ -46,6 +46,30 @@ pub(crate) fn unvec<T: Real>(v: &SVector<T, 9>) -> Matrix3<T> {
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 8 pairs;
 /// [`Error::NonFinite`]; [`Error::Degenerate`] when the system has rank below 8
 /// (`σ₈ ≤ √ε σ₁`: e.g. every point on a plane, or coincident points).
+///
+/// ```
+/// use camgeom::camera::Intrinsics;
+/// use camgeom::nalgebra::{Point2, Point3, Vector3};
+/// use camgeom::twoview::{Essential, RelativePose, eight_point};
+///
+/// let k = Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?;
+/// let (rvec, t) = (Vector3::new(0.1, 0.2, -0.05), Vector3::new(1.0, 0.2, 0.1));
+/// let pose = RelativePose::from_rodrigues(rvec, t)?;
+/// let scene: [Point3<f64>; 12] = core::array::from_fn(|i| {
+///     let f = |m: usize, n: usize| ((i * m) % n) as f64 / n as f64 - 0.5;
+///     Point3::new(3.0 * f(37, 11), 2.0 * f(53, 7), 5.0 + 2.5 * f(29, 13))
+/// });
+/// let pixel = |p: Point3<f64>| k.normalized_to_pixel(&Point2::new(p.x / p.z, p.y / p.z));
+/// let (x1, x2) = (scene.map(pixel), scene.map(|p| pixel(pose.apply(&p))));
+/// // Fitted on the first ten pairs: the other two satisfy x₂ᵀ F x₁ = 0 as well.
+/// let f = eight_point(&x1[..10], &x2[..10])?;
+/// assert!(f.sampson_sq(&x1[11], &x2[11]).is_some_and(|d| d < 1e-12));
+/// // And F is K⁻ᵀ [t]ₓ R K⁻¹ of the true pose (both have unit norm; the sign is free).
+/// let truth = Essential::from_pose(&pose)?.to_fundamental(&k, &k)?;
+/// let (a, b) = (f.matrix(), truth.matrix());
+/// assert!((a - b).amax().min((a + b).amax()) < 1e-6);
+/// # Ok::<(), camgeom::Error>(())
+/// ```
 pub fn eight_point<T: Real>(x1: &[Point2<T>], x2: &[Point2<T>]) -> Result<Fundamental<T>> {
     if x1.len() != x2.len() {
         return Err(Error::LengthMismatch);

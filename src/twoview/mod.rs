@@ -20,6 +20,40 @@
 //!
 //! Lens distortion is not modelled here: pass undistorted pixels
 //! ([`crate::camera::Camera::undistort_pixel`]) or normalised coordinates.
+//!
+//! Relative pose from two synthetic views with outliers, [`find_essential`] then
+//! [`recover_pose`]:
+//!
+//! ```
+//! use camgeom::camera::Intrinsics;
+//! use camgeom::nalgebra::{Point2, Point3, Vector2, Vector3};
+//! use camgeom::ransac::RansacConfig;
+//! use camgeom::twoview::{RelativePose, find_essential, recover_pose};
+//!
+//! let k = Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?;
+//! let (rvec, t) = (Vector3::new(0.05, -0.2, 0.03), Vector3::new(-1.0, 0.1, 0.05));
+//! let truth = RelativePose::from_rodrigues(rvec, t)?;
+//! // 40 scene points 4 to 6.5 units in front of view 1, imaged in both views.
+//! let scene: [Point3<f64>; 40] = core::array::from_fn(|i| {
+//!     let f = |m: usize, n: usize| ((i * m) % n) as f64 / n as f64 - 0.5;
+//!     Point3::new(3.0 * f(37, 11), 2.0 * f(53, 7), 5.0 + 2.5 * f(29, 13))
+//! });
+//! let pixel = |p: Point3<f64>| k.normalized_to_pixel(&Point2::new(p.x / p.z, p.y / p.z));
+//! let x1 = scene.map(pixel);
+//! let mut x2 = scene.map(|p| pixel(truth.apply(&p)));
+//! for q in x2.iter_mut().step_by(5) {
+//!     *q += Vector2::new(25.0, -18.0); // every fifth match is wrong
+//! }
+//! let mut inliers = [false; 40];
+//! let (e, _) = find_essential(&k, &k, &x1, &x2, &RansacConfig::default(), &mut inliers)?;
+//! assert!(inliers.iter().enumerate().all(|(i, &ok)| ok == (i % 5 != 0)));
+//! let r = recover_pose(&e, &k, &k, &x1, &x2, 50.0, &mut inliers)?;
+//! assert_eq!(r.supporting, 32);
+//! // The rotation, and the direction of the translation (its length is not observable).
+//! assert!((r.pose.rotation_vector() - truth.rotation_vector()).norm() < 1e-6);
+//! assert!((r.pose.translation() - truth.translation().normalize()).norm() < 1e-6);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 mod decompose;
 mod essential;
