@@ -15,6 +15,41 @@
 //! The world frame is view 1's camera frame. Observations are raw pixels: lens distortion is
 //! removed for the minimal solvers and modelled by the bundle adjustment. Every buffer lives
 //! in a caller-owned [`SfmWorkspace`] of capacity `N` tracks (e.g. 256).
+//!
+//! ```
+//! use camgeom::camera::{Camera, Intrinsics};
+//! use camgeom::nalgebra::{Point3, Vector3};
+//! use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
+//! use camgeom::transform::Pose;
+//!
+//! let camera = Camera::pinhole(Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?);
+//! // View 1 at the origin, view 2 one unit to its right (the baseline sets the scale), view 3
+//! // further on, all turned a little towards the scene.
+//! let pose = |r: [f64; 3], t: [f64; 3]| Pose::from_rodrigues(r.into(), Vector3::from(t));
+//! let views = [pose([0.0; 3], [0.0; 3])?, pose([0.0, -0.1, 0.02], [-1.0, 0.0, 0.0])?,
+//!     pose([0.05, -0.2, 0.0], [-1.8, 0.3, 0.2])?];
+//! let scene: [Point3<f64>; 40] = core::array::from_fn(|i| {
+//!     let f = |m: usize, n: usize| ((i * m) % n) as f64 / n as f64 - 0.5;
+//!     Point3::new(0.5 + 3.0 * f(37, 11), 2.0 * f(53, 7), 5.0 + 2.5 * f(29, 13))
+//! });
+//! // Every point in every view, except that view 3 misses every seventh.
+//! let tracks: Vec<Track<f64>> = (0..40).map(|i| {
+//!     let see = |v: usize| camera.project(&views[v], &scene[i]).ok();
+//!     [see(0), see(1), if i % 7 == 0 { None } else { see(2) }]
+//! }).collect();
+//! let mut ws = SfmWorkspace::<f64, 64>::new();
+//! let r = reconstruct_three_views(&camera, &tracks, &SfmConfig::default(), &mut ws)?;
+//! assert_eq!(r.points, 40);
+//! // Exact observations: poses and points come back to rounding, in the baseline's unit.
+//! for (rebuilt, truth) in r.poses.iter().zip(&views) {
+//!     assert!((rebuilt.translation() - truth.translation()).norm() < 1e-6);
+//!     assert!((rebuilt.rotation_vector() - truth.rotation_vector()).norm() < 1e-6);
+//! }
+//! for (p, x) in ws.points.iter().zip(&scene) {
+//!     assert!(p.is_some_and(|p| (p - x).norm() < 1e-6));
+//! }
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 mod bundle;
 
