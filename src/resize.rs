@@ -9,6 +9,23 @@
 //! `f = frac(x_s)` quantised to 1/256 — OpenCV's `resize(..., INTER_LINEAR)` up to that
 //! quantisation (±1 grey level). No smoothing first: for reductions by more than about 1.5
 //! use [`crate::pyramid`] instead.
+//!
+//! ```
+//! use camgeom::image::{ImageMut, ImageView};
+//! use camgeom::resize::resize_bilinear;
+//!
+//! // Up 2x: x_s = (x + ½)/2 - ½ = -¼ (clamped to 0), ¼, ¾, 1¼ (clamped to 1).
+//! let src = [0u8, 200, 0, 200];
+//! let mut up = [0u8; 4 * 2];
+//! resize_bilinear(&ImageView::packed(&src, 2, 2)?, &mut ImageMut::packed(&mut up, 4, 2)?)?;
+//! assert_eq!(up, [0, 50, 150, 200, 0, 50, 150, 200]);
+//! // Down 2x of the ramp 10 x: x_s = 2x + ½, so the result is 20 x + 5.
+//! let ramp: [u8; 8] = core::array::from_fn(|x| 10 * x as u8);
+//! let mut down = [0u8; 4];
+//! resize_bilinear(&ImageView::packed(&ramp, 8, 1)?, &mut ImageMut::packed(&mut down, 4, 1)?)?;
+//! assert_eq!(down, [5, 25, 45, 65]);
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result};
