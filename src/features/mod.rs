@@ -20,22 +20,23 @@
 //! use camgeom::heapless::Vec;
 //! use camgeom::image::ImageView;
 //!
-//! // Overlapping grey rectangles (x0, y0, x1, y1, grey), blurred by a 3x3 box.
-//! let rects = [(18, 20, 34, 40, 200), (30, 34, 52, 48, 90), (50, 18, 70, 30, 160),
-//!     (58, 40, 78, 62, 220), (22, 52, 44, 70, 140), (46, 60, 60, 78, 60)];
+//! // `scene(dx, dy)`: a 112x112 frame of overlapping grey rectangles (blurred by a 3x3 box)
+//! // moved by (dx, dy).
+//! # let rects = [(18, 20, 34, 40, 200), (30, 34, 52, 48, 90), (50, 18, 70, 30, 160),
+//! #     (58, 40, 78, 62, 220), (22, 52, 44, 70, 140), (46, 60, 60, 78, 60)];
 //! # let rect = |x: usize, y: usize| -> u32 {
 //! #     let inside = |&&(x0, y0, x1, y1, _): &&(usize, usize, usize, usize, u32)| {
 //! #         (x0..x1).contains(&x) && (y0..y1).contains(&y)
 //! #     };
 //! #     rects.iter().rev().find(inside).map_or(30, |r| r.4)
 //! # };
-//! let scene = |dx: usize, dy: usize| -> [u8; 112 * 112] {
-//!     core::array::from_fn(|i| {
-//!         let (x, y) = ((i % 112).wrapping_sub(dx + 1), (i / 112).wrapping_sub(dy + 1));
-//!         let s: u32 = (0..9).map(|k| rect(x.wrapping_add(k % 3), y.wrapping_add(k / 3))).sum();
-//!         (s / 9) as u8
-//!     })
-//! };
+//! # let scene = |dx: usize, dy: usize| -> [u8; 112 * 112] {
+//! #     core::array::from_fn(|i| {
+//! #         let (x, y) = ((i % 112).wrapping_sub(dx + 1), (i / 112).wrapping_sub(dy + 1));
+//! #         let s: u32 = (0..9).map(|k| rect(x.wrapping_add(k % 3), y.wrapping_add(k / 3))).sum();
+//! #         (s / 9) as u8
+//! #     })
+//! # };
 //! let (a, b) = (scene(0, 0), scene(5, 3));
 //! let cfg = OrbConfig { levels: 1, ..OrbConfig::default() };
 //! let mut scratch = [0u8; orb::scratch_len(112, 112, 307)];
