@@ -27,7 +27,7 @@ pub mod storage;
 
 pub use error::{Error, ErrorKind, Result, describe, status_name};
 pub use intrinsics::{CameraSpec, load_camera};
-pub use storage::{FileStorage, Matrix, read_matrix_text};
+pub use storage::{FileStorage, Matrix, YamlWriter, read_matrix_text};
 
 /// The package root (`host-tests/`), for tests and tools that read the bundled data.
 pub fn package_dir() -> &'static std::path::Path {
