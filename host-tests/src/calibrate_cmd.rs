@@ -40,7 +40,7 @@ pub struct CalibrateArgs {
     images: Vec<PathBuf>,
     /// Inner corners of the board, `COLSxROWS` (OpenCV's pattern size: 9x6 for the usual
     /// 10x7-square board).
-    #[arg(long, value_name = "COLSxROWS")]
+    #[arg(long, value_name = "COLSxROWS", allow_hyphen_values = true)]
     board: String,
     /// Side of a square, in the unit the poses should use (for example 25 for millimetres).
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
