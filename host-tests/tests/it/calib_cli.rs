@@ -231,6 +231,15 @@ fn fisheye_files_hold_four_coefficients_that_opencv_and_the_loader_read() {
     let (lk, ld, fisheye) = loaded(&out);
     assert!(fisheye);
     assert_eq!((lk, ld), (k.clone(), d.clone()));
+    // `camgeom camera` converts it to camgeom's JSON form, which reads back the same camera.
+    let o = camgeom(&["camera", "--intrinsics", &out.display().to_string()]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let as_json = dir.join("fisheye.json");
+    std::fs::write(&as_json, &o.stdout).unwrap();
+    assert_eq!(
+        camgeom_host::load_camera(&as_json).unwrap(),
+        camgeom_host::load_camera(&out).unwrap()
+    );
     let Some(cvf) = opencv_read(&out) else { return };
     assert_eq!(cvf["fisheye_model"], 1);
     // fisheye::CALIB_RECOMPUTE_EXTRINSIC 1 | CALIB_FIX_SKEW 8: camgeom's fisheye calibration.
