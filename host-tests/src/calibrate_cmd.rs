@@ -161,9 +161,6 @@ fn opencv_flags(cfg: &CalibrationConfig) -> (i64, String) {
             set(f.fix_k4, 128, "+fix_k4");
             set(f.fix_principal_point, 512, "+fix_principal_point");
         }
-        // `LensKind` is the core's; a model added there gets no flags here.
-        #[allow(unreachable_patterns)]
-        _ => {}
     }
     (word, format!("flags: {}", names.join(" ")))
 }
@@ -227,8 +224,6 @@ fn warning_name(w: &CalibrationWarning) -> &'static str {
         CalibrationWarning::FocalLengthUnconstrained => "focal_length_unconstrained",
         CalibrationWarning::PrincipalPointUnconstrained => "principal_point_unconstrained",
         CalibrationWarning::DistortionUnconstrained => "distortion_unconstrained",
-        #[allow(unreachable_patterns)]
-        _ => "unconstrained_parameter",
     }
 }
 
@@ -270,48 +265,9 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
 
     let bar = progress_bar(a.images.len() as u64);
     bar.set_message("detecting");
-    let mut det = Box::new(ChessboardDetector::<CANDIDATES>::new());
-    let detect_cfg = DetectConfig::default();
-    let mut views: Vec<View> = Vec::with_capacity(a.images.len());
-    for path in &a.images {
-        let image = load_gray(path)?;
-        if let Some(first) = views.first()
-            && (first.image.width, first.image.height) != (image.width, image.height)
-        {
-            bar.finish_and_clear();
-            return Err(Error::new(
-                path,
-                ErrorKind::Shape(format!(
-                    "image is {}x{} but {} is {}x{}: calibrate images of one camera mode only",
-                    image.width,
-                    image.height,
-                    file_name(&first.path),
-                    first.image.width,
-                    first.image.height
-                )),
-            ));
-        }
-        let view = image
-            .view()
-            .ok_or_else(|| Error::new(path, ErrorKind::Shape("image size not supported".into())))?;
-        let mut scratch = vec![0i32; scratch_len(image.width)];
-        let corners = det
-            .detect::<MAX_CORNERS>(&view, board, &detect_cfg, &mut scratch)
-            .map_err(|e| {
-                bar.finish_and_clear();
-                Error::camgeom(
-                    format!("{}: chessboard detection failed", path.display()),
-                    e,
-                )
-            })?;
-        views.push(View {
-            path: path.clone(),
-            image,
-            corners,
-        });
-        bar.inc(1);
-    }
+    let views = detect_all(&a.images, board, &bar);
     bar.finish_and_clear();
+    let views = views?;
 
     let board_text = format!("{}x{}", board.cols(), board.rows());
     let found: Vec<&View> = views.iter().filter(|v| v.corners.is_some()).collect();
@@ -446,6 +402,55 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
         contact_sheet: sheet_path.display().to_string(),
         error_chart: chart_path.display().to_string(),
     }))
+}
+
+/// Reads every image and looks for the board in it, advancing `bar` by one an image. Errors
+/// for an unreadable image, one of another size than the first, or a detector error.
+fn detect_all(
+    images: &[PathBuf],
+    board: BoardSize,
+    bar: &indicatif::ProgressBar,
+) -> Result<Vec<View>> {
+    let mut det = Box::new(ChessboardDetector::<CANDIDATES>::new());
+    let detect_cfg = DetectConfig::default();
+    let mut views: Vec<View> = Vec::with_capacity(images.len());
+    for path in images {
+        let image = load_gray(path)?;
+        if let Some(first) = views.first()
+            && (first.image.width, first.image.height) != (image.width, image.height)
+        {
+            return Err(Error::new(
+                path,
+                ErrorKind::Shape(format!(
+                    "image is {}x{} but {} is {}x{}: calibrate images of one camera mode only",
+                    image.width,
+                    image.height,
+                    file_name(&first.path),
+                    first.image.width,
+                    first.image.height
+                )),
+            ));
+        }
+        let view = image
+            .view()
+            .ok_or_else(|| Error::new(path, ErrorKind::Shape("image size not supported".into())))?;
+        let mut scratch = vec![0i32; scratch_len(image.width)];
+        let corners = det
+            .detect::<MAX_CORNERS>(&view, board, &detect_cfg, &mut scratch)
+            .map_err(|e| {
+                Error::camgeom(
+                    format!("{}: chessboard detection failed", path.display()),
+                    e,
+                )
+            })?;
+        views.push(View {
+            path: path.clone(),
+            image,
+            corners,
+        });
+        bar.inc(1);
+    }
+    Ok(views)
 }
 
 /// The camera file as OpenCV's calibration sample (`samples/cpp/calibration.cpp`) writes it,
