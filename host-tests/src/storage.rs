@@ -1122,4 +1122,40 @@ mod tests {
         assert!(parse_matrix_text("1 x\n", "h.txt").is_err());
         assert!(parse_matrix_text("\n", "h.txt").is_err());
     }
+
+    #[test]
+    fn doubles_are_written_as_opencv_writes_them() {
+        // OpenCV's "%.16e" with integral values as "1." (left_intrinsics.yml has both forms).
+        assert_eq!(format_double(535.915_733_961_632), "5.3591573396163199e+02");
+        assert_eq!(
+            format_double(-2.812_210_044_111_547e-4),
+            "-2.8122100441115472e-04"
+        );
+        assert_eq!(format_double(0.0), "0.");
+        assert_eq!(format_double(1.0), "1.");
+        assert_eq!(format_double(-2.0), "-2.");
+        assert_eq!(format_double(f64::NAN), ".Nan");
+        assert_eq!(format_double(f64::NEG_INFINITY), "-.Inf");
+        assert_eq!(format_double(1e300), "1.0000000000000001e+300");
+    }
+
+    #[test]
+    fn written_yaml_reads_back_exactly() {
+        let data = [0.1, 1.0 / 3.0, -7.25e-9, 1e22, 5.0e-324, 2.0];
+        let mut w = YamlWriter::new();
+        w.int("n", -3)
+            .real("r", std::f64::consts::PI)
+            .comment("flags: +x")
+            .string("s", "a \"b\" \\ c")
+            .matrix("m", 2, 3, &data);
+        let text = w.finish();
+        assert!(text.starts_with("%YAML:1.0\n---\n"), "{text}");
+        let fs = FileStorage::parse_yaml(&text, "w.yml").unwrap();
+        assert_eq!(fs.number("r").unwrap(), Some(std::f64::consts::PI));
+        assert_eq!(fs.get("n").unwrap().as_f64(), Some(-3.0));
+        assert_eq!(fs.get("s").unwrap().as_scalar(), Some("a \"b\" \\ c"));
+        let m = fs.matrix("m").unwrap();
+        assert_eq!((m.rows, m.cols), (2, 3));
+        assert_eq!(m.data, data);
+    }
 }

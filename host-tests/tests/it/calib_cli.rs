@@ -585,3 +585,44 @@ fn undistort_rejects_bad_input_and_writes_nothing() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn fisheye_camera_files_are_checked() {
+    use camgeom_host::intrinsics::{camera_from_json, camera_from_storage};
+    let yaml = |model: &str, coeffs: &str| {
+        format!(
+            "%YAML:1.0\n---\nfisheye_model: {model}\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 300., 0., 320., 0., 300., 240., 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: {}\n   cols: 1\n   dt: d\n   data: [ {coeffs} ]\n",
+            coeffs.split(',').count()
+        )
+    };
+    let load = |text: &str| {
+        camera_from_storage(&camgeom_host::FileStorage::parse_yaml(text, "f.yml").unwrap())
+    };
+    // fisheye_model 1 with 4 coefficients: a Kannala-Brandt camera with them, in order.
+    let spec = load(&yaml("1", "0.1, -0.02, 0.003, -0.0004")).unwrap();
+    match spec.camera.model {
+        LensModel::KannalaBrandt(f) => assert_eq!(f.to_opencv(), [0.1, -0.02, 0.003, -0.0004]),
+        LensModel::BrownConrady => panic!("not a fisheye"),
+    }
+    // 0 (or absent): Brown-Conrady, 4 coefficients mean k3 = 0.
+    let spec = load(&yaml("0", "0.1, -0.02, 0.003, -0.0004")).unwrap();
+    assert_eq!(
+        spec.camera.distortion.to_opencv(),
+        [0.1, -0.02, 0.003, -0.0004, 0.0]
+    );
+    // A fisheye needs exactly 4; the flag must be 0 or 1.
+    let e = load(&yaml("1", "0.1, 0.2, 0.3, 0.4, 0.5")).unwrap_err();
+    assert!(e.to_string().contains("a fisheye camera has 4"), "{e}");
+    let e = load(&yaml("2", "0.1, 0.2, 0.3, 0.4")).unwrap_err();
+    assert!(
+        e.to_string().contains("`fisheye_model` must be 0 or 1"),
+        "{e}"
+    );
+    // camgeom's JSON: `fisheye` and `distortion` exclude each other.
+    let e = camera_from_json(
+        r#"{"fx": 300, "fy": 300, "cx": 320, "cy": 240, "distortion": [0.1, 0, 0, 0], "fisheye": [0.1, 0, 0, 0]}"#,
+        "f.json",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("exclude each other"), "{e}");
+}
