@@ -626,3 +626,41 @@ fn fisheye_camera_files_are_checked() {
     .unwrap_err();
     assert!(e.to_string().contains("exclude each other"), "{e}");
 }
+
+#[test]
+fn views_without_the_board_are_listed_and_left_out() {
+    let dir = scratch_dir("calibreject");
+    let blank = dir.join("blank.png");
+    save_gray(&GrayImage::filled(640, 480, 128), &blank).unwrap();
+    let mut images = bundled_views();
+    images.insert(2, blank.display().to_string());
+    let pictures = dir.join("pictures");
+    let out = dir.join("camera.yml");
+    let o = run_calibrate(
+        &images,
+        &["--pictures", &pictures.display().to_string()],
+        &out,
+    );
+    let j = json(&o);
+    assert_eq!(j["views_used"], 13);
+    assert_eq!(j["views_rejected"], serde_json::json!(["blank.png"]));
+    let used = j["images_used"].as_array().unwrap();
+    assert_eq!(used.len(), 13);
+    assert!(!used.contains(&"blank.png".into()));
+    assert_eq!(floats(&j["per_view_rms"]).len(), 13);
+    // One note on stderr for the view left out.
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("blank.png: no 9x6 board found, view not used"),
+        "{err}"
+    );
+    // The pictures go to --pictures: 14 tiles (4 rows of 4 columns), 13 bars.
+    let sheet = load_gray(pictures.join("camera_corners.png")).unwrap();
+    assert_eq!(
+        (sheet.width, sheet.height),
+        (4 * 320 + 5 * 2, 4 * 240 + 5 * 2)
+    );
+    assert!(pictures.join("camera_reprojection_errors.png").exists());
+    assert!(!dir.join("camera_corners.png").exists());
+    assert!(out.exists());
+}
