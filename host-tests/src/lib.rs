@@ -3,7 +3,7 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`storage`] | OpenCV `FileStorage` files (YAML via saphyr-parser, XML via roxmltree) as a tree and matrices, plain-text matrices |
+//! | [`storage`] | OpenCV `FileStorage` files (YAML via saphyr-parser, XML via roxmltree) as a tree and matrices, plain-text matrices; [`storage::YamlWriter`] writes OpenCV YAML (`calibrate`) |
 //! | [`intrinsics`] | camera files (OpenCV calibration YAML/XML, camgeom JSON/TOML) to a [`intrinsics::CameraSpec`] |
 //! | [`points`] | point lists as CSV, the CLI's number formatting |
 //! | [`images`] | grayscale PNG/JPEG images to and from camgeom views |

@@ -22,6 +22,9 @@
 //! [`FileStorage::matrix`] turns an `opencv-matrix` node into a [`Matrix`], checking that `data`
 //! holds `rows * cols * channels` numbers. Every error names the file and the line.
 //!
+//! [`YamlWriter`] writes the other way: OpenCV's YAML layout, for camera files OpenCV reads
+//! (`camgeom calibrate`).
+//!
 //! [saphyr-parser]: https://docs.rs/saphyr-parser
 //! [roxmltree]: https://docs.rs/roxmltree
 
