@@ -201,7 +201,8 @@ impl RgbImage {
         })
     }
 
-    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+    /// Sets pixel `(x, y)` to `c`; nothing outside the image.
+    pub fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
         if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
             let i = 3 * (y as usize * self.width + x as usize);
             self.data[i..i + 3].copy_from_slice(&c);
@@ -210,7 +211,7 @@ impl RgbImage {
 
     /// Paints `colour` where `mask` is set, with a dark one-pixel halo around it so thin lines
     /// read on any background.
-    fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
+    pub fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
         let (w, h) = (self.width as i64, self.height as i64);
         let on = |x: i64, y: i64| {
             x >= 0 && y >= 0 && x < w && y < h && mask.at(x as usize, y as usize) != 0
@@ -233,6 +234,37 @@ impl RgbImage {
             for x in 0..w {
                 if on(x, y) {
                     self.put(x, y, colour);
+                }
+            }
+        }
+    }
+}
+
+impl RgbImage {
+    /// Writes `text` (digits and `.`; other characters are skipped) in white 3x5 digits at 2x
+    /// on a black box whose top-left corner is `(x, y)`, clipped to `max_w x max_h`.
+    pub fn label(&mut self, x: usize, y: usize, text: &str, max_w: usize, max_h: usize) {
+        let (lw, lh) = (text.len() * 8 + 2, 14);
+        for dy in 0..lh.min(max_h) {
+            for dx in 0..lw.min(max_w) {
+                self.put((x + dx) as i64, (y + dy) as i64, [0, 0, 0]);
+            }
+        }
+        for (i, ch) in text.bytes().enumerate() {
+            let glyph = match ch {
+                b'0'..=b'9' => DIGITS[usize::from(ch - b'0')],
+                b'.' => [0, 0, 0, 0, 2],
+                _ => continue,
+            };
+            for (r, bits) in glyph.iter().enumerate() {
+                for c in 0..3 {
+                    if bits & (4 >> c) != 0 {
+                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                            let px = x + 2 + i * 8 + c * 2 + sx;
+                            let py = y + 2 + r * 2 + sy;
+                            self.put(px as i64, py as i64, [255, 255, 255]);
+                        }
+                    }
                 }
             }
         }
@@ -377,28 +409,7 @@ pub fn contact_sheet(tiles: &[(usize, RgbImage)], cols: usize, factor: usize) ->
                 sheet.put((ox + x) as i64, (oy + y) as i64, c);
             }
         }
-        // The label: white 3x5 digits at 2x, on a black box.
-        let text = label.to_string();
-        let (lw, lh) = (text.len() * 8 + 2, 14);
-        for y in 0..lh.min(th) {
-            for x in 0..lw.min(tw) {
-                sheet.put((ox + x) as i64, (oy + y) as i64, [0, 0, 0]);
-            }
-        }
-        for (i, ch) in text.bytes().enumerate() {
-            let d = DIGITS[usize::from(ch - b'0')];
-            for (r, bits) in d.iter().enumerate() {
-                for c in 0..3 {
-                    if bits & (4 >> c) != 0 {
-                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                            let x = ox + 2 + i * 8 + c * 2 + sx;
-                            let y = oy + 2 + r * 2 + sy;
-                            sheet.put(x as i64, y as i64, [255, 255, 255]);
-                        }
-                    }
-                }
-            }
-        }
+        sheet.label(ox, oy, &label.to_string(), tw, th);
     }
     sheet
 }

@@ -15,10 +15,15 @@
 //! they are; OpenCV's 8-, 12- and 14-coefficient forms (rational `k4..k6`, thin prism `s1..s4`,
 //! tilt `tx, ty`) are accepted only when every coefficient past the fifth is zero, because
 //! camgeom models only `k1 k2 p1 p2 k3`.
+//!
+//! Fisheye (Kannala-Brandt, OpenCV's `cv::fisheye`) cameras: an OpenCV file with
+//! `fisheye_model: 1` (as OpenCV's calibration tutorial and `camgeom calibrate --fisheye`
+//! write it) holds the 4 coefficients `k1 k2 k3 k4` in `distortion_coefficients`; camgeom's
+//! form gives them as `"fisheye": [k1, k2, k3, k4]` (and no `distortion`).
 
 use std::path::Path;
 
-use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, LensModel};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, ErrorKind, Result};
@@ -40,16 +45,22 @@ impl CameraSpec {
         self.camera.cast()
     }
 
-    /// camgeom's JSON/TOML form of this camera (all five distortion coefficients written).
+    /// camgeom's JSON/TOML form of this camera (all five distortion coefficients written, or
+    /// the four fisheye coefficients for a fisheye camera).
     pub fn to_file(&self) -> CameraFile {
         let k = &self.camera.intrinsics;
+        let (distortion, fisheye) = match &self.camera.model {
+            LensModel::KannalaBrandt(f) => (Vec::new(), f.to_opencv().to_vec()),
+            LensModel::BrownConrady => (self.camera.distortion.to_opencv().to_vec(), Vec::new()),
+        };
         CameraFile {
             fx: k.fx(),
             fy: k.fy(),
             cx: k.cx(),
             cy: k.cy(),
             skew: k.skew(),
-            distortion: self.camera.distortion.to_opencv().to_vec(),
+            distortion,
+            fisheye,
             width: self.image_size.map(|s| s.0),
             height: self.image_size.map(|s| s.1),
         }
@@ -85,6 +96,9 @@ pub struct CameraFile {
     /// OpenCV-order distortion coefficients (`k1 k2 p1 p2 [k3 ...]`); empty for none.
     #[serde(default)]
     pub distortion: Vec<f64>,
+    /// Fisheye (Kannala-Brandt) coefficients `k1 k2 k3 k4`; empty for a Brown-Conrady camera.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub fisheye: Vec<f64>,
     /// Image width, pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub width: Option<u32>,
@@ -98,11 +112,28 @@ impl CameraFile {
     pub fn to_spec(&self, path: &Path) -> Result<CameraSpec> {
         let intrinsics = Intrinsics::with_skew(self.fx, self.fy, self.cx, self.cy, self.skew)
             .map_err(|e| Error::new(path, ErrorKind::Camera(e)))?;
-        let distortion = if self.distortion.is_empty() {
-            Distortion::none()
+        let camera = if !self.fisheye.is_empty() {
+            if !self.distortion.is_empty() {
+                return Err(Error::new(
+                    path,
+                    ErrorKind::Shape(
+                        "`distortion` and `fisheye` exclude each other (one lens model)".into(),
+                    ),
+                ));
+            }
+            Camera::fisheye(
+                intrinsics,
+                fisheye_from_coefficients(&self.fisheye, "fisheye")
+                    .map_err(|k| Error::new(path, k))?,
+            )
+        } else if self.distortion.is_empty() {
+            Camera::new(intrinsics, Distortion::none())
         } else {
-            distortion_from_coefficients(&self.distortion, "distortion")
-                .map_err(|k| Error::new(path, k))?
+            Camera::new(
+                intrinsics,
+                distortion_from_coefficients(&self.distortion, "distortion")
+                    .map_err(|k| Error::new(path, k))?,
+            )
         };
         let image_size = match (self.width, self.height) {
             (Some(w), Some(h)) => Some((w, h)),
@@ -122,11 +153,23 @@ impl CameraFile {
                 ));
             }
         };
-        Ok(CameraSpec {
-            camera: Camera::new(intrinsics, distortion),
-            image_size,
-        })
+        Ok(CameraSpec { camera, image_size })
     }
+}
+
+/// Builds a fisheye lens from OpenCV's 4 coefficients `k1 k2 k3 k4`. `name` is used in
+/// messages.
+pub fn fisheye_from_coefficients(
+    c: &[f64],
+    name: &str,
+) -> std::result::Result<Fisheye<f64>, ErrorKind> {
+    let four: [f64; 4] = c.try_into().map_err(|_| {
+        ErrorKind::Shape(format!(
+            "`{name}` has {} coefficients; a fisheye camera has 4 (k1 k2 k3 k4)",
+            c.len()
+        ))
+    })?;
+    Fisheye::from_opencv(four).map_err(ErrorKind::Camera)
 }
 
 /// Builds camgeom's distortion from OpenCV-order coefficients (see the module docs for the
@@ -189,7 +232,8 @@ pub fn load_camera(path: impl AsRef<Path>) -> Result<CameraSpec> {
 }
 
 /// The camera of an OpenCV calibration file: `camera_matrix` (3x3) and `distortion_coefficients`
-/// (4, 5, 8, 12 or 14 values) are required, `image_width`/`image_height` optional.
+/// (4, 5, 8, 12 or 14 values; 4 fisheye coefficients with `fisheye_model: 1`) are required,
+/// `image_width`/`image_height` optional.
 pub fn camera_from_storage(fs: &FileStorage) -> Result<CameraSpec> {
     let path = fs.path();
     let (k_key, k_node) = fs
@@ -229,8 +273,25 @@ pub fn camera_from_storage(fs: &FileStorage) -> Result<CameraSpec> {
             )),
         ));
     }
-    let distortion = distortion_from_coefficients(&d.data, d_key)
-        .map_err(|kind| Error::at_line(path, d_node.line, kind))?;
+    // OpenCV's calibration tutorial writes `fisheye_model: 0|1`.
+    let camera = match fs.integer("fisheye_model")? {
+        None | Some(0) => Camera::new(
+            intrinsics,
+            distortion_from_coefficients(&d.data, d_key)
+                .map_err(|kind| Error::at_line(path, d_node.line, kind))?,
+        ),
+        Some(1) => Camera::fisheye(
+            intrinsics,
+            fisheye_from_coefficients(&d.data, d_key)
+                .map_err(|kind| Error::at_line(path, d_node.line, kind))?,
+        ),
+        Some(v) => {
+            return Err(Error::new(
+                path,
+                ErrorKind::Syntax(format!("`fisheye_model` must be 0 or 1, found {v}")),
+            ));
+        }
+    };
 
     let dim = |key: &str| -> Result<Option<u32>> {
         match fs.integer(key)? {
@@ -244,10 +305,7 @@ pub fn camera_from_storage(fs: &FileStorage) -> Result<CameraSpec> {
         (Some(w), Some(h)) => Some((w, h)),
         _ => None,
     };
-    Ok(CameraSpec {
-        camera: Camera::new(intrinsics, distortion),
-        image_size,
-    })
+    Ok(CameraSpec { camera, image_size })
 }
 
 /// Parses camgeom's JSON camera; `path` is only used in messages.

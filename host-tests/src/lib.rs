@@ -3,7 +3,7 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`storage`] | OpenCV `FileStorage` files (YAML via saphyr-parser, XML via roxmltree) as a tree and matrices, plain-text matrices |
+//! | [`storage`] | OpenCV `FileStorage` files (YAML via saphyr-parser, XML via roxmltree) as a tree and matrices, plain-text matrices; [`storage::YamlWriter`] writes OpenCV YAML (`calibrate`) |
 //! | [`intrinsics`] | camera files (OpenCV calibration YAML/XML, camgeom JSON/TOML) to a [`intrinsics::CameraSpec`] |
 //! | [`points`] | point lists as CSV, the CLI's number formatting |
 //! | [`images`] | grayscale PNG/JPEG images to and from camgeom views |
@@ -27,7 +27,7 @@ pub mod storage;
 
 pub use error::{Error, ErrorKind, Result, describe, status_name};
 pub use intrinsics::{CameraSpec, load_camera};
-pub use storage::{FileStorage, Matrix, read_matrix_text};
+pub use storage::{FileStorage, Matrix, YamlWriter, read_matrix_text};
 
 /// The package root (`host-tests/`), for tests and tools that read the bundled data.
 pub fn package_dir() -> &'static std::path::Path {

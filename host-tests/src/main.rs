@@ -23,11 +23,13 @@ use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
 mod ar_cmd;
+mod calibrate_cmd;
 mod homography_cmd;
 mod klt_cmd;
 mod pose_cmd;
 mod sfm_cmd;
 mod twoview_cmd;
+mod undistort_cmd;
 mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
@@ -107,6 +109,20 @@ enum Command {
     /// Writes DIR/points.ply (points, then the camera centres in red, green, blue) and
     /// DIR/plot.png (top-down and side views) and prints a JSON summary.
     Sfm(sfm_cmd::SfmArgs),
+    /// Calibrate a camera from images of a chessboard (OpenCV's findChessboardCorners +
+    /// calibrateCamera, or fisheye::calibrate with --fisheye).
+    ///
+    /// Writes the camera to --out as OpenCV FileStorage YAML (as OpenCV's calibration sample
+    /// does), a contact sheet of the detected corners and a bar chart of the per-view
+    /// reprojection errors (PNG, next to --out or in --pictures), and prints a JSON summary
+    /// `{"views_used", "views_rejected", "rms_px", "K", "distortion", "std", "per_view_rms",
+    /// "warnings", ..}`. Progress bar on stderr.
+    Calibrate(calibrate_cmd::CalibrateArgs),
+    /// Remove the lens distortion from an image (OpenCV's getOptimalNewCameraMatrix,
+    /// initUndistortRectifyMap and remap; fisheye cameras: estimateNewCameraMatrixForUndistortRectify).
+    ///
+    /// Writes the image to --out and prints JSON `{"new_camera_matrix": [9], ..}`.
+    Undistort(undistort_cmd::UndistortArgs),
 }
 
 /// The camera file option shared by every subcommand that needs a camera.
@@ -241,6 +257,8 @@ fn run(command: &Command) -> Result<String> {
         Command::Ar(a) => ar_cmd::run(a),
         Command::Twoview(a) => twoview_cmd::run(a),
         Command::Sfm(a) => sfm_cmd::run(a),
+        Command::Calibrate(a) => calibrate_cmd::run(a),
+        Command::Undistort(a) => undistort_cmd::run(a),
     }
 }
 

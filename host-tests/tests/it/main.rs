@@ -5,6 +5,7 @@
 mod apriltag;
 mod ar_box;
 mod calib_chessboard;
+mod calib_cli;
 mod calib_real;
 mod calib_rendered;
 mod calib_synthetic;
