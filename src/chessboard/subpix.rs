@@ -38,7 +38,8 @@ pub struct SubPixConfig {
 }
 
 impl Default for SubPixConfig {
-    /// OpenCV's calibration sample: 11x11, 30 iterations, 0.001.
+    /// Half side 5 (OpenCV's `winSize = (5, 5)`, an 11x11 window), 30 iterations, 0.001.
+    /// (OpenCV's calibration sample uses `(11, 11)`, a 23x23 window: half side 11.)
     fn default() -> Self {
         Self {
             half_window: 5,

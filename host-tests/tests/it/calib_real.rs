@@ -115,11 +115,13 @@ fn own_corners_reach_opencvs_rms() {
     println!("own corners f64: {}", summary(&r));
     let cv = opencv_json()["subpix5"]["rms"].as_f64().unwrap();
     assert!(r.rms_px <= cv, "{} vs OpenCV {cv}", r.rms_px);
-    // OpenCV's calibration sample refines with 11x11: on left02 that window reaches over the
-    // thin last row of squares and pulls six corners off (OpenCV's RMS doubles). camgeom with
-    // the same fixed window, and with its adaptive window.
+    // OpenCV's calibration sample refines with winSize (11, 11), a 23x23 window: on left02 it
+    // reaches over the thin last row of squares and pulls corners off the grid (the RMS
+    // doubles). camgeom with the same fixed window, and its adaptive window (capped at the
+    // same half side), are pulled the same way: their RMS is OpenCV's to 1 % (0.4066 vs
+    // 0.4087). The assertion is that they are no worse; the saddle fit below is the way out.
     let sp11 = SubPixConfig {
-        half_window: 5,
+        half_window: 11,
         max_iterations: 30,
         epsilon: 0.001,
     };
@@ -135,7 +137,7 @@ fn own_corners_reach_opencvs_rms() {
     let ra = calibrate::<f64>(&views, &CalibrationConfig::default());
     let cv11 = opencv_json()["subpix11"]["rms"].as_f64().unwrap();
     println!(
-        "11x11: camgeom rms {:.4}, adaptive (<= 11x11) {:.4}, OpenCV {cv11:.4}",
+        "winSize (11, 11): camgeom rms {:.4}, adaptive {:.4}, OpenCV {cv11:.4}",
         r11.rms_px, ra.rms_px
     );
     assert!(r11.rms_px <= cv11 && ra.rms_px <= cv11);
