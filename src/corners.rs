@@ -241,6 +241,14 @@ fn stronger(a: &Corner, b: &Corner) -> core::cmp::Ordering {
     b.score.cmp(&a.score).then((b.y, b.x).cmp(&(a.y, a.x)))
 }
 
+/// `v.swap(i, j)` when both are indices of `v`, else nothing: the same for indices known to be
+/// in range, without the bounds check's panic path where the optimiser cannot prove it.
+pub(crate) fn swap_checked<T>(v: &mut [T], i: usize, j: usize) {
+    if i < v.len() && j < v.len() {
+        v.swap(i, j);
+    }
+}
+
 /// Sorts `v` ascending in `order` by heapsort: `O(n log n)`, in place, and without the panic
 /// path of `sort_unstable_by` (core's sorts panic on a comparator that is not a total order,
 /// which the optimiser cannot rule out; `stronger` is one, so the result is the same).
@@ -249,11 +257,7 @@ pub(crate) fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::O
         (Some(a), Some(b)) => order(a, b) == core::cmp::Ordering::Less,
         _ => false,
     };
-    let swap = |v: &mut [T], i: usize, j: usize| {
-        if i < v.len() && j < v.len() {
-            v.swap(i, j);
-        }
-    };
+    let swap = swap_checked::<T>;
     let (mut start, mut end) = (v.len() / 2, v.len());
     loop {
         // Build the max-heap (start > 0), then move its top behind the shrinking heap.

@@ -145,7 +145,7 @@ pub fn remap(
     let map = map
         .get(..map_len(w, h))
         .ok_or(Error::BufferTooSmall("map"))?;
-    for (y, mrow) in map.chunks_exact(w).enumerate() {
+    for (y, mrow) in map.chunks_exact(w.max(1)).enumerate() {
         let Some(row) = dst.row_mut(y) else { break };
         for (o, m) in row.iter_mut().zip(mrow) {
             *o = if *m == INVALID {

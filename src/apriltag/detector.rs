@@ -428,7 +428,7 @@ impl Detector {
             max_nmaxima: usize::from(self.cfg.max_nmaxima),
             max_line_fit_mse: self.cfg.max_line_fit_mse,
             cos_critical: self.cos_critical,
-            min_tag_width: (min_width / d as u32).max(3),
+            min_tag_width: (min_width / (d as u32).max(1)).max(3),
             normal_border: normal,
             reversed_border: reversed,
             min_edge_gradient: u32::from(self.cfg.min_edge_gradient),

@@ -136,7 +136,7 @@ pub(crate) fn build_tiles<'t>(
                     }
                 }
             } else {
-                let mut it = row.iter().step_by(src.d);
+                let mut it = row.iter().step_by(src.d.max(1));
                 for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
                     for _ in 0..TILE {
                         if let Some(&v) = it.next() {
@@ -244,7 +244,7 @@ pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut
             step(v, last, &mut x, &mut n);
         }
     } else {
-        for (i, &v) in row.iter().step_by(src.d).take(w).enumerate() {
+        for (i, &v) in row.iter().step_by(src.d.max(1)).take(w).enumerate() {
             step(
                 v,
                 trow.get(i / TILE).copied().unwrap_or(last),

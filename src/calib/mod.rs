@@ -357,8 +357,9 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     /// Board corner `k` in squares, `(i, j, 0)`.
     fn board_point(&self, k: usize) -> Point3<T> {
         Point3::new(
-            T::lit((k % self.cols) as f64),
-            T::lit((k / self.cols) as f64),
+            // `max(1)`: `BoardSize` has at least one column, but the optimiser cannot see it.
+            T::lit((k % self.cols.max(1)) as f64),
+            T::lit((k / self.cols.max(1)) as f64),
             T::zero(),
         )
     }

@@ -773,7 +773,7 @@ fn refine_adaptive(
     let mut windows = [0u8; 4096];
     for (k, w) in windows.iter_mut().enumerate().take(n) {
         let p = corners.get(k).copied().unwrap_or(Point2::origin());
-        let (i, j) = (k % cols, k / cols);
+        let (i, j) = (k % cols.max(1), k / cols.max(1));
         let mut d = f32::MAX;
         let mut near = |q: Option<&Point2<f32>>| {
             if let Some(q) = q {
@@ -792,7 +792,9 @@ fn refine_adaptive(
         near(corners.get(k + cols));
         // `max` then `min`: `clamp` would panic for a half window below 2.
         let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
-        *w = (fit as u8).clamp(1, sp.half_window);
+        // As `clamp(1, half_window)` for the validated `half_window >= 1`, without its
+        // assertion.
+        *w = (fit as u8).max(1).min(sp.half_window);
     }
     for (c, w) in corners.iter_mut().zip(windows.iter()) {
         let cfg = SubPixConfig {

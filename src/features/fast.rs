@@ -178,8 +178,10 @@ pub fn fast_detect(
     }
     let t = config.threshold;
     let (x0, x1) = (b, w - b);
-    let (s0, rest) = scratch.split_at_mut(w);
-    let (s1, rest) = rest.split_at_mut(w);
+    // Checked splits: the length check above covers them, but the optimiser cannot see it.
+    let too_small = Error::BufferTooSmall("scratch");
+    let (s0, rest) = scratch.split_at_mut_checked(w).ok_or(too_small)?;
+    let (s1, rest) = rest.split_at_mut_checked(w).ok_or(too_small)?;
     let s2 = rest.get_mut(..w).ok_or(Error::BufferTooSmall("scratch"))?;
     let mut bufs: [&mut [u8]; 3] = [s0, s1, s2];
     for buf in bufs.iter_mut() {

@@ -90,7 +90,9 @@ pub(crate) fn offer_best<T: Copy>(
         while i > 0 {
             let parent = (i - 1) / 2;
             match (heap.get(parent), heap.get(i)) {
-                (Some(p), Some(c)) if key(c) < key(p) => heap.swap(parent, i),
+                (Some(p), Some(c)) if key(c) < key(p) => {
+                    crate::corners::swap_checked(heap, parent, i)
+                }
                 _ => break,
             }
             i = parent;
@@ -104,8 +106,8 @@ pub(crate) fn offer_best<T: Copy>(
     if let Some(root) = heap.first_mut() {
         *root = item;
     }
-    // Sift down.
-    let n = *len;
+    // Sift down (`min`: `len <= heap.len()`, which the optimiser cannot see).
+    let n = (*len).min(heap.len());
     let mut i = 0;
     loop {
         let (l, r) = (2 * i + 1, 2 * i + 2);
@@ -120,7 +122,7 @@ pub(crate) fn offer_best<T: Copy>(
         if smallest == i {
             break;
         }
-        heap.swap(i, smallest);
+        crate::corners::swap_checked(heap, i, smallest);
         i = smallest;
     }
 }

@@ -278,9 +278,11 @@ pub fn orb_detect<const N: usize>(
     let gauss = q == 512;
     let (w1, h1) = level_size(w, h, q, 1);
     let (w2, h2) = level_size(w, h, q, 2);
-    let (buf_odd, rest) = scratch.split_at_mut(w1 * h1);
-    let (buf_even, rest) = rest.split_at_mut(w2 * h2);
-    let (blur_buf, fast_buf) = rest.split_at_mut(w * h);
+    // Checked splits: the length check above covers them, but the optimiser cannot see it.
+    let too_small = Error::BufferTooSmall("scratch");
+    let (buf_odd, rest) = scratch.split_at_mut_checked(w1 * h1).ok_or(too_small)?;
+    let (buf_even, rest) = rest.split_at_mut_checked(w2 * h2).ok_or(too_small)?;
+    let (blur_buf, fast_buf) = rest.split_at_mut_checked(w * h).ok_or(too_small)?;
     let fast_config = FastConfig {
         threshold: config.fast_threshold,
         nonmax: true,
@@ -383,7 +385,9 @@ pub fn orb_detect<const N: usize>(
             f.keypoint.y = map.ay * f.keypoint.y + map.by;
         }
     }
-    out.sort_unstable_by_key(|f| core::cmp::Reverse(f.keypoint.response));
+    // Strongest first; heapsort: core's sorts keep a panic path for comparators that are not
+    // total orders, which the optimiser cannot rule out.
+    crate::corners::heapsort_by(out, |a, b| b.keypoint.response.cmp(&a.keypoint.response));
     Ok(())
 }
 
@@ -457,7 +461,9 @@ pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()>
         for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
             let first = (tile * TILE) as isize - 3;
             for (k, v) in vs.iter_mut().take(out_tile.len() + 6).enumerate() {
-                let col = (first + k as isize).clamp(0, w as isize - 1) as usize;
+                // `max` then `min`: `clamp` asserts `0 <= w - 1`, which the optimiser cannot
+                // see (a view is never empty).
+                let col = (first + k as isize).max(0).min(w as isize - 1) as usize;
                 let s: u32 = rows
                     .iter()
                     .zip(BLUR)

@@ -205,7 +205,10 @@ where
         return Err(Error::Degenerate);
     }
     let hn = hn / hn.m33;
-    let start = SVector::<T, 8>::from_iterator(hn.transpose().iter().copied().take(8));
+    // The first eight entries, row-major (an array: `from_iterator` asserts the count).
+    let start = SVector::<T, 8>::from([
+        hn.m11, hn.m12, hn.m13, hn.m21, hn.m22, hn.m23, hn.m31, hn.m32,
+    ]);
     let count = T::lit(pairs.clone().count() as f64);
     let rms = |c: T| (c / (count + count)).sqrt();
     let ls = Transfer { problem, pairs };

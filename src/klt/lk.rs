@@ -126,6 +126,12 @@ fn block_rows<'a>(
     Some((y0..y0 + n).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + n)).unwrap_or(&[])))
 }
 
+/// The `n` rows of the `n x n` scratch patch (as `patch.chunks_exact(n)`, whose length the
+/// zips above would compute with a division the optimiser cannot prove non-zero).
+fn patch_rows(patch: &[i16], n: usize) -> impl Iterator<Item = &[i16]> + Clone {
+    (0..n).map(move |r| patch.get(r * n..(r + 1) * n).unwrap_or(&[]))
+}
+
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
 /// `win + 1` rows `rows` (image rows or the scratch patch).
 fn mismatch<'p, P: Copy + Into<i32> + 'p>(
@@ -230,7 +236,7 @@ fn mismatch_at(
         Some(rows) => mismatch(rows, s.iwin, s.dwin, win, w, abs),
         None => {
             fetch_patch(j, x, y, n, s.patch);
-            mismatch(s.patch.chunks_exact(n.max(1)), s.iwin, s.dwin, win, w, abs)
+            mismatch(patch_rows(s.patch, n), s.iwin, s.dwin, win, w, abs)
         }
     }
 }
@@ -281,14 +287,7 @@ fn track_point<A: FlowArith>(
         Some(rows) => template(rows, s.gwin, s.iwin, s.dwin, win, bi.w),
         None => {
             fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
-            template(
-                s.patch.chunks_exact(n.max(1)),
-                s.gwin,
-                s.iwin,
-                s.dwin,
-                win,
-                bi.w,
-            )
+            template(patch_rows(s.patch, n), s.gwin, s.iwin, s.dwin, win, bi.w)
         }
     };
     let gram = match A::gram(a11, a12, a22, &lv.params) {

@@ -42,7 +42,7 @@ pub(crate) use nullspace::null_space;
 pub use qr::StreamingQr;
 pub use svd::{MAX_SWEEPS, Svd, svd_jacobi};
 
-use nalgebra::{Matrix3, Rotation3, Vector3};
+use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};
 
 use crate::Result;
 use crate::scalar::Real;
@@ -77,6 +77,21 @@ pub(crate) fn rotation_step<T: Real>(d: &Vector3<T>) -> Rotation3<T> {
     let c = T::lit(2.0) / (T::one() + a.norm_squared());
     let ax = a.cross_matrix();
     Rotation3::from_matrix_unchecked(Matrix3::identity() + (ax + ax * ax) * c)
+}
+
+/// Column `c` of `m` (zeros for `c >= C`, which no caller passes): `m.column(c).into_owned()`
+/// without its panic paths (`into_owned` asserts the length of an iterator, and `column` its
+/// index, where the optimiser cannot prove them).
+#[inline]
+pub(crate) fn column<T: Real, const R: usize, const C: usize>(
+    m: &SMatrix<T, R, C>,
+    c: usize,
+) -> SVector<T, R> {
+    let mut v = SVector::<T, R>::zeros();
+    if c < C {
+        v.copy_from(&m.column(c));
+    }
+    v
 }
 
 /// `√(a² + b²)` without intermediate overflow or underflow, computed in `T`.

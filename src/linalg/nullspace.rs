@@ -1,5 +1,6 @@
 //! The null space of a few rows by Gauss-Jordan elimination (minimal solvers).
 
+use crate::corners::swap_checked;
 use crate::scalar::{Real, above};
 use crate::{Error, Result};
 
@@ -40,11 +41,12 @@ pub(crate) fn null_space<T: Real, const R: usize, const C: usize, const K: usize
         if !above(mag, rank * first) || !mag.finite() {
             return Err(Error::Degenerate);
         }
-        m.swap(i, pr);
+        // `i`, `pr` < rows and `i`, `pc` < columns (the search above).
+        swap_checked(&mut m, i, pr);
         for row in m.iter_mut() {
-            row.swap(i, pc);
+            swap_checked(row, i, pc);
         }
-        perm.swap(i, pc);
+        swap_checked(&mut perm, i, pc);
         let Some(mut pivot) = m.get(i).copied() else {
             return Err(Error::Degenerate);
         };

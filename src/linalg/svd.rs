@@ -49,7 +49,7 @@ impl<T: Real, const R: usize, const C: usize> Svd<T, R, C> {
     /// unit `x` minimising `|A x|` (the least-squares null vector, `|A x| = σ_C`).
     pub fn null_vector(&self) -> SVector<T, C> {
         const { assert!(C > 0, "a null vector needs at least one column") };
-        self.v.column(C - 1).into_owned()
+        super::column(&self.v, C - 1)
     }
 
     /// `U Σ Vᵀ`.

@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3, Point2, Point3, SMatrix, SVector, Vector3};
 
 use super::p3p::p3p;
-use crate::linalg::{StreamingQr, closest_rotation};
+use crate::linalg::{StreamingQr, closest_rotation, column};
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::Pose;
 use crate::{Error, Result};
@@ -122,7 +122,7 @@ where
     }
     let svd = m.svd()?;
     // w₁ = the null vector (smallest σ), w₂.. the next ones.
-    let w: [SVector<T, 12>; 4] = core::array::from_fn(|k| svd.v.column(11 - k).into_owned());
+    let w: [SVector<T, 12>; 4] = core::array::from_fn(|k| column(&svd.v, 11 - k));
     // dₖ(a, b) = wₖ[a] - wₖ[b], the control-point differences of each basis vector.
     let diff = |k: usize, a: usize, b: usize| -> Vector3<T> {
         let wk = w.get(k).map_or_else(SVector::zeros, |v| *v);
@@ -181,12 +181,14 @@ where
         {
             let ray = |u: Point2<T>| Vector3::new(u.x, u.y, T::one());
             if let Ok(sols) = p3p(&[ray(u1), ray(u2), ray(u3)], &[x1, x2, x3]) {
-                for candidate in sols {
-                    let Some(err) = normalized_rms(&candidate, &pairs, nf) else {
+                // By reference: `heapless::Vec`'s by-value iterator slices on drop (a bounds
+                // check the optimiser cannot remove).
+                for candidate in sols.iter() {
+                    let Some(err) = normalized_rms(candidate, &pairs, nf) else {
                         continue;
                     };
                     if best.as_ref().is_none_or(|b| err < b.1) {
-                        best = Some((candidate, err));
+                        best = Some((*candidate, err));
                     }
                 }
             }

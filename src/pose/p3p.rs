@@ -81,7 +81,8 @@ pub fn p3p<T: Real>(
     };
     let scale = s.sqrt();
     let mut out = Vec::new();
-    for l in q.depths() {
+    // By reference: `heapless::Vec`'s by-value iterator slices on drop (a bounds check).
+    for l in q.depths().iter() {
         let [l1, l2, l3] = l.map(|v| v * scale);
         let (v1, v2) = (y1 * l1 - y2 * l2, y1 * l1 - y3 * l3);
         let r = Matrix3::from_columns(&[v1, v2, v1.cross(&v2)]) * xinv;

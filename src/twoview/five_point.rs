@@ -40,6 +40,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
 use super::poly::{RootSearch, eval, real_roots_with};
+use crate::corners::swap_checked;
 use crate::linalg::{StreamingQr, null_space};
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
@@ -444,7 +445,7 @@ fn solve<T: Real>(
             if !above(s5, tol.rank * s1) {
                 return Err(Error::Degenerate);
             }
-            let basis = |k: usize| unvec(&svd.v.column(k).into_owned());
+            let basis = |k: usize| unvec(&crate::linalg::column(&svd.v, k));
             [basis(5), basis(6), basis(7), basis(8)]
         }
         NullSpace::GaussJordan => null_space(&rows5, tol.rank)?.map(|v| unvec(&v.into())),
@@ -508,7 +509,8 @@ fn solve_pass<T: Real>(
         add_assign(&mut d, &t3);
         d
     };
-    for z in real_roots_with(&det, precision.roots) {
+    // By reference: `heapless::Vec`'s by-value iterator slices on drop (a bounds check).
+    for &z in real_roots_with(&det, precision.roots).iter() {
         let row = |p: &[Poly1<T>; 3]| {
             let [a, b, c] = p;
             Vector3::new(eval(a, z), eval(b, z), eval(c, z))
@@ -930,7 +932,7 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
                 pmax = v;
             }
         }
-        a.swap(c, p);
+        swap_checked(a, c, p);
         let Some(mut pivot) = a.get(c).copied() else {
             return Err(Error::Degenerate);
         };

@@ -147,10 +147,11 @@ fn steps() -> Vec<Step> {
         "package: cargo package -p camgeom (the published crate builds on its own)",
         Box::new(|| run(locked(&mut root_cargo(&["package", "-p", "camgeom"])))),
     );
-    // Measured from a clean target directory on the shared 2-core machine (load average 5):
-    // panic check ~40 s (one release LTO link of all eight entry points, most of it building), fuzz
-    // smoke ~120 s (build ~95 s, then 5 s per target); a fresh machine also spends ~95 s in
-    // `setup` installing cargo-fuzz.
+    // Measured on the shared 2-core machine (load average 5): panic check ~3.5 min (one release
+    // LTO link of every area with f32 and f64 per target, thumbv7em ~110 s and thumbv6m ~90 s,
+    // each building camgeom for its target), fuzz smoke ~120 s (build ~95 s, then 5 s per
+    // target, from a clean target directory); a fresh machine also spends ~95 s in `setup`
+    // installing cargo-fuzz.
     add(
         "panic freedom (firmware link check)",
         Box::new(crate::panic_check::check_panic_free),

@@ -8,7 +8,7 @@
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
-//! | `cargo xtask panic-check` | links one firmware binary per entry point with a panic handler that cannot link |
+//! | `cargo xtask panic-check` | links one firmware binary per area of the core, scalar type and target (thumbv7em, thumbv6m) with a panic handler that cannot link; prints the coverage table |
 //! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 5, the CI smoke run) |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
@@ -39,7 +39,7 @@ commands:
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
-  panic-check  link one firmware binary per entry point with a panic handler that cannot link
+  panic-check  link one firmware binary per area, scalar type and target with a panic handler that cannot link
   size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
   fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 5)
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";

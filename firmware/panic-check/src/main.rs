@@ -1,4 +1,4 @@
-//! Link-time check that camgeom's firmware entry points cannot panic (the `panic-never`
+//! Link-time check that camgeom's public no_std entry points cannot panic (the `panic-never`
 //! technique): the panic handler below calls a function that exists nowhere, so the link fails
 //! with `undefined symbol: camgeom_panic_is_reachable` as soon as any panic path (a failed
 //! bounds check, an `unwrap`, an arithmetic overflow check, a `panic!` in a dependency)
@@ -6,9 +6,12 @@
 //! [`black_box`], so the optimiser cannot prove a panic away by knowing the data: what it
 //! removes is unreachable for *every* input.
 //!
-//! One cargo feature per entry point, so a failure names the entry point: `cargo xtask
-//! panic-check` builds each and reports; CI links them all in one binary. README "Panic
-//! freedom" lists what is covered.
+//! One cargo feature per module of the core (`camera`, `klt`, `twoview`, ...), so a failure
+//! names the area, and one per scalar type: `f32` instantiates every entry point (the integer
+//! and `f32`-only ones with it), `f64` the generic ones again with `f64`. `cargo xtask
+//! panic-check` links each area with each scalar type on `thumbv7em-none-eabihf` and
+//! `thumbv6m-none-eabi` and prints the table; CI links them all in one binary per target.
+//! README "Panic freedom" lists what is covered.
 //!
 //! Nothing here runs: the binary only has to link.
 #![no_std]
@@ -18,8 +21,12 @@
 use core::hint::black_box;
 use core::panic::PanicInfo;
 
-use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::Real;
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
+use camgeom::image::{ImageMut, ImageView};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::pyramid::Pyramid;
+use camgeom::ransac::RansacConfig;
 use camgeom::transform::Pose;
 use cortex_m_rt::entry;
 
@@ -36,59 +43,174 @@ fn panic(_: &PanicInfo) -> ! {
 /// Frame size for the image entry points (the value is opaque to the optimiser anyway).
 const W: usize = 64;
 const H: usize = 48;
+/// Point counts of the point-set entry points.
+const N: usize = 16;
 
-fn camera() -> Option<Camera<f32>> {
-    let [fx, fy, cx, cy, s] = black_box([300.0f32, 300.0, 31.5, 23.5, 0.0]);
-    let k = Intrinsics::with_skew(fx, fy, cx, cy, s).ok()?;
-    let d = Distortion::from_opencv(black_box([0.1f32, -0.05, 0.0, 0.0, 0.0])).ok()?;
-    Some(Camera::new(k, d))
+fn lit<T: Real>(v: f64) -> T {
+    T::lit(v)
 }
 
-fn pose() -> Option<Pose<f32>> {
+fn pt2<T: Real>(x: f64, y: f64) -> Point2<T> {
+    Point2::new(lit(x), lit(y))
+}
+
+fn pt3<T: Real>(x: f64, y: f64, z: f64) -> Point3<T> {
+    Point3::new(lit(x), lit(y), lit(z))
+}
+
+fn intrinsics<T: Real>() -> Option<Intrinsics<T>> {
+    let [fx, fy, cx, cy, s] = black_box([300.0, 300.0, 31.5, 23.5, 0.0].map(lit::<T>));
+    Intrinsics::with_skew(fx, fy, cx, cy, s).ok()
+}
+
+/// A Brown-Conrady camera.
+fn camera<T: Real>() -> Option<Camera<T>> {
+    let d = Distortion::from_opencv(black_box([0.1, -0.05, 0.0, 0.0, 0.0].map(lit::<T>))).ok()?;
+    Some(Camera::new(intrinsics()?, d))
+}
+
+/// A Kannala-Brandt camera.
+fn fisheye<T: Real>() -> Option<Camera<T>> {
+    let f = Fisheye::from_opencv(black_box([0.1, -0.01, 0.0, 0.0].map(lit::<T>))).ok()?;
+    Some(Camera::fisheye(intrinsics()?, f))
+}
+
+fn pose<T: Real>() -> Option<Pose<T>> {
     Pose::from_rodrigues(
-        black_box(Vector3::new(0.1f32, -0.2, 0.05)),
-        black_box(Vector3::new(0.0f32, 0.0, 1.0)),
+        black_box(Vector3::new(lit(0.1), lit(-0.2), lit(0.05))),
+        black_box(Vector3::new(lit(0.0), lit(0.0), lit(1.0))),
     )
     .ok()
 }
 
-#[cfg(feature = "camera")]
-fn run_camera() {
-    let Some(cam) = camera() else { return };
-    let Some(pose) = pose() else { return };
-    let x = black_box(Point3::new(0.1f32, 0.2, 0.3));
-    black_box(cam.project(&pose, &x).ok());
-    let u = black_box(Point2::new(10.0f32, 20.0));
-    black_box(cam.back_project(&u).ok());
-    black_box(cam.undistort_pixel(&u).ok());
-    black_box(cam.distort_pixel(&u).ok());
+fn points2<T: Real, const M: usize>() -> [Point2<T>; M] {
+    black_box([pt2(1.0, 2.0); M])
 }
 
-#[cfg(feature = "pyramid")]
-fn run_pyramid() {
-    use camgeom::image::ImageView;
-    use camgeom::pyramid::Pyramid;
-    let frame = black_box([0u8; W * H]);
-    let mut buf = black_box([0u8; W * H]);
-    let (w, h, s, levels) = black_box((W, H, W, 4usize));
-    let Ok(view) = ImageView::new(black_box(&frame[..]), w, h, s) else {
-        return;
-    };
-    if let Ok(p) = Pyramid::build(view, black_box(&mut buf[..]), levels) {
-        black_box(p.level(black_box(2)));
+fn points3<T: Real, const M: usize>() -> [Point3<T>; M] {
+    black_box([pt3(0.1, 0.2, 1.0); M])
+}
+
+fn ransac_config<T: Real>() -> RansacConfig<T> {
+    black_box(RansacConfig::default())
+}
+
+/// A `W`x`H` frame over `buf`, the geometry opaque.
+fn view(buf: &[u8]) -> Option<ImageView<'_, u8>> {
+    let (w, h, s) = black_box((W, H, W));
+    ImageView::new(black_box(buf), w, h, s).ok()
+}
+
+/// A `W`x`H` output image over `buf`, the geometry opaque.
+fn image_mut(buf: &mut [u8]) -> Option<ImageMut<'_, u8>> {
+    let (w, h, s) = black_box((W, H, W));
+    ImageMut::new(black_box(buf), w, h, s).ok()
+}
+
+// ---------------------------------------------------------------- camera
+
+/// Projection and back-projection through both lens models, and the jacobians.
+#[cfg(feature = "camera")]
+fn run_camera<T: Real>() {
+    let Some(pose) = pose::<T>() else { return };
+    for cam in [camera::<T>(), fisheye::<T>()].into_iter().flatten() {
+        let cam = black_box(cam);
+        let x = black_box(pt3(0.1, 0.2, 0.3));
+        black_box(cam.project(&pose, &x).ok());
+        black_box(cam.project_camera_point(&x).ok());
+        black_box(cam.project_with_jacobian(&x).ok());
+        black_box(cam.project_with_parameter_jacobian(&x).ok());
+        let world = points3::<T, N>();
+        let mut out = black_box([Err(camgeom::Error::NonFinite); N]);
+        black_box(cam.project_points(&pose, &world, &mut out).ok());
+        black_box(&out);
+        let u = black_box(pt2(10.0, 20.0));
+        black_box(cam.back_project(&u).ok());
+        black_box(cam.undistort_pixel(&u).ok());
+        black_box(cam.undistort_to_normalized(&u).ok());
+        black_box(cam.distort_pixel(&u).ok());
+        black_box(cam.distort_normalized(&u).ok());
+        black_box(cam.undistort_normalized(&u).ok());
+        black_box(camgeom::calib::lens_kind(&cam));
     }
 }
 
-#[cfg(feature = "good_features")]
-fn run_good_features() {
-    use camgeom::corners::{Corner, CornerConfig, good_features};
-    use camgeom::heapless::Vec;
-    use camgeom::image::ImageView;
-    let frame = black_box([0u8; W * H]);
-    let (w, h, s) = black_box((W, H, W));
-    let Ok(view) = ImageView::new(black_box(&frame[..]), w, h, s) else {
+// ---------------------------------------------------------------- fixed
+
+/// Q16.16 homography transfer and projection, built from `T`.
+#[cfg(feature = "fixed")]
+fn run_fixed<T: Real>() {
+    use camgeom::fixed::{FixedHomography, FixedProjection, Q16};
+    use camgeom::nalgebra::Matrix3;
+    let x = black_box([Q16::from_bits(3 << 16), Q16::from_bits(-5 << 16)]);
+    let m = black_box(Matrix3::from_element(lit::<T>(0.5)));
+    if let Ok(h) = FixedHomography::from_matrix(&m) {
+        black_box(h.transfer(&x).ok());
+    }
+    let parts = black_box([[lit::<T>(1.0); 2]; 3]);
+    if let Ok(h) = FixedHomography::from_parts(&parts, &black_box([lit::<T>(0.5); 3])) {
+        black_box(h.transfer(&x).ok());
+    }
+    let (Some(k), Some(pose)) = (intrinsics::<T>(), pose::<T>()) else {
         return;
     };
+    if let Ok(p) = FixedProjection::from_camera(&k, &pose) {
+        let x3 = black_box([Q16::from_int(1), Q16::from_int(-2), Q16::from_bits(7)]);
+        black_box(p.project(&x3).ok());
+        black_box(p.transfer(&x3).ok());
+    }
+    black_box(Q16::from_float(black_box(lit::<T>(1.5))).ok());
+}
+
+// ---------------------------------------------------------------- pyramid
+
+#[cfg(feature = "pyramid")]
+fn run_pyramid() {
+    use camgeom::pyramid::pyr_down;
+    let frame = black_box([0u8; W * H]);
+    let mut buf = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
+    if let Ok(p) = Pyramid::build(v, black_box(&mut buf[..]), black_box(4)) {
+        black_box(p.level(black_box(2)));
+    }
+    if let Ok(p) = Pyramid::from_buffer(v, black_box(&buf[..]), black_box(3)) {
+        black_box(p.level(black_box(1)));
+    }
+    let mut small = black_box([0u8; W * H]);
+    let (w, h) = black_box((W / 2, H / 2));
+    if let Ok(mut dst) = ImageMut::packed(black_box(&mut small[..]), w, h) {
+        black_box(pyr_down(&v, &mut dst).ok());
+    }
+}
+
+// ---------------------------------------------------------------- gradient
+
+#[cfg(feature = "gradient")]
+fn run_gradient() {
+    use camgeom::gradient::{scharr_level, scharr_row, scharr_window};
+    let frame = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
+    let mut row = black_box([[0i16; 2]; W]);
+    scharr_row(&v, black_box(3), black_box(1), black_box(&mut row[..]));
+    let mut level = black_box([[0i16; 2]; W * H]);
+    let (w, h) = black_box((W, H));
+    if let Ok(mut dst) = ImageMut::packed(black_box(&mut level[..]), w, h) {
+        black_box(scharr_level(&v, &mut dst).ok());
+    }
+    let mut win = black_box([[0i16; 2]; 21 * 21]);
+    let (x0, y0, ww, wh) = black_box((-3isize, 5isize, 21usize, 21usize));
+    black_box(scharr_window(&v, x0, y0, ww, wh, black_box(&mut win[..])).ok());
+    black_box(&row);
+}
+
+// ---------------------------------------------------------------- corners
+
+#[cfg(feature = "corners")]
+fn run_corners() {
+    use camgeom::corners::{Corner, CornerConfig, good_features};
+    use camgeom::heapless::Vec;
+    let frame = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
     let mut candidates = black_box([Corner::default(); 64]);
     let mut scratch = black_box([0u32; 6 * W]);
     let existing = black_box([[3i32, 4]; 4]);
@@ -96,7 +218,7 @@ fn run_good_features() {
     let mut out: Vec<Corner, 32> = Vec::new();
     black_box(
         good_features(
-            &view,
+            &v,
             &cfg,
             black_box(&existing[..]).iter().copied(),
             &mut out,
@@ -108,199 +230,569 @@ fn run_good_features() {
     black_box(&out);
 }
 
-#[cfg(feature = "calc_flow_fixed")]
-fn run_calc_flow_fixed() {
-    use camgeom::image::ImageView;
-    use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow};
-    use camgeom::pyramid::Pyramid;
+// ---------------------------------------------------------------- klt
+
+/// `calc_flow` and `forward_backward` with fixed-point and `f32` arithmetic, both gradient
+/// modes, and the multi-frame tracker.
+#[cfg(feature = "klt")]
+fn run_klt() {
+    use camgeom::corners::Corner;
+    use camgeom::klt::{
+        Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Tracker, TrackerConfig, calc_flow,
+        forward_backward,
+    };
+    fn flows<A: FlowArith>(pa: &Pyramid<'_>, pb: &Pyramid<'_>, cfg: &LkParams, pt: A::Coord)
+    where
+        A::Coord: Copy + Default,
+        Flow<A::Coord>: Copy + Default,
+    {
+        let pts = black_box([[pt; 2]; 8]);
+        let mut fw = black_box([Flow::<A::Coord>::default(); 8]);
+        let mut bw = black_box([Flow::<A::Coord>::default(); 8]);
+        let mut scratch = black_box([0i16; 4096]);
+        let mut grad = black_box([[0i16; 2]; W * H]);
+        black_box(
+            calc_flow::<A>(
+                pa,
+                pb,
+                &pts,
+                &mut fw,
+                cfg,
+                Gradients::PerWindow,
+                &mut scratch,
+            )
+            .ok(),
+        );
+        black_box(
+            calc_flow::<A>(
+                pa,
+                pb,
+                &pts,
+                &mut fw,
+                cfg,
+                Gradients::PerLevel(black_box(&mut grad[..])),
+                &mut scratch,
+            )
+            .ok(),
+        );
+        black_box(
+            forward_backward::<A>(
+                pa,
+                pb,
+                &pts,
+                &mut fw,
+                &mut bw,
+                cfg,
+                Gradients::PerWindow,
+                &mut scratch,
+            )
+            .ok(),
+        );
+        black_box((&fw, &bw));
+    }
     let a = black_box([0u8; W * H]);
     let b = black_box([0u8; W * H]);
     let mut pa_buf = black_box([0u8; W * H]);
     let mut pb_buf = black_box([0u8; W * H]);
-    let (w, h, levels) = black_box((W, H, 3usize));
-    let (Ok(va), Ok(vb)) = (
-        ImageView::packed(black_box(&a[..]), w, h),
-        ImageView::packed(black_box(&b[..]), w, h),
-    ) else {
+    let (Some(va), Some(vb)) = (view(&a), view(&b)) else {
         return;
     };
+    let levels = black_box(3usize);
     let (Ok(pa), Ok(pb)) = (
         Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
         Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
     ) else {
         return;
     };
-    let pts = black_box([[10i32 << 16, 12 << 16]; 8]);
-    let mut flows = black_box([Flow::<i32>::default(); 8]);
-    let mut scratch = black_box([0i16; 4096]);
     let Ok(cfg) = black_box(LkConfig::default()).check() else {
         return;
     };
-    black_box(
-        calc_flow::<Fixed>(
-            &pa,
-            &pb,
-            black_box(&pts[..]),
-            black_box(&mut flows[..]),
-            &cfg,
-            Gradients::PerWindow,
-            black_box(&mut scratch[..]),
-        )
-        .ok(),
-    );
-    black_box(&flows);
+    flows::<Fixed>(&pa, &pb, &cfg, black_box(10 << 16));
+    flows::<f32>(&pa, &pb, &cfg, black_box(10.5));
+
+    let tcfg = black_box(TrackerConfig::default());
+    let mut candidates = black_box([Corner::default(); 64]);
+    let mut cscratch = black_box([0u32; 6 * W]);
+    let mut fscratch = black_box([0i16; 4096]);
+    if let Ok(mut t) = Tracker::<Fixed, 32>::new(&tcfg) {
+        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
+        black_box(t.update(&pa, &pb, &mut fscratch).ok());
+        black_box(t.tracks());
+    }
+    if let Ok(mut t) = Tracker::<f32, 32>::new(&tcfg) {
+        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
+        black_box(t.update(&pa, &pb, &mut fscratch).ok());
+        black_box(t.tracks());
+    }
 }
 
-#[cfg(feature = "find_homography")]
-fn run_find_homography() {
-    use camgeom::homography::find_homography;
-    use camgeom::ransac::RansacConfig;
-    let src = black_box([Point2::new(1.0f32, 2.0); 16]);
-    let dst = black_box([Point2::new(3.0f32, 4.0); 16]);
-    let mut mask = black_box([false; 16]);
-    let cfg = black_box(RansacConfig::<f32>::default());
-    black_box(
-        find_homography(
-            black_box(&src[..]),
-            black_box(&dst[..]),
-            &cfg,
-            black_box(&mut mask[..]),
-        )
-        .ok(),
-    );
+// ---------------------------------------------------------------- homography
+
+#[cfg(feature = "homography")]
+fn run_homography<T: Real>() {
+    use camgeom::homography::{Homography, dlt, find_homography, refine};
+    let src = points2::<T, N>();
+    let dst = points2::<T, N>();
+    let mut mask = black_box([false; N]);
+    let cfg = ransac_config::<T>();
+    black_box(find_homography(&src, &dst, &cfg, &mut mask).ok());
+    let s4 = points2::<T, 4>();
+    let d4 = points2::<T, 4>();
+    if let Ok(h) = Homography::from_four_points(&s4, &d4) {
+        black_box(h.transfer(&black_box(pt2(3.0, 4.0))).ok());
+        black_box(h.inverse().ok());
+    }
+    if let Ok(h) = dlt(&src, &dst) {
+        black_box(refine(&h, &src, &dst, black_box(10)).ok());
+    }
 }
 
-#[cfg(feature = "solve_planar")]
-fn run_solve_planar() {
-    use camgeom::pose::{PlanarConfig, solve_planar};
-    let Some(cam) = camera() else { return };
-    let model = black_box([Point2::new(0.1f32, 0.2); 16]);
-    let pixels = black_box([Point2::new(3.0f32, 4.0); 16]);
-    let mut scratch = black_box([Point2::new(0.0f32, 0.0); 16]);
-    let cfg = black_box(PlanarConfig::default());
-    black_box(
-        solve_planar(
-            &cam,
-            black_box(&model[..]),
-            black_box(&pixels[..]),
-            black_box(&mut scratch[..]),
-            &cfg,
-        )
-        .ok(),
-    );
-}
+// ---------------------------------------------------------------- pose
 
-#[cfg(feature = "draw_wireframe")]
-fn run_draw_wireframe() {
-    use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
-    use camgeom::image::ImageMut;
-    let Some(cam) = camera() else { return };
-    let Some(pose) = pose() else { return };
-    let mut frame = black_box([0u8; W * H]);
-    let (w, h, s) = black_box((W, H, W));
-    let Ok(mut img) = ImageMut::new(black_box(&mut frame[..]), w, h, s) else {
-        return;
+#[cfg(feature = "pose")]
+fn run_pose<T: Real>() {
+    use camgeom::pose::{
+        PlanarConfig, epnp, ippe, p3p, refine_pose, solve_planar, solve_pnp, solve_pnp_ransac,
     };
-    let (vertices, edges) = black_box(cube(0.05f32, 0.025, 0.1));
-    let cfg = black_box(WireframeConfig::default());
-    black_box(
-        draw_wireframe(
-            &mut img,
-            &cam,
-            &pose,
-            black_box(&vertices[..]),
-            black_box(&edges[..]),
-            &cfg,
-        )
-        .ok(),
-    );
+    let Some(cam) = camera::<T>() else { return };
+    let model = points2::<T, N>();
+    let pixels = points2::<T, N>();
+    let world = points3::<T, N>();
+    let mut scratch = points2::<T, N>();
+    let mut mask = black_box([false; N]);
+    let cfg = black_box(PlanarConfig::default());
+    black_box(solve_planar(&cam, &model, &pixels, &mut scratch, &cfg).ok());
+    black_box(ippe(&model, &pixels).ok());
+    black_box(epnp(&world, &pixels).ok());
+    let bearings = black_box([Vector3::new(lit::<T>(0.1), lit(0.2), lit(1.0)); 3]);
+    black_box(p3p(&bearings, &points3::<T, 3>()).ok());
+    black_box(solve_pnp(&cam, &world, &pixels, &mut scratch).ok());
+    let rc = ransac_config::<T>();
+    black_box(solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &rc, &mut mask).ok());
+    if let Some(p) = pose::<T>() {
+        black_box(refine_pose(&cam, &p, &world, &pixels, black_box(10)).ok());
+    }
 }
 
-#[cfg(feature = "target_step")]
-fn run_target_step() {
-    use camgeom::image::ImageView;
+// ---------------------------------------------------------------- target
+
+/// Two frames (acquisition, then tracking) of the planar target, acquired from given corners
+/// and from an AprilTag.
+#[cfg(feature = "target")]
+fn run_target() {
+    use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, families};
     use camgeom::klt::Fixed;
-    use camgeom::pyramid::Pyramid;
     use camgeom::target::{
-        GivenCorners, PlanarTarget, TargetConfig, TargetParams, corner_scratch_len,
+        Acquire, GivenCorners, PlanarTarget, TargetConfig, TargetParams, corner_scratch_len,
         flow_scratch_len,
     };
-    let Some(cam) = camera() else { return };
-    let a = black_box([0u8; W * H]);
-    let b = black_box([0u8; W * H]);
-    let mut pa_buf = black_box([0u8; W * H]);
-    let mut pb_buf = black_box([0u8; W * H]);
-    let (w, h, levels) = black_box((W, H, 3usize));
-    let (Ok(va), Ok(vb)) = (
-        ImageView::packed(black_box(&a[..]), w, h),
-        ImageView::packed(black_box(&b[..]), w, h),
-    ) else {
-        return;
-    };
+    fn two_frames<Q: Acquire>(params: &TargetParams, acquire: &mut Q) {
+        let a = black_box([0u8; W * H]);
+        let b = black_box([0u8; W * H]);
+        let mut pa_buf = black_box([0u8; W * H]);
+        let mut pb_buf = black_box([0u8; W * H]);
+        let (Some(va), Some(vb)) = (view(&a), view(&b)) else {
+            return;
+        };
+        let levels = black_box(3usize);
+        let (Ok(pa), Ok(pb)) = (
+            Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
+            Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
+        ) else {
+            return;
+        };
+        let mut target = black_box(PlanarTarget::<
+            Fixed,
+            32,
+            { flow_scratch_len(15) },
+            { corner_scratch_len(W) },
+            64,
+        >::new());
+        black_box(target.step(params, None, &pa, acquire, &mut ()).ok());
+        black_box(target.step(params, Some(&pa), &pb, acquire, &mut ()).ok());
+    }
+    let Some(cam) = camera::<f32>() else { return };
     let cfg = black_box(TargetConfig::default());
     let size = black_box([0.2f32, 0.15f32]);
     let Ok(params) = TargetParams::new(&cfg, cam, size) else {
         return;
     };
-    let mut target = black_box(PlanarTarget::<
-        Fixed,
-        32,
-        { flow_scratch_len(15) },
-        { corner_scratch_len(W) },
-        64,
-    >::new());
-    let mut acquire = GivenCorners::new(black_box([
+    let mut given = GivenCorners::new(black_box([
         Point2::new(10.0f32, 10.0),
         Point2::new(50.0, 10.0),
         Point2::new(50.0, 40.0),
         Point2::new(10.0, 40.0),
     ]));
-    let (Ok(pa), Ok(pb)) = (
-        Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
-        Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
+    two_frames(&params, &mut given);
+    let Ok(detector) = Detector::new(
+        black_box(DetectorConfig::default()),
+        &[black_box(&families::TAG36H11)],
     ) else {
         return;
     };
-    black_box(target.step(&params, None, &pa, &mut acquire, &mut ()).ok());
+    let mut ws = black_box(SmallWorkspace::new());
+    let mut tag = TagTarget::new(&detector, &mut ws, &families::TAG36H11, black_box(3));
+    two_frames(&params, &mut tag);
+}
+
+/// An AprilTag workspace for `W`x`H` frames.
+#[cfg(any(feature = "target", feature = "apriltag"))]
+type SmallWorkspace = camgeom::apriltag::Workspace<
+    W,
+    { camgeom::apriltag::tiles(W, H, 1) },
+    1024,
+    64,
+    2048,
+    { camgeom::apriltag::max_cluster_points(W, H, 1) },
+>;
+
+// ---------------------------------------------------------------- draw
+
+#[cfg(feature = "draw")]
+fn run_draw<T: Real>() {
+    use camgeom::draw::{WireframeConfig, cube, draw_line, draw_line_i32, draw_wireframe};
+    let Some(cam) = camera::<T>() else { return };
+    let Some(pose) = pose::<T>() else { return };
+    let mut frame = black_box([0u8; W * H]);
+    let Some(mut img) = image_mut(&mut frame) else {
+        return;
+    };
+    let (vertices, edges) = black_box(cube(lit::<T>(0.05), lit(0.025), lit(0.1)));
+    let cfg = black_box(WireframeConfig::default());
+    black_box(draw_wireframe(&mut img, &cam, &pose, &vertices, &edges, &cfg).ok());
+    let (a, b) = black_box((pt2::<T>(-5.0, 3.0), pt2::<T>(80.0, 30.0)));
+    black_box(draw_line(&mut img, &a, &b, black_box(255)).ok());
+    let [x0, y0, x1, y1] = black_box([-100i32, 5, 1000, 40]);
+    black_box(draw_line_i32(&mut img, x0, y0, x1, y1, black_box(7)));
+}
+
+// ---------------------------------------------------------------- features
+
+/// FAST, ORB and brute-force Hamming matching.
+#[cfg(feature = "features")]
+fn run_features() {
+    use camgeom::features::{
+        Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect,
+        match_descriptors, orb_detect,
+    };
+    use camgeom::heapless::Vec;
+    let frame = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
+    let fcfg = black_box(FastConfig::default());
+    let mut scratch = black_box([0u8; 16 * 1024]);
+    let mut n = 0u32;
     black_box(
-        target
-            .step(&params, Some(&pa), &pb, &mut acquire, &mut ())
-            .ok(),
+        fast_detect(&v, &fcfg, black_box(&mut scratch[..]), |c| {
+            n = n.wrapping_add(u32::from(c.x));
+        })
+        .ok(),
+    );
+    black_box(n);
+    let ocfg = black_box(OrbConfig::default());
+    let mut out: Vec<Feature, 32> = Vec::new();
+    black_box(orb_detect(&v, &ocfg, black_box(&mut scratch[..]), &mut out).ok());
+    black_box(&out);
+    let q = black_box([Descriptor([1; 8]); 8]);
+    let t = black_box([Descriptor([2; 8]); 12]);
+    let mcfg = black_box(MatchConfig::default());
+    let mut ms = black_box([0u32; 64]);
+    let mut matches = black_box([Match::default(); 8]);
+    black_box(match_descriptors(&q, &t, &mcfg, &mut ms, &mut matches).ok());
+    black_box(&matches);
+}
+
+// ---------------------------------------------------------------- warp
+
+/// Perspective warps, float and integer per-pixel arithmetic.
+#[cfg(feature = "warp")]
+fn run_warp() {
+    use camgeom::homography::Homography;
+    use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
+    let logo = black_box([0u8; 16 * 16]);
+    let (lw, lh) = black_box((16usize, 16usize));
+    let Ok(src) = ImageView::packed(black_box(&logo[..]), lw, lh) else {
+        return;
+    };
+    let mut frame = black_box([0u8; W * H]);
+    let Some(mut dst) = image_mut(&mut frame) else {
+        return;
+    };
+    let quad = points2::<f32, 4>();
+    for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+        let cfg = black_box(WarpConfig {
+            alpha: 200,
+            arithmetic,
+        });
+        black_box(warp_into_quad(&src, &mut dst, &quad, &cfg).ok());
+        let m = black_box(camgeom::nalgebra::Matrix3::from_element(0.5f32));
+        if let Ok(h) = Homography::from_matrix(&m) {
+            black_box(warp_perspective_into(&src, &mut dst, &h, &cfg).ok());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- twoview
+
+#[cfg(feature = "twoview")]
+fn run_twoview<T: Real>() {
+    use camgeom::transform::Transform;
+    use camgeom::twoview::{
+        View1, eight_point, find_essential, find_fundamental, five_point, recover_pose,
+        refine_essential, refine_fundamental, seven_point, triangulate_dlt, triangulate_midpoint,
+        triangulate_optimal,
+    };
+    let x1 = points2::<T, N>();
+    let x2 = points2::<T, N>();
+    let mut mask = black_box([false; N]);
+    let cfg = ransac_config::<T>();
+    black_box(eight_point(&x1, &x2).ok());
+    black_box(seven_point(&points2::<T, 7>(), &points2::<T, 7>()).ok());
+    black_box(five_point(&points2::<T, 5>(), &points2::<T, 5>()).ok());
+    if let Ok((f, _)) = find_fundamental(&x1, &x2, &cfg, &mut mask) {
+        black_box(refine_fundamental(&f, &x1, &x2, Some(&mask[..]), black_box(10)).ok());
+    }
+    let Some(k) = intrinsics::<T>() else { return };
+    if let Ok((e, _)) = find_essential(&k, &k, &x1, &x2, &cfg, &mut mask) {
+        black_box(refine_essential(&e, &k, &k, &x1, &x2, None, black_box(10)).ok());
+        let max_distance = black_box(lit::<T>(50.0));
+        if let Ok(r) = recover_pose(&e, &k, &k, &x1, &x2, max_distance, &mut mask) {
+            let p1 = Transform::<View1, View1, T>::identity();
+            let (a, b) = black_box((pt2::<T>(0.1, 0.2), pt2::<T>(0.15, 0.2)));
+            black_box(triangulate_dlt(&p1, &r.pose, &a, &b).ok());
+            black_box(triangulate_midpoint(&p1, &r.pose, &a, &b).ok());
+            black_box(triangulate_optimal(&p1, &r.pose, &a, &b).ok());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- sfm
+
+/// Three-view reconstruction (with its bundle adjustment) and a bundle adjustment alone.
+#[cfg(feature = "sfm")]
+fn run_sfm<T: Real>() {
+    use camgeom::sfm::{
+        PointBlock, SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views,
+    };
+    let Some(cam) = camera::<T>() else { return };
+    let tracks: [Track<T>; N] = black_box([[Some(pt2(1.0, 2.0)); 3]; N]);
+    let cfg = black_box(SfmConfig::default());
+    let mut ws = black_box(SfmWorkspace::<T, N>::new());
+    black_box(reconstruct_three_views(&cam, &tracks, &cfg, &mut ws).ok());
+    let Some(p) = pose::<T>() else { return };
+    let mut poses = black_box([p; 3]);
+    let mut points = black_box([Some(pt3::<T>(0.1, 0.2, 1.0)); N]);
+    let used = black_box([[true; 3]; N]);
+    let mut blocks = black_box([PointBlock::<T>::default(); N]);
+    black_box(
+        bundle_adjust(
+            &cam,
+            &mut poses,
+            &mut points,
+            &tracks,
+            &used,
+            &mut blocks,
+            black_box(5),
+        )
+        .ok(),
     );
 }
 
-#[cfg(not(any(
-    feature = "camera",
-    feature = "pyramid",
-    feature = "good_features",
-    feature = "calc_flow_fixed",
-    feature = "find_homography",
-    feature = "solve_planar",
-    feature = "draw_wireframe",
-    feature = "target_step"
-)))]
-fn run() {}
+// ---------------------------------------------------------------- calib
+
+/// Calibration from views of a 4x3 board, Brown-Conrady and fisheye.
+#[cfg(feature = "calib")]
+fn run_calib<T: Real>() {
+    use camgeom::calib::{CalibrationConfig, Calibrator, LensKind};
+    use camgeom::chessboard::BoardSize;
+    let Ok(board) = BoardSize::new(black_box(4), black_box(3)) else {
+        return;
+    };
+    let Ok(mut c) = Calibrator::<T, 4, 12>::new(board, black_box(lit(0.025)), W, H) else {
+        return;
+    };
+    let corners = points2::<T, 12>();
+    for _ in 0..black_box(4) {
+        black_box(c.add_view(W, H, &corners).ok());
+    }
+    for model in [LensKind::BrownConrady, LensKind::KannalaBrandt] {
+        let cfg = black_box(CalibrationConfig {
+            model,
+            ..CalibrationConfig::default()
+        });
+        black_box(c.solve(&cfg).ok());
+        if let Some(guess) = camera::<T>() {
+            black_box(c.solve_with_guess(&cfg, &guess).ok());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- chessboard
+
+/// Detection with each refinement, and both refinements alone.
+#[cfg(feature = "chessboard")]
+fn run_chessboard() {
+    use camgeom::chessboard::{
+        BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
+        corner_subpix, saddle_subpix, scratch_len,
+    };
+    let frame = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
+    let Ok(board) = BoardSize::new(black_box(4), black_box(3)) else {
+        return;
+    };
+    let mut det = black_box(ChessboardDetector::<128>::new());
+    let mut scratch = black_box([0i32; scratch_len(W)]);
+    for refine in [
+        Refinement::None,
+        Refinement::CornerSubPix(SubPixConfig::default()),
+        Refinement::AdaptiveCornerSubPix(SubPixConfig::default()),
+        Refinement::Saddle(SaddleConfig::default()),
+    ] {
+        let cfg = black_box(DetectConfig {
+            refine,
+            ..DetectConfig::default()
+        });
+        black_box(det.detect::<12>(&v, board, &cfg, &mut scratch).ok());
+    }
+    let mut corners = points2::<f32, 12>();
+    black_box(corner_subpix(&v, &mut corners, &black_box(SubPixConfig::default())).ok());
+    black_box(saddle_subpix(&v, &mut corners, &black_box(SaddleConfig::default())).ok());
+    black_box(&corners);
+}
+
+// ---------------------------------------------------------------- apriltag
+
+/// Detection, decoding and the tag's pose.
+#[cfg(feature = "apriltag")]
+fn run_apriltag() {
+    use camgeom::apriltag::{Detection, Detector, DetectorConfig, families, tag_pose};
+    use camgeom::pose::PlanarConfig;
+    let frame = black_box([0u8; W * H]);
+    let Some(v) = view(&frame) else { return };
+    let Ok(detector) = Detector::new(black_box(DetectorConfig::default()), &families::ALL) else {
+        return;
+    };
+    let mut ws = black_box(SmallWorkspace::new());
+    let Ok(found) = detector.detect::<4, _, _, _, _, _, _>(&v, &mut ws) else {
+        return;
+    };
+    let Some(cam) = camera::<f32>() else { return };
+    let cfg = black_box(PlanarConfig::default());
+    for d in &found {
+        black_box(tag_pose(d, black_box(0.05), &cam, &cfg).ok());
+    }
+    black_box(
+        detector
+            .find_target(&v, &mut ws, &families::TAG25H9, black_box(2))
+            .ok(),
+    );
+    for f in families::ALL {
+        black_box(f.decode(black_box(0x1234_5678_9abc), black_box(2)));
+    }
+}
+
+// ---------------------------------------------------------------- remap
+
+/// New camera matrix, both map kinds and both remaps, for both lens models.
+#[cfg(feature = "remap")]
+fn run_remap<T: Real>() {
+    use camgeom::remap::{GridMap, build_map, grid_len, map_len, new_camera_matrix, remap};
+    let frame = black_box([0u8; W * H]);
+    let Some(src) = view(&frame) else { return };
+    let mut out = black_box([0u8; W * H]);
+    let Some(mut dst) = image_mut(&mut out) else {
+        return;
+    };
+    let (w, h) = black_box((W, H));
+    for cam in [camera::<T>(), fisheye::<T>()].into_iter().flatten() {
+        let Ok(k) = new_camera_matrix(&cam, w, h, black_box(lit(0.5))) else {
+            continue;
+        };
+        let mut map = black_box([[0i16; 2]; map_len(W, H)]);
+        if build_map(&cam, &k, w, h, &mut map).is_ok() {
+            black_box(remap(&src, &map, &mut dst, black_box(0)).ok());
+        }
+        let mut nodes = black_box([[0i32; 2]; grid_len(W, H, 3)]);
+        if let Ok(g) = GridMap::build(&cam, &k, w, h, black_box(3), &mut nodes) {
+            black_box(g.remap(&src, &mut dst, black_box(0)).ok());
+        }
+    }
+}
+
+// ---------------------------------------------------------------- resize
+
+#[cfg(feature = "resize")]
+fn run_resize() {
+    use camgeom::resize::resize_bilinear;
+    let frame = black_box([0u8; W * H]);
+    let Some(src) = view(&frame) else { return };
+    let mut out = black_box([0u8; 40 * 30]);
+    let (w, h) = black_box((40usize, 30usize));
+    if let Ok(mut dst) = ImageMut::packed(black_box(&mut out[..]), w, h) {
+        black_box(resize_bilinear(&src, &mut dst).ok());
+    }
+}
+
+// ---------------------------------------------------------------- main
+
+/// The generic entry points of every selected area, instantiated for `T`.
+fn run_generic<T: Real>() {
+    #[cfg(feature = "camera")]
+    run_camera::<T>();
+    #[cfg(feature = "fixed")]
+    run_fixed::<T>();
+    #[cfg(feature = "homography")]
+    run_homography::<T>();
+    #[cfg(feature = "pose")]
+    run_pose::<T>();
+    #[cfg(feature = "draw")]
+    run_draw::<T>();
+    #[cfg(feature = "twoview")]
+    run_twoview::<T>();
+    #[cfg(feature = "sfm")]
+    run_sfm::<T>();
+    #[cfg(feature = "calib")]
+    run_calib::<T>();
+    #[cfg(feature = "remap")]
+    run_remap::<T>();
+}
+
+/// The entry points of every selected area that have no scalar parameter (integer or
+/// `f32` only): built with the `f32` feature.
+fn run_f32_only() {
+    #[cfg(feature = "pyramid")]
+    run_pyramid();
+    #[cfg(feature = "gradient")]
+    run_gradient();
+    #[cfg(feature = "corners")]
+    run_corners();
+    #[cfg(feature = "klt")]
+    run_klt();
+    #[cfg(feature = "target")]
+    run_target();
+    #[cfg(feature = "features")]
+    run_features();
+    #[cfg(feature = "warp")]
+    run_warp();
+    #[cfg(feature = "chessboard")]
+    run_chessboard();
+    #[cfg(feature = "apriltag")]
+    run_apriltag();
+    #[cfg(feature = "resize")]
+    run_resize();
+}
 
 #[entry]
 fn main() -> ! {
-    // Each feature adds one entry point; with several, the binary links only if none of them
+    // Each feature adds its entry points; with several, the binary links only if none of them
     // has a panic path.
-    #[cfg(feature = "camera")]
-    run_camera();
-    #[cfg(feature = "pyramid")]
-    run_pyramid();
-    #[cfg(feature = "good_features")]
-    run_good_features();
-    #[cfg(feature = "calc_flow_fixed")]
-    run_calc_flow_fixed();
-    #[cfg(feature = "find_homography")]
-    run_find_homography();
-    #[cfg(feature = "solve_planar")]
-    run_solve_planar();
-    #[cfg(feature = "draw_wireframe")]
-    run_draw_wireframe();
-    #[cfg(feature = "target_step")]
-    run_target_step();
+    #[cfg(feature = "f32")]
+    {
+        run_generic::<f32>();
+        run_f32_only();
+    }
+    #[cfg(feature = "f64")]
+    run_generic::<f64>();
     loop {
         core::hint::spin_loop();
     }

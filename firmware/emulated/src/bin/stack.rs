@@ -2,8 +2,9 @@
 //! emulated Cortex-M7: for each entry point, [`measure`] fills the free stack below the
 //! current stack pointer with a pattern, calls the entry point once on a worst-ish input of
 //! the sizes the firmware uses (320x240 frames, 4 pyramid levels, 21x21 KLT window, 32 and 200
-//! features, 500 RANSAC samples, 100 two-view pairs and three-view tracks), then finds the
-//! lowest word no longer holding the pattern.
+//! features, 500 RANSAC samples, 100 two-view pairs and three-view tracks; 160x120 for the tag
+//! detector, the undistortion map and the chessboard, whose 320x240 buffers do not fit beside
+//! the others), then finds the lowest word no longer holding the pattern.
 //! The distance from the stack pointer at the call to that word is the entry point's
 //! high-water mark (its own frames and everything it calls, plus the few bytes of the closure
 //! that forwards the arguments).
@@ -18,17 +19,21 @@ use camgeom_fw_emulated::{board, cost};
 
 use core::hint::black_box;
 
+use camgeom::apriltag::{Detector, DetectorConfig, families};
+use camgeom::calib::{CalibrationConfig, Calibrator};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
 use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
 use camgeom::homography::find_homography;
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow, scratch_len};
-use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::nalgebra::{ComplexField, Point2, Point3, Vector3};
 use camgeom::pose::{PlanarConfig, solve_planar, solve_pnp_ransac};
 use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::ransac::RansacConfig;
+use camgeom::remap::{GridMap, grid_len, new_camera_matrix};
 use camgeom::rng::Pcg32;
 use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
 use camgeom::target::{
@@ -42,7 +47,7 @@ use camgeom::twoview::{
 use camgeom_fw_app::texture::textured_frame;
 use camgeom_fw_emulated::entry;
 
-use static_cell::ConstStaticCell;
+use static_cell::{ConstStaticCell, StaticCell};
 
 const W: usize = 320;
 const H: usize = 240;
@@ -116,6 +121,11 @@ fn call<R>(f: impl FnOnce() -> R) -> R {
 const PYR_LEN: usize = buffer_len(W, H, LEVELS);
 static FRAME_A: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
 static FRAME_B: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
+/// The undistorted frame, then the rendered chessboard: 160x120, RAM for a third 320x240 frame
+/// would be taken from the stack.
+const CW: usize = 160;
+const CH: usize = 120;
+static FRAME_C: ConstStaticCell<[u8; CW * CH]> = ConstStaticCell::new([0; CW * CH]);
 static PYR_A: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
 static PYR_B: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
 static FLOW_SCRATCH: ConstStaticCell<[i16; scratch_len(WIN)]> =
@@ -157,10 +167,60 @@ type Target =
     PlanarTarget<Fixed, N_TARGET, { flow_scratch_len(WIN) }, { corner_scratch_len(W) }, CANDIDATES>;
 static TARGET: ConstStaticCell<Target> = ConstStaticCell::new(Target::new());
 static SFM: ConstStaticCell<Option<SfmWorkspace<f32, N_PAIRS>>> = ConstStaticCell::new(None);
+/// The chessboard rows: a 9x6 board (inner corners), the calibration firmware's detector and
+/// calibrator (16 views of up to 64 corners).
+const BOARD: (usize, usize) = (9, 6);
+const BOARD_CORNERS: usize = BOARD.0 * BOARD.1;
+const CALIB_VIEWS: usize = 8;
+static BOARD_DETECTOR: ConstStaticCell<ChessboardDetector<512>> =
+    ConstStaticCell::new(ChessboardDetector::new());
+static BOARD_SCRATCH: ConstStaticCell<[i32; camgeom::chessboard::scratch_len(CW)]> =
+    ConstStaticCell::new([0; camgeom::chessboard::scratch_len(CW)]);
+static CALIBRATOR: StaticCell<Calibrator<f32, 16, 64>> = StaticCell::new();
+/// The tag detector's memory for a 160x120 frame (level 1 of the pyramid): the 320x240
+/// workspace (119 KB) does not fit beside this binary's frames and pyramids.
+type TagWorkspace = camgeom::apriltag::Workspace<
+    160,
+    { camgeom::apriltag::tiles(160, 120, 1) },
+    2048,
+    128,
+    4096,
+    { camgeom::apriltag::max_cluster_points(160, 120, 1) },
+>;
+static TAG_WORKSPACE: ConstStaticCell<TagWorkspace> = ConstStaticCell::new(TagWorkspace::new());
+/// Grid undistortion map, nodes every 2^3 px.
+const GRID_SHIFT: u32 = 3;
+static GRID: ConstStaticCell<[[i32; 2]; grid_len(CW, CH, GRID_SHIFT)]> =
+    ConstStaticCell::new([[0; 2]; grid_len(CW, CH, GRID_SHIFT)]);
 
 fn fail(what: &str, e: camgeom::Error) -> ! {
     defmt::error!("{=str}: {}", what, e);
     board::exit_failure()
+}
+
+/// Draws a 10x7-square chessboard (9x6 inner corners) of 11 px squares, turned by 0.1 rad, on
+/// grey into a `CW`x`CH` frame: black and white squares with a one-pixel linear edge.
+fn render_board(frame: &mut [u8]) {
+    const SQ: f32 = 11.0;
+    let (c, s) = (0.1f32.cos(), 0.1f32.sin());
+    let (cx, cy) = (CW as f32 / 2.0, CH as f32 / 2.0);
+    for (i, px) in frame.iter_mut().enumerate() {
+        let (x, y) = ((i % CW) as f32 - cx, (i / CW) as f32 - cy);
+        // Board coordinates in squares, origin at the board's corner.
+        let (u, v) = ((c * x + s * y) / SQ + 5.0, (-s * x + c * y) / SQ + 3.5);
+        *px = if !(0.0..10.0).contains(&u) || !(0.0..7.0).contains(&v) {
+            128
+        } else {
+            // Distance to the nearest square edge in pixels, signed by the square's colour.
+            let (fu, fv) = (u - u.floor(), v - v.floor());
+            let du = SQ * fu.min(1.0 - fu);
+            let dv = SQ * fv.min(1.0 - fv);
+            let black = (u.floor() as i32 + v.floor() as i32) % 2 == 0;
+            let t = du.min(dv).min(1.0) * 0.5 + 0.5;
+            let t = if black { 1.0 - t } else { t };
+            (t * 255.0) as u8
+        };
+    }
 }
 
 fn row(name: &str, bytes: u32, rows: &mut u32) {
@@ -543,6 +603,116 @@ fn main() -> ! {
     );
     if let Err(e) = r {
         fail("reconstruct_three_views", e)
+    }
+
+    // ---- AprilTag detection on level 1 of pyramid A (160x120), all four families ----
+    let detector = match Detector::new(DetectorConfig::default(), &families::ALL) {
+        Ok(d) => d,
+        Err(e) => fail("tag detector", e),
+    };
+    let tag_ws = TAG_WORKSPACE.take();
+    let Some(half) = pa.level(1) else {
+        fail("pyramid level 1", camgeom::Error::InvalidImage)
+    };
+    let (r, s) = measure(|| detector.detect::<8, _, _, _, _, _, _>(&half, tag_ws));
+    row(
+        "apriltag Detector::detect 160x120, 4 families",
+        s,
+        &mut rows,
+    );
+    if let Err(e) = r {
+        fail("tag detection", e)
+    }
+
+    // ---- undistortion: new camera matrix, grid map, remap A ----
+    let (r, s) = measure(|| new_camera_matrix(&camera, W, H, 0.0));
+    row("new_camera_matrix (alpha 0, distortion)", s, &mut rows);
+    let k_new = match r {
+        Ok(k) => k,
+        Err(e) => fail("new_camera_matrix", e),
+    };
+    let nodes = GRID.take();
+    let frame_c = FRAME_C.take();
+    let (r, s) = measure(|| GridMap::build(&camera, &k_new, CW, CH, GRID_SHIFT, &mut nodes[..]));
+    row("GridMap::build 160x120, nodes every 8 px", s, &mut rows);
+    let grid = match r {
+        Ok(g) => g,
+        Err(e) => fail("GridMap::build", e),
+    };
+    let (r, s) = measure(|| {
+        let src = ImageView::packed(&frame_a[..], W, H)?;
+        let mut out = ImageMut::packed(&mut frame_c[..], CW, CH)?;
+        grid.remap(&src, &mut out, 0)
+    });
+    row("GridMap::remap 160x120 (of a 320x240 frame)", s, &mut rows);
+    if let Err(e) = r {
+        fail("GridMap::remap", e)
+    }
+
+    // ---- chessboard: a 9x6 board rendered (over the undistorted frame), detected (saddle
+    // refinement) ----
+    render_board(&mut frame_c[..]);
+    let vc = match ImageView::packed(&frame_c[..], CW, CH) {
+        Ok(v) => black_box(v),
+        Err(e) => fail("board view", e),
+    };
+    let bsize = match BoardSize::new(BOARD.0, BOARD.1) {
+        Ok(b) => b,
+        Err(e) => fail("board", e),
+    };
+    let bdet = BOARD_DETECTOR.take();
+    let bscr = BOARD_SCRATCH.take();
+    let dcfg = black_box(DetectConfig::default());
+    let (r, s) = measure(|| bdet.detect::<BOARD_CORNERS>(&vc, bsize, &dcfg, &mut bscr[..]));
+    row(
+        "ChessboardDetector::<512>::detect 160x120, 9x6 board",
+        s,
+        &mut rows,
+    );
+    match r {
+        Ok(found) => defmt::info!("chessboard found: {=bool}", found.is_some()),
+        Err(e) => fail("chessboard detection", e),
+    }
+
+    // ---- calibration: the board's corners through the camera in 8 poses ----
+    let calibrator = match Calibrator::new(bsize, 0.025f32, W, H) {
+        Ok(c) => CALIBRATOR.init(c),
+        Err(e) => fail("calibrator", e),
+    };
+    for v in 0..CALIB_VIEWS {
+        let a = v as f32 * core::f32::consts::TAU / CALIB_VIEWS as f32;
+        let view = match Pose::from_rodrigues(
+            Vector3::new(0.35 * a.cos(), 0.35 * a.sin(), 0.1 * v as f32 - 0.3),
+            Vector3::new(-0.1f32, -0.06, 0.45),
+        ) {
+            Ok(p) => p,
+            Err(e) => fail("view pose", e),
+        };
+        let mut corners = [ORIGIN2; BOARD_CORNERS];
+        for (k, c) in corners.iter_mut().enumerate() {
+            let x = Point3::new(
+                (k % BOARD.0) as f32 * 0.025,
+                (k / BOARD.0) as f32 * 0.025,
+                0.0,
+            );
+            match camera.project(&view, &x) {
+                Ok(p) => *c = p,
+                Err(e) => fail("project", e),
+            }
+        }
+        if let Err(e) = calibrator.add_view(W, H, &corners) {
+            fail("add_view", e)
+        }
+    }
+    let ccfg = black_box(CalibrationConfig::default());
+    let (r, s) = measure(|| calibrator.solve(&ccfg));
+    row(
+        "Calibrator::<f32, 16, 64>::solve 8 views of 54 corners, Brown-Conrady",
+        s,
+        &mut rows,
+    );
+    if let Err(e) = r {
+        fail("calibration", e)
     }
 
     let (used, size) = board::stack_usage();
