@@ -5,6 +5,7 @@
 //! |---|---|---|
 //! | `thumbv7em-none-eabihf` | `mps2-an500` (Cortex-M7) | the repository root's `memory.x` (the one copy, shared with the docs) |
 //! | `thumbv7m-none-eabi` | `mps2-an385` (Cortex-M3, no FPU) | `memory/mps2-an385.x` |
+//! | `thumbv6m-none-eabi` | `mps2-an385` (Cortex-M0+ code on the Cortex-M3: the stack table only) | `memory/mps2-an385-stack.x` |
 //! | `thumbv8m.main-none-eabihf` | `mps2-an505` (Cortex-M33) | `memory/mps2-an505.x` |
 //! | `riscv32imac-unknown-none-elf` | `virt` (RV32IMAC, no FPU) | `memory/riscv-virt.x` |
 
@@ -16,6 +17,7 @@ fn main() {
     let target = env::var("TARGET").expect("set by cargo");
     let src = match target.as_str() {
         "thumbv7m-none-eabi" => manifest.join("memory/mps2-an385.x"),
+        "thumbv6m-none-eabi" => manifest.join("memory/mps2-an385-stack.x"),
         "thumbv8m.main-none-eabihf" => manifest.join("memory/mps2-an505.x"),
         "riscv32imac-unknown-none-elf" => manifest.join("memory/riscv-virt.x"),
         _ => manifest.join("../../memory.x"),

@@ -365,11 +365,39 @@ fn bench_twoview() -> Result<()> {
 /// The stack-painting binary (`cargo xtask stack`).
 const STACK_BIN: &str = "camgeom-fw-stack";
 
-/// `cargo xtask stack`: builds `firmware/emulated/src/bin/stack.rs` and runs it on QEMU; its
-/// log holds one `stack <entry point>: <bytes> bytes` line per public entry point.
+/// `cargo xtask stack`: builds `firmware/emulated/src/bin/stack.rs` for `thumbv7em-none-eabihf`
+/// (run on the Cortex-M7 board) and for `thumbv6m-none-eabi` (run on the Cortex-M3 board,
+/// [`crate::jobs::M0_ON_M3`]); each log holds one `stack <entry point>: <bytes> bytes` line per
+/// public entry point. Prints both as one Markdown table (BENCHMARKS.md, "Stack").
 pub fn stack() -> Result<()> {
-    let elf = build_bin(STACK_BIN, &[])?;
-    let summary = run_on_qemu_checked(&elf, "stack table: ", " entry points")?;
-    println!("stack: {summary}");
+    let mut columns = Vec::new();
+    for board in [M7, crate::jobs::M0_ON_M3] {
+        let elf = build_bin_for(board, STACK_BIN, &[])?;
+        let (summary, lines) =
+            run_on_qemu_in(board, &elf, None, "stack table: ", " entry points", None)?;
+        println!("stack ({}): {summary}", board.target);
+        let rows: Vec<(String, String)> = lines
+            .iter()
+            .filter_map(|l| {
+                let rest = l.split("stack ").nth(1)?;
+                let (name, bytes) = rest.split_once(": ")?;
+                let bytes = bytes.strip_suffix(" bytes")?;
+                Some((name.to_string(), bytes.to_string()))
+            })
+            .collect();
+        columns.push(rows);
+    }
+    let (Some(m7), Some(m0)) = (columns.first(), columns.get(1)) else {
+        bail!("the stack runs gave no table");
+    };
+    if m7.len() != m0.len() || m7.iter().zip(m0).any(|(a, b)| a.0 != b.0) {
+        bail!("the two stack runs measured different entry points");
+    }
+    println!(
+        "\n| entry point | thumbv7em-none-eabihf (Cortex-M7), bytes | thumbv6m-none-eabi (on the Cortex-M3), bytes |\n|---|---:|---:|"
+    );
+    for ((name, a), (_, b)) in m7.iter().zip(m0) {
+        println!("| {name} | {a} | {b} |");
+    }
     Ok(())
 }

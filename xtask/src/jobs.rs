@@ -51,6 +51,21 @@ pub const M3: Board = Board {
     flash_len: 2 * 1024 * 1024,
 };
 
+/// Cortex-M0+ code (`thumbv6m-none-eabi`, the RP2040's instruction set) on the Cortex-M3
+/// machine, which runs ARMv6-M code (a subset of ARMv7-M); QEMU has no Cortex-M0+ machine with
+/// enough RAM. Only the stack table runs here (`firmware/emulated/memory/mps2-an385-stack.x`).
+pub const M0_ON_M3: Board = Board {
+    name: "mps2-an385",
+    core: "Cortex-M0+ code on the Cortex-M3",
+    class: "RP2040 (stack table only)",
+    target: "thumbv6m-none-eabi",
+    qemu: "qemu-system-arm",
+    machine: &["-cpu", "cortex-m3", "-machine", "mps2-an385"],
+    ram_origin: 0x2000_0000,
+    ram_len: 1024 * 1024,
+    flash_len: 2 * 1024 * 1024,
+};
+
 /// The Cortex-M33 with its single-precision FPU: the RP2350 class (520 KB).
 pub const M33: Board = Board {
     name: "mps2-an505",

@@ -5,7 +5,7 @@
 //! and the stack-region symbols are the runtime's (cortex-m-rt on Arm, riscv-rt on RISC-V).
 
 use core::panic::PanicInfo;
-use core::sync::atomic::{AtomicBool, Ordering};
+use portable_atomic::{AtomicBool, Ordering};
 
 /// Ends the run: QEMU exits with status 0.
 pub fn exit_success() -> ! {

@@ -19,7 +19,7 @@ pub use counter::{Calibration, now, per_tick, start};
 
 #[cfg(target_arch = "arm")]
 mod counter {
-    use core::sync::atomic::{AtomicU32, Ordering};
+    use portable_atomic::{AtomicU32, Ordering};
 
     use cortex_m::peripheral::syst::SystClkSource;
     use cortex_m::peripheral::{SCB, SYST};

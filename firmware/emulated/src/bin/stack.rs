@@ -545,7 +545,7 @@ fn main() -> ! {
         fail("seven_point", e)
     }
     let (r, s) = measure(|| five_point(&s5a, &s5b));
-    row("five_point (f64 inside)", s, &mut rows);
+    row("five_point", s, &mut rows);
     if let Err(e) = r {
         fail("five_point", e)
     }
