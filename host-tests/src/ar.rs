@@ -201,7 +201,7 @@ impl RgbImage {
         })
     }
 
-    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
+    pub(crate) fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
         if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
             let i = 3 * (y as usize * self.width + x as usize);
             self.data[i..i + 3].copy_from_slice(&c);
@@ -210,7 +210,7 @@ impl RgbImage {
 
     /// Paints `colour` where `mask` is set, with a dark one-pixel halo around it so thin lines
     /// read on any background.
-    fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
+    pub(crate) fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
         let (w, h) = (self.width as i64, self.height as i64);
         let on = |x: i64, y: i64| {
             x >= 0 && y >= 0 && x < w && y < h && mask.at(x as usize, y as usize) != 0
@@ -340,6 +340,43 @@ const DIGITS: [[u8; 5]; 10] = [
     [7, 5, 7, 1, 7],
 ];
 
+/// Width and height in pixels of [`RgbImage::label`]'s box for `text`.
+pub(crate) fn label_size(text: &str) -> (usize, usize) {
+    (text.len() * 8 + 2, 14)
+}
+
+impl RgbImage {
+    /// `text` (digits; anything else is left blank) in white 3x5 digits at 2x on a black box
+    /// whose top-left corner is `(x, y)`, clipped to the image.
+    pub(crate) fn label(&mut self, x: i64, y: i64, text: &str) {
+        let (lw, lh) = label_size(text);
+        for dy in 0..lh as i64 {
+            for dx in 0..lw as i64 {
+                self.put(x + dx, y + dy, [0, 0, 0]);
+            }
+        }
+        for (i, ch) in text.bytes().enumerate() {
+            let Some(d) = ch
+                .checked_sub(b'0')
+                .and_then(|k| DIGITS.get(usize::from(k)))
+            else {
+                continue;
+            };
+            for (r, bits) in d.iter().enumerate() {
+                for c in 0..3 {
+                    if bits & (4 >> c) != 0 {
+                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                            let px = x + 2 + (i * 8 + c * 2 + sx) as i64;
+                            let py = y + 2 + (r * 2 + sy) as i64;
+                            self.put(px, py, [255, 255, 255]);
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// A grid of `tiles` (each downscaled by `factor` with a box filter), `cols` a row, each
 /// labelled with its number in the top-left corner.
 pub fn contact_sheet(tiles: &[(usize, RgbImage)], cols: usize, factor: usize) -> RgbImage {
@@ -377,28 +414,7 @@ pub fn contact_sheet(tiles: &[(usize, RgbImage)], cols: usize, factor: usize) ->
                 sheet.put((ox + x) as i64, (oy + y) as i64, c);
             }
         }
-        // The label: white 3x5 digits at 2x, on a black box.
-        let text = label.to_string();
-        let (lw, lh) = (text.len() * 8 + 2, 14);
-        for y in 0..lh.min(th) {
-            for x in 0..lw.min(tw) {
-                sheet.put((ox + x) as i64, (oy + y) as i64, [0, 0, 0]);
-            }
-        }
-        for (i, ch) in text.bytes().enumerate() {
-            let d = DIGITS[usize::from(ch - b'0')];
-            for (r, bits) in d.iter().enumerate() {
-                for c in 0..3 {
-                    if bits & (4 >> c) != 0 {
-                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                            let x = ox + 2 + i * 8 + c * 2 + sx;
-                            let y = oy + 2 + r * 2 + sy;
-                            sheet.put(x as i64, y as i64, [255, 255, 255]);
-                        }
-                    }
-                }
-            }
-        }
+        sheet.label(ox as i64, oy as i64, &label.to_string());
     }
     sheet
 }
