@@ -66,11 +66,17 @@ pub fn families_list(list: &str) -> Result<Vec<&'static Family>> {
     Ok(out)
 }
 
-/// The detector of `families` with camgeom's defaults and `decimate`, `max_hamming`.
+/// The detector of `families` with camgeom's defaults and `decimate`, `max_hamming`,
+/// `refine_edges` (AprilTag's option of the same name; its detection test turns it off).
 ///
 /// Errors (usage): decimation outside 1..=8, `max_hamming` above 3 or not below half a
 /// family's minimum distance (tag16h5: at most 2).
-pub fn detector(families: &[&'static Family], decimate: u8, max_hamming: u8) -> Result<Detector> {
+pub fn detector(
+    families: &[&'static Family],
+    decimate: u8,
+    max_hamming: u8,
+    refine_edges: bool,
+) -> Result<Detector> {
     if !(1..=8).contains(&decimate) {
         return Err(Error::usage(format!(
             "--decimate must be 1..=8, got {decimate}"
@@ -79,6 +85,7 @@ pub fn detector(families: &[&'static Family], decimate: u8, max_hamming: u8) -> 
     let cfg = DetectorConfig {
         decimate,
         max_hamming,
+        refine_edges,
         ..DetectorConfig::default()
     };
     Detector::new(cfg, families).map_err(|e| match e {

@@ -33,6 +33,10 @@ pub struct ApriltagArgs {
     /// Bits corrected (at most 3, and below half the family's distance: 2 for tag16h5).
     #[arg(long, default_value_t = 2, value_name = "N")]
     max_hamming: u8,
+    /// Do not snap the quad's edges to the strongest gradient (AprilTag's `refine_edges = 0`,
+    /// as its detection test runs).
+    #[arg(long)]
+    no_refine_edges: bool,
     /// Camera file (see `camgeom project --help`); with --tag-size, each tag's pose.
     #[arg(long, value_name = "FILE")]
     intrinsics: Option<PathBuf>,
@@ -54,7 +58,7 @@ pub struct ApriltagArgs {
 /// Every frame is detected before anything is written.
 pub fn run(a: &ApriltagArgs) -> Result<String> {
     let families = families_list(&a.family)?;
-    let det = detector(&families, a.decimate, a.max_hamming)?;
+    let det = detector(&families, a.decimate, a.max_hamming, !a.no_refine_edges)?;
     let pose = pose_inputs(a.tag_size, a.intrinsics.as_deref())?;
     let coords = if a.apriltag_coords {
         Coords::AprilTag
