@@ -71,7 +71,7 @@ use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
-use crate::klt::{FlowArith, FlowBuffers, LkConfig, LkParams};
+use crate::klt::{Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
 use crate::pose::{PlanarConfig, PlanarPose, PoseEstimate, solve_planar};
 use crate::pyramid::Pyramid;
 use crate::ransac::RansacConfig;
@@ -393,6 +393,16 @@ struct Feature<C> {
     target: Point2<f32>,
 }
 
+impl<C: Copy> FlowItem<C> for Feature<C> {
+    fn position(&self) -> [C; 2] {
+        self.pos
+    }
+
+    fn moved(&mut self, flow: &Flow<C>) {
+        self.pos = [flow.x, flow.y];
+    }
+}
+
 /// The state of a tracked planar target: up to `N` features, arithmetic `A` for the flow
 /// ([`crate::klt::Fixed`] or `f32`), and the loop's work buffers: `S` ≥
 /// [`flow_scratch_len`]`(win)` flow scratch, `C` ≥ [`corner_scratch_len`]`(width)` corner
@@ -643,8 +653,13 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             // this is the pose of the four corners, refined over every feature.
             self.load_pairs();
             out.pose = self.solve(params);
-            probe.stage_done(Stage::Pose);
+        } else {
+            // Too few features to track (a small or distant target), but the acquisition
+            // measured the four corners in this frame: they give the pose, as a detector's
+            // own pose would. The next frame cannot track and acquires again.
+            out.pose = self.solve_corners(params, &corners);
         }
+        probe.stage_done(Stage::Pose);
         out.outline = out.pose.map(|_| corners);
         self.state = if out.pose.is_some() {
             TargetState::Tracking
@@ -666,8 +681,6 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             prev,
             next,
             &mut self.features,
-            |f| f.pos,
-            |f, fl| f.pos = [fl.x, fl.y],
             &params.lk,
             &mut self.flow_scratch,
         )
@@ -695,6 +708,27 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             self.pixels.get(..n)?,
             self.scratch.get_mut(..n)?,
         );
+        solve_planar(&params.camera, model, pixels, scratch, &params.cfg.planar).ok()
+    }
+
+    /// Both planar poses from the target's four corners seen at `corners` alone.
+    fn solve_corners(
+        &mut self,
+        params: &TargetParams,
+        corners: &[Point2<f32>; 4],
+    ) -> Option<PlanarPose<f32>> {
+        let (model, pixels, scratch) = (
+            self.model.get_mut(..4)?,
+            self.pixels.get_mut(..4)?,
+            self.scratch.get_mut(..4)?,
+        );
+        for ((m, p), (a, b)) in model
+            .iter_mut()
+            .zip(pixels.iter_mut())
+            .zip(params.corners().iter().zip(corners))
+        {
+            (*m, *p) = (*a, *b);
+        }
         solve_planar(&params.camera, model, pixels, scratch, &params.cfg.planar).ok()
     }
 
@@ -1180,7 +1214,8 @@ mod tests {
             t.step(&params, None, &p, &mut GivenCorners::new(line), &mut ())
                 .is_err()
         );
-        // A flat image has no features: acquired, but lost at once.
+        // A flat image has no features: acquired, the pose is the four corners' alone
+        // (nothing to track, so the next frame acquires again).
         let quad = [
             Point2::new(1.0, 1.0),
             Point2::new(6.0, 1.0),
@@ -1190,9 +1225,9 @@ mod tests {
         let r = t
             .step(&params, None, &p, &mut GivenCorners::new(quad), &mut ())
             .unwrap();
-        assert!(r.acquired && r.pose.is_none());
-        assert_eq!(r.state, TargetState::Lost);
-        // A lost target needs the previous frame.
+        assert!(r.acquired && r.pose.is_some() && r.features == 0);
+        assert_eq!(r.state, TargetState::Tracking);
+        // Tracking needs the previous frame.
         assert_eq!(
             t.step(&params, None, &p, &mut (), &mut ()).err(),
             Some(Error::InvalidParameter("prev"))

@@ -86,7 +86,6 @@ use crate::linalg::{StreamingQr, rotation_step};
 use crate::pose::{PlanarConfig, solve_planar};
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::Pose;
-use crate::twoview::skew;
 use crate::{Error, Result};
 
 /// Camera parameters estimated: `fx fy cx cy` and five lens coefficients.
@@ -467,7 +466,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
                         col.fill(T::zero());
                     }
                 }
-                let jw = jx * (-skew(&rx));
+                let jw = jx * (-rx.cross_matrix());
                 let r = u - o;
                 for row in 0..2 {
                     let mut a = [T::zero(); VB];

@@ -74,7 +74,7 @@ impl<T: Real> Homography<T> {
         let m = m / amax;
         let rows = m.row_iter().fold(T::one(), |acc, r| acc * r.norm());
         let cols = m.column_iter().fold(T::one(), |acc, c| acc * c.norm());
-        let det = determinant(&m);
+        let det = m.determinant();
         if !above(det.abs(), T::EPSILON * rows.min(cols)) {
             return Err(Error::Degenerate);
         }
@@ -130,12 +130,6 @@ impl<T: Real> Homography<T> {
 }
 
 pub(crate) use crate::scalar::above;
-
-/// `det M = r₁ · (r₂ × r₃)`.
-pub(crate) fn determinant<T: Real>(m: &Matrix3<T>) -> T {
-    let (r1, r2, r3) = rows(m);
-    r1.dot(&r2.cross(&r3))
-}
 
 /// `adj M = [r₂ × r₃, r₃ × r₁, r₁ × r₂]` (columns), so that `M adj M = det(M) I`.
 pub(crate) fn adjugate<T: Real>(m: &Matrix3<T>) -> Matrix3<T> {

@@ -3,7 +3,7 @@
 use nalgebra::{Matrix3, Point2, SVector, Vector2, Vector3};
 
 use super::normalize::Normalization;
-use super::{Homography, adjugate, determinant};
+use super::{Homography, adjugate};
 use crate::linalg::{StreamingQr, lm};
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
@@ -173,7 +173,7 @@ fn project<T: Real>(v: &Vector3<T>) -> Option<Vector2<T>> {
 
 /// `M⁻¹ = adj(M) / det(M)`, `None` if singular or not finite.
 fn inverse<T: Real>(m: &Matrix3<T>) -> Option<Matrix3<T>> {
-    let det = determinant(m);
+    let det = m.determinant();
     if det == T::zero() {
         return None;
     }

@@ -27,7 +27,9 @@ mod tracker;
 
 pub use arith::{Bilinear, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16};
 pub use lk::{calc_flow, forward_backward};
-pub use tracker::{FlowBuffers, Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
+pub use tracker::{
+    FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram,
+};
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;

@@ -31,6 +31,29 @@ pub struct Track<C> {
     pub err: C,
 }
 
+/// Something [`FlowBuffers::track`] moves from frame to frame: where it is, and what its flow
+/// does to it.
+pub trait FlowItem<C> {
+    /// Its position `[x, y]` in the previous frame.
+    fn position(&self) -> [C; 2];
+    /// Takes the flow that carried it into the next frame (only tracked items get one).
+    fn moved(&mut self, flow: &Flow<C>);
+}
+
+impl<C: Copy> FlowItem<C> for Track<C> {
+    fn position(&self) -> [C; 2] {
+        [self.x, self.y]
+    }
+
+    /// The new position and flow error; one frame older.
+    fn moved(&mut self, flow: &Flow<C>) {
+        self.x = flow.x;
+        self.y = flow.y;
+        self.err = flow.err;
+        self.age = self.age.saturating_add(1);
+    }
+}
+
 /// Parameters of a [`Tracker`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -139,29 +162,26 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
     }
 
     /// Moves every item of `items` (at most `N`) from `prev` to `next` ([`Self::run`] on their
-    /// `pos`), keeps those [`FlowStatus::Tracked`] in order and hands each kept one its flow
-    /// through `moved`; the rest are removed. Returns how many remain. Errors: as
-    /// [`Self::run`].
-    #[allow(clippy::too_many_arguments)]
-    pub fn track<T, const M: usize>(
+    /// [`FlowItem::position`]s), keeps those [`FlowStatus::Tracked`] in order and hands each
+    /// kept one its flow through [`FlowItem::moved`]; the rest are removed. Returns how many
+    /// remain. Errors: as [`Self::run`].
+    pub fn track<T: FlowItem<A::Coord>, const M: usize>(
         &mut self,
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
         items: &mut Vec<T, M>,
-        pos: impl Fn(&T) -> [A::Coord; 2],
-        mut moved: impl FnMut(&mut T, &Flow<A::Coord>),
         lk: &LkParams,
         scratch: &mut [i16],
     ) -> Result<usize> {
         let n = items.len();
-        let flows = self.run(prev, next, n, items.iter().map(pos), lk, scratch)?;
+        let flows = self.run(prev, next, n, items.iter().map(T::position), lk, scratch)?;
         let mut k = 0usize;
         items.retain_mut(|t| {
             let f = flows.get(k);
             k += 1;
             match f {
                 Some(f) if f.status == FlowStatus::Tracked => {
-                    moved(t, f);
+                    t.moved(f);
                     true
                 }
                 _ => false,
@@ -216,20 +236,9 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
         scratch: &mut [i16],
     ) -> Result<TrackerStats> {
         let n = self.tracks.len();
-        let tracked = self.buffers.track(
-            prev,
-            next,
-            &mut self.tracks,
-            |t| [t.x, t.y],
-            |t, f| {
-                t.x = f.x;
-                t.y = f.y;
-                t.err = f.err;
-                t.age = t.age.saturating_add(1);
-            },
-            &self.lk,
-            scratch,
-        )?;
+        let tracked = self
+            .buffers
+            .track(prev, next, &mut self.tracks, &self.lk, scratch)?;
         Ok(TrackerStats {
             tracked,
             lost: n - tracked,

@@ -1,6 +1,6 @@
 //! Levenberg-Marquardt refinement of a pose on the reprojection error.
 
-use nalgebra::{Matrix3, Point2, Point3, SVector, Vector3};
+use nalgebra::{Point2, Point3, SVector, Vector3};
 
 use super::PoseEstimate;
 use crate::camera::Camera;
@@ -192,11 +192,6 @@ impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> Reprojection<'_, T, W> {
     }
 }
 
-fn skew<T: Real>(v: &Vector3<T>) -> Matrix3<T> {
-    let z = T::zero();
-    Matrix3::new(z, -v.z, v.y, v.z, z, -v.x, -v.y, v.x, z)
-}
-
 impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6, 7>
     for Reprojection<'_, T, W>
 {
@@ -217,7 +212,7 @@ impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6, 7>
             let xc = Point3::from(rx + p.translation());
             let (proj, jp) = self.camera.project_with_jacobian(&xc).ok()?;
             let r = proj - u;
-            let jw = jp * (-skew(&rx));
+            let jw = jp * (-rx.cross_matrix());
             let rows = [
                 [jw.m11, jw.m12, jw.m13, jp.m11, jp.m12, jp.m13, -r.x],
                 [jw.m21, jw.m22, jw.m23, jp.m21, jp.m22, jp.m23, -r.y],

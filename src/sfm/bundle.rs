@@ -27,7 +27,6 @@ use crate::camera::Camera;
 use crate::linalg::rotation_step;
 use crate::scalar::{Real, above};
 use crate::transform::Pose;
-use crate::twoview::skew;
 use crate::twoview::tangent_basis;
 use crate::{Error, Result};
 
@@ -205,7 +204,7 @@ pub fn bundle_adjust<T: Real>(
                 };
                 let e = proj - obs;
                 let jx: Matrix2x3<T> = jpi * pose.rotation().matrix();
-                let jw: Matrix2x3<T> = jpi * (-skew(&rx));
+                let jw: Matrix2x3<T> = jpi * (-rx.cross_matrix());
                 let mut jc = SMatrix::<T, 2, C>::zeros();
                 match v {
                     1 => {

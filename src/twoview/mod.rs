@@ -63,12 +63,6 @@ crate::frame!(
 /// The pose of view 2 relative to view 1: `X₂ = R X₁ + t` for camera-frame coordinates.
 pub type RelativePose<T = f32> = Transform<View1, View2, T>;
 
-/// `[v]ₓ`, the cross-product matrix: `[v]ₓ w = v × w`.
-pub(crate) fn skew<T: Real>(v: &Vector3<T>) -> Matrix3<T> {
-    let z = T::zero();
-    Matrix3::new(z, -v.z, v.y, v.z, z, -v.x, -v.y, v.x, z)
-}
-
 /// `[u₁ u₂ u₁ × u₂]`: the rotation completing the first two columns of an SVD factor (the
 /// Jacobi SVD leaves the `U` column of an exactly zero singular value at zero).
 pub(crate) fn complete_rotation<T: Real>(u: &Matrix3<T>) -> Matrix3<T> {
@@ -238,7 +232,7 @@ impl<T: Real> Essential<T> {
             return Err(Error::Degenerate);
         }
         Ok(Self {
-            e: skew(&(t / n)) * pose.rotation().matrix(),
+            e: (t / n).cross_matrix() * pose.rotation().matrix(),
         })
     }
 

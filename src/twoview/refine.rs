@@ -16,7 +16,7 @@
 
 use nalgebra::{Matrix3, Point2, Rotation3, SVector, Vector3};
 
-use super::{Essential, Fundamental, RelativePose, lift, skew};
+use super::{Essential, Fundamental, RelativePose, lift};
 use crate::camera::Intrinsics;
 use crate::homography::Normalization;
 use crate::linalg::{StreamingQr, lm, rotation_step, svd_jacobi};
@@ -205,7 +205,7 @@ where
         let f = self.pixel_matrix(p);
         let (u, v) = (p.u.matrix(), p.v.matrix());
         let d = Self::d(p.s);
-        let basis = [Vector3::x(), Vector3::y(), Vector3::z()].map(|e| skew(&e));
+        let basis = [Vector3::x(), Vector3::y(), Vector3::z()].map(|e| e.cross_matrix());
         let mut qr = StreamingQr::new();
         for (a, b) in self.pairs.clone() {
             let (r, g) = sampson_gradient(&f, &lift(&a), &lift(&b))?;
@@ -307,7 +307,7 @@ struct EProblem<T: Real, I> {
 
 impl<T: Real, I> EProblem<T, I> {
     fn pixel_matrix(&self, p: &RelativePose<T>) -> Matrix3<T> {
-        self.k2inv.transpose() * skew(&p.translation()) * p.rotation().matrix() * self.k1inv
+        self.k2inv.transpose() * p.translation().cross_matrix() * p.rotation().matrix() * self.k1inv
     }
 }
 
@@ -326,9 +326,9 @@ where
         let f = self.pixel_matrix(p);
         let r = *p.rotation().matrix();
         let t = p.translation();
-        let tx = skew(&t);
+        let tx = t.cross_matrix();
         let (b1, b2) = tangent_basis(&t);
-        let basis = [Vector3::x(), Vector3::y(), Vector3::z()].map(|e| skew(&e));
+        let basis = [Vector3::x(), Vector3::y(), Vector3::z()].map(|e| e.cross_matrix());
         let mut qr = StreamingQr::new();
         for (a, b) in self.pairs.clone() {
             let (res, g) = sampson_gradient(&f, &lift(&a), &lift(&b))?;
@@ -338,8 +338,8 @@ where
             for (x, ek) in row.iter_mut().zip(basis.iter()) {
                 *x = ge.dot(&(tx * ek * r));
             }
-            row[3] = ge.dot(&(skew(&b1) * r));
-            row[4] = ge.dot(&(skew(&b2) * r));
+            row[3] = ge.dot(&(b1.cross_matrix() * r));
+            row[4] = ge.dot(&(b2.cross_matrix() * r));
             row[5] = -res;
             qr.push_row(&row).ok()?;
         }

@@ -8,7 +8,7 @@
 
 use nalgebra::{Matrix3, Point2, Point3, Vector2, Vector3};
 
-use super::{lift, skew};
+use super::lift;
 use crate::linalg::StreamingQr;
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::{Frame, Transform};
@@ -205,7 +205,7 @@ pub fn triangulate_optimal<W: Frame, C1: Frame, C2: Frame, T: Real>(
     if !above(t.norm(), T::zero()) {
         return Err(Error::Degenerate);
     }
-    let e = skew(&(t / t.norm())) * rel.rotation().matrix();
+    let e = (t / t.norm()).cross_matrix() * rel.rotation().matrix();
     let (c1, c2) = correct_matches(&e, x1, x2)?;
     let tri = triangulate_midpoint(p1, p2, &c1, &c2)?;
     finish(p1, p2, tri.point, x1, x2)
@@ -261,7 +261,7 @@ mod tests {
     fn optimal_correction_satisfies_the_constraint_and_beats_sampson() {
         let (p1, p2) = views();
         let rel = p1.inverse().then(&p2);
-        let e = skew(&rel.translation()) * rel.rotation().matrix();
+        let e = rel.translation().cross_matrix() * rel.rotation().matrix();
         let mut g = Pcg32::new(9);
         for _ in 0..100 {
             let x = Point3::new(

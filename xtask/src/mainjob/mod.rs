@@ -204,9 +204,14 @@ pub fn run(opts: &Options) -> Result<()> {
         println!("---- tag job (instructions on the Cortex-M7) ----\n{t}");
         println!("---- calibration job (instructions on the Cortex-M7) ----\n{c}");
     }
-    let measured: Vec<(String, u64, u64)> = rows
+    let measured: Vec<crate::size::Measured> = rows
         .iter()
-        .map(|r| (snapshot_key(r.board, r.size.bin), r.flash, r.ram))
+        .map(|r| crate::size::Measured {
+            bin: snapshot_key(r.board, r.size.bin),
+            flash: r.flash,
+            ram: r.ram,
+            stack: Some(r.stack),
+        })
         .collect();
     crate::size::compare(&measured)?;
     Ok(())

@@ -130,9 +130,9 @@ fn truth() -> Result<BTreeMap<u32, TruePose>> {
 /// Rotation (degrees) and translation (mm) errors of the tracked poses against the truth: the
 /// target's frame is the tag's with its origin at the tag's top-left outer corner, so
 /// `t_tag = t + R (s/2, s/2, 0)`.
-fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<Vec<(f64, f64)>> {
+fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<BTreeMap<u32, (f64, f64)>> {
     let truth = truth()?;
-    let mut out = Vec::new();
+    let mut out = BTreeMap::new();
     for (k, r) in records {
         let (Some((best, _)), Some((rt, tt))) = (r.pose, truth.get(k)) else {
             continue;
@@ -146,9 +146,45 @@ fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<Vec<(f64, f64)>> 
         let dr = (UnitQuaternion::from_rotation_matrix(&rot) * qt.inverse())
             .angle()
             .to_degrees();
-        out.push((dr, (t - tt).norm() * 1e3));
+        out.insert(*k, (dr, (t - tt).norm() * 1e3));
     }
     Ok(out)
+}
+
+/// One row a frame: what the board did and cost, and its pose error against the truth
+/// (`frames.csv` beside the run, for plots and for finding the frames worth a look).
+fn write_frames_csv(
+    path: &Path,
+    frames: &BTreeMap<u32, FrameRecord>,
+    errors: &BTreeMap<u32, (f64, f64)>,
+) -> Result<()> {
+    let mut s = String::from(
+        "frame,state,acquired,tracked,inliers,features,acquire,flow,homography,pose,redetect,total,rotation_deg,translation_mm\n",
+    );
+    for (k, r) in frames {
+        let c = &r.costs;
+        let (dr, dt) = errors
+            .get(k)
+            .map_or((String::new(), String::new()), |(a, b)| {
+                (format!("{a:.4}"), format!("{b:.3}"))
+            });
+        let _ = writeln!(
+            s,
+            "{k},{:?},{},{},{},{},{},{},{},{},{},{},{dr},{dt}",
+            r.state,
+            u8::from(r.acquired),
+            r.tracked,
+            r.inliers,
+            r.features,
+            c.acquire,
+            c.flow,
+            c.homography,
+            c.pose,
+            c.redetect,
+            c.total
+        );
+    }
+    fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn quantile(v: &mut [f64], q: f64) -> f64 {
@@ -182,8 +218,9 @@ pub fn run(stride: u32) -> Result<String> {
         back >= 20,
         "the tag was not found again after leaving the view ({back} frames)"
     );
-    let mut errors = pose_errors(frames)?;
-    let (mut dr, mut dt): (Vec<f64>, Vec<f64>) = errors.drain(..).unzip();
+    let errors = pose_errors(frames)?;
+    write_frames_csv(&dir.join("frames.csv"), frames, &errors)?;
+    let (mut dr, mut dt): (Vec<f64>, Vec<f64>) = errors.values().copied().unzip();
     println!(
         "tag job {} 320x240: {verdict}; {} of {} frames with a pose",
         M7.name,
