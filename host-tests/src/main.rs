@@ -91,8 +91,9 @@ enum Command {
     Pose(pose_cmd::PoseArgs),
     /// Track a planar target through a folder of frames and draw a cube standing on it.
     ///
-    /// Writes overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON
-    /// summary.
+    /// The target is given by its corners in the first frame (--corners, --size) or is an
+    /// AprilTag the detector finds and finds again (--tag, --family, --tag-size). Writes
+    /// overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON summary.
     Ar(ar_cmd::ArArgs),
     /// Detect AprilTags in an image or a folder of frames (AprilTag 3's detector), with each
     /// tag's pose given its size and the camera.
