@@ -9,32 +9,20 @@
 //! Rows: `image,family,id,hamming,margin,x0,y0,x1,y1,x2,y2,x3,y3` (AprilTag's corner order,
 //! camgeom's pixel convention), with `--pose` also `r11..r33,tx,ty,tz,ambiguous` (the best
 //! pose of `camgeom::apriltag::tag_pose`, AprilTag's tag frame). Frames up to 320x240 after
-//! decimation use the board workspace [`Workspace320x240`], larger ones a 1024-wide one.
+//! decimation use the board workspace [`Workspace320x240`], larger ones the CLI's 1024x1024
+//! `camgeom_host::apriltag::HostWorkspace`.
 //! `--repeat N` runs each detection N times (the output once): callgrind's per-call counts;
 //! `--stats` prints each frame's [`camgeom::apriltag::Stats`] to stderr.
 
 use camgeom::apriltag::{
-    Detection, Detector, DetectorConfig, Family, Workspace, Workspace320x240, families,
-    max_cluster_points, tag_pose, tiles,
+    Detection, Detector, DetectorConfig, Family, Workspace320x240, families, tag_pose,
 };
 use camgeom::heapless::Vec as HVec;
 use camgeom::pose::PlanarConfig;
-
-type Large = Workspace<
-    1024,
-    { tiles(1024, 1024, 1) },
-    65533,
-    8192,
-    262_144,
-    { max_cluster_points(1024, 1024, 1) },
->;
+use camgeom_host::apriltag::HostWorkspace as Large;
 
 fn family(name: &str) -> &'static Family {
-    families::ALL
-        .iter()
-        .copied()
-        .find(|f| f.name() == name)
-        .unwrap_or_else(|| panic!("unknown family {name}"))
+    camgeom_host::apriltag::family(name).unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn main() {

@@ -244,7 +244,7 @@ impl RgbImage {
     /// Writes `text` (digits and `.`; other characters are skipped) in white 3x5 digits at 2x
     /// on a black box whose top-left corner is `(x, y)`, clipped to `max_w x max_h`.
     pub fn label(&mut self, x: usize, y: usize, text: &str, max_w: usize, max_h: usize) {
-        let (lw, lh) = (text.len() * 8 + 2, 14);
+        let (lw, lh) = label_size(text);
         for dy in 0..lh.min(max_h) {
             for dx in 0..lw.min(max_w) {
                 self.put((x + dx) as i64, (y + dy) as i64, [0, 0, 0]);
@@ -371,6 +371,11 @@ const DIGITS: [[u8; 5]; 10] = [
     [7, 5, 7, 5, 7],
     [7, 5, 7, 1, 7],
 ];
+
+/// Width and height in pixels of [`RgbImage::label`]'s box for `text`.
+pub(crate) fn label_size(text: &str) -> (usize, usize) {
+    (text.len() * 8 + 2, 14)
+}
 
 /// A grid of `tiles` (each downscaled by `factor` with a box filter), `cols` a row, each
 /// labelled with its number in the top-left corner.

@@ -2,11 +2,13 @@
 
 use std::path::PathBuf;
 
+use camgeom::apriltag::{Detector, Family, TagTarget};
 use camgeom::corners::CornerConfig;
 use camgeom::klt::LkConfig;
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
-use camgeom::target::{GivenCorners, TargetConfig, TargetState};
+use camgeom::target::{Acquire, GivenCorners, TargetConfig, TargetState};
+use camgeom_host::apriltag::{HostWorkspace, check_tag_size, detector, family};
 use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
 use camgeom_host::klt::Path;
 use camgeom_host::points::{format_float, read_csv, to_json};
@@ -24,14 +26,41 @@ pub struct ArArgs {
     frames: PathBuf,
     /// The target's four corners in the first frame, CSV rows `x,y` in the order
     /// (0,0), (w,0), (w,h), (0,h) of the target.
-    #[arg(long, value_name = "FIRST.csv")]
-    corners: PathBuf,
+    #[arg(
+        long,
+        value_name = "FIRST.csv",
+        required_unless_present = "tag",
+        conflicts_with = "tag",
+        requires = "size"
+    )]
+    corners: Option<PathBuf>,
     /// Camera file (see `camgeom project --help`).
     #[arg(long, value_name = "FILE")]
     intrinsics: PathBuf,
-    /// The target's size `W,H` (metres, or the unit the pose should use), or `S` for a square.
-    #[arg(long, value_name = "W,H")]
-    size: String,
+    /// The target's size `W,H` (metres, or the unit the pose should use), or `S` for a square
+    /// (with --corners).
+    #[arg(long, value_name = "W,H", conflicts_with = "tag")]
+    size: Option<String>,
+    /// Acquire the target from AprilTag ID (of --family) instead of --corners: the detector
+    /// finds it in the first frame it is seen, again after every loss and every
+    /// --reacquire-every frames while tracking. The target is the tag's black square.
+    #[arg(long, value_name = "ID", requires = "tag_size")]
+    tag: Option<u16>,
+    /// The tag's family (with --tag): tag36h11, tag25h9, tag16h5, tagStandard41h12.
+    #[arg(long, default_value = "tag36h11", value_name = "F")]
+    family: String,
+    /// The tag's side (the black border's outer edge), in the unit the pose should use
+    /// (with --tag).
+    #[arg(long, value_name = "S", allow_hyphen_values = true, requires = "tag")]
+    tag_size: Option<f32>,
+    /// Detector decimation (with --tag; see `camgeom apriltag --help`).
+    #[arg(long, default_value_t = 1, value_name = "D")]
+    decimate: u8,
+    /// While tracking, run the acquisition again every N frames (0: only before the first
+    /// acquisition and after a loss). Default 5 with --tag (the board's tag job), 0 with
+    /// --corners (given corners answer once).
+    #[arg(long, value_name = "N")]
+    reacquire_every: Option<u32>,
     /// Edge of the cube drawn on the target (default: the target's smaller side).
     #[arg(long, value_name = "S")]
     cube: Option<f32>,
@@ -65,15 +94,41 @@ pub struct ArArgs {
     /// Minimum distance between features, pixels.
     #[arg(long, default_value_t = 8)]
     min_distance: u32,
-    /// Re-detect inside the target when fewer tracks than this survive.
-    #[arg(long, default_value_t = 24)]
-    min_tracks: usize,
+    /// Re-detect inside the target when fewer tracks than this survive (default 24; with
+    /// --tag, --min-inliers: no features are added between detections).
+    #[arg(long)]
+    min_tracks: Option<usize>,
     /// Fewer homography inliers than this and the target is lost.
     #[arg(long, default_value_t = 8)]
     min_inliers: usize,
     /// RANSAC inlier threshold of the target homography, pixels.
     #[arg(long, default_value_t = 2.0)]
     threshold: f32,
+}
+
+/// How the target is found.
+enum Acquisition<'a> {
+    /// Corners picked in the first frame (a CSV file).
+    Corners(&'a PathBuf),
+    /// A tag: the detector, the family and the id.
+    Tag(Detector, &'static Family, u16),
+}
+
+/// The target's corners from a CSV file of 4 rows `x,y`.
+fn read_corners(path: &PathBuf) -> Result<[Point2<f32>; 4]> {
+    let table = read_csv(path, &["x", "y"])?;
+    if table.rows.len() != 4 {
+        return Err(Error::new(
+            path,
+            ErrorKind::Shape(format!(
+                "expected the target's 4 corners (x,y rows), found {}",
+                table.rows.len()
+            )),
+        ));
+    }
+    Ok(std::array::from_fn(|i| {
+        Point2::new(table.rows[i][0] as f32, table.rows[i][1] as f32)
+    }))
 }
 
 /// `W,H` or `S`: finite and positive.
@@ -127,6 +182,22 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
         ));
     }
     let d = TargetConfig::default();
+    let tag = a.tag.is_some();
+    let min_inliers = a.min_inliers.max(4);
+    // With a tag, the board's tag-job policy (`camgeom_fw_app::run`, measured there): a tag is
+    // small in the frame and has few features, so KLT windows stay off its edge (where they
+    // would take in its quiet zone and the background), no features are added between
+    // detections (those found during an occlusion are the occluder's), and the detector alone
+    // finds the tag again after a loss (no relocation around the last outline).
+    let (border, relocate, min_tracks) = if tag {
+        (
+            (a.win / 2 + 1) as f32,
+            false,
+            a.min_tracks.unwrap_or(min_inliers),
+        )
+    } else {
+        (d.border, d.relocate, a.min_tracks.unwrap_or(d.min_tracks))
+    };
     Ok(TargetConfig {
         lk: LkConfig {
             win: a.win,
@@ -143,8 +214,11 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
             threshold: a.threshold,
             ..d.ransac
         },
-        min_tracks: a.min_tracks,
-        min_inliers: a.min_inliers.max(4),
+        min_tracks,
+        min_inliers,
+        border,
+        relocate,
+        reacquire_every: a.reacquire_every.unwrap_or(if tag { 5 } else { 0 }),
         ..d
     })
 }
@@ -152,7 +226,28 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
 /// `camgeom ar`: writes the overlays, `poses.csv` and the contact sheet, returns the JSON
 /// summary.
 pub fn run(a: &ArArgs) -> Result<String> {
-    let size = parse_size(&a.size)?;
+    // The target's acquisition: given corners, or a tag detector.
+    let (size, acquisition) = match (a.tag, a.tag_size, &a.corners, &a.size) {
+        (Some(id), Some(s), None, None) => {
+            check_tag_size(s)?;
+            let family = family(&a.family)?;
+            let det = detector(&[family], a.decimate, 2, true)?;
+            if u32::from(id) >= family.ncodes() as u32 {
+                return Err(Error::usage(format!(
+                    "--tag: {} has ids 0..{}, got {id}",
+                    family.name(),
+                    family.ncodes()
+                )));
+            }
+            ([s, s], Acquisition::Tag(det, family, id))
+        }
+        (None, None, Some(c), Some(size)) => (parse_size(size)?, Acquisition::Corners(c)),
+        _ => {
+            return Err(Error::usage(
+                "give --corners with --size, or --tag with --tag-size",
+            ));
+        }
+    };
     let cube = a.cube.unwrap_or(size[0].min(size[1]));
     if !(cube.is_finite() && cube > 0.0) {
         return Err(Error::usage(format!("--cube must be positive, got {cube}")));
@@ -160,18 +255,20 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let target = target_config(a)?;
     let spec = load_camera(&a.intrinsics)?;
     let camera = spec.camera_f32();
-    let table = read_csv(&a.corners, &["x", "y"])?;
-    if table.rows.len() != 4 {
-        return Err(Error::new(
-            &a.corners,
-            ErrorKind::Shape(format!(
-                "expected the target's 4 corners (x,y rows), found {}",
-                table.rows.len()
-            )),
-        ));
-    }
-    let corners: [Point2<f32>; 4] =
-        std::array::from_fn(|i| Point2::new(table.rows[i][0] as f32, table.rows[i][1] as f32));
+    let mut given;
+    let mut ws: Box<HostWorkspace>;
+    let mut tag_target;
+    let acquire: &mut dyn Acquire = match &acquisition {
+        Acquisition::Corners(path) => {
+            given = GivenCorners::new(read_corners(path)?);
+            &mut given
+        }
+        Acquisition::Tag(det, family, id) => {
+            ws = Box::default();
+            tag_target = TagTarget::new(det, &mut ws, family, *id);
+            &mut tag_target
+        }
+    };
     let files = frame_files(&a.frames)?;
     create_dir(&a.out)?;
     let bar = progress_bar(files.len() as u64 * 2);
@@ -186,8 +283,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let sheet_idx = evenly_spaced(frames.len(), a.sheet_frames);
     let mut tiles = Vec::new();
     let mut write_err = None;
-    let mut given = GivenCorners::new(corners);
-    let results = run_ar(&frames, &mut given, &camera, &opts, |f| {
+    let results = run_ar(&frames, acquire, &camera, &opts, |f| {
         bar.inc(1);
         let img = draw_ar(&frames[f.frame], &camera, f, &opts);
         let name = files[f.frame]
@@ -206,11 +302,13 @@ pub fn run(a: &ArArgs) -> Result<String> {
     if let Some(e) = write_err {
         return Err(e);
     }
-    if results.first().is_some_and(|f| f.pose.is_none()) {
+    if let Acquisition::Corners(path) = acquisition
+        && results.first().is_some_and(|f| f.pose.is_none())
+    {
         return Err(Error::camgeom(
             format!(
                 "{}: the corners enclose too little texture to track",
-                a.corners.display()
+                path.display()
             ),
             camgeom::Error::TooFewPoints,
         ));

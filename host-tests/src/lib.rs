@@ -11,10 +11,12 @@
 //! | [`bench`](mod@bench) | the criterion benches' input files and the answers they leave for the peer harness |
 //! | [`known_motion`] | known warps of a frame and an independent bilinear warp, for KLT accuracy |
 //! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence, its overlays and contact sheet (`ar`) |
+//! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod apriltag;
 pub mod ar;
 pub mod bench;
 pub mod error;

@@ -22,6 +22,7 @@ use camgeom_host::{Error, ErrorKind, Result, load_camera, status_name};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
 
+mod apriltag_cmd;
 mod ar_cmd;
 mod calibrate_cmd;
 mod homography_cmd;
@@ -92,9 +93,19 @@ enum Command {
     Pose(pose_cmd::PoseArgs),
     /// Track a planar target through a folder of frames and draw a cube standing on it.
     ///
-    /// Writes overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON
-    /// summary.
+    /// The target is given by its corners in the first frame (--corners, --size) or is an
+    /// AprilTag the detector finds and finds again (--tag, --family, --tag-size). Writes
+    /// overlay PNGs, `poses.csv` and `contact_sheet.png` to --out and prints a JSON summary.
     Ar(ar_cmd::ArArgs),
+    /// Detect AprilTags in an image or a folder of frames (AprilTag 3's detector), with each
+    /// tag's pose given its size and the camera.
+    ///
+    /// Prints JSON `{"detections": [{"id", "family", "hamming", "margin", "corners": [[x, y] x
+    /// 4], "H": [9], ..}], "width", "height"}` (with --frames, an array of these, one per
+    /// frame); with --intrinsics and --tag-size each detection also has "R", "t", "rms_px"
+    /// and "alternative". Corners in AprilTag's order, camgeom's pixel coordinates (pixel
+    /// centres at integers) unless --apriltag-coords.
+    Apriltag(apriltag_cmd::ApriltagArgs),
     /// Epipolar geometry and relative pose of two calibrated views (OpenCV's
     /// findFundamentalMat, findEssentialMat, recoverPose, triangulatePoints).
     ///
@@ -255,6 +266,7 @@ fn run(command: &Command) -> Result<String> {
         Command::Track(a) => klt_cmd::run_track(a),
         Command::Pose(a) => pose_cmd::run(a),
         Command::Ar(a) => ar_cmd::run(a),
+        Command::Apriltag(a) => apriltag_cmd::run(a),
         Command::Twoview(a) => twoview_cmd::run(a),
         Command::Sfm(a) => sfm_cmd::run(a),
         Command::Calibrate(a) => calibrate_cmd::run(a),

@@ -19,13 +19,13 @@ type PhotoWorkspace = Workspace<
     { max_cluster_points(800, 536, 1) },
 >;
 
-fn data(sub: &str) -> std::path::PathBuf {
+pub(crate) fn data(sub: &str) -> std::path::PathBuf {
     camgeom_host::data_dir().join("apriltag").join(sub)
 }
 
 /// `id, (x0 y0), (x1 y1), (x2 y2), (x3 y3)` rows of the AprilTag test's expectations
 /// (AprilTag's pixel coordinates).
-fn expected(name: &str) -> Vec<(u16, [[f64; 2]; 4])> {
+pub(crate) fn expected(name: &str) -> Vec<(u16, [[f64; 2]; 4])> {
     let text = std::fs::read_to_string(data(name)).unwrap();
     text.lines()
         .filter(|l| !l.trim().is_empty())
@@ -42,18 +42,27 @@ fn expected(name: &str) -> Vec<(u16, [[f64; 2]; 4])> {
         .collect()
 }
 
+/// The AprilTag test photos (`<name>.jpg` with the expected tags in `<name>.txt`).
+pub(crate) const TEST_PHOTOS: [&str; 3] = [
+    "33369213973_9d9bb4cc96_c",
+    "34085369442_304b6bafd9_c",
+    "34139872896_defdb2f8d9_c",
+];
+
+/// Largest distance between corresponding corners.
+pub(crate) fn max_corner_distance(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(p, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+        .fold(0.0, f64::max)
+}
+
 /// Largest corner distance between a detection (camgeom coordinates) and expected corners
 /// (AprilTag's), after the half-pixel convention shift.
 fn corner_error(d: &Detection, e: &[[f64; 2]; 4]) -> f64 {
-    d.corners
-        .iter()
-        .zip(e)
-        .map(|(p, q)| {
-            let dx = f64::from(p.x + APRILTAG_PIXEL_OFFSET) - q[0];
-            let dy = f64::from(p.y + APRILTAG_PIXEL_OFFSET) - q[1];
-            (dx * dx + dy * dy).sqrt()
-        })
-        .fold(0.0, f64::max)
+    let o = f64::from(APRILTAG_PIXEL_OFFSET);
+    let c = d.corners.map(|p| [f64::from(p.x) + o, f64::from(p.y) + o]);
+    max_corner_distance(&c, e)
 }
 
 /// The AprilTag library's detection test (`test/test_detection.c`) on its three photos, with
@@ -70,11 +79,7 @@ fn apriltag_test_photos_give_the_expected_tags() {
     let mut ws = Box::new(PhotoWorkspace::new());
     let mut all_errors = Vec::new();
     let mut problems = Vec::new();
-    for name in [
-        "33369213973_9d9bb4cc96_c",
-        "34085369442_304b6bafd9_c",
-        "34139872896_defdb2f8d9_c",
-    ] {
+    for name in TEST_PHOTOS {
         let img = load_gray(data(&format!("{name}.jpg"))).unwrap();
         let want = expected(&format!("{name}.txt"));
         let found: camgeom::heapless::Vec<Detection, 64> =
@@ -323,15 +328,18 @@ fn no_false_positives_on_tag_free_images() {
 }
 
 /// One row of `sequences/tag/truth.csv`.
-struct SeqFrame {
-    in_view: bool,
-    occluded: bool,
-    r: [[f64; 3]; 3],
-    t: [f64; 3],
-    corners: [[f64; 2]; 4],
+pub(crate) struct SeqFrame {
+    /// The tag is wholly inside the frame.
+    pub(crate) in_view: bool,
+    pub(crate) occluded: bool,
+    /// Tag to camera (AprilTag's tag frame, origin at the centre).
+    pub(crate) r: [[f64; 3]; 3],
+    pub(crate) t: [f64; 3],
+    /// Corners in AprilTag's order, camgeom's pixel coordinates.
+    pub(crate) corners: [[f64; 2]; 4],
 }
 
-fn tag_sequence() -> Vec<SeqFrame> {
+pub(crate) fn tag_sequence() -> Vec<SeqFrame> {
     let dir = camgeom_host::data_dir().join("sequences/tag");
     let text = std::fs::read_to_string(dir.join("truth.csv")).unwrap();
     let mut lines = text.lines();
@@ -352,6 +360,17 @@ fn tag_sequence() -> Vec<SeqFrame> {
             }
         })
         .collect()
+}
+
+/// The angle of `R R_true^T`, degrees.
+pub(crate) fn rotation_error_deg(r: &[[f64; 3]; 3], truth: &[[f64; 3]; 3]) -> f64 {
+    let mut tr = 0.0;
+    for i in 0..3 {
+        for j in 0..3 {
+            tr += r[i][j] * truth[i][j];
+        }
+    }
+    ((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
 }
 
 /// The rendered tag sequence (exact poses): camgeom, detecting every frame on the board
@@ -393,14 +412,10 @@ fn tag_sequence_poses_are_at_least_as_close_as_apriltag_3s() {
         let p = tag_pose(d, 0.08, &cam, &PlanarConfig::default()).unwrap();
         let r = p.best.pose.rotation();
         let m = r.matrix();
-        // Angle of R R_true^T.
-        let mut tr = 0.0;
-        for i in 0..3 {
-            for j in 0..3 {
-                tr += f64::from(m[(i, j)]) * fr.r[i][j];
-            }
-        }
-        r_cg.push(((tr - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees());
+        r_cg.push(rotation_error_deg(
+            &std::array::from_fn(|i| std::array::from_fn(|j| f64::from(m[(i, j)]))),
+            &fr.r,
+        ));
         let t = p.best.pose.translation();
         let dt = [
             f64::from(t.x) - fr.t[0],

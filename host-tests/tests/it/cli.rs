@@ -70,7 +70,7 @@ fn parse_output(stdout: &[u8]) -> Vec<(f64, f64, String)> {
         .collect()
 }
 
-fn assert_usage_error(out: &Output, needle: &str) {
+pub(crate) fn assert_usage_error(out: &Output, needle: &str) {
     assert_eq!(out.status.code(), Some(2), "exit status; stderr: {out:?}");
     assert!(out.stdout.is_empty(), "stdout on error: {out:?}");
     let err = String::from_utf8_lossy(&out.stderr);

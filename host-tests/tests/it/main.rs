@@ -3,6 +3,7 @@
 //! filter: `cargo test -p camgeom-host --test it pose_sequence:: -- --nocapture`).
 
 mod apriltag;
+mod apriltag_cli;
 mod ar_box;
 mod calib_chessboard;
 mod calib_cli;
