@@ -123,6 +123,30 @@ pub struct TargetConfig {
     pub ambiguity_ratio: f32,
 }
 
+impl TargetConfig {
+    /// These settings for a target that a detector finds (a fiducial, through
+    /// [`Acquire`]): such a target is small in the frame and has few features, so the KLT
+    /// windows stay off its edge (`border` half a window and a pixel: a window there would
+    /// take in the quiet zone and the background beyond), every track is checked forward and
+    /// backward (`fb_threshold` 1 px), no features are added between acquisitions
+    /// (`min_tracks = min_inliers`: features found inside the outline during an occlusion are
+    /// the occluder's) and the detector alone finds the target again after a loss (no
+    /// `relocate`). Measured on the rendered tag sequence (`cargo xtask run`'s tag job, a
+    /// detection every 5th frame): rotation error p95 35° without these, 3.0° with them.
+    pub fn for_detector(self) -> Self {
+        Self {
+            border: (self.lk.win / 2 + 1) as f32,
+            relocate: false,
+            lk: LkConfig {
+                fb_threshold: Some(1.0),
+                ..self.lk
+            },
+            min_tracks: self.min_inliers,
+            ..self
+        }
+    }
+}
+
 impl Default for TargetConfig {
     fn default() -> Self {
         Self {

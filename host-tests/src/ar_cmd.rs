@@ -184,21 +184,7 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
     let d = TargetConfig::default();
     let tag = a.tag.is_some();
     let min_inliers = a.min_inliers.max(4);
-    // With a tag, the board's tag-job policy (`camgeom_fw_app::run`, measured there): a tag is
-    // small in the frame and has few features, so KLT windows stay off its edge (where they
-    // would take in its quiet zone and the background), no features are added between
-    // detections (those found during an occlusion are the occluder's), and the detector alone
-    // finds the tag again after a loss (no relocation around the last outline).
-    let (border, relocate, min_tracks) = if tag {
-        (
-            (a.win / 2 + 1) as f32,
-            false,
-            a.min_tracks.unwrap_or(min_inliers),
-        )
-    } else {
-        (d.border, d.relocate, a.min_tracks.unwrap_or(d.min_tracks))
-    };
-    Ok(TargetConfig {
+    let cfg = TargetConfig {
         lk: LkConfig {
             win: a.win,
             max_level: a.max_level.min(camgeom::pyramid::MAX_LEVELS - 1),
@@ -214,12 +200,20 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
             threshold: a.threshold,
             ..d.ransac
         },
-        min_tracks,
         min_inliers,
-        border,
-        relocate,
         reacquire_every: a.reacquire_every.unwrap_or(if tag { 5 } else { 0 }),
         ..d
+    };
+    // With a tag, the board's tag-job policy (`TargetConfig::for_detector`); what the
+    // command line sets explicitly still holds.
+    let cfg = if tag { cfg.for_detector() } else { cfg };
+    Ok(TargetConfig {
+        lk: LkConfig {
+            fb_threshold: (a.fb > 0.0).then_some(a.fb),
+            ..cfg.lk
+        },
+        min_tracks: a.min_tracks.unwrap_or(cfg.min_tracks),
+        ..cfg
     })
 }
 

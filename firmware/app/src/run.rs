@@ -205,17 +205,7 @@ impl RunSpec {
         target.lk.fb_threshold = None;
         target.reacquire_every = self.reacquire_every;
         if let Acquisition::Tag { .. } = self.acquisition {
-            // A tag is small in the frame and has few features: keep the KLT windows
-            // (WIN x WIN) off its edge, where they would take in its quiet zone and the
-            // background beyond; check every track forward and backward and add none between
-            // detections (features found inside the outline during an occlusion are the
-            // occluder's); let the detector alone find the tag again after a loss. Measured on
-            // the rendered tag sequence (`cargo xtask run`'s tag job, every 5th frame
-            // detected): rotation error p95 35 deg without these, 3.0 deg with them.
-            target.border = (WIN / 2 + 1) as f32;
-            target.relocate = false;
-            target.lk.fb_threshold = Some(1.0);
-            target.min_tracks = target.min_inliers;
+            target = target.for_detector();
         }
         let scale = self.width as f32 / 320.0;
         if scale < 1.0 {
