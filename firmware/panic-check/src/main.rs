@@ -101,6 +101,25 @@ fn view(buf: &[u8]) -> Option<ImageView<'_, u8>> {
     ImageView::new(black_box(buf), w, h, s).ok()
 }
 
+/// Two 3-level pyramids of opaque `W`x`H` frames, handed to `f`.
+#[cfg(feature = "target")]
+fn two_pyramids(f: impl FnOnce(&Pyramid<'_>, &Pyramid<'_>)) {
+    let a = black_box([0u8; W * H]);
+    let b = black_box([0u8; W * H]);
+    let mut pa_buf = black_box([0u8; W * H]);
+    let mut pb_buf = black_box([0u8; W * H]);
+    let (Some(va), Some(vb)) = (view(&a), view(&b)) else {
+        return;
+    };
+    let levels = black_box(3usize);
+    if let (Ok(pa), Ok(pb)) = (
+        Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
+        Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
+    ) {
+        f(&pa, &pb);
+    }
+}
+
 /// A `W`x`H` output image over `buf`, the geometry opaque.
 fn image_mut(buf: &mut [u8]) -> Option<ImageMut<'_, u8>> {
     let (w, h, s) = black_box((W, H, W));
@@ -387,20 +406,14 @@ fn run_target() {
         flow_scratch_len,
     };
     fn two_frames<Q: Acquire>(params: &TargetParams, acquire: &mut Q) {
-        let a = black_box([0u8; W * H]);
-        let b = black_box([0u8; W * H]);
-        let mut pa_buf = black_box([0u8; W * H]);
-        let mut pb_buf = black_box([0u8; W * H]);
-        let (Some(va), Some(vb)) = (view(&a), view(&b)) else {
-            return;
-        };
-        let levels = black_box(3usize);
-        let (Ok(pa), Ok(pb)) = (
-            Pyramid::build(va, black_box(&mut pa_buf[..]), levels),
-            Pyramid::build(vb, black_box(&mut pb_buf[..]), levels),
-        ) else {
-            return;
-        };
+        two_pyramids(|pa, pb| step_twice(params, acquire, pa, pb));
+    }
+    fn step_twice<Q: Acquire>(
+        params: &TargetParams,
+        acquire: &mut Q,
+        pa: &Pyramid<'_>,
+        pb: &Pyramid<'_>,
+    ) {
         let mut target = black_box(PlanarTarget::<
             Fixed,
             32,
@@ -408,8 +421,8 @@ fn run_target() {
             { corner_scratch_len(W) },
             64,
         >::new());
-        black_box(target.step(params, None, &pa, acquire, &mut ()).ok());
-        black_box(target.step(params, Some(&pa), &pb, acquire, &mut ()).ok());
+        black_box(target.step(params, None, pa, acquire, &mut ()).ok());
+        black_box(target.step(params, Some(pa), pb, acquire, &mut ()).ok());
     }
     let Some(cam) = camera::<f32>() else { return };
     let cfg = black_box(TargetConfig::default());
