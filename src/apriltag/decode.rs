@@ -86,6 +86,10 @@ fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
 
 /// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
 /// whose two lines cannot be intersected stays where it was.
+/// Samples along an edge normal in [`refine_edges`]: `2 · 4 (d + 1) + 1 + 8` for decimation
+/// `d` up to 8 (`DetectorConfig::decimate`'s bound).
+const MAX_ALONG: usize = 8 * (8 + 1) + 9;
+
 pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usize) {
     let mut lines = [Line {
         ex: 0.0,
@@ -129,14 +133,22 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
             let x0 = alpha * pa.x + (1.0 - alpha) * pb.x;
             let y0 = alpha * pa.y + (1.0 - alpha) * pb.y;
             let (mut mn, mut mc) = (0f32, 0f32);
+            // The samples along the normal, 1/4 px apart from `-range - 1` to `range + 1`:
+            // step k compares the one at `n + 1` (index k + 8) with the one at `n - 1` (index
+            // k), so each is read once, not twice. The offsets are multiples of 1/4 below 2^24,
+            // exact in f32, so the positions are bit for bit those of AprilTag's two reads.
+            let mut along = [None; MAX_ALONG];
+            for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
+                let m = -range - 1.0 + 0.25 * j as f32;
+                *g = bilinear(img, x0 + m * nx, y0 + m * ny);
+            }
             for step in 0..steps {
                 let n = -range + 0.25 * step as f32;
-                let (Some(g1), Some(g2)) = (
-                    bilinear(img, x0 + (n + 1.0) * nx, y0 + (n + 1.0) * ny),
-                    bilinear(img, x0 + (n - 1.0) * nx, y0 + (n - 1.0) * ny),
-                ) else {
+                let (Some(Some(g1)), Some(Some(g2))) = (along.get(step + 8), along.get(step))
+                else {
                     continue;
                 };
+                let (g1, g2) = (*g1, *g2);
                 if g1 < g2 {
                     continue;
                 }
