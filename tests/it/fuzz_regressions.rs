@@ -229,3 +229,37 @@ fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
         ),
     }
 }
+
+/// `saddle_subpix` and `corner_subpix` on a finite corner near `±f32::MAX`: the window's
+/// integer origin (`as isize`, saturated) plus the window offsets overflowed `isize`, a panic
+/// with overflow checks. (fuzz target `chessboard`, the refiners on arbitrary corners) Such a
+/// window lies wholly beyond the frame, reads only its replicated border (a flat patch) and
+/// the corner keeps its start, as for any flat patch.
+#[test]
+fn subpix_refiners_on_corners_near_f32_max_keep_them() {
+    use camgeom::chessboard::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
+    use camgeom::image::ImageView;
+    // A 32x32 frame with a corner in the middle: not flat, so the border pixels differ.
+    let px: Vec<u8> = (0..32 * 32)
+        .map(|i| {
+            if (i % 32 < 16) == (i / 32 < 16) {
+                30
+            } else {
+                220
+            }
+        })
+        .collect();
+    let img = ImageView::packed(&px, 32, 32).unwrap();
+    let far = [
+        Point2::new(f32::MAX, f32::MAX),
+        Point2::new(f32::MIN, 3e38),
+        Point2::new(-3e38, f32::MIN),
+        Point2::new(16.0, f32::MAX),
+    ];
+    let mut a = far;
+    saddle_subpix(&img, &mut a, &SaddleConfig::default()).unwrap();
+    assert_eq!(a, far);
+    let mut b = far;
+    corner_subpix(&img, &mut b, &SubPixConfig::default()).unwrap();
+    assert_eq!(b, far);
+}
