@@ -601,7 +601,10 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     /// `CALIB_USE_INTRINSIC_GUESS`): its intrinsics and lens coefficients start the joint
     /// refinement (the model of `cfg` is used; coefficients of the other model are ignored).
     ///
-    /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess.
+    /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess,
+    /// [`Error::InvalidIntrinsics`] for one whose focal lengths, in units of
+    /// `max(width, height)`, are below [`Intrinsics::new`]'s `√ε` (a guess of a fraction of a
+    /// pixel).
     pub fn solve_with_guess(
         &mut self,
         cfg: &CalibrationConfig,

@@ -157,7 +157,7 @@ fn steps() -> Vec<Step> {
     );
     add(
         "fuzz smoke run",
-        Box::new(|| crate::fuzz::fuzz(crate::fuzz::SMOKE_SECONDS)),
+        Box::new(|| crate::fuzz::fuzz(crate::fuzz::SMOKE_SECONDS, None)),
     );
     add(
         // About 4 min from cold measured at load average 7 on 2 cores (95 s of CPU): embassy-stm32
