@@ -17,12 +17,12 @@ use camgeom::apriltag::family::MAX_CORRECTABLE;
 use camgeom::apriltag::{
     Detection, Detector, DetectorConfig, Family, Workspace, families, rotate90,
 };
-use camgeom::image::{ImageView, buffer_len};
+use camgeom::image::ImageView;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::Num;
+use common::{Geometry, Num};
 
 /// A small workspace: frames up to 64 pixels wide (decimated), few labels and points.
 type Small = Workspace<64, 256, 512, 64, 1024, 512>;
@@ -60,10 +60,7 @@ struct Cfg {
 
 #[derive(Debug, Arbitrary)]
 struct Input {
-    width: u16,
-    height: u16,
-    stride: u16,
-    slack: i16,
+    geometry: Geometry,
     background: std::vec::Vec<u8>,
     tags: std::vec::Vec<Tag>,
     /// Bit `i` selects `families::ALL[i]`.
@@ -197,14 +194,8 @@ fuzz_target!(|inp: Input| {
     let cfg = config(&inp);
     if let Ok(det) = Detector::new(cfg, &fams) {
         assert!(cfg.max_hamming <= MAX_CORRECTABLE);
-        let (w, h, s) = (
-            usize::from(inp.width),
-            usize::from(inp.height),
-            usize::from(inp.stride),
-        );
         // Any geometry, at most 80 K pixels of buffer: larger ones meet a short buffer.
-        let need = buffer_len(w, h, s);
-        let len = (need.min(80 << 10) as i64 + i64::from(inp.slack)).clamp(0, 1 << 17) as usize;
+        let (w, h, s, len) = inp.geometry.dims(80 << 10);
         let data = render(&inp, s, len);
         if let Ok(view) = ImageView::new(&data[..], w, h, s) {
             if inp.small_workspace {

@@ -15,13 +15,13 @@ use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
     corner_subpix, saddle_subpix, scratch_len,
 };
-use camgeom::image::{ImageView, buffer_len};
+use camgeom::image::ImageView;
 use camgeom::nalgebra::Point2;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::Num;
+use common::{Geometry, Num};
 
 /// Corners a detection can return (a board asking for more is `BufferTooSmall`).
 const N: usize = 200;
@@ -69,11 +69,7 @@ struct Cfg {
 
 #[derive(Debug, Arbitrary)]
 struct Input {
-    width: u16,
-    height: u16,
-    stride: u16,
-    /// Buffer length minus the length the geometry needs (may be negative).
-    slack: i16,
+    geometry: Geometry,
     scene: Scene,
     seed: u32,
     board: (u8, u8),
@@ -165,14 +161,8 @@ fn render(
 }
 
 fuzz_target!(|inp: Input| {
-    let (w, h, s) = (
-        usize::from(inp.width),
-        usize::from(inp.height),
-        usize::from(inp.stride),
-    );
-    // Any geometry, at most 48 K pixels of buffer: larger geometries meet a short buffer.
-    let need = buffer_len(w, h, s);
-    let len = (need.min(48 << 10) as i64 + i64::from(inp.slack)).clamp(0, 1 << 16) as usize;
+    // Any geometry, at most 64 K pixels of buffer: larger geometries meet a short buffer.
+    let (w, h, s, len) = inp.geometry.dims(1 << 16);
     let data = render(&inp.scene, inp.board, s, len, inp.seed);
     let cfg = config(&inp.cfg);
     let mut det = ChessboardDetector::<128>::new();
