@@ -76,33 +76,44 @@ struct Input {
     scratch_slack: i16,
     /// `None`: the defaults (so that most runs detect something).
     cfg: Option<Cfg>,
+    /// With the default thresholds: the refinement (`None`: the default, the saddle point),
+    /// so that every refinement meets detected boards.
+    refine: Option<Refine>,
     corners: std::vec::Vec<(Num, Num)>,
 }
 
-fn config(c: &Option<Cfg>) -> DetectConfig {
-    let Some(c) = c else {
-        return DetectConfig::default();
-    };
+fn refinement(r: &Refine) -> Refinement {
     let sub = |h: u8, it: u8, eps: Num| SubPixConfig {
         half_window: h,
         max_iterations: it,
         epsilon: eps.get(),
     };
+    match *r {
+        Refine::None => Refinement::None,
+        Refine::CornerSubPix(h, it, e) => Refinement::CornerSubPix(sub(h, it, e)),
+        Refine::Adaptive(h, it, e) => Refinement::AdaptiveCornerSubPix(sub(h, it, e)),
+        Refine::Saddle(h, s, it, e) => Refinement::Saddle(SaddleConfig {
+            half_window: h,
+            sigma: s.get(),
+            max_iterations: it,
+            epsilon: e.get(),
+        }),
+    }
+}
+
+fn config(c: &Option<Cfg>, refine: &Option<Refine>) -> DetectConfig {
+    let Some(c) = c else {
+        let d = DetectConfig::default();
+        return DetectConfig {
+            refine: refine.as_ref().map_or(d.refine, refinement),
+            ..d
+        };
+    };
     DetectConfig {
         min_response: i32::from(c.min_response),
         min_contrast: c.min_contrast,
         max_seeds: c.max_seeds,
-        refine: match c.refine {
-            Refine::None => Refinement::None,
-            Refine::CornerSubPix(h, it, e) => Refinement::CornerSubPix(sub(h, it, e)),
-            Refine::Adaptive(h, it, e) => Refinement::AdaptiveCornerSubPix(sub(h, it, e)),
-            Refine::Saddle(h, s, it, e) => Refinement::Saddle(SaddleConfig {
-                half_window: h,
-                sigma: s.get(),
-                max_iterations: it,
-                epsilon: e.get(),
-            }),
-        },
+        refine: refinement(&c.refine),
     }
 }
 
@@ -164,7 +175,7 @@ fuzz_target!(|inp: Input| {
     // Any geometry, at most 64 K pixels of buffer: larger geometries meet a short buffer.
     let (w, h, s, len) = inp.geometry.dims(1 << 16);
     let data = render(&inp.scene, inp.board, s, len, inp.seed);
-    let cfg = config(&inp.cfg);
+    let cfg = config(&inp.cfg, &inp.refine);
     let mut det = ChessboardDetector::<128>::new();
     if let (Ok(view), Ok(board)) = (
         ImageView::new(&data[..], w, h, s),
