@@ -137,3 +137,42 @@ pub fn check_pose(pose: &camgeom::transform::Pose<f32>, what: &str) {
         .max();
     assert!(e < 1e-3, "{what}: rotation not orthonormal ({e})");
 }
+
+/// A frame's geometry: usually a plausible one (so that the fuzzer reaches detection), or any
+/// width, height and stride with a buffer of any length (zero, tiny, huge-claimed sizes,
+/// strides below the width, buffers shorter or longer than the geometry needs).
+#[derive(Debug, Clone, Copy, Arbitrary)]
+pub enum Geometry {
+    /// `16 + w` by `16 + h` pixels, rows padded by `pad`, an exact buffer.
+    Plain { w: u8, h: u8, pad: u8 },
+    /// Anything: the buffer's length is what the geometry needs plus `slack`.
+    Any {
+        width: u16,
+        height: u16,
+        stride: u16,
+        slack: i16,
+    },
+}
+
+impl Geometry {
+    /// Width, height, stride and buffer length (at most `max_len` bytes, plus any slack).
+    pub fn dims(self, max_len: usize) -> (usize, usize, usize, usize) {
+        match self {
+            Geometry::Plain { w, h, pad } => {
+                let (w, h) = (16 + usize::from(w), 16 + usize::from(h));
+                let s = w + usize::from(pad % 8);
+                (w, h, s, camgeom::image::buffer_len(w, h, s))
+            }
+            Geometry::Any {
+                width,
+                height,
+                stride,
+                slack,
+            } => {
+                let (w, h, s) = (usize::from(width), usize::from(height), usize::from(stride));
+                let need = camgeom::image::buffer_len(w, h, s).min(max_len) as i64;
+                (w, h, s, (need + i64::from(slack)).max(0) as usize)
+            }
+        }
+    }
+}

@@ -50,10 +50,9 @@ fuzz_target!(|inp: Input| {
     if let (Ok(s4), Ok(d4)) = (
         <&[Point2<f32>; 4]>::try_from(src.get(..4).unwrap_or(&[])),
         <&[Point2<f32>; 4]>::try_from(dst.get(..4).unwrap_or(&[])),
-    ) {
-        if let Ok(h) = Homography::from_four_points(s4, d4) {
-            check(&h, s4, "four_point");
-        }
+    ) && let Ok(h) = Homography::from_four_points(s4, d4)
+    {
+        check(&h, s4, "four_point");
     }
     if let Ok(h) = dlt(&src, &dst) {
         check(&h, &src, "dlt");

@@ -66,7 +66,7 @@ fuzz_target!(|inp: Input| {
     let mut pbuf = std::vec![0u8; grow(pyramid::buffer_len(w, h, levels.min(8)), inp.pyr_slack)];
     if let Ok(p) = Pyramid::build(view, &mut pbuf[..], levels) {
         assert!(
-            p.len() >= 1 && p.len() <= levels.max(1),
+            !p.is_empty() && p.len() <= levels.max(1),
             "pyramid level count"
         );
         for l in 0..p.len() {

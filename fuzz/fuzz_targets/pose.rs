@@ -16,13 +16,16 @@ use libfuzzer_sys::fuzz_target;
 mod common;
 use common::{Edit, Num, Ransac, apply_edits, check_pose, pt2, pt3, vec3};
 
+/// A world point and its pixel.
+type Correspondence = ((Num, Num, Num), (Num, Num));
+
 #[derive(Debug, Arbitrary)]
 struct Input {
     k: [Num; 5],
     dist: Option<[Num; 5]>,
     rvec: (Num, Num, Num),
     tvec: (Num, Num, Num),
-    world: std::vec::Vec<((Num, Num, Num), (Num, Num))>,
+    world: std::vec::Vec<Correspondence>,
     world_edits: std::vec::Vec<Edit>,
     pixel_edits: std::vec::Vec<Edit>,
     /// Pixels: the projection of the world points (plus noise) rather than arbitrary values.
@@ -60,13 +63,13 @@ fuzz_target!(|inp: Input| {
     let mut world: std::vec::Vec<Point3<f32>> = inp.world[..n].iter().map(|w| pt3(w.0)).collect();
     apply_edits(&mut world, &inp.world_edits[..inp.world_edits.len().min(6)]);
     let mut pixels: std::vec::Vec<Point2<f32>> = inp.world[..n].iter().map(|w| pt2(w.1)).collect();
-    if inp.project {
-        if let Some(pose) = &pose {
-            for (u, x) in pixels.iter_mut().zip(&world) {
-                if let Ok(p) = camera.project(pose, x) {
-                    assert!(p.x.is_finite() && p.y.is_finite(), "project: not finite");
-                    *u = Point2::new(p.x + u.x * 1e-3, p.y + u.y * 1e-3);
-                }
+    if inp.project
+        && let Some(pose) = &pose
+    {
+        for (u, x) in pixels.iter_mut().zip(&world) {
+            if let Ok(p) = camera.project(pose, x) {
+                assert!(p.x.is_finite() && p.y.is_finite(), "project: not finite");
+                *u = Point2::new(p.x + u.x * 1e-3, p.y + u.y * 1e-3);
             }
         }
     }

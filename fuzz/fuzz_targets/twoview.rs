@@ -69,11 +69,11 @@ fuzz_target!(|inp: Input| {
     }
     let [a, b, c, d] = inp.k1.map(Num::get);
     let [e, f, g, h] = inp.k2.map(Num::get);
-    if let (Ok(k1), Ok(k2)) = (Intrinsics::new(a, b, c, d), Intrinsics::new(e, f, g, h)) {
-        if let Ok((e, r)) = find_essential(&k1, &k2, &x1, &x2, &cfg, &mut mask) {
-            assert!(finite(e.matrix().as_slice()), "E not finite");
-            assert!(r.inliers <= n);
-        }
+    if let (Ok(k1), Ok(k2)) = (Intrinsics::new(a, b, c, d), Intrinsics::new(e, f, g, h))
+        && let Ok((e, r)) = find_essential(&k1, &k2, &x1, &x2, &cfg, &mut mask)
+    {
+        assert!(finite(e.matrix().as_slice()), "E not finite");
+        assert!(r.inliers <= n);
     }
     let p1 =
         Transform::<World, CameraFrame, f32>::from_rodrigues(vec3(inp.pose1.0), vec3(inp.pose1.1));

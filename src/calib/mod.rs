@@ -98,6 +98,12 @@ const CB: usize = NC + 1;
 /// Damping increases tried per iteration before giving up.
 const MAX_DAMPING_TRIES: u8 = 8;
 
+/// The fixed aspect ratios [`CalibrationFlags::fix_aspect_ratio`] accepts, `1e-3 ..= 1e3`
+/// (real pixels are within a few percent of square). The closed form divides by the ratio's
+/// square: a ratio far outside this range (`8e-39` squares to zero in `f32`) made the
+/// calibration fail with an undocumented `NonFinite` instead of a parameter error.
+pub const ASPECT_RATIO_RANGE: core::ops::RangeInclusive<f64> = 1e-3..=1e3;
+
 /// The lens model to calibrate.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -115,7 +121,7 @@ pub enum LensKind {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CalibrationFlags {
     /// `Some(a)`: `fx = a fy` throughout (`CALIB_FIX_ASPECT_RATIO`, with the ratio given here
-    /// rather than through an initial camera matrix). Finite, `> 0`.
+    /// rather than through an initial camera matrix). In [`ASPECT_RATIO_RANGE`].
     pub fix_aspect_ratio: Option<f64>,
     /// The principal point stays at the image centre `((w - 1)/2, (h - 1)/2)`
     /// (`CALIB_FIX_PRINCIPAL_POINT`).
@@ -595,7 +601,10 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     /// `CALIB_USE_INTRINSIC_GUESS`): its intrinsics and lens coefficients start the joint
     /// refinement (the model of `cfg` is used; coefficients of the other model are ignored).
     ///
-    /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess.
+    /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess,
+    /// [`Error::InvalidIntrinsics`] for one whose focal lengths, in units of
+    /// `max(width, height)`, are below [`Intrinsics::new`]'s `√ε` (a guess of a fraction of a
+    /// pixel).
     pub fn solve_with_guess(
         &mut self,
         cfg: &CalibrationConfig,
@@ -641,7 +650,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             return Err(Error::InvalidParameter("max_iterations"));
         }
         let aspect = match cfg.flags.fix_aspect_ratio {
-            Some(a) if a.is_finite() && a > 0.0 => Some(T::lit(a)),
+            Some(a) if ASPECT_RATIO_RANGE.contains(&a) => Some(T::lit(a)),
             Some(_) => return Err(Error::InvalidParameter("flags.fix_aspect_ratio")),
             None => None,
         };

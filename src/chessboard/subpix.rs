@@ -65,6 +65,16 @@ impl SubPixConfig {
     }
 }
 
+/// The integer part of a window position, clamped to `±2²⁴`: the window offsets and the
+/// bilinear neighbour are added to it, which overflowed `isize` for a corner near `f32::MAX`
+/// (`as` saturates). An image is at most [`crate::image::MAX_DIM`] wide, far below `2²⁴`, so
+/// a window beyond the clamp samples the same replicated border pixels as one at the clamp.
+#[inline]
+fn window_origin(f: f32) -> isize {
+    const LIMIT: f32 = (1 << 24) as f32;
+    f.clamp(-LIMIT, LIMIT) as isize
+}
+
 /// Bilinear sample with a replicated border (OpenCV's `getRectSubPix` border).
 #[inline]
 fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
@@ -114,7 +124,7 @@ pub fn corner_subpix(
             // Window of (2h + 3)² samples at q + (j - h - 1, i - h - 1), bilinear.
             let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
             let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (fx as isize, fy as isize);
+            let (ix, iy) = (window_origin(fx), window_origin(fy));
             // The resampled window, (2h + 3)² values: OpenCV's `getRectSubPix`.
             let side = n + 2;
             let mut patch = [0.0f32; PATCH * PATCH];
@@ -277,7 +287,7 @@ pub fn saddle_subpix(
         for _ in 0..cfg.max_iterations {
             let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
             let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (fx as isize, fy as isize);
+            let (ix, iy) = (window_origin(fx), window_origin(fy));
             let mut raw = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
             for (i, row) in raw.chunks_exact_mut(SADDLE_PATCH).take(side).enumerate() {
                 let y = iy + i as isize - half;

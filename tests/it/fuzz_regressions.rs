@@ -151,3 +151,115 @@ fn solve_planar_alternative_rms_is_finite_when_its_squares_overflow() {
         assert!(p.best.rms_px.is_finite() && p.alternative.rms_px.is_finite());
     }
 }
+
+/// `Calibrator::solve` with `fix_aspect_ratio = 8.1e-39` (finite and positive, so accepted)
+/// failed with `NonFinite`, an error its documentation does not list: the closed form divides
+/// by the ratio's square, zero in `f32`. (fuzz target `calibrate`, three views of a 3x8 board,
+/// fisheye model) Ratios outside `ASPECT_RATIO_RANGE` are now a parameter error; the same
+/// views calibrate with a ratio in range.
+#[test]
+fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
+    use camgeom::calib::{CalibrationConfig, Calibrator, LensKind};
+    use camgeom::camera::Distortion;
+    use camgeom::chessboard::BoardSize;
+    use camgeom::nalgebra::{Point3, Vector3};
+    use camgeom::transform::Pose;
+    let f = 100.0 + 4.0 * 255.0f32;
+    let k = Intrinsics::new(f, f * (1.0 - 1.0 / 256.0), 318.5, 238.5).unwrap();
+    let d = Distortion::from_opencv([-1.0f32, -1.0, -1.0, 2.0, 40.0].map(|v| v / 512.0)).unwrap();
+    let cam = Camera::new(k, d);
+    let (cols, rows, sq) = (3usize, 8usize, 0.025f32);
+    let board = BoardSize::new(cols, rows).unwrap();
+    let size = sq * 8.0;
+    let mut cal = Box::new(Calibrator::<f32, 6, 42>::new(board, sq, 640, 480).unwrap());
+    for (r, o, dist) in [
+        ([2i8, 2, 2], [-33i8, -1], 255u8),
+        ([-1, -1, -6], [72, -43], 25),
+        ([25, 90, 57], [25, 90], 57),
+    ] {
+        let r = Vector3::new(r[0], r[1], r[2]).map(|a| f32::from(a) / 128.0);
+        let rot = Pose::from_rodrigues(r, Vector3::zeros()).unwrap();
+        let centre = Vector3::new(sq * 1.0, sq * 3.5, 0.0);
+        let t = Vector3::new(
+            size * f32::from(o[0]) / 16.0,
+            size * f32::from(o[1]) / 16.0,
+            size * (1.0 + f32::from(dist) / 32.0),
+        ) - rot.rotation() * centre;
+        let pose = Pose::from_rodrigues(r, t).unwrap();
+        let px: Vec<Point2<f32>> = (0..cols * rows)
+            .map(|i| {
+                let x = Point3::new(sq * (i % cols) as f32, sq * (i / cols) as f32, 0.0);
+                cam.project(&pose, &x).unwrap_or(Point2::new(-1.0, -1.0))
+            })
+            .collect();
+        cal.add_view(640, 480, &px).unwrap();
+    }
+    let mut cfg = CalibrationConfig {
+        model: LensKind::KannalaBrandt,
+        max_iterations: 15,
+        ..CalibrationConfig::default()
+    };
+    cfg.flags.fix_k3 = true;
+    cfg.flags.fix_k4 = true;
+    for ratio in [
+        f64::from(8.113095e-39f32),
+        1e-20,
+        1e20,
+        0.0,
+        -1.0,
+        f64::INFINITY,
+    ] {
+        cfg.flags.fix_aspect_ratio = Some(ratio);
+        assert_eq!(
+            cal.solve(&cfg).map(|r| r.rms_px),
+            Err(Error::InvalidParameter("flags.fix_aspect_ratio")),
+            "ratio {ratio}"
+        );
+    }
+    // In range: a result or one of the documented errors, never `NonFinite`.
+    cfg.flags.fix_aspect_ratio = Some(1.0);
+    match cal.solve(&cfg) {
+        Ok(r) => assert!(r.rms_px.is_finite() && r.rms_px >= 0.0, "{r:?}"),
+        Err(e) => assert!(
+            matches!(
+                e,
+                Error::Degenerate | Error::NoConvergence | Error::TooFewPoints
+            ),
+            "{e:?}"
+        ),
+    }
+}
+
+/// `saddle_subpix` and `corner_subpix` on a finite corner near `±f32::MAX`: the window's
+/// integer origin (`as isize`, saturated) plus the window offsets overflowed `isize`, a panic
+/// with overflow checks. (fuzz target `chessboard`, the refiners on arbitrary corners) Such a
+/// window lies wholly beyond the frame, reads only its replicated border (a flat patch) and
+/// the corner keeps its start, as for any flat patch.
+#[test]
+fn subpix_refiners_on_corners_near_f32_max_keep_them() {
+    use camgeom::chessboard::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
+    use camgeom::image::ImageView;
+    // A 32x32 frame with a corner in the middle: not flat, so the border pixels differ.
+    let px: Vec<u8> = (0..32 * 32)
+        .map(|i| {
+            if (i % 32 < 16) == (i / 32 < 16) {
+                30
+            } else {
+                220
+            }
+        })
+        .collect();
+    let img = ImageView::packed(&px, 32, 32).unwrap();
+    let far = [
+        Point2::new(f32::MAX, f32::MAX),
+        Point2::new(f32::MIN, 3e38),
+        Point2::new(-3e38, f32::MIN),
+        Point2::new(16.0, f32::MAX),
+    ];
+    let mut a = far;
+    saddle_subpix(&img, &mut a, &SaddleConfig::default()).unwrap();
+    assert_eq!(a, far);
+    let mut b = far;
+    corner_subpix(&img, &mut b, &SubPixConfig::default()).unwrap();
+    assert_eq!(b, far);
+}

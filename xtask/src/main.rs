@@ -9,7 +9,8 @@
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
 //! | `cargo xtask panic-check` | links one firmware binary per area of the core, scalar type and target (thumbv7em, thumbv6m) with a panic handler that cannot link; prints the coverage table |
-//! | `cargo xtask fuzz [SECONDS]` | builds the cargo-fuzz targets in `fuzz/` and runs each for SECONDS (default 5, the CI smoke run) |
+//! | `cargo xtask fuzz [SECONDS] [TARGET]` | builds the cargo-fuzz targets in `fuzz/` and runs each (or TARGET) for SECONDS (default 5, the CI smoke run) from the committed corpus |
+//! | `cargo xtask fuzz-cmin [TARGET]` | merges the local run corpora into the committed `fuzz/corpus/` and minimises it |
 //! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
@@ -41,7 +42,9 @@ commands:
   stack   build and run the stack-painting firmware on QEMU: stack use per entry point
   panic-check  link one firmware binary per area, scalar type and target with a panic handler that cannot link
   size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
-  fuzz [SECONDS]  build the fuzz targets and run each for SECONDS (default 5)
+  fuzz [SECONDS] [TARGET]  build the fuzz targets and run each (or only TARGET) for SECONDS
+          (default 5), from the committed corpus fuzz/corpus/<target>
+  fuzz-cmin [TARGET]  merge the run corpora (fuzz/target/corpus) into fuzz/corpus and minimise
   ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
 
 fn main() -> ExitCode {
@@ -74,13 +77,14 @@ fn main() -> ExitCode {
             Some("stack") => setup::setup().and_then(|()| firmware::stack()),
             Some("panic-check") => panic_check::check(),
             Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
-                None => fuzz::fuzz(fuzz::SMOKE_SECONDS),
-                Some(Ok(secs)) => fuzz::fuzz(secs),
+                None => fuzz::fuzz(fuzz::SMOKE_SECONDS, None),
+                Some(Ok(secs)) => fuzz::fuzz(secs, args.get(2).map(String::as_str)),
                 Some(Err(_)) => {
-                    eprintln!("xtask: fuzz takes a number of seconds per target");
+                    eprintln!("xtask: fuzz takes a number of seconds per target, then a target");
                     return ExitCode::from(2);
                 }
             },
+            Some("fuzz-cmin") => fuzz::cmin(args.get(1).map(String::as_str)),
             Some("ci") => ci::ci(),
             Some("help" | "-h" | "--help") => {
                 println!("{USAGE}");

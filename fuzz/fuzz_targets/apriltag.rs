@@ -1,0 +1,249 @@
+//! AprilTag detection on frames of arbitrary geometry (sizes, strides, short buffers) holding
+//! rendered tags of any family (arbitrary id, cell size, placement, rotation, contrast) over
+//! the fuzzer's bytes, with arbitrary configurations (decimation, `max_hamming`, thresholds),
+//! family sets and two workspace sizes; then each family's decoder on arbitrary words and on
+//! rotated codes with flipped bits. Contract (`Detector::new`, `detect`, `Family::decode`
+//! docs): no panic; every detection is of a family asked for, with an id in the family,
+//! `hamming ≤ max_hamming`, a finite margin `≥ min_decision_margin`, finite corners and
+//! centre; detections sorted by id; a decode's id is in the family, its Hamming distance
+//! `≤ min(max_hamming, 3)` and equal to the distance between the code and the word in the
+//! rotation reported; a code with at most `max_hamming` flipped bits (`2 max_hamming <
+//! min_distance`) decodes to its own id.
+#![no_main]
+
+use arbitrary::Arbitrary;
+use camgeom::Error;
+use camgeom::apriltag::family::MAX_CORRECTABLE;
+use camgeom::apriltag::{
+    Detection, Detector, DetectorConfig, Family, Workspace, families, rotate90,
+};
+use camgeom::image::ImageView;
+use libfuzzer_sys::fuzz_target;
+
+#[path = "common.rs"]
+mod common;
+use common::{Geometry, Num};
+
+/// A small workspace: frames up to 64 pixels wide (decimated), few labels and points.
+type Small = Workspace<64, 256, 512, 64, 1024, 512>;
+type Full = camgeom::apriltag::Workspace320x240;
+
+#[derive(Debug, Arbitrary)]
+struct Tag {
+    family: u8,
+    id: u16,
+    /// Pixels a cell: 1 + cell % 12.
+    cell: u8,
+    origin: (u8, u8),
+    /// Rotation, 1/256 turns.
+    angle: u8,
+    dark: u8,
+    light: u8,
+}
+
+#[derive(Debug, Arbitrary)]
+struct Cfg {
+    decimate: u8,
+    refine_edges: bool,
+    decode_sharpening: Num,
+    min_white_black_diff: u8,
+    min_cluster_pixels: u16,
+    max_nmaxima: u8,
+    critical_angle_deg: Num,
+    max_line_fit_mse: Num,
+    min_decision_margin: Num,
+    min_edge_gradient: u8,
+    reject_clipped: bool,
+    max_batches: u8,
+    max_quads: u16,
+}
+
+#[derive(Debug, Arbitrary)]
+struct Input {
+    geometry: Geometry,
+    background: std::vec::Vec<u8>,
+    tags: std::vec::Vec<Tag>,
+    /// Bit `i` selects `families::ALL[i]`.
+    families: u8,
+    max_hamming: u8,
+    /// `None`: the defaults (with the fuzzer's `max_hamming`).
+    cfg: Option<Cfg>,
+    small_workspace: bool,
+    words: std::vec::Vec<(u8, u64, u8)>,
+    flips: std::vec::Vec<(u8, u16, u8, [u8; 3])>,
+}
+
+fn family(i: u8) -> &'static Family {
+    families::ALL[usize::from(i) % families::ALL.len()]
+}
+
+fn config(inp: &Input) -> DetectorConfig {
+    let mut cfg = DetectorConfig {
+        max_hamming: inp.max_hamming % 5,
+        ..DetectorConfig::default()
+    };
+    if let Some(c) = &inp.cfg {
+        cfg = DetectorConfig {
+            decimate: c.decimate % 10,
+            refine_edges: c.refine_edges,
+            decode_sharpening: c.decode_sharpening.get(),
+            max_hamming: cfg.max_hamming,
+            min_white_black_diff: c.min_white_black_diff,
+            min_cluster_pixels: c.min_cluster_pixels,
+            max_nmaxima: c.max_nmaxima % 16,
+            critical_angle_deg: c.critical_angle_deg.get(),
+            max_line_fit_mse: c.max_line_fit_mse.get(),
+            min_decision_margin: c.min_decision_margin.get(),
+            min_edge_gradient: c.min_edge_gradient,
+            reject_clipped: c.reject_clipped,
+            max_batches: c.max_batches % 6,
+            // At most 64 quads: each is an edge refinement and a decode per family.
+            max_quads: c.max_quads % 64,
+        };
+    }
+    cfg
+}
+
+fn render(inp: &Input, stride: usize, len: usize) -> std::vec::Vec<u8> {
+    let bg = &inp.background;
+    let mut px: std::vec::Vec<u8> = (0..len)
+        .map(|i| bg.get(i % bg.len().max(1)).copied().unwrap_or(128))
+        .collect();
+    let stride = stride.max(1);
+    for t in inp.tags.iter().take(3) {
+        let f = family(t.family);
+        let id = t.id % f.ncodes() as u16;
+        let s = 1.0 + f32::from(t.cell % 12);
+        let a = f32::from(t.angle) / 256.0 * std::f32::consts::TAU;
+        let (c, sn) = (a.cos(), a.sin());
+        let wab = i32::from(f.width_at_border());
+        let lo = (wab - i32::from(f.total_width())) / 2;
+        for (i, p) in px.iter_mut().enumerate() {
+            let (dx, dy) = (
+                (i % stride) as f32 - f32::from(t.origin.0),
+                (i / stride) as f32 - f32::from(t.origin.1),
+            );
+            let (u, v) = ((c * dx + sn * dy) / s, (-sn * dx + c * dy) / s);
+            if let Some(white) = f.cell(id, u.floor() as i32 + lo, v.floor() as i32 + lo) {
+                *p = if white { t.light } else { t.dark };
+            }
+        }
+    }
+    px
+}
+
+fn check(dets: &[Detection], det: &Detector, w: usize, h: usize) {
+    let cfg = det.config();
+    for d in dets {
+        assert!(det.families().contains(&d.family), "family not asked for");
+        assert!(
+            usize::from(d.id) < d.family.ncodes(),
+            "id {} outside {}",
+            d.id,
+            d.family.name()
+        );
+        assert!(
+            d.hamming <= cfg.max_hamming,
+            "hamming {} > {}",
+            d.hamming,
+            cfg.max_hamming
+        );
+        assert!(
+            d.decision_margin.is_finite() && d.decision_margin >= cfg.min_decision_margin,
+            "decision margin {}",
+            d.decision_margin
+        );
+        for p in d.corners.iter().chain([&d.center]) {
+            assert!(
+                p.x.is_finite() && p.y.is_finite(),
+                "corner {p:?} of a {w}x{h} frame"
+            );
+        }
+    }
+    assert!(
+        dets.windows(2).all(|p| p[0].id <= p[1].id),
+        "not sorted by id"
+    );
+}
+
+fn detect<
+    const W: usize,
+    const T: usize,
+    const L: usize,
+    const C: usize,
+    const P: usize,
+    const S: usize,
+>(
+    det: &Detector,
+    view: &ImageView<'_, u8>,
+    ws: &mut Workspace<W, T, L, C, P, S>,
+) {
+    let (w, h) = (view.width(), view.height());
+    match det.detect::<8, W, T, L, C, P, S>(view, ws) {
+        Ok(d) => check(&d, det, w, h),
+        Err(Error::BufferTooSmall(b)) => assert!(b.starts_with("workspace."), "buffer {b}"),
+        Err(e) => panic!("detect: undocumented error {e:?}"),
+    }
+}
+
+fuzz_target!(|inp: Input| {
+    let fams: std::vec::Vec<&'static Family> = (0..4)
+        .filter(|i| inp.families & (1 << i) != 0)
+        .map(|i| families::ALL[i])
+        .collect();
+    let cfg = config(&inp);
+    if let Ok(det) = Detector::new(cfg, &fams) {
+        assert!(cfg.max_hamming <= MAX_CORRECTABLE);
+        // Any geometry, at most 80 K pixels of buffer: larger ones meet a short buffer.
+        let (w, h, s, len) = inp.geometry.dims(80 << 10);
+        let data = render(&inp, s, len);
+        if let Ok(view) = ImageView::new(&data[..], w, h, s) {
+            if inp.small_workspace {
+                detect(&det, &view, &mut std::boxed::Box::new(Small::new()));
+            } else {
+                detect(&det, &view, &mut std::boxed::Box::new(Full::new()));
+            }
+        }
+    }
+
+    // The decoders.
+    for &(f, word, mh) in inp.words.iter().take(8) {
+        let f = family(f);
+        if let Some(d) = f.decode(word, mh) {
+            assert!(usize::from(d.id) < f.ncodes(), "decode: id {}", d.id);
+            assert!(
+                d.hamming <= mh.min(MAX_CORRECTABLE) && d.rotation < 4,
+                "decode: {d:?}"
+            );
+            let mut r = word;
+            for _ in 0..d.rotation {
+                r = rotate90(r, f.nbits());
+            }
+            let code = f.code(d.id).unwrap_or(0);
+            assert_eq!(
+                (code ^ r).count_ones(),
+                u32::from(d.hamming),
+                "decode: distance"
+            );
+        }
+    }
+    for &(f, id, rot, bits) in inp.flips.iter().take(8) {
+        let f = family(f);
+        let id = id % f.ncodes() as u16;
+        let Some(mut word) = f.code(id) else {
+            panic!("code of id {id} below ncodes");
+        };
+        for _ in 0..rot % 4 {
+            word = rotate90(word, f.nbits());
+        }
+        let mut flipped = 0u64;
+        for b in bits.iter().take(MAX_CORRECTABLE as usize) {
+            flipped |= 1 << (u32::from(*b) % f.nbits());
+        }
+        let mh = flipped.count_ones() as u8;
+        if 2 * u32::from(mh) < u32::from(f.min_distance()) {
+            let d = f.decode(word ^ flipped, mh);
+            assert_eq!(d.map(|d| d.id), Some(id), "{}: {mh} flipped bits", f.name());
+        }
+    }
+});
