@@ -7,7 +7,7 @@
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
-//! | `cargo xtask stack` | the stack-painting firmware on QEMU: stack high-water mark per entry point |
+//! | `cargo xtask stack` | the stack-painting firmware on QEMU (thumbv7em on the Cortex-M7, thumbv6m on the Cortex-M3): stack high-water mark per entry point |
 //! | `cargo xtask panic-check` | links one firmware binary per area of the core, scalar type and target (thumbv7em, thumbv6m) with a panic handler that cannot link; prints the coverage table |
 //! | `cargo xtask fuzz [SECONDS] [TARGET]` | builds the cargo-fuzz targets in `fuzz/` and runs each (or TARGET) for SECONDS (default 5, the CI smoke run) from the committed corpus |
 //! | `cargo xtask fuzz-cmin [TARGET]` | merges the local run corpora into the committed `fuzz/corpus/` and minimises it |
@@ -39,7 +39,7 @@ commands:
           checked against the host replay
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
-  stack   build and run the stack-painting firmware on QEMU: stack use per entry point
+  stack   build and run the stack-painting firmware on QEMU (thumbv7em, thumbv6m): stack per entry point
   panic-check  link one firmware binary per area, scalar type and target with a panic handler that cannot link
   size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
   fuzz [SECONDS] [TARGET]  build the fuzz targets and run each (or only TARGET) for SECONDS
