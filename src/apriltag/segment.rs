@@ -162,13 +162,17 @@ pub(crate) fn build_tiles<'t>(
         };
         // The 3x3 dilation: vertical over the (up to) three rows, then horizontal.
         let rows = [ty.checked_sub(1), Some(ty), (ty + 1 < th).then_some(ty + 1)];
+        // Each row's ring slot, found once for the whole tile row.
+        let slots = rows.map(|r| {
+            let s = (r? % 3) * tw;
+            Some((ring_min.get(s..s + tw)?, ring_max.get(s..s + tw)?))
+        });
         let mut prev = (255u8, 0u8);
         let col = |tx: usize| -> (u8, u8) {
             let (mut mn, mut mx) = (255u8, 0u8);
-            for r in rows.iter().flatten() {
-                let i = (r % 3) * tw + tx;
-                mn = mn.min(ring_min.get(i).copied().unwrap_or(255));
-                mx = mx.max(ring_max.get(i).copied().unwrap_or(0));
+            for (rmin, rmax) in slots.iter().flatten() {
+                mn = mn.min(rmin.get(tx).copied().unwrap_or(255));
+                mx = mx.max(rmax.get(tx).copied().unwrap_or(0));
             }
             (mn, mx)
         };
@@ -208,53 +212,79 @@ pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut
     let last = trow.last().copied().unwrap_or(SKIP_TILE);
     let row = src.full_row(y);
     let w = src.w;
-    let mut n = 0;
-    let (mut x0, mut cur) = (0usize, u8::MAX);
-    let mut close = |x0: usize, x1: usize, c: u8, n: &mut usize| {
-        if x1 > x0
-            && let Some(r) = out.get_mut(*n)
-        {
-            *r = Run {
-                x0: x0 as u16,
-                x1: x1 as u16,
-                c,
-                lab: NONE,
-            };
-            *n += 1;
-        }
+    let mut cut = Cutter {
+        out,
+        n: 0,
+        x0: 0,
+        cur: u32::MAX,
     };
     let mut x = 0usize;
-    let mut step = |v: u8, t: u8, x: &mut usize, n: &mut usize| {
-        let c = class(v, t);
-        if c != cur {
-            close(x0, *x, cur, n);
-            (x0, cur) = (*x, c);
-        }
-        *x += 1;
-    };
     if src.d == 1 && row.len() >= w {
         let full = (trow.len() * TILE).min(w);
         let (head, tail) = row.split_at(full);
         for (px, &t) in head.chunks_exact(TILE).zip(trow) {
+            if t == SKIP_TILE {
+                // A skipped tile is one class throughout (`class`): one test for its pixels.
+                cut.class_at(x, u32::from(SKIP));
+                x += TILE;
+                continue;
+            }
             for &v in px {
-                step(v, t, &mut x, &mut n);
+                cut.class_at(x, u32::from(v > t));
+                x += 1;
             }
         }
         for &v in tail.get(..w - full).unwrap_or(&[]) {
-            step(v, last, &mut x, &mut n);
+            cut.class_at(x, u32::from(class(v, last)));
+            x += 1;
         }
     } else {
-        for (i, &v) in row.iter().step_by(src.d.max(1)).take(w).enumerate() {
-            step(
-                v,
-                trow.get(i / TILE).copied().unwrap_or(last),
-                &mut x,
-                &mut n,
-            );
+        for (i, &v) in row.iter().step_by(src.d).take(w).enumerate() {
+            let t = trow.get(i / TILE).copied().unwrap_or(last);
+            cut.class_at(x, u32::from(class(v, t)));
+            x += 1;
         }
     }
-    close(x0, x, cur, &mut n);
-    n
+    cut.close(x);
+    cut.n
+}
+
+/// Cuts a row into runs of one class as the classes arrive, column by column.
+struct Cutter<'a> {
+    out: &'a mut [Run],
+    /// Runs written.
+    n: usize,
+    /// First column of the open run.
+    x0: usize,
+    /// Class of the open run (`u32::MAX` before the first pixel).
+    cur: u32,
+}
+
+impl Cutter<'_> {
+    /// Column `x` has class `c`: a new run starts where the class changes.
+    #[inline(always)]
+    fn class_at(&mut self, x: usize, c: u32) {
+        if c != self.cur {
+            self.close(x);
+            (self.x0, self.cur) = (x, c);
+        }
+    }
+
+    /// Ends the open run before column `x1` (dropped when `out` is full: at most one a column).
+    #[inline(always)]
+    fn close(&mut self, x1: usize) {
+        if x1 > self.x0
+            && let Some(r) = self.out.get_mut(self.n)
+        {
+            *r = Run {
+                x0: self.x0 as u16,
+                x1: x1 as u16,
+                c: self.cur as u8,
+                lab: NONE,
+            };
+            self.n += 1;
+        }
+    }
 }
 
 /// Root of `x` with path halving (`x` itself when out of range).
