@@ -32,6 +32,10 @@ pub struct DetectorConfig {
     /// Sharpening of the payload readings (`v + s ∇²v`, default 0.25).
     pub decode_sharpening: f32,
     /// Bits corrected (default 2, at most 3 and below half the smallest family distance).
+    /// tag16h5's 30 codes of 16 bits at distance 5 leave a random quad within 2 bits of a
+    /// code too often: on 231 tag-free frames (BENCHMARKS, "False positives") it finds 32
+    /// "tags" at 2 bits (AprilTag 3: 114) and none at 0; use 0 with tag16h5. The other
+    /// families find none at 2.
     pub max_hamming: u8,
     /// Tiles whose dilated `max - min` is below this are skipped (default 5, at least 1).
     pub min_white_black_diff: u8,
