@@ -22,6 +22,7 @@ pub fn setup() -> Result<()> {
     rustup()?;
     qemu()?;
     cargo_fuzz()?;
+    opencv()?;
     Ok(())
 }
 
@@ -112,4 +113,32 @@ pub fn cargo_fuzz() -> Result<()> {
     }
     println!("setup: cargo-fuzz is missing, installing it");
     run(Command::new("cargo").args(["install", "cargo-fuzz", "--locked"]))
+}
+
+/// OpenCV for Python, the peer the host tests compare with where a comparison cannot be
+/// recorded once (e.g. `cv2.FileStorage` reading a file camgeom has just written), installed
+/// with pip when missing: the version `host-tests/scripts/peers.py` pins.
+fn opencv() -> Result<()> {
+    let has = |m: &str| {
+        Command::new("python3")
+            .args(["-c", &format!("import {m}")])
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    if output("python3", ["--version"]).is_none() {
+        println!("setup: python3 not found; the host tests that compare with OpenCV will skip");
+        return Ok(());
+    }
+    if has("cv2") && has("numpy") {
+        return Ok(());
+    }
+    println!("setup: installing opencv-python-headless and numpy with pip");
+    run(Command::new("python3").args([
+        "-m",
+        "pip",
+        "install",
+        "--quiet",
+        "opencv-python-headless==5.0.0.93",
+        "numpy",
+    ]))
 }
