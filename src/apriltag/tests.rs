@@ -577,9 +577,16 @@ proptest! {
         let mut ws = std::boxed::Box::new(Small::new());
         let frame = ImageView::packed(&px, w, h).unwrap();
         let r: crate::Result<heapless::Vec<Detection, 4>> = det.detect(&frame, &mut ws);
+        // The workspace holds 160 columns and 160x120 worth of tiles: a wider frame is a
+        // width error, a taller one (of at most 160 columns) a tiles error; nothing else.
+        let (sw, sh) = (w.div_ceil(usize::from(d)), h.div_ceil(usize::from(d)));
         match r {
-            Ok(_) => {}
-            Err(e) => prop_assert_eq!(e, crate::Error::BufferTooSmall("workspace.width")),
+            Ok(_) => prop_assert!(sw < 8 || sh < 8 || (sw <= 160 && tiles(sw, sh, 1) <= tiles(160, 120, 1))),
+            Err(crate::Error::BufferTooSmall("workspace.width")) => prop_assert!(sw > 160),
+            Err(crate::Error::BufferTooSmall("workspace.tiles")) => {
+                prop_assert!(sw <= 160 && tiles(sw, sh, 1) > tiles(160, 120, 1));
+            }
+            Err(e) => prop_assert!(false, "unexpected error {:?}", e),
         }
     }
 }
