@@ -239,7 +239,7 @@ pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut
             x += 1;
         }
     } else {
-        for (i, &v) in row.iter().step_by(src.d).take(w).enumerate() {
+        for (i, &v) in row.iter().step_by(src.d.max(1)).take(w).enumerate() {
             let t = trow.get(i / TILE).copied().unwrap_or(last);
             cut.class_at(x, u32::from(class(v, t)));
             x += 1;
