@@ -90,14 +90,24 @@ fn targets(only: Option<&str>) -> Result<Vec<&'static str>> {
     }
 }
 
-pub fn fuzz(seconds: u64, only: Option<&str>) -> Result<()> {
+/// The targets to run (all, or `only`), built, each with its committed corpus and its run
+/// corpus (both created when missing).
+fn prepare(only: Option<&str>) -> Result<Vec<(&'static str, PathBuf, PathBuf)>> {
     let targets = targets(only)?;
     crate::setup::cargo_fuzz()?;
     run(cargo_fuzz("build").args(BUILD))?;
+    let mut out = Vec::new();
     for target in targets {
-        let (seeds, out) = (corpus(target), run_corpus(target));
+        let (seeds, runs) = (corpus(target), run_corpus(target));
         std::fs::create_dir_all(&seeds)?;
-        std::fs::create_dir_all(&out)?;
+        std::fs::create_dir_all(&runs)?;
+        out.push((target, seeds, runs));
+    }
+    Ok(out)
+}
+
+pub fn fuzz(seconds: u64, only: Option<&str>) -> Result<()> {
+    for (target, seeds, out) in prepare(only)? {
         // libFuzzer reads every corpus directory given and writes new inputs to the first.
         run(cargo_fuzz("run")
             .args(BUILD)
@@ -118,13 +128,7 @@ pub fn fuzz(seconds: u64, only: Option<&str>) -> Result<()> {
 /// bucket): `-use_counters=0` keeps about a quarter of the inputs (`pose`: 316 instead of
 /// 1,343) with every edge, so the committed corpus stays a few hundred KB.
 pub fn cmin(only: Option<&str>) -> Result<()> {
-    let targets = targets(only)?;
-    crate::setup::cargo_fuzz()?;
-    run(cargo_fuzz("build").args(BUILD))?;
-    for target in targets {
-        let (seeds, out) = (corpus(target), run_corpus(target));
-        std::fs::create_dir_all(&seeds)?;
-        std::fs::create_dir_all(&out)?;
+    for (target, seeds, out) in prepare(only)? {
         // Into the committed corpus: the run's inputs that add coverage.
         run(cargo_fuzz("run")
             .args(BUILD)
