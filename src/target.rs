@@ -13,8 +13,10 @@
 //!    checked), dropping the tracks it loses;
 //! 3. **homography**: RANSAC on (target point, image point) pairs, `u ~ H (X, Y, 1)`, dropping
 //!    the outlier tracks;
-//! 4. **pose** from the inliers: IPPE's two solutions refined on the pixel reprojection error
-//!    through the full camera model ([`crate::pose::solve_planar`]);
+//! 4. **pose** from the inliers: IPPE's two solutions refined on the reprojection error, in
+//!    `f32` through the full camera model ([`crate::pose::solve_planar`]) or, for a target of
+//!    [`Fixed`] arithmetic, with integer per-point work from the homography
+//!    ([`crate::pose::solve_planar_integer`]; [`PoseArith`]);
 //! 5. **re-detection** inside the target's current outline when fewer than
 //!    [`TargetConfig::min_tracks`] survive, the new features mapped to the target by `H⁻¹`;
 //! 6. after a **loss** (too few inliers, or no pose): acquisition again, and when it finds
@@ -71,8 +73,12 @@ use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
+use crate::klt::Fixed;
 use crate::klt::{Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
-use crate::pose::{PlanarConfig, PlanarPose, PoseEstimate, solve_planar};
+use crate::pose::{
+    MAX_PLANAR_POINTS, PlanarConfig, PlanarPoint, PlanarPose, PoseEstimate, solve_planar,
+    solve_planar_integer,
+};
 use crate::pyramid::Pyramid;
 use crate::ransac::RansacConfig;
 use crate::{Error, Result};
@@ -427,6 +433,67 @@ impl<C: Copy> FlowItem<C> for Feature<C> {
     }
 }
 
+/// The arithmetic of the loop's pose stage, chosen with its flow's by the type `A` of a
+/// [`PlanarTarget`] (sealed: `f32` and [`Fixed`]).
+///
+/// - `f32`: [`solve_planar`]: IPPE from a DLT over every pair, refined on the pixel error through
+///   the lens model in `f32`.
+/// - [`Fixed`]: [`solve_planar_integer`]: IPPE from the loop's homography at four points,
+///   refined with integer per-point arithmetic on the error in the undistorted image; for cores
+///   without an FPU, where it costs a sixth of the float path's instructions (BENCHMARKS.md, the
+///   main job's pose column), and within a stated bound of it (`solve_planar_integer`'s tests,
+///   and the host test over the box sequence).
+pub trait PoseArith: FlowArith {
+    /// One pair of the pose stage's scratch.
+    type PoseScratch: Copy + core::fmt::Debug;
+    /// Its zero (for `const` initialisers).
+    const POSE_SCRATCH: Self::PoseScratch;
+    /// Most tracks (`N`) the stage takes; a [`PlanarTarget`] with more does not compile.
+    const MAX_TRACKS: usize;
+    /// Both planar poses from the pairs, `hint` the homography from the model plane to the
+    /// pixels.
+    fn solve(
+        camera: &Camera<f32>,
+        hint: &Homography<f32>,
+        model: &[Point2<f32>],
+        pixels: &[Point2<f32>],
+        scratch: &mut [Self::PoseScratch],
+        cfg: &PlanarConfig,
+    ) -> Result<PlanarPose<f32>>;
+}
+
+impl PoseArith for f32 {
+    type PoseScratch = Point2<f32>;
+    const POSE_SCRATCH: Point2<f32> = Point2::new(0.0, 0.0);
+    const MAX_TRACKS: usize = usize::MAX;
+    fn solve(
+        camera: &Camera<f32>,
+        _hint: &Homography<f32>,
+        model: &[Point2<f32>],
+        pixels: &[Point2<f32>],
+        scratch: &mut [Point2<f32>],
+        cfg: &PlanarConfig,
+    ) -> Result<PlanarPose<f32>> {
+        solve_planar(camera, model, pixels, scratch, cfg)
+    }
+}
+
+impl PoseArith for Fixed {
+    type PoseScratch = PlanarPoint;
+    const POSE_SCRATCH: PlanarPoint = PlanarPoint::ZERO;
+    const MAX_TRACKS: usize = MAX_PLANAR_POINTS;
+    fn solve(
+        camera: &Camera<f32>,
+        hint: &Homography<f32>,
+        model: &[Point2<f32>],
+        pixels: &[Point2<f32>],
+        scratch: &mut [PlanarPoint],
+        cfg: &PlanarConfig,
+    ) -> Result<PlanarPose<f32>> {
+        solve_planar_integer(camera, hint, model, pixels, scratch, cfg)
+    }
+}
+
 /// The state of a tracked planar target: up to `N` features, arithmetic `A` for the flow
 /// ([`crate::klt::Fixed`] or `f32`), and the loop's work buffers: `S` ≥
 /// [`flow_scratch_len`]`(win)` flow scratch, `C` ≥ [`corner_scratch_len`]`(width)` corner
@@ -434,7 +501,7 @@ impl<C: Copy> FlowItem<C> for Feature<C> {
 /// exact). `size_of::<Self>()` is all of its RAM.
 #[derive(Debug, Clone)]
 pub struct PlanarTarget<
-    A: FlowArith,
+    A: PoseArith,
     const N: usize,
     const S: usize,
     const C: usize,
@@ -444,7 +511,7 @@ pub struct PlanarTarget<
     buffers: FlowBuffers<A, N>,
     model: [Point2<f32>; N],
     pixels: [Point2<f32>; N],
-    scratch: [Point2<f32>; N],
+    scratch: [A::PoseScratch; N],
     mask: [bool; N],
     h: Option<Homography<f32>>,
     state: TargetState,
@@ -457,7 +524,7 @@ pub struct PlanarTarget<
     candidates: [Corner; K],
 }
 
-impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usize> Default
+impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usize> Default
     for PlanarTarget<A, N, S, C, K>
 {
     fn default() -> Self {
@@ -465,18 +532,19 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
     }
 }
 
-impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usize>
+impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usize>
     PlanarTarget<A, N, S, C, K>
 {
     /// A target not acquired yet. All zeros: a `static` of it lives in `.bss`.
     pub const fn new() -> Self {
+        const { assert!(N <= A::MAX_TRACKS, "more tracks than the pose stage takes") };
         let origin = Point2::new(0.0, 0.0);
         Self {
             features: Vec::new(),
             buffers: FlowBuffers::new(),
             model: [origin; N],
             pixels: [origin; N],
-            scratch: [origin; N],
+            scratch: [A::POSE_SCRATCH; N],
             mask: [false; N],
             h: None,
             state: TargetState::Uninitialised,
@@ -732,7 +800,16 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
             self.pixels.get(..n)?,
             self.scratch.get_mut(..n)?,
         );
-        solve_planar(&params.camera, model, pixels, scratch, &params.cfg.planar).ok()
+        let hint = self.h.as_ref()?;
+        A::solve(
+            &params.camera,
+            hint,
+            model,
+            pixels,
+            scratch,
+            &params.cfg.planar,
+        )
+        .ok()
     }
 
     /// Both planar poses from the target's four corners seen at `corners` alone.
@@ -753,7 +830,16 @@ impl<A: FlowArith, const N: usize, const S: usize, const C: usize, const K: usiz
         {
             (*m, *p) = (*a, *b);
         }
-        solve_planar(&params.camera, model, pixels, scratch, &params.cfg.planar).ok()
+        let hint = self.h.as_ref()?;
+        A::solve(
+            &params.camera,
+            hint,
+            model,
+            pixels,
+            scratch,
+            &params.cfg.planar,
+        )
+        .ok()
     }
 
     /// RANSAC homography target → image on the live features; drops the outliers. `None`

@@ -5,12 +5,12 @@
 use camgeom::camera::Camera;
 use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
 use camgeom::image::ImageMut;
-use camgeom::klt::{Fixed, FlowArith};
+use camgeom::klt::Fixed;
 use camgeom::nalgebra::{Point2, Point3};
 use camgeom::pose::PlanarPose;
 use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::target::{
-    Acquire, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
+    Acquire, PlanarTarget, PoseArith, TargetConfig, TargetParams, TargetState, corner_scratch_len,
     flow_scratch_len,
 };
 
@@ -54,6 +54,8 @@ pub struct ArFrame {
     pub added: usize,
     /// Image positions of the features tracked after the frame.
     pub features: Vec<Point2<f32>>,
+    /// Their target-plane positions, in the same order.
+    pub targets: Vec<Point2<f32>>,
 }
 
 impl ArFrame {
@@ -105,7 +107,7 @@ pub fn run_ar(
     }
 }
 
-fn go<A: FlowArith>(
+fn go<A: PoseArith>(
     frames: &[GrayImage],
     acquire: &mut dyn Acquire,
     params: &TargetParams,
@@ -149,6 +151,7 @@ fn go<A: FlowArith>(
             inliers: r.inliers,
             added: r.added,
             features: target.features().map(|(p, _)| p).collect(),
+            targets: target.features().map(|(_, t)| t).collect(),
         };
         on_frame(&f);
         out.push(f);

@@ -232,12 +232,13 @@ struct Transfer<T: Real, I> {
     pairs: I,
 }
 
-impl<T, I> lm::LeastSquares<T, 8, 9> for Transfer<T, I>
+impl<T, I> lm::LeastSquares<T, 8> for Transfer<T, I>
 where
     T: Real,
     I: Iterator<Item = (Point2<T>, Point2<T>)> + Clone,
 {
     type Params = SVector<T, 8>;
+    type System = StreamingQr<T, 9>;
     fn cost(&self, p: &Self::Params) -> Option<T> {
         self.problem.cost(&Problem::matrix(p), self.pairs.clone())
     }

@@ -92,8 +92,19 @@ pub fn ippe<T: Real>(model: &[Point2<T>], normalized: &[Point2<T>]) -> Result<[(
         c += Vector3::new(p.x, p.y, T::zero());
     }
     c /= n;
+    from_homography(&dlt(model, normalized)?, &c, model, normalized)
+}
+
+/// [`ippe`] from a homography `h` of the model plane to normalised image coordinates (the
+/// DLT's, or any other estimate) and the model's centroid `c`: the two rotations of `h`, each
+/// with its least-squares translation and error over the pairs, sorted.
+pub(crate) fn from_homography<T: Real>(
+    h: &Homography<T>,
+    c: &Vector3<T>,
+    model: &[Point2<T>],
+    normalized: &[Point2<T>],
+) -> Result<[(Pose<T>, T); 2]> {
     // H of the centred model: H_c = H T(c), T(c) shifting centred coordinates back.
-    let h = dlt(model, normalized)?;
     let (z, o) = (T::zero(), T::one());
     let shift = Matrix3::new(o, z, c.x, z, o, c.y, z, z, o);
     let hc = Homography::from_matrix(&(h.matrix() * shift))?;
@@ -111,7 +122,7 @@ pub fn ippe<T: Real>(model: &[Point2<T>], normalized: &[Point2<T>]) -> Result<[(
     );
     let rotations = ippe_rotations(v1, v2, &j)?;
     let mut out = rotations.map(|r| {
-        let t = translation(&r, &c, model, normalized);
+        let t = translation(&r, c, model, normalized);
         let pose = t.and_then(|t| Pose::new(r, t - r * c));
         let err = pose.and_then(|p| normalized_rms(&p, model, normalized));
         (pose, err)
@@ -255,6 +266,19 @@ pub fn solve_planar<T: Real>(
         pose: p1,
         rms_px: super::refine::rms_with(camera, &p1, pixels, lifted)?,
     };
+    pick(a, unrefined, cfg, |p| estimate(*p))
+}
+
+/// The two poses of [`solve_planar`] from the refined first start `a` and the second start
+/// `unrefined` with its error: the second is refined (by `refine`) only when it is within
+/// [`PlanarConfig::alternative_ratio`] of `a`; sorted, and a second that refinement merged
+/// into the first is reported unrefined. Shared by the float and the integer solvers.
+pub(crate) fn pick<T: Real>(
+    a: PoseEstimate<T>,
+    unrefined: PoseEstimate<T>,
+    cfg: &PlanarConfig,
+    refine: impl FnOnce(&Pose<T>) -> Result<PoseEstimate<T>>,
+) -> Result<PlanarPose<T>> {
     // `above` is false for NaN: such an error goes on to the refinement, which reports it.
     if above(
         unrefined.rms_px,
@@ -266,7 +290,7 @@ pub fn solve_planar<T: Real>(
             alternative: unrefined,
         });
     }
-    let b = estimate(p1)?;
+    let b = refine(&unrefined.pose)?;
     let (best, mut alternative) = if a.rms_px <= b.rms_px { (a, b) } else { (b, a) };
     // When the second solution is not a local minimum of its own, refinement carries it into
     // the first one; the planar ambiguity is then resolved, and the alternative reported is the

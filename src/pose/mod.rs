@@ -11,6 +11,8 @@
 //! - [`epnp`]: EPnP (Lepetit et al. 2009) for `N ≥ 4` non-coplanar points;
 //! - [`solve_pnp`], [`solve_pnp_ransac`]: EPnP + refinement, and RANSAC over P3P samples
 //!   ([`PnpEstimator`]) with EPnP local optimisation (OpenCV's `solvePnP`, `solvePnPRansac`);
+//! - [`solve_planar_integer`], [`refine_planar_integer`]: the planar pose with integer
+//!   per-point arithmetic, for cores without an FPU;
 //! - [`refine_pose`]: Levenberg-Marquardt on the reprojection error in pixels (lens
 //!   distortion included), rotation updated as `exp([δω]ₓ) R`.
 //!
@@ -44,6 +46,7 @@
 
 mod epnp;
 mod from_homography;
+mod integer;
 mod ippe;
 mod p3p;
 mod pnp;
@@ -51,6 +54,7 @@ mod refine;
 
 pub use epnp::{BETA_GAUSS_NEWTON_ITERATIONS, epnp};
 pub use from_homography::pose_from_homography;
+pub use integer::{MAX_PLANAR_POINTS, PlanarPoint, refine_planar_integer, solve_planar_integer};
 pub use ippe::{PlanarConfig, PlanarPose, ippe, solve_planar};
 pub use p3p::{LAMBDA_REFINE_ITERATIONS, MAX_P3P_SOLUTIONS, p3p};
 pub use pnp::{PNP_REFINE_ITERATIONS, PnpEstimator, solve_pnp, solve_pnp_ransac};

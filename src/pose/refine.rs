@@ -192,10 +192,9 @@ impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> Reprojection<'_, T, W> {
     }
 }
 
-impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6, 7>
-    for Reprojection<'_, T, W>
-{
+impl<T: Real, W: Fn(usize) -> Option<Point3<T>>> lm::LeastSquares<T, 6> for Reprojection<'_, T, W> {
     type Params = Pose<T>;
+    type System = StreamingQr<T, 7>;
 
     fn cost(&self, p: &Pose<T>) -> Option<T> {
         let mut c = T::zero();

@@ -190,12 +190,13 @@ where
     c.finite().then_some(c)
 }
 
-impl<T, I> lm::LeastSquares<T, 7, 8> for FProblem<T, I>
+impl<T, I> lm::LeastSquares<T, 7> for FProblem<T, I>
 where
     T: Real,
     I: Iterator<Item = (Point2<T>, Point2<T>)> + Clone,
 {
     type Params = FParams<T>;
+    type System = StreamingQr<T, 8>;
 
     fn cost(&self, p: &FParams<T>) -> Option<T> {
         sum_sq(&self.pixel_matrix(p), self.pairs.clone())
@@ -311,12 +312,13 @@ impl<T: Real, I> EProblem<T, I> {
     }
 }
 
-impl<T, I> lm::LeastSquares<T, 5, 6> for EProblem<T, I>
+impl<T, I> lm::LeastSquares<T, 5> for EProblem<T, I>
 where
     T: Real,
     I: Iterator<Item = (Point2<T>, Point2<T>)> + Clone,
 {
     type Params = RelativePose<T>;
+    type System = StreamingQr<T, 6>;
 
     fn cost(&self, p: &RelativePose<T>) -> Option<T> {
         sum_sq(&self.pixel_matrix(p), self.pairs.clone())

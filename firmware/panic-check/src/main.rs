@@ -746,6 +746,27 @@ fn run_resize() {
     }
 }
 
+/// The planar pose with integer per-point arithmetic (`f32` only).
+#[cfg(feature = "pose")]
+fn run_pose_integer() {
+    use camgeom::homography::Homography;
+    use camgeom::pose::{PlanarConfig, PlanarPoint, refine_planar_integer, solve_planar_integer};
+    let Some(cam) = camera::<f32>() else { return };
+    let model = points2::<f32, N>();
+    let pixels = points2::<f32, N>();
+    let mut scratch = black_box([PlanarPoint::ZERO; N]);
+    let cfg = black_box(PlanarConfig::default());
+    let (s4, d4) = (points2::<f32, 4>(), points2::<f32, 4>());
+    if let Ok(h) = Homography::from_four_points(&s4, &d4) {
+        black_box(solve_planar_integer(&cam, &h, &model, &pixels, &mut scratch, &cfg).ok());
+    }
+    if let Some(p) = pose::<f32>() {
+        let focal = black_box([1.0f32, 1.0]);
+        let r = refine_planar_integer(&model, &pixels, focal, &p, &mut scratch, black_box(10));
+        black_box(r.ok());
+    }
+}
+
 // ---------------------------------------------------------------- main
 
 /// The generic entry points of every selected area, instantiated for `T`.
@@ -793,6 +814,8 @@ fn run_f32_only() {
     run_apriltag();
     #[cfg(feature = "resize")]
     run_resize();
+    #[cfg(feature = "pose")]
+    run_pose_integer();
 }
 
 #[entry]
