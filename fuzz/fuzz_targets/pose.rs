@@ -1,14 +1,19 @@
 //! Cameras with arbitrary (singular, negative, skewed, non-finite) intrinsics and distortion,
-//! projection and back-projection, and the pose solvers `solve_planar`, `solve_pnp`,
-//! `solve_pnp_ransac`, `p3p` on arbitrary points. Contract: no panic; `Ok` projections and
+//! projection and back-projection, and the pose solvers `solve_planar`,
+//! `solve_planar_integer` and `refine_planar_integer`, `solve_pnp`, `solve_pnp_ransac`, `p3p` on
+//! arbitrary points. Contract: no panic; `Ok` projections and
 //! rays are finite (rays unit length); `Ok` poses are finite with an orthonormal rotation and
 //! a finite, non-negative RMS.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
+use camgeom::homography::dlt;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
-use camgeom::pose::{PlanarConfig, p3p, solve_planar, solve_pnp, solve_pnp_ransac};
+use camgeom::pose::{
+    PlanarConfig, PlanarPoint, p3p, refine_planar_integer, solve_planar, solve_planar_integer,
+    solve_pnp, solve_pnp_ransac,
+};
 use camgeom::transform::Pose;
 use libfuzzer_sys::fuzz_target;
 
@@ -102,6 +107,31 @@ fuzz_target!(|inp: Input| {
     if let Ok(pp) = solve_planar(&camera, &model, &pixels, &mut scratch, &cfg) {
         check_estimate(&pp.best, "solve_planar best");
         check_estimate(&pp.alternative, "solve_planar alternative");
+    }
+    // The integer path, from the DLT's homography as the loop's RANSAC would give it. Its
+    // alternative's error is infinite when that solution leaves the integer range.
+    let mut points = std::vec![PlanarPoint::ZERO; scratch_len];
+    if let Ok(hint) = dlt(&model, &pixels)
+        && let Ok(pp) = solve_planar_integer(&camera, &hint, &model, &pixels, &mut points, &cfg)
+    {
+        check_estimate(&pp.best, "solve_planar_integer best");
+        check_pose(&pp.alternative.pose, "solve_planar_integer alternative");
+        let e = pp.alternative.rms_px;
+        assert!(
+            e >= 0.0 && !e.is_nan(),
+            "solve_planar_integer alternative: rms {e}"
+        );
+    }
+    if let Some(start) = &pose {
+        let normalized: std::vec::Vec<Point2<f32>> = pixels
+            .iter()
+            .map(|u| Point2::new(u.x * 1e-3, u.y * 1e-3))
+            .collect();
+        let f = [fx, fy];
+        let it = inp.refine_iterations % 25;
+        if let Ok(e) = refine_planar_integer(&model, &normalized, f, start, &mut points, it) {
+            check_estimate(&e, "refine_planar_integer");
+        }
     }
     if let Ok(e) = solve_pnp(&camera, &world, &pixels, &mut scratch) {
         check_estimate(&e, "solve_pnp");

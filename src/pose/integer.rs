@@ -388,9 +388,14 @@ fn load(
 fn refine(problem: &Problem<'_>, start: &Pose<f32>, iterations: u8) -> Result<PoseEstimate<f32>> {
     let state = problem.model.state(start);
     let m = lm::minimise(problem, state, iterations)?.ok_or(Error::Overflow)?;
+    let rms_px = problem.rms_px(m.final_cost);
+    if !rms_px.is_finite() {
+        // An error beyond f32 in pixels (a focal length near f32::MAX).
+        return Err(Error::NonFinite);
+    }
     Ok(PoseEstimate {
         pose: problem.model.pose(&m.params)?,
-        rms_px: problem.rms_px(m.final_cost),
+        rms_px,
     })
 }
 
@@ -411,7 +416,8 @@ fn evaluate(problem: &Problem<'_>, pose: &Pose<f32>) -> PoseEstimate<f32> {
 ///
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 3 pairs;
 /// [`Error::InvalidParameter`] (`points`) above [`MAX_PLANAR_POINTS`]; [`Error::NonFinite`];
-/// [`Error::InvalidIntrinsics`] for a focal length that is not positive;
+/// [`Error::InvalidIntrinsics`] for a focal length that is not positive; [`Error::NonFinite`]
+/// also for an error beyond `f32` in pixels;
 /// [`Error::Degenerate`] when every model point is the same; [`Error::Overflow`] for
 /// observations or a start outside the range of the module docs.
 pub fn refine_planar_integer(
@@ -783,6 +789,14 @@ mod tests {
         assert_eq!(
             refine(&m, &normalized, f, &close, &mut scratch).err(),
             Some(Error::Overflow)
+        );
+        // Errors beyond f32 in pixels (scrambled pairs seen with a focal length of f32::MAX).
+        let mut scrambled = normalized.map(|p| Point2::new(p.y * -20.0, p.x * 20.0));
+        scrambled.reverse();
+        let huge = [f32::MAX, f32::MAX];
+        assert_eq!(
+            refine(&m, &scrambled, huge, &truth, &mut scratch).err(),
+            Some(Error::NonFinite)
         );
         let many = [Point2::new(0.0f32, 0.0); MAX_PLANAR_POINTS + 1];
         let mut big = [PlanarPoint::ZERO; MAX_PLANAR_POINTS + 1];
