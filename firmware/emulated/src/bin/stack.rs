@@ -26,11 +26,13 @@ use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
 use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
-use camgeom::homography::find_homography;
+use camgeom::homography::{dlt, find_homography};
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow, scratch_len};
 use camgeom::nalgebra::{ComplexField, Point2, Point3, Vector3};
-use camgeom::pose::{PlanarConfig, solve_planar, solve_pnp_ransac};
+use camgeom::pose::{
+    PlanarConfig, PlanarPoint, solve_planar, solve_planar_integer, solve_pnp_ransac,
+};
 use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::ransac::RansacConfig;
 use camgeom::remap::{GridMap, grid_len, new_camera_matrix};
@@ -422,6 +424,17 @@ fn main() -> ! {
     row("solve_planar 32 points", s, &mut rows);
     if let Err(e) = r {
         fail("solve_planar", e)
+    }
+    let hint = match dlt(&model, &pixels) {
+        Ok(h) => black_box(h),
+        Err(e) => fail("dlt", e),
+    };
+    let mut points = [PlanarPoint::ZERO; N_TARGET];
+    let (r, s) =
+        measure(|| solve_planar_integer(&camera, &hint, &model, &pixels, &mut points, &pcfg));
+    row("solve_planar_integer 32 points", s, &mut rows);
+    if let Err(e) = r {
+        fail("solve_planar_integer", e)
     }
     let world: [Point3<f32>; N_TARGET] = core::array::from_fn(|k| {
         let m = model.get(k).copied().unwrap_or(ORIGIN2);
