@@ -9,7 +9,7 @@ mod common;
 use camgeom::corners::{Corner, CornerConfig, good_features, scratch_len as corner_scratch_len};
 use camgeom::heapless::Vec as FixedVec;
 use camgeom::image::ImageView;
-use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
+use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len};
 use camgeom::pyramid::{Pyramid, buffer_len};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -43,9 +43,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pa = Pyramid::build(va, &mut ba, levels)?;
     let pb = Pyramid::build(vb, &mut bb, levels)?;
     let mut scratch = vec![0i16; scratch_len(params.config().win)];
-    let fixed: Vec<[i32; 2]> = corners
+    let fixed: Vec<[Q16; 2]> = corners
         .iter()
-        .map(|c| [i32::from(c.x) << 16, i32::from(c.y) << 16])
+        .map(|c| {
+            [
+                Q16::from_bits(i32::from(c.x) << 16),
+                Q16::from_bits(i32::from(c.y) << 16),
+            ]
+        })
         .collect();
     let mut fixed_out = vec![Flow::default(); fixed.len()];
     calc_flow::<Fixed>(
@@ -76,8 +81,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for (q, f) in fixed_out.iter().zip(&float_out) {
         if q.status == FlowStatus::Tracked && f.status == FlowStatus::Tracked {
             tracked += 1;
-            let dx = Fixed::to_f32(q.x) - f.x;
-            let dy = Fixed::to_f32(q.y) - f.y;
+            let dx = Q16::to_f32(q.x) - f.x;
+            let dy = Q16::to_f32(q.y) - f.y;
             gap = gap.max(dx.hypot(dy));
         }
     }

@@ -93,6 +93,49 @@ impl Q16 {
     pub fn to_f64(self) -> f64 {
         f64::from(self.0) / 65536.0
     }
+    /// `round(v 2¹⁶)` saturated to the range, NaN to zero: the conversion for positions that
+    /// must not fail (tracker input).
+    pub fn saturating_from_f32(v: f32) -> Self {
+        let s = v * 65536.0;
+        // `as` saturates (and takes NaN to 0).
+        Q16(libm::roundf(s) as i32)
+    }
+    /// `self · 2ⁿ`, saturated.
+    pub const fn saturating_shl(self, n: u32) -> Self {
+        let n = if n > 31 { 31 } else { n };
+        let wide = (self.0 as i64) << n;
+        Q16(if wide > i32::MAX as i64 {
+            i32::MAX
+        } else if wide < i32::MIN as i64 {
+            i32::MIN
+        } else {
+            wide as i32
+        })
+    }
+    /// `⌊self / 2ⁿ⌋` (arithmetic shift).
+    pub const fn shr(self, n: u32) -> Self {
+        Q16(self.0 >> if n > 31 { 31 } else { n })
+    }
+    /// `⌊self + 1/2⌋`, saturated: the nearest whole number.
+    pub const fn round(self) -> i32 {
+        self.0.saturating_add(1 << 15) >> 16
+    }
+}
+
+/// Saturating: a position never wraps to the other side of the range.
+impl core::ops::Add for Q16 {
+    type Output = Q16;
+    fn add(self, rhs: Q16) -> Q16 {
+        Q16(self.0.saturating_add(rhs.0))
+    }
+}
+
+/// Saturating, as [`Q16`]'s `Add`.
+impl core::ops::Sub for Q16 {
+    type Output = Q16;
+    fn sub(self, rhs: Q16) -> Q16 {
+        Q16(self.0.saturating_sub(rhs.0))
+    }
 }
 
 /// Fractional bits of the coordinate coefficients (Q2.29 in `i32`, before the row scale).

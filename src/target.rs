@@ -74,7 +74,7 @@ use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
 use crate::klt::Fixed;
-use crate::klt::{Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
+use crate::klt::{Coordinate, Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
 use crate::pose::{
     MAX_PLANAR_POINTS, PlanarConfig, PlanarPoint, PlanarPose, PoseEstimate, solve_planar,
     solve_planar_integer,
@@ -578,16 +578,13 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
 
     /// Features currently tracked: `(image position, target-plane position)`.
     pub fn features(&self) -> impl Iterator<Item = (Point2<f32>, Point2<f32>)> + '_ {
-        self.features.iter().map(|f| {
-            (
-                Point2::new(A::to_f32(f.pos[0]), A::to_f32(f.pos[1])),
-                f.target,
-            )
-        })
+        self.features
+            .iter()
+            .map(|f| (Point2::new(f.pos[0].to_f32(), f.pos[1].to_f32()), f.target))
     }
 
     /// The image positions of the features currently tracked, in the flow's own coordinates
-    /// (Q16.16 `i32` for [`crate::klt::Fixed`], `f32` pixels for `f32`), in the order of
+    /// ([`crate::klt::Q16`] for [`crate::klt::Fixed`], `f32` pixels for `f32`), in the order of
     /// [`Self::features`]: what a determinism check compares bit for bit at any image size.
     pub fn tracks(&self) -> impl Iterator<Item = [A::Coord; 2]> + '_ {
         self.features.iter().map(|f| f.pos)
@@ -787,7 +784,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             .zip(self.features.iter())
         {
             *m = f.target;
-            *p = Point2::new(A::to_f32(f.pos[0]), A::to_f32(f.pos[1]));
+            *p = Point2::new(f.pos[0].to_f32(), f.pos[1].to_f32());
         }
     }
 
@@ -918,12 +915,10 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             .cfg
             .corners
             .up_to(N.saturating_sub(self.features.len()));
-        let existing = self.features.iter().map(|f| {
-            [
-                A::round(f.pos[0]) - x0 as i32,
-                A::round(f.pos[1]) - y0 as i32,
-            ]
-        });
+        let existing = self
+            .features
+            .iter()
+            .map(|f| [f.pos[0].round() - x0 as i32, f.pos[1].round() - y0 as i32]);
         good_features(
             &roi,
             &ccfg,
@@ -941,8 +936,8 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             }
             let Ok(t) = inv.transfer(&p) else { continue };
             let pos = [
-                A::from_px(i32::from(c.x) + x0 as i32),
-                A::from_px(i32::from(c.y) + y0 as i32),
+                A::Coord::from_px(i32::from(c.x) + x0 as i32),
+                A::Coord::from_px(i32::from(c.y) + y0 as i32),
             ];
             if self.features.push(Feature { pos, target: t }).is_err() {
                 break;

@@ -7,7 +7,7 @@
 use arbitrary::Arbitrary;
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, level_gradient_len, scratch_len,
+    Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, level_gradient_len, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 use libfuzzer_sys::fuzz_target;
@@ -150,13 +150,13 @@ fuzz_target!(|inp: Input| {
         check(&flows, |c| c, "f32");
     }
 
-    let fpts: std::vec::Vec<[i32; 2]> = inp
+    let fpts: std::vec::Vec<[Q16; 2]> = inp
         .fixed_points
         .iter()
         .take(16)
-        .map(|p| [p.0, p.1])
+        .map(|p| [Q16::from_bits(p.0), Q16::from_bits(p.1)])
         .collect();
-    let mut fflows = std::vec![Flow::<i32>::default(); fpts.len()];
+    let mut fflows = std::vec![Flow::<Q16>::default(); fpts.len()];
     if inp.use_initial_flow {
         for (f, p) in fflows.iter_mut().zip(&fpts) {
             f.x = p[0];
@@ -174,6 +174,6 @@ fuzz_target!(|inp: Input| {
     )
     .is_ok()
     {
-        check(&fflows, Fixed::to_f32, "fixed");
+        check(&fflows, Q16::to_f32, "fixed");
     }
 });

@@ -4,8 +4,8 @@
 use camgeom::corners::{Corner, CornerConfig};
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Tracker, TrackerConfig, calc_flow,
-    forward_backward, scratch_len,
+    Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Tracker,
+    TrackerConfig, calc_flow, forward_backward, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 
@@ -106,10 +106,10 @@ pub fn flow_pyramids(
         Ok(flows
             .iter()
             .map(|f| FlowPoint {
-                x: f64::from(A::to_f32(f.x)),
-                y: f64::from(A::to_f32(f.y)),
+                x: f64::from(f.x.to_f32()),
+                y: f64::from(f.y.to_f32()),
                 status: f.status,
-                err: f64::from(A::to_f32(f.err)),
+                err: f64::from(f.err.to_f32()),
             })
             .collect())
     }
@@ -118,7 +118,12 @@ pub fn flow_pyramids(
             prev,
             next,
             pts.iter()
-                .map(|p| [Fixed::from_f32(p[0] as f32), Fixed::from_f32(p[1] as f32)])
+                .map(|p| {
+                    [
+                        Q16::saturating_from_f32(p[0] as f32),
+                        Q16::saturating_from_f32(p[1] as f32),
+                    ]
+                })
                 .collect(),
             cfg,
             per_level,
@@ -229,8 +234,8 @@ pub fn track_sequence(
                 rows.push(TrackRow {
                     frame: k,
                     id: t.id,
-                    x: f64::from(A::to_f32(t.x)),
-                    y: f64::from(A::to_f32(t.y)),
+                    x: f64::from(t.x.to_f32()),
+                    y: f64::from(t.y.to_f32()),
                     age: t.age,
                 });
             }

@@ -8,35 +8,100 @@ use super::{FlowStatus, LkParams};
 
 /// Bits of the bilinear weights: `w00 + w01 + w10 + w11 = 2¹⁴`.
 pub const W_BITS: u32 = 14;
-/// One in Q16.16.
-pub const Q16: i32 = 1 << 16;
+pub use crate::fixed::Q16;
+
+/// One in Q16.16, raw.
+const ONE: i32 = Q16::ONE.to_bits();
 
 mod sealed {
     pub trait Sealed {}
     impl Sealed for super::Fixed {}
+    impl Sealed for super::Q16 {}
     impl Sealed for f32 {}
 }
 
-/// Marker type of the fixed-point path: coordinates are Q16.16 `i32` (`x_px = c / 2¹⁶`), the
+/// Marker type of the fixed-point path: coordinates are [`Q16`] (Q16.16, saturating), the
 /// 2x2 solve and every threshold are integers. For cores without an FPU.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Fixed;
 
-impl Fixed {
-    /// `round(v · 2¹⁶)`, saturated (host-side conversion helper).
-    pub fn from_f32(v: f32) -> i32 {
-        let s = v * Q16 as f32;
-        if s.is_nan() {
-            0
-        } else {
-            // `as` saturates.
-            libm::roundf(s) as i32
-        }
+/// A point coordinate of one tracking path, in pixels: [`Q16`] (saturating) or `f32`; what
+/// the tracker does with one besides `+` and `-`.
+pub trait Coordinate:
+    Copy
+    + PartialEq
+    + core::fmt::Debug
+    + Default
+    + core::ops::Add<Output = Self>
+    + core::ops::Sub<Output = Self>
+    + sealed::Sealed
+{
+    /// Zero (for `const` initialisers: a tracker in a zeroed `static`).
+    const ZERO: Self;
+    /// `halves / 2` pixels (`(win - 1) / 2` may be fractional).
+    fn from_half_px(halves: i32) -> Self;
+    /// `v` whole pixels.
+    fn from_px(v: i32) -> Self;
+    /// `c / 2^level`: the position on pyramid level `level`.
+    fn down(self, level: u32) -> Self;
+    /// `2 c`.
+    fn twice(self) -> Self;
+    /// `c / 2`.
+    fn half(self) -> Self;
+    /// In pixels (reporting).
+    fn to_f32(self) -> f32;
+    /// `⌊c + 1/2⌋`, saturated: the nearest pixel.
+    fn round(self) -> i32;
+}
+
+impl Coordinate for Q16 {
+    const ZERO: Q16 = Q16::ZERO;
+    fn from_half_px(halves: i32) -> Q16 {
+        Q16::from_bits(halves.saturating_mul(ONE / 2))
     }
-    /// `c / 2¹⁶`.
-    pub fn to_f32(c: i32) -> f32 {
-        c as f32 / Q16 as f32
+    fn from_px(v: i32) -> Q16 {
+        Q16::from_bits(v.saturating_mul(ONE))
+    }
+    fn down(self, level: u32) -> Q16 {
+        self.shr(level)
+    }
+    fn twice(self) -> Q16 {
+        self.saturating_shl(1)
+    }
+    fn half(self) -> Q16 {
+        self.shr(1)
+    }
+    fn to_f32(self) -> f32 {
+        Q16::to_f32(self)
+    }
+    fn round(self) -> i32 {
+        Q16::round(self)
+    }
+}
+
+impl Coordinate for f32 {
+    const ZERO: f32 = 0.0;
+    fn from_half_px(halves: i32) -> f32 {
+        halves as f32 * 0.5
+    }
+    fn from_px(v: i32) -> f32 {
+        v as f32
+    }
+    fn down(self, level: u32) -> f32 {
+        self * (1.0 / (1u32 << level.min(31)) as f32)
+    }
+    fn twice(self) -> f32 {
+        self * 2.0
+    }
+    fn half(self) -> f32 {
+        self * 0.5
+    }
+    fn to_f32(self) -> f32 {
+        self
+    }
+    fn round(self) -> i32 {
+        libm::floorf(self + 0.5) as i32
     }
 }
 
@@ -55,9 +120,7 @@ pub struct Bilinear {
 /// The arithmetic of one tracking path (sealed: implemented for [`Fixed`] and `f32`).
 pub trait FlowArith: sealed::Sealed {
     /// A point coordinate.
-    type Coord: Copy + PartialEq + core::fmt::Debug + Default;
-    /// The coordinate 0 (for `const` initialisers: a tracker in a zeroed `static`).
-    const ZERO: Self::Coord;
+    type Coord: Coordinate;
     /// Per-call constants derived from the [`LkParams`] (thresholds in this path's units).
     type Params: Copy;
     /// The inverted gradient matrix of one window.
@@ -65,18 +128,6 @@ pub trait FlowArith: sealed::Sealed {
 
     /// Prepares the thresholds of `cfg` for windows of `area` pixels.
     fn params(cfg: &LkParams, area: u32) -> Self::Params;
-    /// `v` as a coordinate (`v` pixels, may be fractional: `(win - 1) / 2`).
-    fn from_half_px(halves: i32) -> Self::Coord;
-    /// `a + b`.
-    fn add(a: Self::Coord, b: Self::Coord) -> Self::Coord;
-    /// `a - b`.
-    fn sub(a: Self::Coord, b: Self::Coord) -> Self::Coord;
-    /// `c / 2^level`.
-    fn down(c: Self::Coord, level: u32) -> Self::Coord;
-    /// `2 c`.
-    fn twice(c: Self::Coord) -> Self::Coord;
-    /// `c / 2`.
-    fn half(c: Self::Coord) -> Self::Coord;
     /// Integer corner and bilinear weights of `(x, y)`; `None` when not finite or far out of
     /// range.
     fn bilinear(x: Self::Coord, y: Self::Coord) -> Option<Bilinear>;
@@ -95,12 +146,6 @@ pub trait FlowArith: sealed::Sealed {
     fn error(sum_abs: u64, area: u32) -> Self::Coord;
     /// `|a - b|² > t²` with `t` the forward-backward threshold of the parameters.
     fn beyond(a: [Self::Coord; 2], b: [Self::Coord; 2], p: &Self::Params) -> bool;
-    /// The coordinate in pixels (reporting).
-    fn to_f32(c: Self::Coord) -> f32;
-    /// A pixel position as a coordinate.
-    fn from_px(v: i32) -> Self::Coord;
-    /// `⌊c + 1/2⌋`, saturated (nearest pixel).
-    fn round(c: Self::Coord) -> i32;
 }
 
 /// `round(n · 2^shift / d)` for `d > 0`, with at least 31 significant bits, saturated to
@@ -162,15 +207,14 @@ pub struct FixedGram {
 }
 
 impl FlowArith for Fixed {
-    type Coord = i32;
-    const ZERO: i32 = 0;
+    type Coord = Q16;
     type Params = FixedParams;
     type Gram = FixedGram;
 
     fn params(cfg: &LkParams, area: u32) -> FixedParams {
         let cfg = cfg.config();
         let sq = |v: f32| {
-            let q = f64::from(v) * f64::from(Q16);
+            let q = f64::from(v) * f64::from(ONE);
             (q * q).min(i64::MAX as f64) as i64
         };
         FixedParams {
@@ -179,27 +223,10 @@ impl FlowArith for Fixed {
             fb2: cfg.fb_threshold.map_or(i64::MAX, sq),
         }
     }
-    fn from_half_px(halves: i32) -> i32 {
-        halves.saturating_mul(Q16 / 2)
-    }
-    fn add(a: i32, b: i32) -> i32 {
-        a.saturating_add(b)
-    }
-    fn sub(a: i32, b: i32) -> i32 {
-        a.saturating_sub(b)
-    }
-    fn down(c: i32, level: u32) -> i32 {
-        c >> level.min(31)
-    }
-    fn twice(c: i32) -> i32 {
-        c.saturating_mul(2)
-    }
-    fn half(c: i32) -> i32 {
-        c >> 1
-    }
-    fn bilinear(x: i32, y: i32) -> Option<Bilinear> {
+    fn bilinear(x: Q16, y: Q16) -> Option<Bilinear> {
+        let (x, y) = (x.to_bits(), y.to_bits());
         let (a, b) = (i64::from(x & 0xFFFF), i64::from(y & 0xFFFF));
-        let one = i64::from(Q16);
+        let one = i64::from(ONE);
         // (2¹⁶ - a)(2¹⁶ - b) / 2¹⁸, rounded: Q32 → Q14.
         let r = |p: i64| ((p + (1 << 17)) >> 18) as i32;
         let w00 = r((one - a) * (one - b));
@@ -244,7 +271,7 @@ impl FlowArith for Fixed {
             shift,
         })
     }
-    fn step(g: &FixedGram, b1: i64, b2: i64) -> [i32; 2] {
+    fn step(g: &FixedGram, b1: i64, b2: i64) -> [Q16; 2] {
         let m = b1.unsigned_abs().max(b2.unsigned_abs());
         let sb = bit_len(m).saturating_sub(31) as i32;
         let (b1, b2) = (b1 >> sb, b2 >> sb);
@@ -253,35 +280,30 @@ impl FlowArith for Fixed {
         let ny = g.a12 * b1 - g.a11 * b2;
         let e = 16 + sb - g.shift;
         [
-            mul_div_pow2(nx, e, g.det, MAX_STEP_Q16) as i32,
-            mul_div_pow2(ny, e, g.det, MAX_STEP_Q16) as i32,
+            Q16::from_bits(mul_div_pow2(nx, e, g.det, MAX_STEP_Q16) as i32),
+            Q16::from_bits(mul_div_pow2(ny, e, g.det, MAX_STEP_Q16) as i32),
         ]
     }
-    fn converged(d: [i32; 2], p: &FixedParams) -> bool {
-        let (x, y) = (i64::from(d[0]), i64::from(d[1]));
+    fn converged(d: [Q16; 2], p: &FixedParams) -> bool {
+        let [x, y] = d.map(|c| i64::from(c.to_bits()));
         x * x + y * y <= p.eps2
     }
-    fn oscillates(d: [i32; 2], prev: [i32; 2]) -> bool {
-        let s = |a: i32, b: i32| (i64::from(a) + i64::from(b)).abs() * 100 < i64::from(Q16);
+    fn oscillates(d: [Q16; 2], prev: [Q16; 2]) -> bool {
+        let s = |a: Q16, b: Q16| {
+            (i64::from(a.to_bits()) + i64::from(b.to_bits())).abs() * 100 < i64::from(ONE)
+        };
         s(d[0], prev[0]) && s(d[1], prev[1])
     }
-    fn error(sum_abs: u64, area: u32) -> i32 {
+    fn error(sum_abs: u64, area: u32) -> Q16 {
         // Σ / (32 area) in Q16 = (Σ << 11) / area.
-        ((sum_abs << 11) / u64::from(area.max(1))).min(i32::MAX as u64) as i32
+        Q16::from_bits(((sum_abs << 11) / u64::from(area.max(1))).min(i32::MAX as u64) as i32)
     }
-    fn beyond(a: [i32; 2], b: [i32; 2], p: &FixedParams) -> bool {
-        let dx = i64::from(a[0]) - i64::from(b[0]);
-        let dy = i64::from(a[1]) - i64::from(b[1]);
+    fn beyond(a: [Q16; 2], b: [Q16; 2], p: &FixedParams) -> bool {
+        let [dx, dy] = [0, 1].map(|k| {
+            let c = |v: [Q16; 2]| i64::from(v.get(k).map_or(0, |q| q.to_bits()));
+            c(a) - c(b)
+        });
         dx * dx + dy * dy > p.fb2
-    }
-    fn to_f32(c: i32) -> f32 {
-        Fixed::to_f32(c)
-    }
-    fn from_px(v: i32) -> i32 {
-        v.saturating_mul(Q16)
-    }
-    fn round(c: i32) -> i32 {
-        c.saturating_add(Q16 / 2) >> 16
     }
 }
 
@@ -308,7 +330,6 @@ const FLT_SCALE: f32 = 1.0 / (1u32 << 20) as f32;
 
 impl FlowArith for f32 {
     type Coord = f32;
-    const ZERO: f32 = 0.0;
     type Params = FloatParams;
     type Gram = FloatGram;
 
@@ -322,24 +343,6 @@ impl FlowArith for f32 {
             fb2: fb * fb,
             area: area as f32,
         }
-    }
-    fn from_half_px(halves: i32) -> f32 {
-        halves as f32 * 0.5
-    }
-    fn add(a: f32, b: f32) -> f32 {
-        a + b
-    }
-    fn sub(a: f32, b: f32) -> f32 {
-        a - b
-    }
-    fn down(c: f32, level: u32) -> f32 {
-        c * (1.0 / (1u32 << level.min(31)) as f32)
-    }
-    fn twice(c: f32) -> f32 {
-        c * 2.0
-    }
-    fn half(c: f32) -> f32 {
-        c * 0.5
     }
     fn bilinear(x: f32, y: f32) -> Option<Bilinear> {
         // Far outside every image (MAX_DIM = 2¹³) or NaN: not a position.
@@ -405,15 +408,6 @@ impl FlowArith for f32 {
             .partial_cmp(&p.fb2)
             .is_none_or(|o| o.is_gt())
     }
-    fn to_f32(c: f32) -> f32 {
-        c
-    }
-    fn from_px(v: i32) -> f32 {
-        v as f32
-    }
-    fn round(c: f32) -> i32 {
-        libm::floorf(c + 0.5) as i32
-    }
 }
 
 #[cfg(test)]
@@ -441,7 +435,8 @@ mod tests {
             (100.5, -7.125),
         ] {
             let f = <f32 as FlowArith>::bilinear(x, y).unwrap();
-            let q = Fixed::bilinear(Fixed::from_f32(x), Fixed::from_f32(y)).unwrap();
+            let q =
+                Fixed::bilinear(Q16::saturating_from_f32(x), Q16::saturating_from_f32(y)).unwrap();
             assert_eq!((f.x, f.y), (q.x, q.y));
             for k in 0..4 {
                 assert!((f.w[k] - q.w[k]).abs() <= 1, "{x},{y}: {:?} {:?}", f.w, q.w);

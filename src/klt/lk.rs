@@ -1,6 +1,6 @@
 //! The Lucas-Kanade iteration of one point on one level, and the pyramid driver.
 
-use super::arith::{Bilinear, FlowArith, W_BITS};
+use super::arith::{Bilinear, Coordinate, FlowArith, W_BITS};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams, scratch_len};
 use crate::gradient::{reflect101, scharr_window};
 use crate::image::{ImageMut, ImageView};
@@ -250,22 +250,22 @@ fn track_point<A: FlowArith>(
 ) {
     let win = lv.win;
     let area = (win * win) as u32;
-    let half = A::from_half_px(win as i32 - 1);
+    let half = A::Coord::from_half_px(win as i32 - 1);
     let last = lv.level == 0;
-    let p = [A::down(prev_pt[0], lv.level), A::down(prev_pt[1], lv.level)];
+    let p = prev_pt.map(|c| c.down(lv.level));
     let mut next = if lv.top {
         if lv.use_initial {
-            [A::down(f.x, lv.level), A::down(f.y, lv.level)]
+            [f.x.down(lv.level), f.y.down(lv.level)]
         } else {
             p
         }
     } else {
-        [A::twice(f.x), A::twice(f.y)]
+        [f.x.twice(), f.y.twice()]
     };
     f.x = next[0];
     f.y = next[1];
     let (iw, ih) = (lv.i.width(), lv.i.height());
-    let Some(bi) = A::bilinear(A::sub(p[0], half), A::sub(p[1], half)) else {
+    let Some(bi) = A::bilinear(p[0] - half, p[1] - half) else {
         f.status = FlowStatus::OutOfBounds;
         return;
     };
@@ -299,7 +299,7 @@ fn track_point<A: FlowArith>(
             return;
         }
     };
-    next = [A::sub(next[0], half), A::sub(next[1], half)];
+    next = next.map(|c| c - half);
     let mut prev_delta = [A::Coord::default(); 2];
     for it in 0..lv.max_iter {
         let Some(bj) = A::bilinear(next[0], next[1]) else {
@@ -314,21 +314,21 @@ fn track_point<A: FlowArith>(
         }
         let (b1, b2) = mismatch_at(&lv.j, s, (bj.x, bj.y), win, bj.w, false);
         let delta = A::step(&gram, b1, b2);
-        next = [A::add(next[0], delta[0]), A::add(next[1], delta[1])];
-        f.x = A::add(next[0], half);
-        f.y = A::add(next[1], half);
+        next = [next[0] + delta[0], next[1] + delta[1]];
+        f.x = next[0] + half;
+        f.y = next[1] + half;
         if A::converged(delta, &lv.params) {
             break;
         }
         if it > 0 && A::oscillates(delta, prev_delta) {
-            f.x = A::sub(f.x, A::half(delta[0]));
-            f.y = A::sub(f.y, A::half(delta[1]));
+            f.x = f.x - delta[0].half();
+            f.y = f.y - delta[1].half();
             break;
         }
         prev_delta = delta;
     }
     if last && f.status == FlowStatus::Tracked {
-        let Some(bj) = A::bilinear(A::sub(f.x, half), A::sub(f.y, half)) else {
+        let Some(bj) = A::bilinear(f.x - half, f.y - half) else {
             f.status = FlowStatus::OutOfBounds;
             return;
         };
@@ -519,7 +519,7 @@ mod tests {
         v
     }
 
-    fn run_both(dx: f64, dy: f64) -> (Vec<Flow<f32>>, Vec<Flow<i32>>) {
+    fn run_both(dx: f64, dy: f64) -> (Vec<Flow<f32>>, Vec<Flow<Q16>>) {
         let (w, h) = (160, 120);
         let a = scene(w, h, 0.0, 0.0);
         let b = scene(w, h, dx, dy);
@@ -548,11 +548,16 @@ mod tests {
             &mut scratch,
         )
         .unwrap();
-        let qpts: Vec<[i32; 2]> = pts
+        let qpts: Vec<[Q16; 2]> = pts
             .iter()
-            .map(|p| [Fixed::from_f32(p[0]), Fixed::from_f32(p[1])])
+            .map(|p| {
+                [
+                    Q16::saturating_from_f32(p[0]),
+                    Q16::saturating_from_f32(p[1]),
+                ]
+            })
             .collect();
-        let mut fq = std::vec![Flow::<i32>::default(); pts.len()];
+        let mut fq = std::vec![Flow::<Q16>::default(); pts.len()];
         let mut lvl = std::vec![[0i16; 2]; w * h];
         calc_flow::<Fixed>(
             &pa,
@@ -570,10 +575,7 @@ mod tests {
             let e =
                 |x: f32, y: f32| (x as f64 - p[0] as f64 - dx).hypot(y as f64 - p[1] as f64 - dy);
             assert!(e(f.x, f.y) < 0.15, "f32 {p:?} -> {f:?}");
-            assert!(
-                e(Fixed::to_f32(q.x), Fixed::to_f32(q.y)) < 0.15,
-                "fixed {p:?} -> {q:?}"
-            );
+            assert!(e(q.x.to_f32(), q.y.to_f32()) < 0.15, "fixed {p:?} -> {q:?}");
         }
         (ff, fq)
     }
@@ -603,13 +605,14 @@ mod tests {
         // Including points near and past the border.
         let pts = [
             [0, 0],
-            [3 * Q16, 40 * Q16],
-            [63 * Q16 + 5, 47 * Q16],
-            [30 * Q16, 20 * Q16 + 999],
-        ];
+            [3 << 16, 40 << 16],
+            [(63 << 16) + 5, 47 << 16],
+            [30 << 16, (20 << 16) + 999],
+        ]
+        .map(|p| p.map(Q16::from_bits));
         let mut s = std::vec![0i16; scratch_len(9)];
-        let mut f1 = [Flow::<i32>::default(); 4];
-        let mut f2 = [Flow::<i32>::default(); 4];
+        let mut f1 = [Flow::<Q16>::default(); 4];
+        let mut f2 = [Flow::<Q16>::default(); 4];
         calc_flow::<Fixed>(&pa, &pb, &pts, &mut f1, &cfg, Gradients::PerWindow, &mut s).unwrap();
         let mut g = std::vec![[0i16; 2]; w * h];
         calc_flow::<Fixed>(

@@ -13,9 +13,12 @@
 //! (mean absolute difference). Borders as OpenCV: images reflected (`BORDER_REFLECT_101`) and
 //! derivatives zero outside, so a point is only lost when its window leaves the image entirely.
 //!
-//! The arithmetic is chosen by type ([`FlowArith`]): [`Fixed`] (Q16.16 coordinates and an
-//! integer 2x2 solve; for cores without an FPU) or `f32` (as OpenCV). Sums are exact `i64` in
-//! both. [`Tracker`] keeps tracks across frames.
+//! The arithmetic is chosen by type ([`FlowArith`]): [`Fixed`] ([`Q16`] coordinates, the
+//! crate's one Q16.16 type, saturating, and an integer 2x2 solve; for cores without an FPU) or
+//! `f32` (as OpenCV). Both share the point arithmetic of [`Coordinate`] (`+`, `-`, level
+//! scaling), so `FlowArith` holds only what differs: the bilinear weights of a position, the
+//! 2x2 solve, the stopping tests and the error measure. Sums are exact `i64` in both.
+//! [`Tracker`] keeps tracks across frames.
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
 //!
@@ -54,7 +57,9 @@ mod arith;
 mod lk;
 mod tracker;
 
-pub use arith::{Bilinear, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16};
+pub use arith::{
+    Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
+};
 pub use lk::{calc_flow, forward_backward};
 pub use tracker::{
     FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram,

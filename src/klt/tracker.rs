@@ -7,7 +7,7 @@
 
 use heapless::Vec;
 
-use super::arith::FlowArith;
+use super::arith::{Coordinate, FlowArith};
 use super::lk::{calc_flow, forward_backward};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::corners::{Corner, CornerConfig, good_features};
@@ -111,13 +111,13 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
     /// Zeroed buffers (`const`: they can live in a zero-initialised `static`).
     pub const fn new() -> Self {
         let zero = Flow {
-            x: A::ZERO,
-            y: A::ZERO,
+            x: A::Coord::ZERO,
+            y: A::Coord::ZERO,
             status: FlowStatus::Tracked,
-            err: A::ZERO,
+            err: A::Coord::ZERO,
         };
         Self {
-            pts: [[A::ZERO; 2]; N],
+            pts: [[A::Coord::ZERO; 2]; N],
             flows: [zero; N],
             back: [zero; N],
         }
@@ -266,14 +266,14 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
         }
         let mut found: Vec<Corner, N> = Vec::new();
         let ccfg = self.cfg.corners.up_to(cap - self.tracks.len());
-        let existing = self.tracks.iter().map(|t| [A::round(t.x), A::round(t.y)]);
+        let existing = self.tracks.iter().map(|t| [t.x.round(), t.y.round()]);
         good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
         let mut added = 0;
         for c in &found {
             let t = Track {
                 id: self.next_id,
-                x: A::from_px(i32::from(c.x)),
-                y: A::from_px(i32::from(c.y)),
+                x: A::Coord::from_px(i32::from(c.x)),
+                y: A::Coord::from_px(i32::from(c.y)),
                 age: 0,
                 err: A::Coord::default(),
             };
@@ -361,10 +361,10 @@ mod tests {
         for tr in t.tracks() {
             let b = before.iter().find(|b| b.id == tr.id).unwrap();
             assert_eq!(tr.age, 1);
-            let dx = Fixed::to_f32(tr.x - b.x);
-            let dy = Fixed::to_f32(tr.y - b.y);
+            let dx = (tr.x - b.x).to_f32();
+            let dy = (tr.y - b.y).to_f32();
             // Content enters at the right edge: judge only windows inside the frame.
-            let bx = Fixed::to_f32(b.x);
+            let bx = b.x.to_f32();
             if bx > 8.0 && bx < (w - 10) as f32 {
                 assert!((dx - 1.5).abs() < 0.1 && dy.abs() < 0.1, "{b:?}: {dx} {dy}");
             }

@@ -254,7 +254,7 @@ pub fn track_checksum<const N: usize, const S: usize, const C: usize, const K: u
 ) -> u32 {
     let mut h: u32 = 0x811c_9dc5;
     for q in target.tracks() {
-        for b in q.iter().flat_map(|v| v.to_le_bytes()) {
+        for b in q.iter().flat_map(|v| v.to_bits().to_le_bytes()) {
             h ^= u32::from(b);
             h = h.wrapping_mul(0x0100_0193);
         }

@@ -32,7 +32,7 @@ pub fn textured_frame(frame: &mut ImageMut<'_, u8>, dx: i32, dy: i32) {
 mod tests {
     use super::*;
     use camgeom::image::ImageView;
-    use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
+    use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len};
     use camgeom::pyramid::{Pyramid, buffer_len};
 
     #[test]
@@ -47,12 +47,8 @@ mod tests {
         let mut b1 = std::vec![0u8; buffer_len(w, h, 3)];
         let p0 = Pyramid::build(ImageView::packed(&f0, w, h).unwrap(), &mut b0, 3).unwrap();
         let p1 = Pyramid::build(ImageView::packed(&f1, w, h).unwrap(), &mut b1, 3).unwrap();
-        let pts = [
-            [40 << 16, 30 << 16],
-            [90 << 16, 60 << 16],
-            [120 << 16, 85 << 16],
-        ];
-        let mut f = [Flow::<i32>::default(); 3];
+        let pts = [[40, 30], [90, 60], [120, 85]].map(|p| p.map(Q16::from_int));
+        let mut f = [Flow::<Q16>::default(); 3];
         let mut s = std::vec![0i16; scratch_len(21)];
         let cfg = LkConfig {
             max_level: 2,
@@ -63,8 +59,8 @@ mod tests {
         calc_flow::<Fixed>(&p0, &p1, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
         for (p, r) in pts.iter().zip(&f) {
             assert_eq!(r.status, FlowStatus::Tracked);
-            let dx = Fixed::to_f32(r.x - p[0]);
-            let dy = Fixed::to_f32(r.y - p[1]);
+            let dx = Q16::to_f32(r.x - p[0]);
+            let dy = Q16::to_f32(r.y - p[1]);
             assert!(
                 (dx - 1.25).abs() < 0.1 && (dy + 0.5).abs() < 0.1,
                 "{dx} {dy}"

@@ -233,8 +233,8 @@ mod klt_bench {
     use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
     use camgeom::image::{ImageMut, ImageView};
     use camgeom::klt::{
-        Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow, pipeline_ram,
-        scratch_len,
+        Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow,
+        pipeline_ram, scratch_len,
     };
     use camgeom::nalgebra::{Point2, Vector2, Vector3};
     use camgeom::pyramid::{Pyramid, buffer_len};
@@ -315,7 +315,7 @@ mod klt_bench {
             let (i, j) = (k % cols, k / cols);
             let x = 24 + (i * (W - 48)) / (cols - 1);
             let y = 24 + (j * (H - 48)) / (rows.max(2) - 1);
-            [A::from_px(x as i32), A::from_px(y as i32)]
+            [A::Coord::from_px(x as i32), A::Coord::from_px(y as i32)]
         }));
         let mut flows = [Flow::<A::Coord>::default(); K];
         let cfg = match (LkConfig {
@@ -351,16 +351,16 @@ mod klt_bench {
                     defmt::error!(
                         "{=str}: point ({=f32}, {=f32}) {}",
                         name,
-                        A::to_f32(p[0]),
-                        A::to_f32(p[1]),
+                        p[0].to_f32(),
+                        p[1].to_f32(),
                         f.status
                     );
                 }
                 continue;
             }
             tracked += 1;
-            let dx = A::to_f32(f.x) - A::to_f32(p[0]);
-            let dy = A::to_f32(f.y) - A::to_f32(p[1]);
+            let dx = f.x.to_f32() - p[0].to_f32();
+            let dy = f.y.to_f32() - p[1].to_f32();
             sum_x += dx;
             sum_y += dy;
             let e = Vector2::new(dx - sx, dy - sy).norm();

@@ -28,7 +28,7 @@ use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
 use camgeom::homography::{dlt, find_homography};
 use camgeom::image::{ImageMut, ImageView};
-use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, calc_flow, scratch_len};
+use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, Q16, calc_flow, scratch_len};
 use camgeom::nalgebra::{ComplexField, Point2, Point3, Vector3};
 use camgeom::pose::{
     PlanarConfig, PlanarPoint, solve_planar, solve_planar_integer, solve_pnp_ransac,
@@ -142,13 +142,14 @@ const NO_CORNER: Corner = Corner {
 static CANDIDATE_BUF: ConstStaticCell<[Corner; CANDIDATES]> =
     ConstStaticCell::new([NO_CORNER; CANDIDATES]);
 static CORNERS_OUT: ConstStaticCell<Vec<Corner, N_TRACK>> = ConstStaticCell::new(Vec::new());
-static FIXED_PTS: ConstStaticCell<[[i32; 2]; N_TRACK]> = ConstStaticCell::new([[0; 2]; N_TRACK]);
-static FIXED_FLOWS: ConstStaticCell<[Flow<i32>; N_TRACK]> = ConstStaticCell::new(
+static FIXED_PTS: ConstStaticCell<[[Q16; 2]; N_TRACK]> =
+    ConstStaticCell::new([[Q16::ZERO; 2]; N_TRACK]);
+static FIXED_FLOWS: ConstStaticCell<[Flow<Q16>; N_TRACK]> = ConstStaticCell::new(
     [Flow {
-        x: 0,
-        y: 0,
+        x: Q16::ZERO,
+        y: Q16::ZERO,
         status: camgeom::klt::FlowStatus::Tracked,
-        err: 0,
+        err: Q16::ZERO,
     }; N_TRACK],
 );
 static F32_PTS: ConstStaticCell<[[f32; 2]; N_TRACK]> = ConstStaticCell::new([[0.0; 2]; N_TRACK]);
@@ -344,7 +345,10 @@ fn main() -> ! {
         let (i, j) = (k % 20, k / 20);
         let x = 24 + (i * (W - 48)) / 19;
         let y = 24 + (j * (H - 48)) / 9;
-        *fp = [Fixed::from_f32(x as f32), Fixed::from_f32(y as f32)];
+        *fp = [
+            Q16::saturating_from_f32(x as f32),
+            Q16::saturating_from_f32(y as f32),
+        ];
         *gp = [x as f32, y as f32];
     }
     let (r, s) = measure(|| {
