@@ -100,18 +100,6 @@ impl Q16 {
         // `as` saturates (and takes NaN to 0).
         Q16(libm::roundf(s) as i32)
     }
-    /// `self · 2ⁿ`, saturated.
-    pub const fn saturating_shl(self, n: u32) -> Self {
-        let n = if n > 31 { 31 } else { n };
-        let wide = (self.0 as i64) << n;
-        Q16(if wide > i32::MAX as i64 {
-            i32::MAX
-        } else if wide < i32::MIN as i64 {
-            i32::MIN
-        } else {
-            wide as i32
-        })
-    }
     /// `⌊self / 2ⁿ⌋` (arithmetic shift).
     pub const fn shr(self, n: u32) -> Self {
         Q16(self.0 >> if n > 31 { 31 } else { n })

@@ -67,7 +67,7 @@ impl Coordinate for Q16 {
         self.shr(level)
     }
     fn twice(self) -> Q16 {
-        self.saturating_shl(1)
+        Q16::from_bits(self.to_bits().saturating_mul(2))
     }
     fn half(self) -> Q16 {
         self.shr(1)
