@@ -791,22 +791,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
     /// Both planar poses from the first `features.len()` model/pixel pairs; a numerical
     /// failure loses the frame, not the tracker.
     fn solve(&mut self, params: &TargetParams) -> Option<PlanarPose<f32>> {
-        let n = self.features.len();
-        let (model, pixels, scratch) = (
-            self.model.get(..n)?,
-            self.pixels.get(..n)?,
-            self.scratch.get_mut(..n)?,
-        );
-        let hint = self.h.as_ref()?;
-        A::solve(
-            &params.camera,
-            hint,
-            model,
-            pixels,
-            scratch,
-            &params.cfg.planar,
-        )
-        .ok()
+        self.solve_first(params, self.features.len())
     }
 
     /// Both planar poses from the target's four corners seen at `corners` alone.
@@ -815,28 +800,28 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         params: &TargetParams,
         corners: &[Point2<f32>; 4],
     ) -> Option<PlanarPose<f32>> {
-        let (model, pixels, scratch) = (
-            self.model.get_mut(..4)?,
-            self.pixels.get_mut(..4)?,
-            self.scratch.get_mut(..4)?,
-        );
-        for ((m, p), (a, b)) in model
+        for ((m, p), (a, b)) in self
+            .model
             .iter_mut()
-            .zip(pixels.iter_mut())
+            .zip(self.pixels.iter_mut())
             .zip(params.corners().iter().zip(corners))
         {
             (*m, *p) = (*a, *b);
         }
+        self.solve_first(params, 4)
+    }
+
+    /// Both planar poses from the first `n` model/pixel pairs, the homography of the frame as
+    /// the hint.
+    fn solve_first(&mut self, params: &TargetParams, n: usize) -> Option<PlanarPose<f32>> {
+        let (model, pixels, scratch) = (
+            self.model.get(..n)?,
+            self.pixels.get(..n)?,
+            self.scratch.get_mut(..n)?,
+        );
         let hint = self.h.as_ref()?;
-        A::solve(
-            &params.camera,
-            hint,
-            model,
-            pixels,
-            scratch,
-            &params.cfg.planar,
-        )
-        .ok()
+        let cfg = &params.cfg.planar;
+        A::solve(&params.camera, hint, model, pixels, scratch, cfg).ok()
     }
 
     /// RANSAC homography target → image on the live features; drops the outliers. `None`

@@ -611,6 +611,18 @@ mod tests {
         }
     }
 
+    /// The float and the integer planar pose of the model seen at `pixels`, default settings,
+    /// the integer path's hint the DLT over every pair.
+    fn both_paths(cam: &Camera<f32>, pixels: &[Point2<f32>; 32]) -> (PlanarPose, PlanarPose) {
+        let cfg = PlanarConfig::default();
+        let mut fs = [Point2::origin(); 32];
+        let float = solve_planar(cam, &model(), pixels, &mut fs, &cfg).unwrap();
+        let hint = dlt(&model(), pixels).unwrap();
+        let mut is = [PlanarPoint::ZERO; 32];
+        let int = solve_planar_integer(cam, &hint, &model(), pixels, &mut is, &cfg).unwrap();
+        (float, int)
+    }
+
     /// With a pinhole camera both paths minimise the same pixel error: the integer path's pose
     /// is the float path's to within their arithmetic (a thousandth of the noise's effect).
     #[test]
@@ -620,21 +632,7 @@ mod tests {
         for truth in truths() {
             for _ in 0..10 {
                 let pixels = observe(&cam, &truth, 0.5, &mut g);
-                let mut fs = [Point2::origin(); 32];
-                let float =
-                    solve_planar(&cam, &model(), &pixels, &mut fs, &PlanarConfig::default())
-                        .unwrap();
-                let hint = dlt(&model(), &pixels).unwrap();
-                let mut is = [PlanarPoint::ZERO; 32];
-                let int = solve_planar_integer(
-                    &cam,
-                    &hint,
-                    &model(),
-                    &pixels,
-                    &mut is,
-                    &PlanarConfig::default(),
-                )
-                .unwrap();
+                let (float, int) = both_paths(&cam, &pixels);
                 let (dr, dt) = (
                     rot_deg(&int.best.pose, &float.best.pose),
                     rel_t(&int.best.pose, &float.best.pose),
@@ -667,21 +665,7 @@ mod tests {
         for truth in truths() {
             for _ in 0..10 {
                 let pixels = observe(&cam, &truth, 0.5, &mut g);
-                let mut fs = [Point2::origin(); 32];
-                let float =
-                    solve_planar(&cam, &model(), &pixels, &mut fs, &PlanarConfig::default())
-                        .unwrap();
-                let hint = dlt(&model(), &pixels).unwrap();
-                let mut is = [PlanarPoint::ZERO; 32];
-                let int = solve_planar_integer(
-                    &cam,
-                    &hint,
-                    &model(),
-                    &pixels,
-                    &mut is,
-                    &PlanarConfig::default(),
-                )
-                .unwrap();
+                let (float, int) = both_paths(&cam, &pixels);
                 let (dr, dt) = (
                     rot_deg(&int.best.pose, &float.best.pose),
                     rel_t(&int.best.pose, &float.best.pose),
