@@ -100,20 +100,56 @@ fn ring(rows: &[&[u8]; 7], x: usize) -> [u8; 16] {
 
 /// The FAST score of a pixel of intensity `v` with circle `ring` (module docs), `-1` when no
 /// arc differs at all.
+///
+/// OpenCV's `cornerScore<16>` as straight-line lane code: the differences `v - q` over the
+/// circle doubled to 25 entries, the minimum and the maximum of every 9-arc by doubling
+/// windows (2, 4, 8, then the ninth entry), then the best arc of either sign. Fixed-size
+/// arrays only, so LLVM keeps it in vector registers (`pminsw`/`pmaxsw` on SSE2).
 #[inline]
 pub fn score(v: u8, ring: &[u8; 16]) -> i16 {
     let d: [i16; 16] = ring.map(|q| i16::from(v) - i16::from(q));
-    let mut best = i16::MIN;
-    for k in 0..16 {
-        let (mut lo, mut hi) = (i16::MAX, i16::MIN);
-        for j in 0..ARC {
-            let dj = d.get((k + j) % 16).copied().unwrap_or(0);
-            lo = lo.min(dj);
-            hi = hi.max(dj);
+    let mut dd = [0i16; 25];
+    if let Some((head, tail)) = dd.split_first_chunk_mut::<16>() {
+        *head = d;
+        for (o, &x) in tail.iter_mut().zip(&d) {
+            *o = x;
         }
-        best = best.max(lo).max(-hi);
     }
-    best - 1
+    let lo: [i16; 16] = arc_fold(&dd, i16::min);
+    let hi: [i16; 16] = arc_fold(&dd, i16::max);
+    let mut best = [0i16; 16];
+    for ((b, &l), &h) in best.iter_mut().zip(&lo).zip(&hi) {
+        // -h: h >= -255, no overflow.
+        *b = l.max(-h);
+    }
+    best.iter().fold(i16::MIN, |m, &b| m.max(b)) - 1
+}
+
+/// `f` over each window `dd[k .. k + 9]`, `k < 16`, by windows of 2, 4, 8 and 9.
+#[inline(always)]
+fn arc_fold(dd: &[i16; 25], f: impl Fn(i16, i16) -> i16 + Copy) -> [i16; 16] {
+    let w2: [i16; 24] = window(dd, 1, f);
+    let w4: [i16; 22] = window(&w2, 2, f);
+    let w8: [i16; 18] = window(&w4, 4, f);
+    let mut w9 = [0i16; 16];
+    for ((o, &a), &b) in w9.iter_mut().zip(&w8).zip(dd.iter().skip(8)) {
+        *o = f(a, b);
+    }
+    w9
+}
+
+/// `out[k] = f(a[k], a[k + s])` (`M + s <= N`).
+#[inline(always)]
+fn window<const N: usize, const M: usize>(
+    a: &[i16; N],
+    s: usize,
+    f: impl Fn(i16, i16) -> i16,
+) -> [i16; M] {
+    let mut out = [0i16; M];
+    for ((o, &x), &y) in out.iter_mut().zip(a).zip(a.iter().skip(s)) {
+        *o = f(x, y);
+    }
+    out
 }
 
 /// Quick rejection: a 9-arc holds at least two of the four compass pixels (0, 4, 8, 12), all
@@ -522,6 +558,52 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The score as first written (one arc at a time, modular indices).
+    fn score_by_arcs(v: u8, ring: &[u8; 16]) -> i16 {
+        let d: [i16; 16] = ring.map(|q| i16::from(v) - i16::from(q));
+        let mut best = i16::MIN;
+        for k in 0..16 {
+            let (mut lo, mut hi) = (i16::MAX, i16::MIN);
+            for j in 0..ARC {
+                lo = lo.min(d[(k + j) % 16]);
+                hi = hi.max(d[(k + j) % 16]);
+            }
+            best = best.max(lo).max(-hi);
+        }
+        best - 1
+    }
+
+    #[test]
+    fn lane_score_matches_the_arc_by_arc_score() {
+        let mut s = 12_345u32;
+        let mut next = || {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (s >> 24) as u8
+        };
+        for case in 0..200_000u32 {
+            let v = next();
+            // Full-range rings, narrow rings around v (ties, small scores) and extremes.
+            let ring: [u8; 16] = core::array::from_fn(|_| match case % 4 {
+                0 => next(),
+                1 => v.wrapping_add(next() % 7).wrapping_sub(3),
+                2 => [0, 255, v][usize::from(next() % 3)],
+                _ => {
+                    if next() < 64 {
+                        next()
+                    } else {
+                        v.wrapping_add(40)
+                    }
+                }
+            });
+            assert_eq!(score(v, &ring), score_by_arcs(v, &ring), "{v} {ring:?}");
+        }
+        for v in [0u8, 255] {
+            for q in [0u8, 255] {
+                assert_eq!(score(v, &[q; 16]), score_by_arcs(v, &[q; 16]));
+            }
+        }
     }
 
     #[test]
