@@ -87,15 +87,28 @@ pub const fn scratch_len(width: usize) -> usize {
     3 * width
 }
 
-/// The 16 circle pixels around column `x` of the middle row of `rows` (rows `y-3 ..= y+3`).
+/// The 16 circle pixels around column `x` of the middle row of `rows` (rows `y-3 ..= y+3`); 0
+/// for a row that does not hold columns `x-3 ..= x+3`.
 #[inline]
 fn ring(rows: &[&[u8]; 7], x: usize) -> [u8; 16] {
-    CIRCLE.map(|(dx, dy)| {
-        let r = rows.get((3 + dy) as usize).copied().unwrap_or(&[]);
-        r.get(x.wrapping_add_signed(dx as isize))
-            .copied()
-            .unwrap_or(0)
-    })
+    let x0 = x.wrapping_sub(RADIUS);
+    let mut w = [&[0u8; 7]; 7];
+    for (o, r) in w.iter_mut().zip(rows) {
+        if let Some(c) = r.get(x0..).and_then(|r| r.first_chunk::<7>()) {
+            *o = c;
+        }
+    }
+    // Spelled out so that every offset is a constant.
+    macro_rules! circle {
+        ($($k:literal)*) => {[$({
+            let (dx, dy) = CIRCLE[$k];
+            w.get((3 + dy) as usize)
+                .and_then(|r| r.get((3 + dx) as usize))
+                .copied()
+                .unwrap_or(0)
+        }),*]};
+    }
+    circle!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15)
 }
 
 /// The FAST score of a pixel of intensity `v` with circle `ring` (module docs), `-1` when no
@@ -496,21 +509,28 @@ pub fn fast_detect(
         let prev = bufs.get((yd + 2) % 3).map(|r| &**r).unwrap_or(&[]);
         let mid = bufs.get(yd % 3).map(|r| &**r).unwrap_or(&[]);
         let next = bufs.get(y % 3).map(|r| &**r).unwrap_or(&[]);
-        for x in x0..x1 {
-            let s = mid.get(x).copied().unwrap_or(0);
-            if s == 0 {
+        // Most of a row scores 0: skip chunks of zeros with one OR each.
+        let chunks = mid.get(x0..x1).unwrap_or(&[]).chunks(CHUNK);
+        for (xc, chunk) in (x0..).step_by(CHUNK).zip(chunks) {
+            if chunk.iter().fold(0, |a, &s| a | s) == 0 {
                 continue;
             }
-            let n = |r: &[u8], dx: isize| r.get(x.wrapping_add_signed(dx)).copied().unwrap_or(0);
-            let is_max = s > n(mid, -1)
-                && s > n(mid, 1)
-                && (-1..=1).all(|dx| s > n(prev, dx) && s > n(next, dx));
-            if is_max {
-                emit(Corner {
-                    x: x as u16,
-                    y: yd as u16,
-                    score: s,
-                });
+            for (x, &s) in (xc..).zip(chunk) {
+                if s == 0 {
+                    continue;
+                }
+                let n =
+                    |r: &[u8], dx: isize| r.get(x.wrapping_add_signed(dx)).copied().unwrap_or(0);
+                let is_max = s > n(mid, -1)
+                    && s > n(mid, 1)
+                    && (-1..=1).all(|dx| s > n(prev, dx) && s > n(next, dx));
+                if is_max {
+                    emit(Corner {
+                        x: x as u16,
+                        y: yd as u16,
+                        score: s,
+                    });
+                }
             }
         }
     }
