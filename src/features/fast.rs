@@ -223,6 +223,17 @@ const LANE_SEGMENT_TEST: bool = cfg!(any(
 /// [`LANE_SEGMENT_TEST`]). `xs` must keep [`RADIUS`] columns from both image borders.
 fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_test: bool) {
     let (x0, x1) = (xs.start, xs.end);
+    // The rows cut to one length: with the chunk tests inlined, LLVM then bounds-checks a
+    // chunk's 7 row windows once rather than row by row.
+    let n = rows.iter().map(|r| r.len()).min().unwrap_or(0);
+    let mut cut = [&[][..]; 7];
+    for (c, r) in cut.iter_mut().zip(rows) {
+        match r.get(..n) {
+            Some(r) => *c = r,
+            None => return,
+        }
+    }
+    let rows = &cut;
     let mut x = x0;
     while x < x1 {
         // The last chunk overlaps its predecessor rather than leaving a scalar tail; rows
@@ -372,7 +383,7 @@ fn compass(w: &[&[u8; WIDE]; 7], t: u8) -> ([u8; CHUNK], [u8; CHUNK], u16) {
 }
 
 /// The compass candidates of the chunk at `x` (bit `i`: pixel `x + i`).
-#[inline(never)]
+#[inline(always)]
 fn chunk_candidates(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
     wide_rows(rows, x).map_or(0, |w| compass(&w, t).2)
 }
@@ -415,7 +426,7 @@ fn has_arc(m: &[[u8; CHUNK]; 16]) -> [u8; CHUNK] {
 /// compass test, then, if any lane passed it, whether some 9 contiguous circle pixels are all
 /// brighter or all darker in each lane ([`has_arc`]). Straight-line `u8` lane arithmetic (SSE2:
 /// `psubusb` for the comparisons, `pminub` and `pmaxub` for AND and OR).
-#[inline(never)]
+#[inline(always)]
 fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
     let Some(w) = wide_rows(rows, x) else {
         return 0;
