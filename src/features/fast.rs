@@ -13,9 +13,9 @@
 //! (non-corners score 0), as in `cv::FAST(..., nonmaxSuppression = true)`.
 //!
 //! Work: the compass test (4 circle pixels) on 16 pixels of a row at once; on SIMD targets the
-//! segment test too (run lengths over 16 lanes), elsewhere one candidate at a time; the score
+//! segment test too (windowed AND/OR over 16 lanes), elsewhere one candidate at a time; the score
 //! only for corners. Memory: [`scratch_len`] bytes (three rows of scores), a few 16-byte
-//! arrays on the stack.
+//! arrays on the stack (about 400 bytes of them in the 16-lane segment test on x86-64).
 
 use core::ops::Range;
 
@@ -87,33 +87,82 @@ pub const fn scratch_len(width: usize) -> usize {
     3 * width
 }
 
-/// The 16 circle pixels around column `x` of the middle row of `rows` (rows `y-3 ..= y+3`).
+/// The 16 circle pixels around column `x` of the middle row of `rows` (rows `y-3 ..= y+3`); 0
+/// for a row that does not hold columns `x-3 ..= x+3`.
 #[inline]
 fn ring(rows: &[&[u8]; 7], x: usize) -> [u8; 16] {
-    CIRCLE.map(|(dx, dy)| {
-        let r = rows.get((3 + dy) as usize).copied().unwrap_or(&[]);
-        r.get(x.wrapping_add_signed(dx as isize))
-            .copied()
-            .unwrap_or(0)
-    })
+    let x0 = x.wrapping_sub(RADIUS);
+    let mut w = [&[0u8; 7]; 7];
+    for (o, r) in w.iter_mut().zip(rows) {
+        if let Some(c) = r.get(x0..).and_then(|r| r.first_chunk::<7>()) {
+            *o = c;
+        }
+    }
+    // Spelled out so that every offset is a constant.
+    macro_rules! circle {
+        ($($k:literal)*) => {[$({
+            let (dx, dy) = CIRCLE[$k];
+            w.get((3 + dy) as usize)
+                .and_then(|r| r.get((3 + dx) as usize))
+                .copied()
+                .unwrap_or(0)
+        }),*]};
+    }
+    circle!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15)
 }
 
 /// The FAST score of a pixel of intensity `v` with circle `ring` (module docs), `-1` when no
 /// arc differs at all.
+///
+/// OpenCV's `cornerScore<16>` as straight-line lane code: the differences `v - q` over the
+/// circle doubled to 25 entries, the minimum and the maximum of every 9-arc by doubling
+/// windows (2, 4, 8, then the ninth entry), then the best arc of either sign. Fixed-size
+/// arrays only, so LLVM keeps it in vector registers (`pminsw`/`pmaxsw` on SSE2).
 #[inline]
 pub fn score(v: u8, ring: &[u8; 16]) -> i16 {
     let d: [i16; 16] = ring.map(|q| i16::from(v) - i16::from(q));
-    let mut best = i16::MIN;
-    for k in 0..16 {
-        let (mut lo, mut hi) = (i16::MAX, i16::MIN);
-        for j in 0..ARC {
-            let dj = d.get((k + j) % 16).copied().unwrap_or(0);
-            lo = lo.min(dj);
-            hi = hi.max(dj);
+    let mut dd = [0i16; 25];
+    if let Some((head, tail)) = dd.split_first_chunk_mut::<16>() {
+        *head = d;
+        for (o, &x) in tail.iter_mut().zip(&d) {
+            *o = x;
         }
-        best = best.max(lo).max(-hi);
     }
-    best - 1
+    let lo: [i16; 16] = arc_fold(&dd, i16::min);
+    let hi: [i16; 16] = arc_fold(&dd, i16::max);
+    let mut best = [0i16; 16];
+    for ((b, &l), &h) in best.iter_mut().zip(&lo).zip(&hi) {
+        // -h: h >= -255, no overflow.
+        *b = l.max(-h);
+    }
+    best.iter().fold(i16::MIN, |m, &b| m.max(b)) - 1
+}
+
+/// `f` over each window `dd[k .. k + 9]`, `k < 16`, by windows of 2, 4, 8 and 9.
+#[inline(always)]
+fn arc_fold(dd: &[i16; 25], f: impl Fn(i16, i16) -> i16 + Copy) -> [i16; 16] {
+    let w2: [i16; 24] = window(dd, 1, f);
+    let w4: [i16; 22] = window(&w2, 2, f);
+    let w8: [i16; 18] = window(&w4, 4, f);
+    let mut w9 = [0i16; 16];
+    for ((o, &a), &b) in w9.iter_mut().zip(&w8).zip(dd.iter().skip(8)) {
+        *o = f(a, b);
+    }
+    w9
+}
+
+/// `out[k] = f(a[k], a[k + s])` (`M + s <= N`).
+#[inline(always)]
+fn window<const N: usize, const M: usize>(
+    a: &[i16; N],
+    s: usize,
+    f: impl Fn(i16, i16) -> i16,
+) -> [i16; M] {
+    let mut out = [0i16; M];
+    for ((o, &x), &y) in out.iter_mut().zip(a).zip(a.iter().skip(s)) {
+        *o = f(x, y);
+    }
+    out
 }
 
 /// Quick rejection: a 9-arc holds at least two of the four compass pixels (0, 4, 8, 12), all
@@ -159,8 +208,8 @@ fn segment_test(v: u8, ring: &[u8; 16], t: u8) -> bool {
 /// Pixels per chunk of the row-wide tests in [`score_row`].
 const CHUNK: usize = 16;
 
-/// Whether a chunk's candidates take the segment test all at once ([`chunk_corners`]: 25
-/// steps over the 16 lanes, SIMD on these targets) or one candidate at a time
+/// Whether a chunk's candidates take the segment test all at once ([`chunk_corners`]: about
+/// 170 min/max steps over the 16 lanes, SIMD on these targets) or one candidate at a time
 /// ([`segment_test`], cheaper without SIMD, where the 16 lanes would cost 16 times as much).
 const LANE_SEGMENT_TEST: bool = cfg!(any(
     target_arch = "x86_64",
@@ -174,6 +223,17 @@ const LANE_SEGMENT_TEST: bool = cfg!(any(
 /// [`LANE_SEGMENT_TEST`]). `xs` must keep [`RADIUS`] columns from both image borders.
 fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_test: bool) {
     let (x0, x1) = (xs.start, xs.end);
+    // The rows cut to one length: with the chunk tests inlined, LLVM then bounds-checks a
+    // chunk's 7 row windows once rather than row by row.
+    let n = rows.iter().map(|r| r.len()).min().unwrap_or(0);
+    let mut cut = [&[][..]; 7];
+    for (c, r) in cut.iter_mut().zip(rows) {
+        match r.get(..n) {
+            Some(r) => *c = r,
+            None => return,
+        }
+    }
+    let rows = &cut;
     let mut x = x0;
     while x < x1 {
         // The last chunk overlaps its predecessor rather than leaving a scalar tail; rows
@@ -196,11 +256,11 @@ fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_te
         } else {
             chunk_candidates(rows, xc, t)
         };
-        // One byte per lane, 0 or 0xff: visit the set ones.
+        // One bit per lane: visit the set ones.
         let mut bits = cand;
         while bits != 0 {
-            let i = (bits.trailing_zeros() / 8) as usize;
-            bits &= !(0xff << (8 * i));
+            let i = bits.trailing_zeros() as usize;
+            bits &= bits - 1;
             let x = xc + i;
             let v = rows[3].get(x).copied().unwrap_or(0);
             if lane_test {
@@ -239,14 +299,6 @@ fn write_score(v: u8, circle: &[u8; 16], t: u8, x: usize, out: &mut [u8]) {
     }
 }
 
-/// The `CHUNK` pixels of row `rows[dy]` from column `x + dx`, if inside.
-#[inline(always)]
-fn lanes<'r>(rows: &[&'r [u8]; 7], x: usize, dx: i8, dy: i8) -> Option<&'r [u8; CHUNK]> {
-    let r = rows.get((3 + dy) as usize)?;
-    r.get(x.checked_add_signed(isize::from(dx))?..)?
-        .first_chunk::<CHUNK>()
-}
-
 /// `f` lane by lane.
 #[inline(always)]
 fn map2(a: &[u8; CHUNK], b: &[u8; CHUNK], f: impl Fn(u8, u8) -> u8) -> [u8; CHUNK] {
@@ -257,81 +309,155 @@ fn map2(a: &[u8; CHUNK], b: &[u8; CHUNK], f: impl Fn(u8, u8) -> u8) -> [u8; CHUN
     out
 }
 
-/// The thresholds `(v + t, v - t)` (saturated) of the chunk at `x`, and the compass test: lane
-/// `i` 0xff when pixel `x + i` passes [`may_be_corner`]'s test in its sharp form (two
-/// neighbouring compass pixels, which any 9-arc holds, both brighter or both darker).
+/// Columns `x - 3 .. x + 3 + CHUNK` of the 7 rows, if inside.
+const WIDE: usize = CHUNK + 2 * RADIUS;
+
 #[inline(always)]
-fn compass(rows: &[&[u8]; 7], x: usize, t: u8) -> Option<([u8; CHUNK], [u8; CHUNK], u128)> {
-    let v = lanes(rows, x, 0, 0)?;
+fn wide_rows<'r>(rows: &[&'r [u8]; 7], x: usize) -> Option<[&'r [u8; WIDE]; 7]> {
+    let x0 = x.checked_sub(RADIUS)?;
+    let mut out = [&[0u8; WIDE]; 7];
+    for (o, r) in out.iter_mut().zip(rows) {
+        *o = r.get(x0..)?.first_chunk::<WIDE>()?;
+    }
+    Some(out)
+}
+
+/// The lanes of circle offset `(dx, dy)` from wide rows (`dy` row `3 + dy`, column `3 + dx`).
+#[inline(always)]
+fn at<'r>(w: &[&'r [u8; WIDE]; 7], dx: i8, dy: i8) -> &'r [u8; CHUNK] {
+    let row = w.get((3 + dy) as usize).copied().unwrap_or(&[0; WIDE]);
+    row.get((3 + dx) as usize..)
+        .and_then(|r| r.first_chunk::<CHUNK>())
+        .unwrap_or(&[0; CHUNK])
+}
+
+/// Lane `i` nonzero when two neighbouring lanes of the four are both nonzero (lane masks are
+/// "nonzero or zero" throughout: AND is `min`, OR is `max`, which LLVM keeps as `pminub` and
+/// `pmaxub` where 0/0xff selects became scalar byte compares).
+#[inline(always)]
+fn pair(m0: &[u8; CHUNK], m1: &[u8; CHUNK], m2: &[u8; CHUNK], m3: &[u8; CHUNK]) -> [u8; CHUNK] {
+    let and = |a, b| map2(a, b, u8::min);
+    let or = |a, b| map2(a, b, u8::max);
+    or(
+        &or(&and(m0, m1), &and(m1, m2)),
+        &or(&and(m2, m3), &and(m3, m0)),
+    )
+}
+
+/// Lane `i` nonzero when `q[i] > h[i]`.
+#[inline(always)]
+fn gt(q: &[u8; CHUNK], h: &[u8; CHUNK]) -> [u8; CHUNK] {
+    map2(q, h, u8::saturating_sub)
+}
+
+/// Lane `i` nonzero when `q[i] < l[i]`.
+#[inline(always)]
+fn lt(q: &[u8; CHUNK], l: &[u8; CHUNK]) -> [u8; CHUNK] {
+    map2(l, q, u8::saturating_sub)
+}
+
+/// Bit `i` set when lane `i` is nonzero (`pcmpeqb`, `pmovmskb` on SSE2).
+#[inline(always)]
+fn lane_bits(m: &[u8; CHUNK]) -> u16 {
+    let mut bits = 0u16;
+    for (i, &b) in m.iter().enumerate() {
+        bits |= u16::from(b != 0) << i;
+    }
+    bits
+}
+
+/// The thresholds `(v + t, v - t)` (saturated) of the chunk whose wide rows are `w`, and the
+/// compass test: bit `i` set when pixel `x + i` passes [`may_be_corner`]'s test in its sharp
+/// form (two neighbouring compass pixels, which any 9-arc holds, both brighter or both darker).
+#[inline(always)]
+fn compass(w: &[&[u8; WIDE]; 7], t: u8) -> ([u8; CHUNK], [u8; CHUNK], u16) {
+    let v = at(w, 0, 0);
     let hi = v.map(|p| p.saturating_add(t));
     let lo = v.map(|p| p.saturating_sub(t));
     let [(ax, ay), (bx, by), (cx, cy), (dx, dy)] = [CIRCLE[0], CIRCLE[4], CIRCLE[8], CIRCLE[12]];
-    let c = [
-        lanes(rows, x, ax, ay)?,
-        lanes(rows, x, bx, by)?,
-        lanes(rows, x, cx, cy)?,
-        lanes(rows, x, dx, dy)?,
-    ];
-    let b = c.map(|q| map2(q, &hi, |q, h| if q > h { 0xff } else { 0 }));
-    let d = c.map(|q| map2(q, &lo, |q, l| if q < l { 0xff } else { 0 }));
-    let pair = |m: &[[u8; CHUNK]; 4]| {
-        let [m0, m1, m2, m3] = m;
-        let and = |a, b| map2(a, b, |a, b| a & b);
-        let or = |a, b| map2(a, b, |a, b| a | b);
-        or(
-            &or(&and(m0, m1), &and(m1, m2)),
-            &or(&and(m2, m3), &and(m3, m0)),
-        )
-    };
-    let any = map2(&pair(&b), &pair(&d), |a, b| a | b);
-    Some((hi, lo, u128::from_le_bytes(any)))
+    let (c0, c1, c2, c3) = (at(w, ax, ay), at(w, bx, by), at(w, cx, cy), at(w, dx, dy));
+    let bright = pair(&gt(c0, &hi), &gt(c1, &hi), &gt(c2, &hi), &gt(c3, &hi));
+    let dark = pair(&lt(c0, &lo), &lt(c1, &lo), &lt(c2, &lo), &lt(c3, &lo));
+    let any = map2(&bright, &dark, u8::max);
+    (hi, lo, lane_bits(&any))
 }
 
-/// The compass candidates of the chunk at `x` (byte `i` 0xff: pixel `x + i`).
-#[inline(never)]
-fn chunk_candidates(rows: &[&[u8]; 7], x: usize, t: u8) -> u128 {
-    compass(rows, x, t).map_or(0, |(_, _, m)| m)
+/// The compass candidates of the chunk at `x` (bit `i`: pixel `x + i`).
+#[inline(always)]
+fn chunk_candidates(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
+    wide_rows(rows, x).map_or(0, |w| compass(&w, t).2)
 }
 
-/// The corners of the chunk at `x` (byte `i` 0xff: pixel `x + i` passes the segment test): the
-/// compass test, then, if any lane passed it, the longest run of brighter and of darker circle
-/// pixels of every lane, counted over the circle and the 8 pixels it wraps into, as OpenCV's
-/// SIMD FAST does. Straight-line `u8` lane arithmetic (SSE2: `pcmpgtb`-style compares, `pand`,
-/// `paddb`, `pmaxub`).
-#[inline(never)]
-fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u128 {
-    let Some((hi, lo, cand)) = compass(rows, x, t) else {
+/// `out[k] = f(a[k], b[(k + s) % 16])`, lane by lane.
+#[inline(always)]
+fn shifted(
+    a: &[[u8; CHUNK]; 16],
+    b: &[[u8; CHUNK]; 16],
+    s: usize,
+    f: impl Fn(u8, u8) -> u8 + Copy,
+) -> [[u8; CHUNK]; 16] {
+    let mut out = [[0u8; CHUNK]; 16];
+    for (k, (o, x)) in out.iter_mut().zip(a).enumerate() {
+        if let Some(y) = b.get((k + s) & 15) {
+            *o = map2(x, y, f);
+        }
+    }
+    out
+}
+
+/// Lane `i` nonzero when some 9 contiguous entries of `m` (the circle, cyclically) are nonzero
+/// in lane `i`: the AND of windows of 2, 4, 8 and 9 circle pixels, then the OR over the 16 arc
+/// starts as a tree. Straight-line lane code with no loop-carried state: LLVM split a run
+/// counter over 25 steps, and a running OR, into odd lane groups (~46 instructions a step).
+#[inline(always)]
+fn has_arc(m: &[[u8; CHUNK]; 16]) -> [u8; CHUNK] {
+    let w2 = shifted(m, m, 1, u8::min);
+    let w4 = shifted(&w2, &w2, 2, u8::min);
+    let w8 = shifted(&w4, &w4, 4, u8::min);
+    let w9 = shifted(&w8, m, 8, u8::min);
+    let o8 = shifted(&w9, &w9, 8, u8::max);
+    let o4 = shifted(&o8, &o8, 4, u8::max);
+    let o2 = shifted(&o4, &o4, 2, u8::max);
+    let o1 = shifted(&o2, &o2, 1, u8::max);
+    o1.first().copied().unwrap_or([0; CHUNK])
+}
+
+/// The corners of the chunk at `x` (bit `i`: pixel `x + i` passes the segment test): the
+/// compass test, then, if any lane passed it, whether some 9 contiguous circle pixels are all
+/// brighter or all darker in each lane ([`has_arc`]). Straight-line `u8` lane arithmetic (SSE2:
+/// `psubusb` for the comparisons, `pminub` and `pmaxub` for AND and OR).
+#[inline(always)]
+fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
+    let Some(w) = wide_rows(rows, x) else {
         return 0;
     };
+    let (hi, lo, cand) = compass(&w, t);
     if cand == 0 {
         return 0;
     }
-    let mut circle = [&[0u8; CHUNK]; 16];
-    for (c, &(dx, dy)) in circle.iter_mut().zip(&CIRCLE) {
-        match lanes(rows, x, dx, dy) {
-            Some(q) => *c = q,
-            None => return 0,
-        }
+    // Spelled out so that every offset is a constant (a loop over CIRCLE was not unrolled).
+    macro_rules! circle {
+        ($($k:literal)*) => { [$({ let (dx, dy) = CIRCLE[$k]; at(&w, dx, dy) }),*] };
     }
-    let (mut run_b, mut run_d) = ([0u8; CHUNK], [0u8; CHUNK]);
-    let (mut max_b, mut max_d) = ([0u8; CHUNK], [0u8; CHUNK]);
-    for q in circle.iter().chain(circle.iter().take(ARC - 1)) {
-        let bright = map2(q, &hi, |q, h| if q > h { 0xff } else { 0 });
-        let dark = map2(q, &lo, |q, l| if q < l { 0xff } else { 0 });
-        // run = (run + 1) & mask: at most 25, no overflow.
-        run_b = map2(&run_b, &bright, |r, m| r.wrapping_add(1) & m);
-        run_d = map2(&run_d, &dark, |r, m| r.wrapping_add(1) & m);
-        max_b = map2(&max_b, &run_b, u8::max);
-        max_d = map2(&max_d, &run_d, u8::max);
+    let circle: [&[u8; CHUNK]; 16] = circle!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+    let (mut bright, mut dark) = ([[0u8; CHUNK]; 16], [[0u8; CHUNK]; 16]);
+    for ((b, d), q) in bright.iter_mut().zip(dark.iter_mut()).zip(circle) {
+        *b = gt(q, &hi);
+        *d = lt(q, &lo);
     }
-    let corner = map2(
-        &max_b,
-        &max_d,
-        |b, d| {
-            if b.max(d) >= ARC as u8 { 0xff } else { 0 }
-        },
-    );
-    u128::from_le_bytes(corner)
+    // Any 9-arc holds one of each opposite pair (k, k + 8): a cheap filter (OpenCV's scalar
+    // FAST uses the same) that spares most chunks the full test.
+    let opposite = |m: &[[u8; CHUNK]; 16]| {
+        let o = shifted(m, m, 8, u8::max);
+        o.iter()
+            .take(8)
+            .fold([0xff; CHUNK], |a, x| map2(&a, x, u8::min))
+    };
+    if lane_bits(&map2(&opposite(&bright), &opposite(&dark), u8::max)) == 0 {
+        return 0;
+    }
+    let corner = map2(&has_arc(&bright), &has_arc(&dark), u8::max);
+    lane_bits(&corner)
 }
 
 /// FAST-9 corners of `img`, reported through `emit` in row-major order.
@@ -405,21 +531,28 @@ pub fn fast_detect(
         let prev = bufs.get((yd + 2) % 3).map(|r| &**r).unwrap_or(&[]);
         let mid = bufs.get(yd % 3).map(|r| &**r).unwrap_or(&[]);
         let next = bufs.get(y % 3).map(|r| &**r).unwrap_or(&[]);
-        for x in x0..x1 {
-            let s = mid.get(x).copied().unwrap_or(0);
-            if s == 0 {
+        // Most of a row scores 0: skip chunks of zeros with one OR each.
+        let chunks = mid.get(x0..x1).unwrap_or(&[]).chunks(CHUNK);
+        for (xc, chunk) in (x0..).step_by(CHUNK).zip(chunks) {
+            if chunk.iter().fold(0, |a, &s| a | s) == 0 {
                 continue;
             }
-            let n = |r: &[u8], dx: isize| r.get(x.wrapping_add_signed(dx)).copied().unwrap_or(0);
-            let is_max = s > n(mid, -1)
-                && s > n(mid, 1)
-                && (-1..=1).all(|dx| s > n(prev, dx) && s > n(next, dx));
-            if is_max {
-                emit(Corner {
-                    x: x as u16,
-                    y: yd as u16,
-                    score: s,
-                });
+            for (x, &s) in (xc..).zip(chunk) {
+                if s == 0 {
+                    continue;
+                }
+                let n =
+                    |r: &[u8], dx: isize| r.get(x.wrapping_add_signed(dx)).copied().unwrap_or(0);
+                let is_max = s > n(mid, -1)
+                    && s > n(mid, 1)
+                    && (-1..=1).all(|dx| s > n(prev, dx) && s > n(next, dx));
+                if is_max {
+                    emit(Corner {
+                        x: x as u16,
+                        y: yd as u16,
+                        score: s,
+                    });
+                }
             }
         }
     }
@@ -522,6 +655,52 @@ mod tests {
                 }
             })
             .collect()
+    }
+
+    /// The score as first written (one arc at a time, modular indices).
+    fn score_by_arcs(v: u8, ring: &[u8; 16]) -> i16 {
+        let d: [i16; 16] = ring.map(|q| i16::from(v) - i16::from(q));
+        let mut best = i16::MIN;
+        for k in 0..16 {
+            let (mut lo, mut hi) = (i16::MAX, i16::MIN);
+            for j in 0..ARC {
+                lo = lo.min(d[(k + j) % 16]);
+                hi = hi.max(d[(k + j) % 16]);
+            }
+            best = best.max(lo).max(-hi);
+        }
+        best - 1
+    }
+
+    #[test]
+    fn lane_score_matches_the_arc_by_arc_score() {
+        let mut s = 12_345u32;
+        let mut next = || {
+            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (s >> 24) as u8
+        };
+        for case in 0..200_000u32 {
+            let v = next();
+            // Full-range rings, narrow rings around v (ties, small scores) and extremes.
+            let ring: [u8; 16] = core::array::from_fn(|_| match case % 4 {
+                0 => next(),
+                1 => v.wrapping_add(next() % 7).wrapping_sub(3),
+                2 => [0, 255, v][usize::from(next() % 3)],
+                _ => {
+                    if next() < 64 {
+                        next()
+                    } else {
+                        v.wrapping_add(40)
+                    }
+                }
+            });
+            assert_eq!(score(v, &ring), score_by_arcs(v, &ring), "{v} {ring:?}");
+        }
+        for v in [0u8, 255] {
+            for q in [0u8, 255] {
+                assert_eq!(score(v, &[q; 16]), score_by_arcs(v, &[q; 16]));
+            }
+        }
     }
 
     #[test]

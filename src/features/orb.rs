@@ -460,27 +460,47 @@ pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()>
         let Some(out) = dst.row_mut(y) else { break };
         for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
             let first = (tile * TILE) as isize - 3;
-            for (k, v) in vs.iter_mut().take(out_tile.len() + 6).enumerate() {
+            let n = out_tile.len() + 6;
+            // Vertical taps: columns inside the image as whole slices (vectorised), the few
+            // clamped ones at the two image edges pixel by pixel.
+            let wi = w as isize;
+            let k0 = (-first).max(0).min(n as isize) as usize;
+            let k1 = (wi - first).min(n as isize).max(k0 as isize) as usize;
+            let c0 = (first + k0 as isize).max(0) as usize;
+            if let Some(mid) = vs.get_mut(k0..k1) {
+                mid.fill(0);
+                for (r, g) in rows.iter().zip(BLUR) {
+                    let src = r.get(c0..c0 + mid.len()).unwrap_or(&[]);
+                    for (v, &p) in mid.iter_mut().zip(src) {
+                        // s <= 128 · 255 fits u16.
+                        *v += g as u16 * u16::from(p);
+                    }
+                }
+            }
+            for (k, v) in vs.iter_mut().enumerate().take(n) {
+                if (k0..k1).contains(&k) {
+                    continue;
+                }
                 // `max` then `min`: `clamp` asserts `0 <= w - 1`, which the optimiser cannot
                 // see (a view is never empty).
-                let col = (first + k as isize).max(0).min(w as isize - 1) as usize;
+                let col = (first + k as isize).max(0).min(wi - 1) as usize;
                 let s: u32 = rows
                     .iter()
                     .zip(BLUR)
                     .map(|(r, g)| g * u32::from(r.get(col).copied().unwrap_or(0)))
                     .sum();
-                // s <= 128 · 255 fits u16.
                 *v = s as u16;
             }
-            for (i, o) in out_tile.iter_mut().enumerate() {
-                let s: u32 = vs
-                    .iter()
-                    .skip(i)
-                    .zip(BLUR)
-                    .map(|(v, g)| g * u32::from(*v))
-                    .sum();
-                // s <= 128² · 255: the rounded quotient fits u8.
-                *o = ((s + 8192) >> 14) as u8;
+            // Horizontal taps, tap by tap over the tile.
+            let mut acc = [0u32; TILE];
+            for (j, g) in BLUR.iter().enumerate() {
+                for (a, &v) in acc.iter_mut().zip(vs.iter().skip(j)) {
+                    *a += g * u32::from(v);
+                }
+            }
+            for (o, &a) in out_tile.iter_mut().zip(&acc) {
+                // a <= 128² · 255: the rounded quotient fits u8.
+                *o = ((a + 8192) >> 14) as u8;
             }
         }
     }
@@ -491,6 +511,47 @@ pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()>
 mod tests {
     use super::*;
     use crate::features::hamming;
+
+    #[test]
+    fn smooth_matches_the_clamped_7x7_definition() {
+        for (w, h) in [
+            (1usize, 1usize),
+            (5, 3),
+            (7, 9),
+            (64, 4),
+            (70, 11),
+            (131, 8),
+        ] {
+            let mut st = (w * 31 + h) as u32;
+            let data: std::vec::Vec<u8> = (0..w * h)
+                .map(|_| {
+                    st = st.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    (st >> 24) as u8
+                })
+                .collect();
+            let img = ImageView::packed(&data, w, h).unwrap();
+            let mut out = std::vec![0u8; w * h];
+            smooth(&img, &mut ImageMut::packed(&mut out, w, h).unwrap()).unwrap();
+            let at = |x: isize, y: isize| {
+                u32::from(
+                    data[y.clamp(0, h as isize - 1) as usize * w
+                        + x.clamp(0, w as isize - 1) as usize],
+                )
+            };
+            for y in 0..h as isize {
+                for x in 0..w as isize {
+                    let mut s = 0u32;
+                    for (j, gy) in BLUR.iter().enumerate() {
+                        for (i, gx) in BLUR.iter().enumerate() {
+                            s += gy * gx * at(x + i as isize - 3, y + j as isize - 3);
+                        }
+                    }
+                    let want = ((s + 8192) >> 14) as u8;
+                    assert_eq!(out[y as usize * w + x as usize], want, "{w}x{h} at {x},{y}");
+                }
+            }
+        }
+    }
 
     #[test]
     fn pattern_is_inside_the_disc_and_varied() {
