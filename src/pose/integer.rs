@@ -41,7 +41,7 @@ use super::ippe::{PlanarConfig, PlanarPose, from_homography, pick};
 use crate::camera::Camera;
 use crate::homography::Homography;
 use crate::linalg::lm::{self, GramSystem, LeastSquares};
-use crate::linalg::rotation_step;
+use crate::linalg::{hypot, rotation_step};
 use crate::scalar::check_finite;
 use crate::transform::Pose;
 use crate::{Error, Result};
@@ -60,6 +60,9 @@ const W_BITS: u32 = 15;
 const MAX_NORMALIZED: i64 = 4 * ONE;
 /// Largest target radius over centroid depth, `s/d`.
 const MAX_ANGULAR_SIZE: f32 = 0.75;
+
+/// `√ε` of `f32` (`2⁻¹¹·⁵`), the float path's stopping tolerance.
+const F32_SQRT_EPSILON: f64 = 3.452_669_830_012_439_3e-4;
 
 /// Most point pairs one refinement takes: with the range above, the `i64` sums of `G`
 /// (`2·2⁴⁸` a point), `g` and the cost (`2⁵⁵` a point) stay below `2⁶³`.
@@ -315,8 +318,8 @@ impl LeastSquares<f64, 6> for Problem<'_> {
     }
 
     fn tolerance(&self) -> f64 {
-        // The float path's: √ε of f32, so both stop at the same relative decrease.
-        libm::sqrt(f64::from(f32::EPSILON))
+        // The float path's, √ε of f32 (= 2⁻¹¹·⁵), so both stop at the same relative decrease.
+        F32_SQRT_EPSILON
     }
 }
 
@@ -354,7 +357,7 @@ fn load(
     c /= n as f32;
     let radius = model
         .iter()
-        .map(|p| libm::hypotf(p.x - c.x, p.y - c.y))
+        .map(|p| hypot(p.x - c.x, p.y - c.y))
         .fold(0.0f32, f32::max);
     // Coincident points (to f32 rounding of their centroid) have no extent to turn.
     if !(radius > 1e-5 * (c.norm() + radius) && radius.is_finite()) {
@@ -553,6 +556,11 @@ mod tests {
 
     fn pinhole() -> Camera<f32> {
         Camera::pinhole(Intrinsics::new(520.0, 515.0, 320.0, 240.0).unwrap())
+    }
+
+    #[test]
+    fn tolerance_is_the_float_paths() {
+        assert_eq!(F32_SQRT_EPSILON, libm::sqrt(f64::from(f32::EPSILON)));
     }
 
     #[test]
