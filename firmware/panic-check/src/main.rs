@@ -257,8 +257,8 @@ fn run_corners() {
 fn run_klt() {
     use camgeom::corners::Corner;
     use camgeom::klt::{
-        Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Tracker, TrackerConfig, calc_flow,
-        forward_backward,
+        Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Tracker, TrackerConfig,
+        calc_flow, forward_backward,
     };
     fn flows<A: FlowArith>(pa: &Pyramid<'_>, pb: &Pyramid<'_>, cfg: &LkParams, pt: A::Coord)
     where
@@ -326,7 +326,7 @@ fn run_klt() {
     let Ok(cfg) = black_box(LkConfig::default()).check() else {
         return;
     };
-    flows::<Fixed>(&pa, &pb, &cfg, black_box(10 << 16));
+    flows::<Fixed>(&pa, &pb, &cfg, black_box(Q16::from_int(10)));
     flows::<f32>(&pa, &pb, &cfg, black_box(10.5));
 
     let tcfg = black_box(TrackerConfig::default());
