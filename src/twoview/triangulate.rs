@@ -37,7 +37,8 @@ impl<T: Real> Triangulated<T> {
     }
 }
 
-/// Depths and reprojection errors of `x`; [`Error::BehindCamera`] unless in front of both.
+/// Depths and reprojection errors of `x`; [`Error::BehindCamera`] unless in front of both,
+/// [`Error::NonFinite`] when its coordinates in either view overflow.
 fn finish<W: Frame, C1: Frame, C2: Frame, T: Real>(
     p1: &Transform<W, C1, T>,
     p2: &Transform<W, C2, T>,
@@ -47,6 +48,10 @@ fn finish<W: Frame, C1: Frame, C2: Frame, T: Real>(
 ) -> Result<Triangulated<T>> {
     check_finite(x.coords.as_slice())?;
     let (c1, c2) = (p1.apply(&x), p2.apply(&x));
+    // A finite point can still leave f32 in a camera frame (`R X + t` with `|t|` near
+    // `f32::MAX`): an infinite depth would make the error `x/∞ = 0`, silently wrong.
+    check_finite(c1.coords.as_slice())?;
+    check_finite(c2.coords.as_slice())?;
     if !above(c1.z, T::zero()) || !above(c2.z, T::zero()) {
         return Err(Error::BehindCamera);
     }

@@ -263,3 +263,34 @@ fn subpix_refiners_on_corners_near_f32_max_keep_them() {
     corner_subpix(&img, &mut b, &SubPixConfig::default()).unwrap();
     assert_eq!(b, far);
 }
+
+/// A triangulation whose point is finite but whose camera-frame coordinates in the second
+/// view overflow (`R₂ X + t₂` with `t₂ = f32::MAX`) came back `Ok` with an infinite depth
+/// and the reprojection error of `x/∞ = 0`. (fuzz target `twoview`, `triangulate_midpoint`)
+#[test]
+fn triangulation_with_a_depth_beyond_f32_is_an_error() {
+    use camgeom::nalgebra::Vector3;
+    use camgeom::transform::{Camera as View, Transform, World};
+    use camgeom::twoview::{triangulate_dlt, triangulate_midpoint, triangulate_optimal};
+    let p1 = Transform::<World, View, f32>::identity();
+    let p2 = Transform::<World, View, f32>::from_rodrigues(
+        Vector3::new(0.5, 0.5, 0.0),
+        Vector3::new(0.0, 0.0, f32::MAX),
+    )
+    .unwrap();
+    let (u1, u2) = (Point2::new(0.0f32, 0.0), Point2::new(0.5, 0.0));
+    assert_eq!(
+        triangulate_midpoint(&p1, &p2, &u1, &u2),
+        Err(Error::NonFinite)
+    );
+    // The other two share the depth check; whatever they answer must be finite.
+    for t in [
+        triangulate_dlt(&p1, &p2, &u1, &u2),
+        triangulate_optimal(&p1, &p2, &u1, &u2),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        assert!(t.depth1.is_finite() && t.depth2.is_finite(), "{t:?}");
+    }
+}
