@@ -75,8 +75,9 @@ struct Level<'a, 'g, A: FlowArith> {
 struct Scratch<'s> {
     gwin: &'s mut [[i16; 2]],
     patch: &'s mut [i16],
-    iwin: &'s mut [i16],
-    dwin: &'s mut [[i16; 2]],
+    /// The interpolated template: `[I, Ix, Iy]` a pixel, together so that the mismatch loop
+    /// reads one run of memory (and keeps one pointer live).
+    tmpl: &'s mut [[i16; 3]],
 }
 
 fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
@@ -88,26 +89,12 @@ fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
     let (patch, rest) = rest
         .split_at_mut_checked(n2)
         .ok_or(Error::BufferTooSmall("scratch"))?;
-    let (iwin, rest) = rest
-        .split_at_mut_checked(w2)
-        .ok_or(Error::BufferTooSmall("scratch"))?;
-    let d = rest
-        .get_mut(..2 * w2)
+    let t = rest
+        .get_mut(..3 * w2)
         .ok_or(Error::BufferTooSmall("scratch"))?;
     let (gwin, _) = g.as_chunks_mut::<2>();
-    let (dwin, _) = d.as_chunks_mut::<2>();
-    Ok(Scratch {
-        gwin,
-        patch,
-        iwin,
-        dwin,
-    })
-}
-
-/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
-#[inline(always)]
-fn lerp<P: Copy + Into<i32>>(p00: P, p01: P, p10: P, p11: P, w: &[i32; 4]) -> i32 {
-    p00.into() * w[0] + p01.into() * w[1] + p10.into() * w[2] + p11.into() * w[3]
+    let (tmpl, _) = t.as_chunks_mut::<3>();
+    Ok(Scratch { gwin, patch, tmpl })
 }
 
 /// The `n` rows of the `n x n` block at `(x0, y0)` of `img`, straight from the image, when
@@ -132,88 +119,131 @@ fn patch_rows(patch: &[i16], n: usize) -> impl Iterator<Item = &[i16]> + Clone {
     (0..n).map(move |r| patch.get(r * n..(r + 1) * n).unwrap_or(&[]))
 }
 
+/// The four taps of `m` bilinear samples along two rows: `(r0[x], r0[x+1], r1[x], r1[x+1])`
+/// for `x < m`, as four slices of exactly `m` (empty when a row is shorter than `m + 1`).
+///
+/// Exact lengths let the zips below run on one index with no per-element length tests, so
+/// the loop bodies stay straight-line (the Cortex-M7 keeps the four weights and both sums in
+/// registers; with unequal lengths it predicated every instruction and spilled the weights).
+#[inline(always)]
+fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
+    match (r0.get(..m + 1), r1.get(..m + 1)) {
+        (Some(a), Some(b)) => [
+            a.get(..m).unwrap_or(&[]),
+            a.get(1..).unwrap_or(&[]),
+            b.get(..m).unwrap_or(&[]),
+            b.get(1..).unwrap_or(&[]),
+        ],
+        _ => [&[]; 4],
+    }
+}
+
+/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
+#[inline(always)]
+fn lerp<P: Copy + Into<i32>>(p00: P, p01: P, p10: P, p11: P, w: &[i32; 4]) -> i32 {
+    p00.into() * w[0] + p01.into() * w[1] + p10.into() * w[2] + p11.into() * w[3]
+}
+
+/// One row of [`mismatch`]: `Σ (J - I) Ix`, `Σ (J - I) Iy` over the template row `t`, `J`
+/// bilinear in rows `r0`, `r1`. Row sums in `i32` are exact: `|J - I| <= 255 · 32` and
+/// `|Ix| <= 16 · 255`, so a row of at most `MAX_WIN = 63` products is below
+/// `63 · 8160 · 4080 < 2³¹`.
+#[inline(always)]
+fn mismatch_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], t: &[[i16; 3]], w: &[i32; 4]) -> [i32; 2] {
+    let [p00, p01, p10, p11] = taps(r0, r1, t.len());
+    let (mut s1, mut s2) = (0i32, 0i32);
+    for ((((&a, &b), &c), &d), &[iv, dx, dy]) in p00.iter().zip(p01).zip(p10).zip(p11).zip(t) {
+        let diff = descale(lerp(a, b, c, d, w), PIX_SHIFT) - i32::from(iv);
+        s1 = s1.wrapping_add(diff * i32::from(dx));
+        s2 = s2.wrapping_add(diff * i32::from(dy));
+    }
+    [s1, s2]
+}
+
+/// One row of [`mismatch`]'s `Σ |J - I|` (at most `63 · 8160 < 2³¹`).
+#[inline(always)]
+fn abs_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], t: &[[i16; 3]], w: &[i32; 4]) -> u32 {
+    let [p00, p01, p10, p11] = taps(r0, r1, t.len());
+    let mut s = 0u32;
+    for ((((&a, &b), &c), &d), &[iv, _, _]) in p00.iter().zip(p01).zip(p10).zip(p11).zip(t) {
+        let diff = descale(lerp(a, b, c, d, w), PIX_SHIFT) - i32::from(iv);
+        s = s.wrapping_add(diff.unsigned_abs());
+    }
+    s
+}
+
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
 /// `win + 1` rows `rows` (image rows or the scratch patch).
 fn mismatch<'p, P: Copy + Into<i32> + 'p>(
     rows: impl Iterator<Item = &'p [P]> + Clone,
-    iwin: &[i16],
-    dwin: &[[i16; 2]],
+    tmpl: &[[i16; 3]],
     win: usize,
     w: [i32; 4],
     abs: bool,
 ) -> (i64, i64) {
     let (mut b1, mut b2) = (0i64, 0i64);
     let pairs = rows.clone().zip(rows.skip(1));
-    for (((r0, r1), ir), dr) in pairs
-        .zip(iwin.chunks_exact(win.max(1)))
-        .zip(dwin.chunks_exact(win.max(1)))
-    {
-        let px = r0
-            .iter()
-            .zip(r0.iter().skip(1))
-            .zip(r1.iter().zip(r1.iter().skip(1)));
+    for ((r0, r1), t) in pairs.zip(tmpl.chunks_exact(win.max(1))) {
         if abs {
-            for (((&t0, &t1), (&u0, &u1)), &iv) in px.zip(ir) {
-                let diff = descale(lerp(t0, t1, u0, u1, &w), PIX_SHIFT) - i32::from(iv);
-                b1 += i64::from(diff.unsigned_abs());
-            }
-            continue;
+            b1 += i64::from(abs_row(r0, r1, t, &w));
+        } else {
+            let [s1, s2] = mismatch_row(r0, r1, t, &w);
+            b1 += i64::from(s1);
+            b2 += i64::from(s2);
         }
-        // Row sums in i32 are exact: |J - I| <= 255 * 32 and |d| <= 16 * 255, so a row of at
-        // most MAX_WIN = 63 products is below 63 * 8160 * 4080 < 2^31; cheaper than i64 each.
-        let (mut s1, mut s2) = (0i32, 0i32);
-        for ((((&t0, &t1), (&u0, &u1)), &iv), &[dx, dy]) in px.zip(ir).zip(dr) {
-            let diff = descale(lerp(t0, t1, u0, u1, &w), PIX_SHIFT) - i32::from(iv);
-            s1 = s1.wrapping_add(diff * i32::from(dx));
-            s2 = s2.wrapping_add(diff * i32::from(dy));
-        }
-        b1 += i64::from(s1);
-        b2 += i64::from(s2);
     }
     (b1, b2)
 }
 
+/// One row of [`template`]: the template and its derivatives at weights `w` into `out`;
+/// returns the row's `Σ Ix²`, `Σ Ix Iy`, `Σ Iy²` (exact in `i32`: `|Ix| <= 16 · 255`, so 63
+/// squares stay below 2³¹).
+#[inline(always)]
+fn template_row<P: Copy + Into<i32>>(
+    (r0, r1): (&[P], &[P]),
+    (g0, g1): (&[[i16; 2]], &[[i16; 2]]),
+    out: &mut [[i16; 3]],
+    w: &[i32; 4],
+) -> [i32; 3] {
+    let m = out.len();
+    let [p00, p01, p10, p11] = taps(r0, r1, m);
+    let [q00, q01, q10, q11] = taps(g0, g1, m);
+    let (mut s11, mut s12, mut s22) = (0i32, 0i32, 0i32);
+    let px = p00.iter().zip(p01).zip(p10).zip(p11);
+    let gr = q00.iter().zip(q01).zip(q10).zip(q11);
+    for (((((&a, &b), &c), &d), (((g00, g01), g10), g11)), o) in px.zip(gr).zip(out.iter_mut()) {
+        let ix = descale(lerp(g00[0], g01[0], g10[0], g11[0], w), W_BITS);
+        let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], w), W_BITS);
+        *o = [
+            descale(lerp(a, b, c, d, w), PIX_SHIFT) as i16,
+            ix as i16,
+            iy as i16,
+        ];
+        s11 = s11.wrapping_add(ix * ix);
+        s12 = s12.wrapping_add(ix * iy);
+        s22 = s22.wrapping_add(iy * iy);
+    }
+    [s11, s12, s22]
+}
+
 /// Interpolates the template (from the `win + 1` rows `rows` of `I`) and its derivatives
-/// (from `gwin`) at weights `w` into `iwin`, `dwin`; returns `G`'s sums.
+/// (from `gwin`) at weights `w` into `tmpl`; returns `G`'s sums.
 fn template<'p, P: Copy + Into<i32> + 'p>(
     rows: impl Iterator<Item = &'p [P]> + Clone,
     gwin: &[[i16; 2]],
-    iwin: &mut [i16],
-    dwin: &mut [[i16; 2]],
+    tmpl: &mut [[i16; 3]],
     win: usize,
     w: [i32; 4],
 ) -> (i64, i64, i64) {
     let n = win + 1;
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let pairs = rows.clone().zip(rows.skip(1)).zip(
-        gwin.chunks_exact(n.max(1))
-            .zip(gwin.chunks_exact(n.max(1)).skip(1)),
-    );
-    let outs = iwin
-        .chunks_exact_mut(win.max(1))
-        .zip(dwin.chunks_exact_mut(win.max(1)));
-    for (((r0, r1), (g0, g1)), (iout, dout)) in pairs.zip(outs) {
-        let px = r0
-            .iter()
-            .zip(r0.iter().skip(1))
-            .zip(r1.iter().zip(r1.iter().skip(1)));
-        let gr = g0
-            .iter()
-            .zip(g0.iter().skip(1))
-            .zip(g1.iter().zip(g1.iter().skip(1)));
-        // Row sums in i32 are exact: |d| <= 16 * 255, so 63 squares stay below 2^31.
-        let (mut s11, mut s12, mut s22) = (0i32, 0i32, 0i32);
-        for (((((&p00, &p01), (&p10, &p11)), ((g00, g01), (g10, g11))), io), dout) in
-            px.zip(gr).zip(iout.iter_mut()).zip(dout.iter_mut())
-        {
-            *io = descale(lerp(p00, p01, p10, p11, &w), PIX_SHIFT) as i16;
-            let ix = descale(lerp(g00[0], g01[0], g10[0], g11[0], &w), W_BITS);
-            let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], &w), W_BITS);
-            *dout = [ix as i16, iy as i16];
-            s11 = s11.wrapping_add(ix * ix);
-            s12 = s12.wrapping_add(ix * iy);
-            s22 = s22.wrapping_add(iy * iy);
-        }
+    let grows = gwin.chunks_exact(n.max(1));
+    let pairs = rows
+        .clone()
+        .zip(rows.skip(1))
+        .zip(grows.clone().zip(grows.skip(1)));
+    for ((r, g), out) in pairs.zip(tmpl.chunks_exact_mut(win.max(1))) {
+        let [s11, s12, s22] = template_row(r, g, out, &w);
         a11 += i64::from(s11);
         a12 += i64::from(s12);
         a22 += i64::from(s22);
@@ -233,10 +263,10 @@ fn mismatch_at(
 ) -> (i64, i64) {
     let n = win + 1;
     match block_rows(j, x, y, n) {
-        Some(rows) => mismatch(rows, s.iwin, s.dwin, win, w, abs),
+        Some(rows) => mismatch(rows, s.tmpl, win, w, abs),
         None => {
             fetch_patch(j, x, y, n, s.patch);
-            mismatch(patch_rows(s.patch, n), s.iwin, s.dwin, win, w, abs)
+            mismatch(patch_rows(s.patch, n), s.tmpl, win, w, abs)
         }
     }
 }
@@ -284,10 +314,10 @@ fn track_point<A: FlowArith>(
         }
     }
     let (a11, a12, a22) = match block_rows(&lv.i, bi.x, bi.y, n) {
-        Some(rows) => template(rows, s.gwin, s.iwin, s.dwin, win, bi.w),
+        Some(rows) => template(rows, s.gwin, s.tmpl, win, bi.w),
         None => {
             fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
-            template(patch_rows(s.patch, n), s.gwin, s.iwin, s.dwin, win, bi.w)
+            template(patch_rows(s.patch, n), s.gwin, s.tmpl, win, bi.w)
         }
     };
     let gram = match A::gram(a11, a12, a22, &lv.params) {
