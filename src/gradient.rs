@@ -166,6 +166,18 @@ pub fn scharr_window(
         return Ok(());
     }
     let (iw, ih) = (img.width() as isize, img.height() as isize);
+    // The common case (a tracking window away from the border): every 3x3 neighbourhood
+    // inside the image, so no row or column reflects and each row is one sliding pass.
+    if x0 >= 1 && y0 >= 1 && x0 + (w as isize) < iw && y0 + (h as isize) < ih {
+        let (x0, y0) = (x0 as usize, y0 as usize);
+        for (j, row) in out.chunks_exact_mut(w).enumerate() {
+            let y = y0 + j;
+            if let (Some(r0), Some(r1), Some(r2)) = (img.row(y - 1), img.row(y), img.row(y + 1)) {
+                scharr_interior(r0, r1, r2, x0 - 1, row);
+            }
+        }
+        return Ok(());
+    }
     // Columns of the grid that fall inside the image.
     let cx0 = x0.max(0).min(iw);
     let cx1 = (x0 + w as isize).max(0).min(iw);
