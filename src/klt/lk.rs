@@ -215,15 +215,18 @@ fn template_row<P: Copy + Into<i32>>(
         o[0] = descale(lerp(a, b, c, d, w), PIX_SHIFT) as i16;
     }
     let [q00, q01, q10, q11] = taps(g0, g1, m);
-    let (mut s11, mut s12, mut s22) = (0i32, 0i32, 0i32);
-    let gr = q00.iter().zip(q01).zip(q10).zip(q11);
-    for ((((g00, g01), g10), g11), o) in gr.zip(out.iter_mut()) {
+    let gr = || q00.iter().zip(q01).zip(q10).zip(q11);
+    let mut s11 = 0i32;
+    for ((((g00, g01), g10), g11), o) in gr().zip(out.iter_mut()) {
         let ix = descale(lerp(g00[0], g01[0], g10[0], g11[0], w), W_BITS);
-        let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], w), W_BITS);
         o[1] = ix as i16;
-        o[2] = iy as i16;
         s11 = s11.wrapping_add(ix * ix);
-        s12 = s12.wrapping_add(ix * iy);
+    }
+    let (mut s12, mut s22) = (0i32, 0i32);
+    for ((((g00, g01), g10), g11), o) in gr().zip(out.iter_mut()) {
+        let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], w), W_BITS);
+        o[2] = iy as i16;
+        s12 = s12.wrapping_add(i32::from(o[1]) * iy);
         s22 = s22.wrapping_add(iy * iy);
     }
     [s11, s12, s22]
