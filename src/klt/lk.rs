@@ -68,6 +68,7 @@ struct Level<'a, 'g, A: FlowArith> {
     win: usize,
     max_iter: u32,
     use_initial: bool,
+    compute_error: bool,
     params: A::Params,
 }
 
@@ -363,7 +364,7 @@ fn track_point<A: FlowArith>(
         }
         prev_delta = delta;
     }
-    if last && f.status == FlowStatus::Tracked {
+    if last && lv.compute_error && f.status == FlowStatus::Tracked {
         let Some(bj) = A::bilinear(f.x - half, f.y - half) else {
             f.status = FlowStatus::OutOfBounds;
             return;
@@ -442,6 +443,7 @@ fn run<A: FlowArith>(
             win: cfg.win,
             max_iter: cfg.max_iter,
             use_initial: cfg.use_initial_flow,
+            compute_error: cfg.compute_error,
             params,
         };
         for (k, f) in flows.iter_mut().enumerate() {

@@ -104,6 +104,11 @@ pub struct LkConfig {
     /// Forward-backward threshold in pixels (finite, not negative) for [`forward_backward`];
     /// `None` disables it.
     pub fb_threshold: Option<f32>,
+    /// Compute [`Flow::err`]: one more pass over each window at its final position, and a
+    /// point whose final window has left the image becomes [`FlowStatus::OutOfBounds`] (what
+    /// OpenCV does when given an `err` array). `false` skips both and leaves `err` 0 (OpenCV
+    /// without `err`). Default `true`.
+    pub compute_error: bool,
 }
 
 impl LkConfig {
@@ -178,6 +183,7 @@ impl Default for LkConfig {
             min_eigenvalue: 1e-4,
             use_initial_flow: false,
             fb_threshold: None,
+            compute_error: true,
         }
     }
 }
