@@ -49,6 +49,25 @@ pub fn draw_line_i32(
     value: u8,
 ) -> usize {
     let (w, h) = (img.width() as i64, img.height() as i64);
+    let inside = |x: i32, y: i32| (0..w).contains(&i64::from(x)) && (0..h).contains(&i64::from(y));
+    if inside(x0, y0) && inside(x1, y1) {
+        // Nothing to clip (the clip below would give back these endpoints, with four
+        // 64-bit divisions: library calls on a Cortex-M).
+        return bresenham(img, x0.into(), y0.into(), x1.into(), y1.into(), value);
+    }
+    draw_line_clipped(img, x0, y0, x1, y1, value)
+}
+
+/// [`draw_line_i32`]'s general path: Liang-Barsky on rationals, then Bresenham.
+fn draw_line_clipped(
+    img: &mut ImageMut<'_, u8>,
+    x0: i32,
+    y0: i32,
+    x1: i32,
+    y1: i32,
+    value: u8,
+) -> usize {
+    let (w, h) = (img.width() as i64, img.height() as i64);
     // Clip in i64 with Liang-Barsky on rationals: t = num / den, kept as (num, den) pairs.
     let (ax, ay, bx, by) = (i64::from(x0), i64::from(y0), i64::from(x1), i64::from(y1));
     let (dx, dy) = (bx - ax, by - ay);
@@ -138,6 +157,31 @@ pub fn draw_line<T: Real>(
 ) -> Result<usize> {
     crate::scalar::check_finite(&[a.x, a.y, b.x, b.y])?;
     // A box 2 pixels larger than the image; the integer clip does the exact work.
+    let (wx, hy) = (
+        i32::try_from(img.width()).unwrap_or(i32::MAX - 1) + 1,
+        i32::try_from(img.height()).unwrap_or(i32::MAX - 1) + 1,
+    );
+    // Both endpoints in the box: rounded in `T`, the same integers as the `f64` path below
+    // gives them (an `f32` rounds to an integer exactly in either type), without the
+    // software `f64` arithmetic of a single-precision core.
+    if let (Some(x0), Some(y0), Some(x1), Some(y1)) = (
+        a.x.round_within(-2, wx),
+        a.y.round_within(-2, hy),
+        b.x.round_within(-2, wx),
+        b.y.round_within(-2, hy),
+    ) {
+        return Ok(draw_line_i32(img, x0, y0, x1, y1, value));
+    }
+    Ok(draw_line_f64(img, a, b, value))
+}
+
+/// [`draw_line`]'s general path: Cohen-Sutherland in `f64` down to the box, then rounding.
+fn draw_line_f64<T: Real>(
+    img: &mut ImageMut<'_, u8>,
+    a: &Point2<T>,
+    b: &Point2<T>,
+    value: u8,
+) -> usize {
     let (x_lo, y_lo) = (-2.0f64, -2.0f64);
     let (x_hi, y_hi) = (img.width() as f64 + 1.0, img.height() as f64 + 1.0);
     let code = |x: f64, y: f64| -> u8 {
@@ -155,7 +199,7 @@ pub fn draw_line<T: Real>(
             break;
         }
         if cp & cq != 0 {
-            return Ok(0);
+            return 0;
         }
         let (c, (x0, y0), (x1, y1)) = if cp != 0 { (cp, p, q) } else { (cq, q, p) };
         let moved = if c & 0b1000 != 0 {
@@ -176,10 +220,10 @@ pub fn draw_line<T: Real>(
         }
     }
     if cp | cq != 0 || !(p.0.is_finite() && p.1.is_finite() && q.0.is_finite() && q.1.is_finite()) {
-        return Ok(0);
+        return 0;
     }
     let r = |v: f64| libm::round(v) as i32;
-    Ok(draw_line_i32(img, r(p.0), r(p.1), r(q.0), r(q.1), value))
+    draw_line_i32(img, r(p.0), r(p.1), r(q.0), r(q.1), value)
 }
 
 /// Options of [`draw_wireframe`].
@@ -294,6 +338,81 @@ mod tests {
 
     fn count(buf: &[u8]) -> usize {
         buf.iter().filter(|&&v| v != 0).count()
+    }
+
+    /// The in-box shortcuts (rounding in `T`, no integer clip) draw what the general path
+    /// (`f64` clip, rounding, Liang-Barsky) draws, pixel for pixel: random segments with
+    /// endpoints in, near and beyond the box, many on half-pixel ties, in `f32` and `f64`.
+    #[test]
+    fn in_box_shortcut_draws_what_the_general_path_draws() {
+        let mut g = crate::rng::Pcg32::new(31);
+        let (w, h) = (23usize, 17usize);
+        for k in 0..4000 {
+            let mut coord = |n: usize| {
+                let v = g.uniform(-6.0, n as f64 + 6.0);
+                if k % 3 == 0 {
+                    (v * 2.0).round() / 2.0
+                } else {
+                    v
+                }
+            };
+            let (a, b) = (
+                Point2::new(coord(w), coord(h)),
+                Point2::new(coord(w), coord(h)),
+            );
+            let (mut fast, mut slow) = ([0u8; 23 * 17], [0u8; 23 * 17]);
+            for (a, b) in [(a, b), (b, a)] {
+                let n1 =
+                    draw_line(&mut ImageMut::packed(&mut fast, w, h).unwrap(), &a, &b, 9).unwrap();
+                let n2 = draw_line_f64(&mut ImageMut::packed(&mut slow, w, h).unwrap(), &a, &b, 9);
+                assert_eq!((n1, fast), (n2, slow), "{a} {b}");
+                let (a32, b32) = (a.cast::<f32>(), b.cast::<f32>());
+                let n1 = draw_line(
+                    &mut ImageMut::packed(&mut fast, w, h).unwrap(),
+                    &a32,
+                    &b32,
+                    7,
+                )
+                .unwrap();
+                let n2 = draw_line_f64(
+                    &mut ImageMut::packed(&mut slow, w, h).unwrap(),
+                    &a32,
+                    &b32,
+                    7,
+                );
+                assert_eq!((n1, fast), (n2, slow), "{a32} {b32}");
+            }
+        }
+    }
+
+    /// The integer shortcut (both endpoints inside: no clip) against the clip path.
+    #[test]
+    fn inside_shortcut_draws_what_the_clip_draws() {
+        let (w, h) = (13usize, 9usize);
+        for x0 in -2..15 {
+            for y0 in -2..11 {
+                for (x1, y1) in [(0, 0), (12, 8), (5, 3), (12, 0), (3, 8), (x0, 4), (7, y0)] {
+                    let (mut a, mut b) = ([0u8; 13 * 9], [0u8; 13 * 9]);
+                    let n1 = draw_line_i32(
+                        &mut ImageMut::packed(&mut a, w, h).unwrap(),
+                        x0,
+                        y0,
+                        x1,
+                        y1,
+                        5,
+                    );
+                    let n2 = draw_line_clipped(
+                        &mut ImageMut::packed(&mut b, w, h).unwrap(),
+                        x0,
+                        y0,
+                        x1,
+                        y1,
+                        5,
+                    );
+                    assert_eq!((n1, a), (n2, b), "({x0},{y0})-({x1},{y1})");
+                }
+            }
+        }
     }
 
     #[test]

@@ -14,6 +14,10 @@ pub trait Real: RealField + Copy {
     fn to_f64(self) -> f64;
     /// `true` when neither NaN nor infinite.
     fn finite(self) -> bool;
+    /// The nearest integer (halves away from zero) when `lo <= self <= hi`, else `None` (and
+    /// for NaN). In the type itself: no conversion to `f64`, which is software on a core with
+    /// a single-precision FPU.
+    fn round_within(self, lo: i32, hi: i32) -> Option<i32>;
 }
 
 impl Real for f32 {
@@ -30,6 +34,10 @@ impl Real for f32 {
     fn finite(self) -> bool {
         self.is_finite()
     }
+    #[inline]
+    fn round_within(self, lo: i32, hi: i32) -> Option<i32> {
+        (self >= lo as f32 && self <= hi as f32).then(|| libm::roundf(self) as i32)
+    }
 }
 
 impl Real for f64 {
@@ -45,6 +53,10 @@ impl Real for f64 {
     #[inline]
     fn finite(self) -> bool {
         self.is_finite()
+    }
+    #[inline]
+    fn round_within(self, lo: i32, hi: i32) -> Option<i32> {
+        (self >= f64::from(lo) && self <= f64::from(hi)).then(|| libm::round(self) as i32)
     }
 }
 
