@@ -666,6 +666,47 @@ mod tests {
         assert_eq!(f1, f2);
     }
 
+    /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,
+    /// and skips only the final range check: a point whose last step leaves the image stays
+    /// `Tracked` without it.
+    #[test]
+    fn without_the_error_pass_the_positions_are_the_same() {
+        let (w, h) = (64, 48);
+        let a = scene(w, h, 0.0, 0.0);
+        let b = scene(w, h, 2.6, -1.2);
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+        let pts = [[20, 20], [40, 30], [10, 35], [62, 1], [1, 46]]
+            .map(|p: [i32; 2]| p.map(|v| Q16::from_bits(v << 16)));
+        let run = |compute_error: bool| {
+            let cfg = LkConfig {
+                win: 9,
+                max_level: 0,
+                compute_error,
+                ..LkConfig::default()
+            }
+            .check()
+            .unwrap();
+            let mut s = std::vec![0i16; scratch_len(9)];
+            let mut f = [Flow::<Q16>::default(); 5];
+            calc_flow::<Fixed>(&pa, &pb, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+            f
+        };
+        let (with, without) = (run(true), run(false));
+        let (mut tracked, mut with_err) = (0, 0);
+        for (a, b) in with.iter().zip(&without) {
+            assert_eq!((a.x, a.y), (b.x, b.y));
+            assert_eq!(b.err, Q16::ZERO);
+            if a.status == FlowStatus::Tracked {
+                assert_eq!(b.status, FlowStatus::Tracked);
+                tracked += 1;
+                with_err += usize::from(a.err > Q16::ZERO);
+            }
+        }
+        // The scene moved by a fraction of a pixel: the error pass sees a residual.
+        assert!(tracked >= 3 && with_err >= 1, "{with:?}");
+    }
+
     #[test]
     fn far_points_are_lost_and_bad_inputs_are_errors() {
         let (w, h) = (64, 48);
