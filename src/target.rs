@@ -158,10 +158,12 @@ impl Default for TargetConfig {
         Self {
             // 15x15 windows over 3 levels (OpenCV's lk_track sample): a target's features move a
             // few pixels a frame, and each window and level costs the board ~30 % of a frame.
+            // The loop reads no track's error, so its pass (a tenth of the flow) is skipped.
             lk: LkConfig {
                 win: 15,
                 max_level: 2,
                 fb_threshold: Some(1.0),
+                compute_error: false,
                 ..LkConfig::default()
             },
             corners: CornerConfig {

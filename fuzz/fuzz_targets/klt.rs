@@ -31,6 +31,7 @@ struct Input {
     epsilon: Num,
     min_eigenvalue: Num,
     use_initial_flow: bool,
+    compute_error: bool,
     fb: Option<Num>,
     per_level: bool,
     scratch_slack: i8,
@@ -113,6 +114,7 @@ fuzz_target!(|inp: Input| {
         min_eigenvalue: inp.min_eigenvalue.get(),
         use_initial_flow: inp.use_initial_flow,
         fb_threshold: inp.fb.map(Num::get),
+        compute_error: inp.compute_error,
     };
     // A configuration out of range is rejected once, here; the flow never sees it.
     let Ok(params) = cfg.check() else {

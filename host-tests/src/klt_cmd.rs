@@ -67,6 +67,8 @@ impl LkOpt {
             min_eigenvalue: self.min_eig,
             use_initial_flow: false,
             fb_threshold: self.fb,
+            // The CLI reports each point's error.
+            compute_error: true,
         })
     }
     fn path(&self) -> Path {
