@@ -197,41 +197,72 @@ fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
 /// `out`: `S = A + C - √((A - C)² + 4 B²)` over 3x3 blocks (reflected at the ends), or 0
 /// where `A + C <= floor` (then `S <= floor` too). Returns the row's largest score.
 fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &mut [u32]) -> u32 {
-    let col = |x: usize| -> [u32; 3] {
-        let ch = |k: usize| {
-            let i = k * w + x;
-            let g = |s: &[u32]| s.get(i).copied().unwrap_or(0);
-            g(up).wrapping_add(g(mid)).wrapping_add(g(down))
-        };
-        [ch(0), ch(1), ch(2)]
-    };
-    let add = |a: [u32; 3], b: [u32; 3]| {
-        [
-            a[0].wrapping_add(b[0]),
-            a[1].wrapping_add(b[1]),
-            a[2].wrapping_add(b[2]),
-        ]
-    };
     let floor = u64::from(floor);
-    let mut best = 0u32;
-    // Columns x - 1, x, x + 1 of the vertical sums, reflected at both ends.
-    let mut prev = col(reflect101(-1, w));
-    let mut cur = col(0);
-    for (x, o) in out.iter_mut().take(w).enumerate() {
-        let next = col(reflect101(x as isize + 1, w));
-        let [a, b, c] = add(add(prev, cur), next);
+    let score = |[a, b, c]: [u32; 3]| -> u32 {
         let (a, b, c) = (u64::from(a), i64::from(b as i32), u64::from(c));
         let tr = a + c;
-        *o = if tr <= floor {
-            0
-        } else {
-            let d = a.abs_diff(c);
-            let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
-            tr.saturating_sub(disc.isqrt()).min(u64::from(u32::MAX)) as u32
-        };
+        if tr <= floor {
+            return 0;
+        }
+        let d = a.abs_diff(c);
+        let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
+        tr.saturating_sub(disc.isqrt()).min(u64::from(u32::MAX)) as u32
+    };
+    // Vertical sums of the three channels at column `x` (any column: for the reflected ends).
+    let col = |x: usize| -> [u32; 3] {
+        core::array::from_fn(|k| {
+            let g = |s: &[u32]| s.get(k * w + x).copied().unwrap_or(0);
+            g(up).wrapping_add(g(mid)).wrapping_add(g(down))
+        })
+    };
+    let add3 = |[a0, a1, a2]: [u32; 3], [b0, b1, b2]: [u32; 3], [c0, c1, c2]: [u32; 3]| {
+        [
+            a0.wrapping_add(b0).wrapping_add(c0),
+            a1.wrapping_add(b1).wrapping_add(c1),
+            a2.wrapping_add(b2).wrapping_add(c2),
+        ]
+    };
+    let out = out.get_mut(..w).unwrap_or(&mut []);
+    let mut best = 0u32;
+    if w < 3 {
+        for (x, o) in out.iter_mut().enumerate() {
+            let (l, r) = (reflect101(x as isize - 1, w), reflect101(x as isize + 1, w));
+            *o = score(add3(col(l), col(x), col(r)));
+            best = best.max(*o);
+        }
+        return best;
+    }
+    // The two end columns reflect (column 1 stands in for -1 and w - 2 for w).
+    for (x, side) in [(0, 1), (w - 1, w - 2)] {
+        if let Some(o) = out.get_mut(x) {
+            *o = score(add3(col(side), col(x), col(side)));
+            best = best.max(*o);
+        }
+    }
+    // Interior columns 1 .. w - 1: the vertical sums slide along the row, three loads a
+    // channel a column (the 3x3 block read nine, with its index arithmetic).
+    fn plane(s: &[u32], k: usize, w: usize) -> &[u32] {
+        s.get(k * w..(k + 1) * w).unwrap_or(&[])
+    }
+    let sums = |k: usize| {
+        plane(up, k, w)
+            .iter()
+            .zip(plane(mid, k, w))
+            .zip(plane(down, k, w))
+            .map(|((a, b), c)| a.wrapping_add(*b).wrapping_add(*c))
+    };
+    let mut cols = sums(0)
+        .zip(sums(1))
+        .zip(sums(2))
+        .map(|((a, b), c)| [a, b, c]);
+    let (Some(mut prev), Some(mut cur)) = (cols.next(), cols.next()) else {
+        return best;
+    };
+    let inner = out.get_mut(1..w - 1).unwrap_or(&mut []);
+    for (o, next) in inner.iter_mut().zip(cols) {
+        *o = score(add3(prev, cur, next));
         best = best.max(*o);
-        prev = cur;
-        cur = next;
+        (prev, cur) = (cur, next);
     }
     best
 }
@@ -514,6 +545,61 @@ mod tests {
             ),
             Err(Error::BufferTooSmall("scratch"))
         );
+    }
+
+    /// The sliding row scores against the 3x3 definition (reflected ends), every width from
+    /// 1 to 9 and one wide row, random products, with and without a floor.
+    #[test]
+    fn row_scores_match_the_definition() {
+        let mut g = crate::rng::Pcg32::new(5);
+        for w in (1..=9).chain([64]) {
+            let rows: std::vec::Vec<std::vec::Vec<u32>> = (0..3)
+                .map(|_| {
+                    (0..3 * w)
+                        .map(|i| {
+                            let v = g.uniform(0.0, 9.0e6) as u32;
+                            // The middle channel is a signed product.
+                            if i / w == 1 {
+                                (v as i32 - 4_500_000) as u32
+                            } else {
+                                v
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            for floor in [0u32, 20_000_000] {
+                let mut out = std::vec![7u32; w];
+                let best = score_row(&rows[0], &rows[1], &rows[2], w, floor, &mut out);
+                let mut want_best = 0;
+                for (x, &got) in out.iter().enumerate() {
+                    let mut s = [0i64; 3];
+                    for dx in [-1isize, 0, 1] {
+                        let c = reflect101(x as isize + dx, w);
+                        for r in &rows {
+                            for (k, sk) in s.iter_mut().enumerate() {
+                                let v = r[k * w + c];
+                                *sk += if k == 1 {
+                                    i64::from(v as i32)
+                                } else {
+                                    i64::from(v)
+                                };
+                            }
+                        }
+                    }
+                    let (a, b, c) = (s[0] as f64, s[1] as f64, s[2] as f64);
+                    let want = if a + c <= f64::from(floor) {
+                        0.0
+                    } else {
+                        a + c - ((a - c) * (a - c) + 4.0 * b * b).sqrt()
+                    };
+                    // The integer root is the floor of the real one: within one unit.
+                    assert!((f64::from(got) - want.floor()).abs() <= 1.0, "w {w} x {x}");
+                    want_best = want_best.max(got);
+                }
+                assert_eq!(best, want_best);
+            }
+        }
     }
 
     #[test]
