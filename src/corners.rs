@@ -194,8 +194,12 @@ fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
 }
 
 /// Scores of one row from the product rows above, at and below it (`3 width` each) into
-/// `out`: `S = A + C - √((A - C)² + 4 B²)` over 3x3 blocks (reflected at the ends), or 0
-/// where `A + C <= floor` (then `S <= floor` too). Returns the row's largest score.
+/// `out`: `S = A + C - ⌊√((A - C)² + 4 B²)⌋` over 3x3 blocks (reflected at the ends), or 0
+/// where `S <= floor` (no caller tells such a score from 0: the running maximum is above the
+/// floor, and candidates must beat it). Returns the row's largest score.
+///
+/// `S > floor ⟺ ⌊√disc⌋ < A + C - floor ⟺ disc < (A + C - floor)²`: the integer root (a
+/// 64-bit routine of a few hundred instructions on a Cortex-M) only for scores that count.
 fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &mut [u32]) -> u32 {
     let floor = u64::from(floor);
     let score = |[a, b, c]: [u32; 3]| -> u32 {
@@ -206,6 +210,11 @@ fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &
         }
         let d = a.abs_diff(c);
         let disc = d * d + 4 * b.unsigned_abs() * b.unsigned_abs();
+        // Sums of 9 products of Sobel values (|·| <= 1020): tr < 2²⁵, so lim² < 2⁵⁰.
+        let lim = tr - floor;
+        if disc >= lim * lim {
+            return 0;
+        }
         tr.saturating_sub(disc.isqrt()).min(u64::from(u32::MAX)) as u32
     };
     // Vertical sums of the three channels at column `x` (any column: for the reflected ends).
@@ -588,10 +597,13 @@ mod tests {
                         }
                     }
                     let (a, b, c) = (s[0] as f64, s[1] as f64, s[2] as f64);
-                    let want = if a + c <= f64::from(floor) {
+                    let exact = a + c - ((a - c) * (a - c) + 4.0 * b * b).sqrt();
+                    assert!(got == 0 || got > floor, "w {w} x {x}: {got} <= {floor}");
+                    // Scores at or below the floor are 0 (the boundary within the unit below).
+                    let want = if exact <= f64::from(floor) + 1.0 && got == 0 {
                         0.0
                     } else {
-                        a + c - ((a - c) * (a - c) + 4.0 * b * b).sqrt()
+                        exact
                     };
                     // The integer root is the floor of the real one: within one unit.
                     assert!((f64::from(got) - want.floor()).abs() <= 1.0, "w {w} x {x}");
