@@ -231,20 +231,23 @@ fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &
             a2.wrapping_add(b2).wrapping_add(c2),
         ]
     };
+    // Any column, its neighbours reflected: the two ends, or every column of a narrow row.
+    let reflected = |x: usize| {
+        let (l, r) = (reflect101(x as isize - 1, w), reflect101(x as isize + 1, w));
+        score(add3(col(l), col(x), col(r)))
+    };
     let out = out.get_mut(..w).unwrap_or(&mut []);
     let mut best = 0u32;
     if w < 3 {
         for (x, o) in out.iter_mut().enumerate() {
-            let (l, r) = (reflect101(x as isize - 1, w), reflect101(x as isize + 1, w));
-            *o = score(add3(col(l), col(x), col(r)));
+            *o = reflected(x);
             best = best.max(*o);
         }
         return best;
     }
-    // The two end columns reflect (column 1 stands in for -1 and w - 2 for w).
-    for (x, side) in [(0, 1), (w - 1, w - 2)] {
+    for x in [0, w - 1] {
         if let Some(o) = out.get_mut(x) {
-            *o = score(add3(col(side), col(x), col(side)));
+            *o = reflected(x);
             best = best.max(*o);
         }
     }

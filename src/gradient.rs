@@ -106,15 +106,11 @@ pub fn scharr_row(img: &ImageView<'_, u8>, y: usize, x0: usize, out: &mut [[i16;
 /// `Ix(x) = s(x + 1) - s(x - 1)` and `Iy(x) = 3 d(x - 1) + 10 d(x) + 3 d(x + 1)`. The sliding
 /// loop carries two columns, so a pixel costs three loads (the 3x3 form read eight).
 fn scharr_interior(r0: &[u8], r1: &[u8], r2: &[u8], start: usize, out: &mut [[i16; 2]]) {
-    let m = out.len();
-    let col = |k: usize| -> Option<[&[u8]; 3]> {
-        Some([
-            r0.get(start + k..start + k + m)?,
-            r1.get(start + k..start + k + m)?,
-            r2.get(start + k..start + k + m)?,
-        ])
-    };
-    let Some([a2, b2, c2]) = col(2) else {
+    // Column x + 1 of every output x: the loop's one new column a step.
+    let ahead = start + 2..start + 2 + out.len();
+    let (Some(a2), Some(b2), Some(c2)) =
+        (r0.get(ahead.clone()), r1.get(ahead.clone()), r2.get(ahead))
+    else {
         return;
     };
     let reduce = |a: u8, b: u8, c: u8| {

@@ -199,7 +199,7 @@ fn mismatch<'p, P: Copy + Into<i32> + 'p>(
 
 /// One row of [`template`]: the template and its derivatives at weights `w` into `out`;
 /// returns the row's `Σ Ix²`, `Σ Ix Iy`, `Σ Iy²` (exact in `i32`: `|Ix| <= 16 · 255`, so 63
-/// squares stay below 2³¹). Two passes, the pixels then both derivatives: one loop over all
+/// squares stay below 2³¹). Three passes, the pixels, `Ix`, then `Iy`: one loop over all
 /// three ran out of registers on the Cortex-M7 (about 60 instructions a pixel with the
 /// weights reloaded from the stack).
 #[inline(always)]
