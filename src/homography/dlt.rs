@@ -1,6 +1,7 @@
-//! The normalised direct linear transform (Hartley & Zisserman, algorithm 4.2).
+//! The normalised direct linear transform (Hartley & Zisserman, algorithm 4.2), solved through
+//! the 3-column reduction of Harker & O'Leary (2005).
 
-use nalgebra::{Matrix3, Point2};
+use nalgebra::{Matrix3, Matrix3x2, Point2, SMatrix};
 
 use super::normalize::Normalization;
 use super::{Homography, above};
@@ -11,7 +12,7 @@ use crate::{Error, Result};
 /// Relative singular-value tolerance of the DLT's degeneracy tests: `√ε` (`3.5e-4` in `f32`,
 /// `1.5e-8` in `f64`).
 ///
-/// In normalised coordinates a well-posed problem has `σ₈/σ₁` and `σ₃(H_n)/σ₁(H_n)` of order
+/// In normalised coordinates a well-posed problem has its singular-value ratios of order
 /// `0.01..1`, while exact degeneracies leave rounding noise of order `ε` there. `√ε` splits
 /// the two on a log scale, so configurations that are degenerate to within `~√ε` of their
 /// spread are reported as such instead of returning an `H` that is mostly noise.
@@ -20,21 +21,29 @@ pub fn rank_tolerance<T: Real>() -> T {
 }
 
 /// The homography minimising the algebraic error `Σ |x'_i × H x_i|²` in Hartley-normalised
-/// coordinates, from `N ≥ 4` correspondences `dst_i ~ H src_i`.
+/// coordinates, from `N ≥ 4` correspondences `dst_i ~ H src_i`, with the third row of the
+/// normalised `H_n` of unit length.
 ///
-/// Each pair gives the two equations (`h` = rows of `H_n`, normalised `x = (x, y, 1)`,
-/// `x' = (u, v, 1)`)
+/// With `h₁, h₂, h₃` the rows of `H_n`, normalised `x = (x, y, 1)` and `x' = (u, v, 1)`, the
+/// two equations of a pair are `h₁·x = u h₃·x` and `h₂·x = v h₃·x`. Stacked, with `X` the
+/// `N x 3` matrix of the `x` and `D_u = diag(u)`, the error is
 ///
-/// `[0ᵀ  -xᵀ  v xᵀ] h = 0`,  `[xᵀ  0ᵀ  -u xᵀ] h = 0`,
+/// `|X h₁ - D_u X h₃|² + |X h₂ - D_v X h₃|²`.
 ///
-/// which are streamed into a 9-column [`StreamingQr`] (constant memory, no `AᵀA`); `h` is the
-/// last right singular vector of `R`, and `H = T_dst⁻¹ H_n T_src`.
+/// One row `[xᵀ, u xᵀ, v xᵀ]` a pair is streamed into a 9-column [`StreamingQr`] (constant
+/// memory, no `AᵀA`), giving `R` with 3x3 blocks `R_ij`. For any `h₃` the best rows are
+/// `h₁ = R₁₁⁻¹ R₁₂ h₃`, `h₂ = R₁₁⁻¹ R₁₃ h₃`, and what is left is `|B h₃|²` with
+/// `B = [R₂₂; R₂₃; R₃₃]` (9x3): `h₃` is the last right singular vector of `B` (Harker &
+/// O'Leary, "Computation of Homographies", BMVC 2005). The constraint `|h₃| = 1` instead of
+/// Hartley and Zisserman's `|h| = 1` costs nothing in accuracy (a homography's `h₃` is never
+/// zero) and cuts the SVD from 9x9 to 9x3; `H = T_dst⁻¹ H_n T_src`.
 ///
 /// Errors: [`Error::LengthMismatch`], [`Error::TooFewPoints`] (`N < 4`), [`Error::NonFinite`],
-/// [`Error::Degenerate`] when either point set is coincident, when the solution is not unique
-/// (`σ₈ ≤ tol σ₁`: e.g. all source points collinear, or three of four collinear), or when
-/// `H_n` is close to singular (`σ₃ ≤ tol σ₁`: e.g. all destination points collinear), with
-/// `tol` = [`rank_tolerance`]; [`Error::NoConvergence`] if the SVD does not converge.
+/// [`Error::Degenerate`] when either point set is coincident, when the source points are
+/// collinear (`σ₃(R₁₁) ≤ tol σ₁(R₁₁)`), when the solution is not unique (`σ₂(B) ≤ tol |R|`:
+/// e.g. three of four source points collinear), or when `H_n` is close to singular
+/// (`σ₃(H_n) ≤ tol σ₁(H_n)`: e.g. all destination points collinear), with `tol` =
+/// [`rank_tolerance`]; [`Error::NoConvergence`] if an SVD does not converge.
 pub fn dlt<T: Real>(src: &[Point2<T>], dst: &[Point2<T>]) -> Result<Homography<T>> {
     if src.len() != dst.len() {
         return Err(Error::LengthMismatch);
@@ -102,30 +111,60 @@ where
     let nd = Normalization::from_points_iter(pairs.clone().map(|(_, d, _)| d))?;
 
     let mut qr = StreamingQr::<T, 9>::new();
-    let (z, o) = (T::zero(), T::one());
+    let o = T::one();
     for (s, d, w) in pairs {
         let x = ns.apply(&s);
         let u = nd.apply(&d);
-        qr.push_row_weighted(&[z, z, z, -x.x, -x.y, -o, u.y * x.x, u.y * x.y, u.y], w)?;
-        qr.push_row_weighted(&[x.x, x.y, o, z, z, z, -u.x * x.x, -u.x * x.y, -u.x], w)?;
+        let [a, b, c] = [x.x, x.y, o];
+        qr.push_row_weighted(&[a, b, c, u.x * a, u.x * b, u.x, u.y * a, u.y * b, u.y], w)?;
     }
-    let svd = qr.svd()?;
+    let r = qr.r();
     let tol = rank_tolerance::<T>();
-    let sv = svd.singular_values.as_slice();
-    let (Some(&s1), Some(&s8)) = (sv.first(), sv.get(7)) else {
-        return Err(Error::Degenerate);
-    };
-    if !above(s8, tol * s1) {
+    let r11: Matrix3<T> = r.fixed_view::<3, 3>(0, 0).into_owned();
+    let s11 = svd_jacobi(&r11)?.singular_values;
+    if !above(s11.z, tol * s11.x) {
         return Err(Error::Degenerate);
     }
-    let [h11, h12, h13, h21, h22, h23, h31, h32, h33]: [T; 9] = svd.null_vector().into();
-    let hn = Matrix3::new(h11, h12, h13, h21, h22, h23, h31, h32, h33);
-    let shn = svd_jacobi(&hn)?;
-    let shn = shn.singular_values;
+    let mut b = SMatrix::<T, 9, 3>::zeros();
+    b.fixed_view_mut::<3, 3>(0, 0)
+        .copy_from(&r.fixed_view::<3, 3>(3, 3));
+    b.fixed_view_mut::<3, 3>(3, 0)
+        .copy_from(&r.fixed_view::<3, 3>(3, 6));
+    b.fixed_view_mut::<3, 3>(6, 0)
+        .copy_from(&r.fixed_view::<3, 3>(6, 6));
+    let sb = svd_jacobi(&b)?;
+    if !above(sb.singular_values.y, tol * r.norm()) {
+        return Err(Error::Degenerate);
+    }
+    let h3 = sb.null_vector();
+    let rhs = Matrix3x2::from_columns(&[
+        r.fixed_view::<3, 3>(0, 3) * h3,
+        r.fixed_view::<3, 3>(0, 6) * h3,
+    ]);
+    let h12 = solve_upper_3(&r11, &rhs);
+    let hn = Matrix3::from_rows(&[
+        h12.column(0).transpose(),
+        h12.column(1).transpose(),
+        h3.transpose(),
+    ]);
+    let shn = svd_jacobi(&hn)?.singular_values;
     if !above(shn.z, tol * shn.x) {
         return Err(Error::Degenerate);
     }
     Homography::from_matrix(&(nd.inverse_matrix() * hn * ns.matrix()))
+}
+
+/// `R⁻¹ B` for an upper triangular `R` by back substitution. A zero on the diagonal gives
+/// non-finite entries, which [`Homography::from_matrix`] rejects; [`solve`] has already
+/// checked `R` is well conditioned.
+fn solve_upper_3<T: Real>(r: &Matrix3<T>, b: &Matrix3x2<T>) -> Matrix3x2<T> {
+    let mut x = *b;
+    for mut col in x.column_iter_mut() {
+        col.z /= r.m33;
+        col.y = (col.y - r.m23 * col.z) / r.m22;
+        col.x = (col.x - r.m12 * col.y - r.m13 * col.z) / r.m11;
+    }
+    x
 }
 
 #[cfg(test)]
@@ -202,6 +241,98 @@ mod tests {
             dlt_masked(&src[..10], &dst[..10], &few),
             Err(Error::TooFewPoints)
         );
+    }
+
+    /// Hartley and Zisserman's DLT (`|h| = 1`): the eigenvector of the smallest eigenvalue of
+    /// `AᵀA` for the full `2N x 9` system, in `f64` (normalised data keep `cond(A)²` near
+    /// `1e6`, so the reference is good to ~1e-10, far below the differences tested).
+    fn unit_norm_dlt(src: &[Point2<f64>], dst: &[Point2<f64>]) -> Matrix3<f64> {
+        let ns = Normalization::from_points(src).unwrap();
+        let nd = Normalization::from_points(dst).unwrap();
+        let mut ata = SMatrix::<f64, 9, 9>::zeros();
+        for (s, d) in src.iter().zip(dst) {
+            let (x, u) = (ns.apply(s), nd.apply(d));
+            let r1 = nalgebra::SVector::<f64, 9>::from([
+                0.0,
+                0.0,
+                0.0,
+                -x.x,
+                -x.y,
+                -1.0,
+                u.y * x.x,
+                u.y * x.y,
+                u.y,
+            ]);
+            let r2 = nalgebra::SVector::<f64, 9>::from([
+                x.x,
+                x.y,
+                1.0,
+                0.0,
+                0.0,
+                0.0,
+                -u.x * x.x,
+                -u.x * x.y,
+                -u.x,
+            ]);
+            ata += r1 * r1.transpose() + r2 * r2.transpose();
+        }
+        let eig = ata.symmetric_eigen();
+        let h = eig.eigenvectors.column(eig.eigenvalues.imin()).into_owned();
+        let h = Matrix3::from_row_slice(h.as_slice());
+        nd.inverse_matrix() * h * ns.matrix()
+    }
+
+    /// RMS transfer distance between two homographies over a 640x480 grid.
+    fn grid_rms(a: &Matrix3<f64>, b: &Matrix3<f64>) -> f64 {
+        let mut sum = 0.0;
+        let mut n = 0.0;
+        for i in 0..=8 {
+            for j in 0..=6 {
+                let p = Point2::new(80.0 * i as f64, 80.0 * j as f64).to_homogeneous();
+                let (pa, pb) = (a * p, b * p);
+                sum += (pa.xy() / pa.z - pb.xy() / pb.z).norm_squared();
+                n += 1.0;
+            }
+        }
+        (sum / n).sqrt()
+    }
+
+    #[test]
+    fn as_accurate_as_the_unit_norm_dlt_under_noise() {
+        // 200 draws of 12 and 40 points with 0.5 px noise. Both constraints solve the same
+        // algebraic least squares on normalised data: their mean errors against the truth were
+        // measured 0.02 % and 0.005 % apart (0.610 / 0.266 px), bound at 1 %; the two
+        // solutions sit 0.0025 / 0.0019 px apart, under 1 % of the error (bound 2 %: the choice
+        // of constraint is a second-order effect). The f32 solve stays within 1.3e-4 px of the
+        // f64 one on every draw (bound 1e-3 px, f32 rounding of 640 px coordinates).
+        let mut g = Pcg32::new(24);
+        for n in [12usize, 40] {
+            let (mut ours, mut theirs, mut between, mut single) = (0.0, 0.0, 0.0, 0.0f64);
+            for _ in 0..200 {
+                let src: std::vec::Vec<_> = (0..n)
+                    .map(|_| Point2::new(g.uniform(0.0, 640.0), g.uniform(0.0, 480.0)))
+                    .collect();
+                let dst: std::vec::Vec<_> = src
+                    .iter()
+                    .map(|p| {
+                        let q = Point2::from_homogeneous(truth() * p.to_homogeneous()).unwrap();
+                        Point2::new(q.x + 0.5 * g.normal(), q.y + 0.5 * g.normal())
+                    })
+                    .collect();
+                let h = *dlt(&src, &dst).unwrap().matrix();
+                let r = unit_norm_dlt(&src, &dst);
+                let s32: std::vec::Vec<_> = src.iter().map(|p| p.cast::<f32>()).collect();
+                let d32: std::vec::Vec<_> = dst.iter().map(|p| p.cast::<f32>()).collect();
+                let h32 = dlt(&s32, &d32).unwrap().matrix().cast::<f64>();
+                single = f64::max(single, grid_rms(&h32, &h));
+                ours += grid_rms(&h, &truth());
+                theirs += grid_rms(&r, &truth());
+                between += grid_rms(&h, &r);
+            }
+            assert!(ours < 1.01 * theirs, "N = {n}: {ours} vs {theirs}");
+            assert!(between < 0.02 * ours, "N = {n}: {between} vs {ours}");
+            assert!(single < 1e-3, "N = {n}: f32 {single} px from f64");
+        }
     }
 
     #[test]

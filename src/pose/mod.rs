@@ -221,7 +221,13 @@ mod tests {
                 solve_planar(&cam, &model, &pixels, &mut scratch.clone(), &cfg).unwrap()
             };
             let (skipped, refined) = (solve(4), solve(u8::MAX));
-            assert_eq!(skipped.best, refined.best);
+            // Refined, the alternative can descend into the best's own minimum and be reported
+            // in its place: the same pose to the LM's convergence (measured up to 1.1e-9 apart).
+            let (a, b) = (skipped.best, refined.best);
+            let dr = (a.pose.rotation().matrix() - b.pose.rotation().matrix()).amax();
+            assert!(dr < 1e-8, "{dr}");
+            assert!((a.pose.translation() - b.pose.translation()).norm() < 1e-8);
+            assert!((a.rms_px - b.rms_px).abs() < 1e-8);
             // These views are far from fronto-parallel: the alternative is many times off.
             assert!(skipped.alternative.rms_px > 4.0 * skipped.best.rms_px);
             assert!(refined.alternative.rms_px <= skipped.alternative.rms_px);

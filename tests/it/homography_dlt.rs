@@ -89,7 +89,8 @@ fn matches_opencv_and_numpy_noise_free() {
     let c = &fixture::EXACT;
     let (src, dst) = (pts(&c.src), pts(&c.dst));
     let h = *dlt(&src, &dst).unwrap().matrix();
-    // Same algorithm as the numpy reference, noise-free data: agreement to rounding.
+    // Noise-free data: the numpy reference (`|h| = 1`) and camgeom (`|h₃| = 1`) both give the
+    // exact map, agreement to rounding.
     assert!(entry_gap(&h, &mat(&c.truth)) < 1e-12);
     assert!(entry_gap(&h, &mat(&c.dlt)) < 1e-12);
     // OpenCV solves the normal equations (AᵀA, condition squared) then refines by LM; its own
@@ -114,9 +115,12 @@ fn matches_opencv_and_numpy_with_noise() {
     assert_eq!(c.noise, 0.5);
     let (src, dst) = (pts(&c.src), pts(&c.dst));
     let h = *dlt(&src, &dst).unwrap().matrix();
-    // Same algorithm as numpy in f64: only rounding differs.
+    // numpy's reference solves Hartley and Zisserman's `|h| = 1`, camgeom Harker and
+    // O'Leary's `|h₃| = 1` on the same normalised algebraic error: with noise the two differ
+    // by a second-order amount, measured 3.7e-6 per unit-scaled entry, a thirtieth of the
+    // estimation error itself (1.2e-4, below); allow 2e-5.
     let gap = entry_gap(&h, &mat(&c.dlt));
-    assert!(gap < 1e-10, "{gap}");
+    assert!(gap < 2e-5, "{gap}");
     // OpenCV minimises the geometric (reprojection) error, we the normalised algebraic one.
     // Both are consistent estimators, so they differ by an amount of the order of the
     // estimation error itself, σ / √N relative to the image extent: 0.5 / √40 / 640 ≈ 1.2e-4
