@@ -105,6 +105,14 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
     let e2 = T::EPSILON * T::EPSILON;
     let tiny = e2 * e2;
 
+    // Each column's squared norm and norm, kept from its last change: a pair that needs no
+    // rotation (most of them in the last sweeps) then costs one dot product, not three and
+    // two square roots. The same values, to the bit, as recomputing them at every visit.
+    let mut norms = [(T::zero(), T::zero()); C];
+    for (n, col) in norms.iter_mut().zip(w.column_iter()) {
+        let a = col.norm_squared();
+        *n = (a, a.sqrt());
+    }
     let mut sweeps = 0u8;
     let mut converged = false;
     while sweeps < MAX_SWEEPS {
@@ -115,10 +123,11 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
                 let Some((mut wp, mut wq)) = column_pair(&mut w, p, q) else {
                     continue;
                 };
-                let alpha = wp.norm_squared();
-                let beta = wq.norm_squared();
+                let (Some(&(alpha, ra)), Some(&(beta, rb))) = (norms.get(p), norms.get(q)) else {
+                    continue;
+                };
                 let gamma = wp.dot(&wq);
-                let bound = alpha.sqrt() * beta.sqrt();
+                let bound = ra * rb;
                 if gamma.abs() <= tol * bound || bound <= tiny {
                     continue;
                 }
@@ -128,6 +137,13 @@ pub fn svd_jacobi<T: Real, const R: usize, const C: usize>(
                 let c = T::one() / hypot(T::one(), t);
                 let s = c * t;
                 rotate(wp.iter_mut().zip(wq.iter_mut()), c, s);
+                let (a, b) = (wp.norm_squared(), wq.norm_squared());
+                if let Some(n) = norms.get_mut(p) {
+                    *n = (a, a.sqrt());
+                }
+                if let Some(n) = norms.get_mut(q) {
+                    *n = (b, b.sqrt());
+                }
                 if let Some((mut vp, mut vq)) = column_pair(&mut v, p, q) {
                     rotate(vp.iter_mut().zip(vq.iter_mut()), c, s);
                 }
