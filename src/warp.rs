@@ -18,14 +18,17 @@
 //!
 //! Two arithmetics, chosen by [`Arithmetic`]:
 //!
-//! - [`Arithmetic::Float`]: `f32`; `x_s = X / W` per pixel, `f32` bilinear weights.
+//! - [`Arithmetic::Float`]: `f32`; `x_s = X / W` per pixel, rounded to 10 fraction bits, then
+//!   the integer bilinear sample below with 10-bit weights. The coordinates of 16 pixels are
+//!   computed in one straight-line pass (vectorised: the divisions run several lanes at a
+//!   time), then sampled one by one.
 //! - [`Arithmetic::Fixed`], for cores without an FPU: `M` is quantised once to `i64` with `F`
 //!   fractional bits (the largest `F <= 40` that keeps every product below 2⁶² — see
 //!   [`warp_perspective_into`]). Along a scanline the homogeneous numerators and the
 //!   denominator advance by constant integer deltas, `X += m₁₁`, `Y += m₂₁`, `W += m₃₁`, which
 //!   is exact: the stepped values *are* the quantised `M` applied to the pixel, with no
 //!   accumulated error. Per pixel: two `i64` divisions `u = ⌊(256 X + W/2) / W⌋` (source
-//!   coordinate in Q8) and an integer bilinear sample with 8-bit weights. The only floating
+//!   coordinate in Q8) and the integer bilinear sample with 8-bit weights. The only floating
 //!   point is the once-per-warp set-up (inverse and quantisation of `M`). The difference from
 //!   the `f32` path is at most one grey level on the pixels both write (tested), and the set
 //!   of written pixels differs only where a pixel centre is within rounding of the outline.
@@ -273,6 +276,90 @@ fn clip_f32(lo: &mut f32, hi: &mut f32, a: f32, b: f32) {
     }
 }
 
+/// Fraction bits of [`warp_float`]'s source coordinates and weights (OpenCV's bilinear
+/// remap uses 5 and 15-bit weights; 10 keeps the float path's samples within rounding of an
+/// exact bilinear interpolation).
+const FLOAT_BITS: u32 = 10;
+
+/// Pixels of a scanline whose source coordinates [`warp_float`] computes in one straight-line
+/// pass (which LLVM vectorises: the divisions and conversions run several lanes at a time)
+/// before sampling them one by one.
+const FLOAT_CHUNK: usize = 16;
+
+/// The source image as the bilinear sampler reads it: cells of 2x2 pixels.
+#[derive(Clone, Copy)]
+struct Source<'a> {
+    data: &'a [u8],
+    stride: usize,
+    /// Largest column and row of a cell's top-left pixel (`width - 2`, `height - 2`, or 0 for
+    /// a source one pixel wide or high).
+    cell: (u32, u32),
+    /// From a cell's top-left pixel to its right and lower neighbours (1 and `stride`, or 0
+    /// for a source one pixel wide or high).
+    step: (usize, usize),
+}
+
+impl<'a> Source<'a> {
+    fn new(src: &ImageView<'a, u8>) -> Self {
+        let (w, h, stride) = (src.width(), src.height(), src.stride());
+        Self {
+            data: src.data(),
+            stride,
+            // `MAX_DIM` bounds both, far inside `u32`.
+            cell: (w.saturating_sub(2) as u32, h.saturating_sub(2) as u32),
+            step: (usize::from(w > 1), if h > 1 { stride } else { 0 }),
+        }
+    }
+
+    /// The cell of the source coordinates `(u, v) / 2ᴮ` (fixed point with `B` fraction bits,
+    /// `0 <= u <= 2ᴮ (w - 1)`, `0 <= v <= 2ᴮ (h - 1)`): the column and row of its top-left
+    /// pixel and the weights `f_x, f_y` in `0..=2ᴮ` of its right column and lower row,
+    /// `[ix, iy, fx, fy]`. On the last column or row the cell is the one before it with weight
+    /// `2ᴮ`, which reads the same pixels at the same weights as a clamped cell would. Any
+    /// `(u, v)` gives a cell inside the image. Plain `u32` arithmetic, the same in every lane:
+    /// it vectorises.
+    #[inline]
+    fn cell<const B: u32>(&self, u: u32, v: u32) -> [u32; 4] {
+        let ix = (u >> B).min(self.cell.0);
+        let iy = (v >> B).min(self.cell.1);
+        // `ix <= u / 2ᴮ`: no underflow; the bound only acts on out-of-range input.
+        [
+            ix,
+            iy,
+            (u - (ix << B)).min(1 << B),
+            (v - (iy << B)).min(1 << B),
+        ]
+    }
+
+    /// Bilinear sample of the cell `[ix, iy, fx, fy]` ([`Self::cell`], `B <= 10`), rounded:
+    /// `((p₀₀ (2ᴮ - f_x) + p₀₁ f_x) (2ᴮ - f_y) + (p₁₀ (2ᴮ - f_x) + p₁₁ f_x) f_y + 2²ᴮ⁻¹) >> 2B`,
+    /// each `a (2ᴮ - f) + b f` formed as `2ᴮ a + (b - a) f` (the same integers, one product;
+    /// below `2³⁰` for `B = 10`).
+    #[inline]
+    fn sample<const B: u32>(&self, [ix, iy, fx, fy]: [u32; 4]) -> u8 {
+        const { assert!(B >= 1 && B <= 10, "sample: 1 to 10 fraction bits fit i32") };
+        let i = iy as usize * self.stride + ix as usize;
+        let p = |i: usize| i32::from(self.data.get(i).copied().unwrap_or(0));
+        let (fx, fy) = (fx as i32, fy as i32);
+        let (a, b) = (p(i), p(i + self.step.0));
+        let top = (a << B) + (b - a) * fx;
+        let j = i + self.step.1;
+        let (a, b) = (p(j), p(j + self.step.0));
+        let bot = (a << B) + (b - a) * fx;
+        (((top << B) + (bot - top) * fy + (1 << (2 * B - 1))) >> (2 * B)) as u8
+    }
+}
+
+/// `x` rounded to the nearest integer (ties to even) for `0 <= x < 2²³`, by the float's own
+/// rounding: adding `2²³` leaves the integer in the low mantissa bits. Branch-free and alike
+/// in every lane, so the chunk loop of [`warp_float`] vectorises (the saturating `as u32`
+/// does not); Q10 coordinates of a [`crate::image::MAX_DIM`] source stay below `2²³`
+/// (`8191 · 1024 = 8,387,584`).
+#[inline]
+fn round_small(x: f32) -> u32 {
+    (x + 8_388_608.0).to_bits().wrapping_sub(0x4B00_0000)
+}
+
 fn warp_float(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,
@@ -280,7 +367,9 @@ fn warp_float(
     alpha: u8,
 ) -> WarpReport {
     let m: Matrix3<f32> = s.m.map(|v| v as f32);
+    let source = Source::new(src);
     let (sw, sh) = ((src.width() - 1) as f32, (src.height() - 1) as f32);
+    let q = (1u32 << FLOAT_BITS) as f32;
     let mut written = 0u32;
     for y in s.y0..=s.y1 {
         let yf = y as f32;
@@ -295,29 +384,28 @@ fn warp_float(
         if !in_order(lo, hi) {
             continue;
         }
-        let Some(row) = dst.row_mut(y as usize) else {
+        let (lo, hi) = (lo as usize, hi as usize);
+        let Some(out) = dst.row_mut(y as usize).and_then(|r| r.get_mut(lo..=hi)) else {
             continue;
         };
-        for x in lo as usize..=hi as usize {
-            let xf = x as f32;
-            let w = m.m31 * xf + bw;
-            if !greater(w, 0.0) {
-                continue;
+        for (k, chunk) in out.chunks_mut(FLOAT_CHUNK).enumerate() {
+            // The chunk's source coordinates in Q8, `256 X / W` rounded and clamped into the
+            // source, and whether `W > 0` (a pixel without is skipped).
+            let x0 = (lo + k * FLOAT_CHUNK) as f32;
+            let mut cells = [[0u32; 4]; FLOAT_CHUNK];
+            let mut ws = [0.0f32; FLOAT_CHUNK];
+            for (j, (c, w)) in cells.iter_mut().zip(ws.iter_mut()).enumerate() {
+                let xf = x0 + j as f32;
+                *w = m.m31 * xf + bw;
+                let u = round_small((q * (m.m11 * xf + bx) / *w).clamp(0.0, q * sw));
+                let v = round_small((q * (m.m21 * xf + by) / *w).clamp(0.0, q * sh));
+                *c = source.cell::<FLOAT_BITS>(u, v);
             }
-            let u = ((m.m11 * xf + bx) / w).clamp(0.0, sw);
-            let v = ((m.m21 * xf + by) / w).clamp(0.0, sh);
-            let (ix, iy) = (u as usize, v as usize);
-            let (fx, fy) = (u - ix as f32, v - iy as f32);
-            let r0 = src.row(iy).unwrap_or(&[]);
-            let r1 = src.row((iy + 1).min(src.height() - 1)).unwrap_or(&[]);
-            let ix1 = (ix + 1).min(src.width() - 1);
-            let p = |r: &[u8], c: usize| f32::from(r.get(c).copied().unwrap_or(0));
-            let top = p(r0, ix) + fx * (p(r0, ix1) - p(r0, ix));
-            let bot = p(r1, ix) + fx * (p(r1, ix1) - p(r1, ix));
-            let val = (top + fy * (bot - top) + 0.5).clamp(0.0, 255.0) as u8;
-            if let Some(d) = row.get_mut(x) {
-                *d = blend(val, *d, alpha);
-                written += 1;
+            for (d, (&c, &w)) in chunk.iter_mut().zip(cells.iter().zip(ws.iter())) {
+                if w > 0.0 {
+                    *d = blend(source.sample::<FLOAT_BITS>(c), *d, alpha);
+                    written += 1;
+                }
             }
         }
     }
@@ -374,7 +462,7 @@ fn warp_fixed(
     let (m11, m12, m13) = (m.m11, m.m12, m.m13);
     let (m21, m22, m23) = (m.m21, m.m22, m.m23);
     let (m31, m32, m33) = (m.m31, m.m32, m.m33);
-    let (ws, hs) = (src.width(), src.height());
+    let source = Source::new(src);
     let mut written = 0u32;
     for y in s.y0..=s.y1 {
         // |m y| < 2^62 by the choice of F; the sums stay below 2^63.
@@ -397,15 +485,7 @@ fn warp_fixed(
             if wn > 0 {
                 let u = ((256 * xn + wn / 2).div_euclid(wn)).clamp(0, 256 * sw);
                 let v = ((256 * yn + wn / 2).div_euclid(wn)).clamp(0, 256 * sh);
-                let (ix, iy) = ((u >> 8) as usize, (v >> 8) as usize);
-                let (fx, fy) = ((u & 255) as u32, (v & 255) as u32);
-                let r0 = src.row(iy).unwrap_or(&[]);
-                let r1 = src.row((iy + 1).min(hs - 1)).unwrap_or(&[]);
-                let ix1 = (ix + 1).min(ws - 1);
-                let p = |r: &[u8], c: usize| u32::from(r.get(c).copied().unwrap_or(0));
-                let top = p(r0, ix) * (256 - fx) + p(r0, ix1) * fx;
-                let bot = p(r1, ix) * (256 - fx) + p(r1, ix1) * fx;
-                let val = ((top * (256 - fy) + bot * fy + (1 << 15)) >> 16) as u8;
+                let val = source.sample::<8>(source.cell::<8>(u as u32, v as u32));
                 if let Some(d) = row.get_mut(x as usize) {
                     *d = blend(val, *d, alpha);
                     written += 1;

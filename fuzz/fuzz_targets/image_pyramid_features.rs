@@ -1,14 +1,18 @@
 //! Image views of arbitrary geometry over buffers of arbitrary length, Gaussian pyramids into
-//! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch.
+//! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch, the
+//! view warped into a frame through an arbitrary quadrilateral in both arithmetics.
 //! Contract: no panic; a view exists only for a valid geometry; a pyramid's levels have the
-//! documented sizes; corners lie inside the image and respect the output capacity.
+//! documented sizes; corners lie inside the image and respect the output capacity; a warp
+//! writes at most the frame's pixels.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::corners::{Corner, CornerConfig, good_features};
 use camgeom::heapless::Vec;
-use camgeom::image::{ImageView, buffer_len};
+use camgeom::image::{ImageMut, ImageView, buffer_len};
+use camgeom::nalgebra::Point2;
 use camgeom::pyramid::{self, Pyramid};
+use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
 use libfuzzer_sys::fuzz_target;
 
 #[derive(Debug, Arbitrary)]
@@ -27,6 +31,8 @@ struct Input {
     scratch_slack: i16,
     existing: [(u8, u8); 3],
     seed: u32,
+    quad: [(f32, f32); 4],
+    alpha: u8,
 }
 
 fn grow(len: usize, slack: i16) -> usize {
@@ -106,6 +112,21 @@ fuzz_target!(|inp: Input| {
         }
         if cfg.max_corners > 0 {
             assert!(n <= cfg.max_corners);
+        }
+    }
+
+    let quad = inp.quad.map(|(x, y)| Point2::new(x, y));
+    for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+        let mut frame = [0u8; 64 * 48];
+        let Ok(mut dst) = ImageMut::packed(&mut frame[..], 64, 48) else {
+            return;
+        };
+        let cfg = WarpConfig {
+            alpha: inp.alpha,
+            arithmetic,
+        };
+        if let Ok(r) = warp_into_quad(&view, &mut dst, &quad, &cfg) {
+            assert!(r.written <= 64 * 48, "written beyond the frame");
         }
     }
 });
