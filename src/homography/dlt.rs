@@ -1,11 +1,11 @@
 //! The normalised direct linear transform (Hartley & Zisserman, algorithm 4.2), solved through
 //! the 3-column reduction of Harker & O'Leary (2005).
 
-use nalgebra::{Matrix3, Matrix3x2, Point2, SMatrix};
+use nalgebra::{Matrix3, Point2};
 
 use super::normalize::Normalization;
 use super::{Homography, above};
-use crate::linalg::{StreamingQr, svd_jacobi};
+use crate::linalg::{Reduced, StreamingQr, svd_jacobi};
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
@@ -118,53 +118,23 @@ where
         let [a, b, c] = [x.x, x.y, o];
         qr.push_row_weighted(&[a, b, c, u.x * a, u.x * b, u.x, u.y * a, u.y * b, u.y], w)?;
     }
-    let r = qr.r();
     let tol = rank_tolerance::<T>();
-    let r11: Matrix3<T> = r.fixed_view::<3, 3>(0, 0).into_owned();
-    let s11 = svd_jacobi(&r11)?.singular_values;
+    let red = Reduced::<T, 9, 3>::new(qr.r())?;
+    let s11 = svd_jacobi(&red.r11)?.singular_values;
     if !above(s11.z, tol * s11.x) {
         return Err(Error::Degenerate);
     }
-    let mut b = SMatrix::<T, 9, 3>::zeros();
-    b.fixed_view_mut::<3, 3>(0, 0)
-        .copy_from(&r.fixed_view::<3, 3>(3, 3));
-    b.fixed_view_mut::<3, 3>(3, 0)
-        .copy_from(&r.fixed_view::<3, 3>(3, 6));
-    b.fixed_view_mut::<3, 3>(6, 0)
-        .copy_from(&r.fixed_view::<3, 3>(6, 6));
-    let sb = svd_jacobi(&b)?;
-    if !above(sb.singular_values.y, tol * r.norm()) {
+    if !above(red.b.singular_values.y, tol * qr.r().norm()) {
         return Err(Error::Degenerate);
     }
-    let h3 = sb.null_vector();
-    let rhs = Matrix3x2::from_columns(&[
-        r.fixed_view::<3, 3>(0, 3) * h3,
-        r.fixed_view::<3, 3>(0, 6) * h3,
-    ]);
-    let h12 = solve_upper_3(&r11, &rhs);
-    let hn = Matrix3::from_rows(&[
-        h12.column(0).transpose(),
-        h12.column(1).transpose(),
-        h3.transpose(),
-    ]);
+    let h3 = red.r(0);
+    let (h1, h2) = red.lift(&h3);
+    let hn = Matrix3::from_rows(&[h1.transpose(), h2.transpose(), h3.transpose()]);
     let shn = svd_jacobi(&hn)?.singular_values;
     if !above(shn.z, tol * shn.x) {
         return Err(Error::Degenerate);
     }
     Homography::from_matrix(&(nd.inverse_matrix() * hn * ns.matrix()))
-}
-
-/// `R⁻¹ B` for an upper triangular `R` by back substitution. A zero on the diagonal gives
-/// non-finite entries, which [`Homography::from_matrix`] rejects; [`solve`] has already
-/// checked `R` is well conditioned.
-fn solve_upper_3<T: Real>(r: &Matrix3<T>, b: &Matrix3x2<T>) -> Matrix3x2<T> {
-    let mut x = *b;
-    for mut col in x.column_iter_mut() {
-        col.z /= r.m33;
-        col.y = (col.y - r.m23 * col.z) / r.m22;
-        col.x = (col.x - r.m12 * col.y - r.m13 * col.z) / r.m11;
-    }
-    x
 }
 
 #[cfg(test)]
@@ -249,7 +219,7 @@ mod tests {
     fn unit_norm_dlt(src: &[Point2<f64>], dst: &[Point2<f64>]) -> Matrix3<f64> {
         let ns = Normalization::from_points(src).unwrap();
         let nd = Normalization::from_points(dst).unwrap();
-        let mut ata = SMatrix::<f64, 9, 9>::zeros();
+        let mut ata = nalgebra::SMatrix::<f64, 9, 9>::zeros();
         for (s, d) in src.iter().zip(dst) {
             let (x, u) = (ns.apply(s), nd.apply(d));
             let r1 = nalgebra::SVector::<f64, 9>::from([

@@ -36,10 +36,12 @@
 pub mod lm;
 mod nullspace;
 mod qr;
+mod reduction;
 mod svd;
 
 pub(crate) use nullspace::null_space;
 pub use qr::StreamingQr;
+pub(crate) use reduction::Reduced;
 pub use svd::{MAX_SWEEPS, Svd, svd_jacobi};
 
 use nalgebra::{Matrix3, Rotation3, SMatrix, SVector, Vector3};

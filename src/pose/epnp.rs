@@ -5,8 +5,13 @@
 //! principal axes (`σₖ`, `vₖ` from the SVD of the centred points). The camera-frame control
 //! points `c'ⱼ` are then linear in the image: every normalised point `(uᵢ, vᵢ)` gives the two rows
 //! `Σⱼ αᵢⱼ [1 0 -uᵢ; 0 1 -vᵢ] c'ⱼ = 0` of a `2N x 12` system `M x = 0`. Its near-null space is
-//! spanned by the last right singular vectors `w₁..w₄` (rows streamed into a QR, SVD of the
-//! 12x12 `R`), `x = Σₖ βₖ wₖ`, and the `βₖ` follow from the six control-point distances,
+//! spanned by four vectors `w₁..w₄`, `x = Σₖ βₖ wₖ`. The two rows of a point share `αᵢ`
+//! (`αᵢ·x' = uᵢ αᵢ·z'` and `αᵢ·y' = vᵢ αᵢ·z'` over the control points' coordinates), so the
+//! system is solved by Harker and O'Leary's paired reduction (`crate::linalg`'s `Reduced`: one
+//! row `[αᵢ, uᵢ αᵢ, vᵢ αᵢ]` a point into a 12-column streaming QR, a 12x4 SVD for the `z'`,
+//! back substitution for `x'` and `y'`, each `wₖ` scaled to unit length) instead of the SVD of
+//! the 12x12 `R` of all `2N` rows; the exact null space is the same, and with noise the four
+//! vectors move by a second-order amount. The `βₖ` follow from the six control-point distances,
 //! `|c'ₐ - c'ᵦ|² = |cₐ - cᵦ|²`, linear in the products `βₖβₗ` (`L β̄ = ρ`, `L` 6x10). The cases
 //! `N = 2, 3, 4` (of the paper) are solved approximately, each polished by Gauss-Newton on the
 //! four `β`, and the candidate with the smallest reprojection error wins; the pose is the
@@ -20,7 +25,7 @@
 use nalgebra::{Matrix3, Point2, Point3, SMatrix, SVector, Vector3};
 
 use super::p3p::p3p;
-use crate::linalg::{StreamingQr, closest_rotation, column};
+use crate::linalg::{Reduced, StreamingQr, closest_rotation};
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::Pose;
 use crate::{Error, Result};
@@ -99,30 +104,47 @@ where
         _ => T::zero(),
     });
 
-    // M x = 0, x the 12 camera-frame control-point coordinates.
+    // M x = 0, x the 12 camera-frame control-point coordinates: for each point the pair
+    // `α·x = u α·z`, `α·y = v α·z` over the control points' x, y and z coordinates, solved by
+    // the paired reduction (one row `[α, u α, v α]` a point, a 12x4 SVD instead of 12x12).
     let mut m = StreamingQr::<T, 12>::new();
     for (x, u) in pairs() {
         let a = alphas(&x);
-        let mut r1 = [T::zero(); 12];
-        let mut r2 = [T::zero(); 12];
+        let mut row = [T::zero(); 12];
         for (j, aj) in a.iter().enumerate() {
-            for (k, v) in [(0, *aj), (2, -*aj * u.x)] {
-                if let Some(e) = r1.get_mut(3 * j + k) {
-                    *e = v;
-                }
-            }
-            for (k, v) in [(1, *aj), (2, -*aj * u.y)] {
-                if let Some(e) = r2.get_mut(3 * j + k) {
+            for (k, v) in [(0, *aj), (4, *aj * u.x), (8, *aj * u.y)] {
+                if let Some(e) = row.get_mut(k + j) {
                     *e = v;
                 }
             }
         }
-        m.push_row(&r1)?;
-        m.push_row(&r2)?;
+        m.push_row(&row)?;
     }
-    let svd = m.svd()?;
-    // w₁ = the null vector (smallest σ), w₂.. the next ones.
-    let w: [SVector<T, 12>; 4] = core::array::from_fn(|k| column(&svd.v, 11 - k));
+    let red = Reduced::<T, 12, 4>::new(m.r())?;
+    // w₁ = the null vector (smallest σ), w₂.. the next ones; each lifted to all 12
+    // coordinates (control point j at 3j..3j+3) and scaled to unit length.
+    let w: [SVector<T, 12>; 4] = core::array::from_fn(|k| {
+        let z = red.r(k);
+        let (px, py) = red.lift(&z);
+        // Filled in place: nalgebra's `from_fn` goes through an iterator whose length check
+        // the optimiser keeps (a panic path).
+        let mut v = SVector::<T, 12>::zeros();
+        for (i, e) in v.iter_mut().enumerate() {
+            let block = match i % 3 {
+                0 => &px,
+                1 => &py,
+                _ => &z,
+            };
+            *e = block.get(i / 3).copied().unwrap_or(T::zero());
+        }
+        let n = v.norm();
+        if n > T::zero() { v / n } else { v }
+    });
+    // `R₁₁` (the barycentric weights' block) is well conditioned for non-coplanar points
+    // (the principal-axis test above); a non-finite lift would mean it is not.
+    if !w.iter().all(|v| v.iter().all(|e| e.finite())) {
+        return Err(Error::Degenerate);
+    }
     // dₖ(a, b) = wₖ[a] - wₖ[b], the control-point differences of each basis vector.
     let diff = |k: usize, a: usize, b: usize| -> Vector3<T> {
         let wk = w.get(k).map_or_else(SVector::zeros, |v| *v);
