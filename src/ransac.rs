@@ -155,7 +155,8 @@ pub trait Estimator {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RansacConfig<T: Real = f32> {
-    /// Inlier threshold `t` on the residual (`r² < t²`), in data units (pixels), `> 0`.
+    /// Inlier threshold `t` on the residual (`r² < t²`), in data units (pixels), `> 0` with a
+    /// finite `t²`.
     pub threshold: T,
     /// Probability `p` of having drawn at least one all-inlier sample when the loop stops
     /// early, in `(0, 1]` (`1`: never stop early, run `max_iterations` samples).
@@ -197,7 +198,8 @@ impl<T: Real> RansacConfig<T> {
         let (zero, one) = (T::zero(), T::one());
         let checks = [
             (
-                self.threshold.finite() && self.threshold > zero,
+                // Its square is the bound residuals are compared with: it must be finite too.
+                (self.threshold * self.threshold).finite() && self.threshold > zero,
                 "ransac.threshold",
             ),
             (
@@ -742,6 +744,13 @@ mod tests {
             (
                 RansacConfig {
                     threshold: f64::NAN,
+                    ..ok
+                },
+                "ransac.threshold",
+            ),
+            (
+                RansacConfig {
+                    threshold: 1e160,
                     ..ok
                 },
                 "ransac.threshold",

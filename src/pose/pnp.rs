@@ -215,15 +215,15 @@ pub fn solve_pnp_ransac<T: Real>(
     }
     let est = PnpEstimator::new(camera, world, pixels, normalized)?;
     let (pose, report) = ransac(&est, config, mask)?;
-    let mut sum = T::zero();
+    // The mean of the inliers' squared errors, each divided first: every one is below the
+    // threshold's square (finite, `RansacConfig::check`), so the mean is too, where the sum of
+    // many could overflow.
+    let n = T::lit(report.inliers.max(1) as f64);
+    let mut mean = T::zero();
     for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
-        sum += est.residual_sq(&pose, i).unwrap_or_else(T::zero);
+        mean += est.residual_sq(&pose, i).unwrap_or_else(T::zero) / n;
     }
-    let rms_px = if report.inliers > 0 {
-        (sum / T::lit(report.inliers as f64)).sqrt()
-    } else {
-        T::zero()
-    };
+    let rms_px = mean.sqrt();
     Ok((PoseEstimate { pose, rms_px }, report))
 }
 

@@ -294,3 +294,42 @@ fn triangulation_with_a_depth_beyond_f32_is_an_error() {
         assert!(t.depth1.is_finite() && t.depth2.is_finite(), "{t:?}");
     }
 }
+
+/// A PnP RANSAC with a threshold whose square overflows `f32` (`1.09e24`) took every point as
+/// an inlier and came back `Ok` with an infinite RMS (the sum of the inliers' squared errors
+/// overflowed). The threshold is now a parameter error, and the RMS a mean of terms each
+/// below the threshold's square. (fuzz target `pose`, `solve_pnp_ransac`)
+#[test]
+fn a_ransac_threshold_whose_square_overflows_is_a_parameter_error() {
+    use camgeom::nalgebra::Point3;
+    use camgeom::pose::solve_pnp_ransac;
+    use camgeom::ransac::RansacConfig;
+    let cam = Camera::new(
+        Intrinsics::new(500.0f32, 500.0, 320.0, 240.0).unwrap(),
+        Default::default(),
+    );
+    let world: std::vec::Vec<Point3<f32>> = (0..8)
+        .map(|i| Point3::new((i % 3) as f32, (i / 3) as f32, 4.0 + (i % 2) as f32))
+        .collect();
+    let pixels: std::vec::Vec<Point2<f32>> = (0..8)
+        .map(|i| Point2::new(3e37 * i as f32, -3e37 * i as f32))
+        .collect();
+    let mut scratch = [Point2::origin(); 8];
+    let mut mask = [false; 8];
+    let cfg = RansacConfig {
+        threshold: 1.0927741e24f32,
+        ..RansacConfig::default()
+    };
+    assert_eq!(
+        solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &cfg, &mut mask).unwrap_err(),
+        Error::InvalidParameter("ransac.threshold")
+    );
+    // The largest threshold allowed, pixels far away: whatever comes back is finite.
+    let cfg = RansacConfig {
+        threshold: 1.8e19f32,
+        ..RansacConfig::default()
+    };
+    if let Ok((est, _)) = solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &cfg, &mut mask) {
+        assert!(est.rms_px.is_finite(), "{est:?}");
+    }
+}
