@@ -389,8 +389,9 @@ fn warp_float(
             continue;
         };
         for (k, chunk) in out.chunks_mut(FLOAT_CHUNK).enumerate() {
-            // The chunk's source coordinates in Q8, `256 X / W` rounded and clamped into the
-            // source, and whether `W > 0` (a pixel without is skipped).
+            // The chunk's cells from its source coordinates `2ᴮ X / W` (`B = FLOAT_BITS`),
+            // rounded and clamped into the source, and each `W` (a pixel with `W <= 0` is
+            // skipped).
             let x0 = (lo + k * FLOAT_CHUNK) as f32;
             let mut cells = [[0u32; 4]; FLOAT_CHUNK];
             let mut ws = [0.0f32; FLOAT_CHUNK];

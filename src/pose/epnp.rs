@@ -126,8 +126,7 @@ where
     let w: [SVector<T, 12>; 4] = core::array::from_fn(|k| {
         let z = red.r(k);
         let (px, py) = red.lift(&z);
-        // Filled in place: nalgebra's `from_fn` goes through an iterator whose length check
-        // the optimiser keeps (a panic path).
+        // Interleaved back: control point j's (x, y, z) at 3j, 3j + 1, 3j + 2.
         let mut v = SVector::<T, 12>::zeros();
         for (i, e) in v.iter_mut().enumerate() {
             let block = match i % 3 {
