@@ -50,6 +50,13 @@ pub(crate) fn reflect101(i: isize, n: usize) -> usize {
     if n <= 1 {
         return 0;
     }
+    // Within one image width of it, the period's fold without a division.
+    if i < 0 && -i < n {
+        return (-i) as usize;
+    }
+    if i >= n && i < 2 * n - 1 {
+        return (2 * n - 2 - i) as usize;
+    }
     let period = 2 * (n - 1);
     let mut r = i.rem_euclid(period);
     if r >= n {

@@ -1,55 +1,11 @@
 //! The Lucas-Kanade iteration of one point on one level, and the pyramid driver.
 
-use super::arith::{Bilinear, Coordinate, FlowArith, W_BITS};
-use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams, scratch_len};
-use crate::gradient::{reflect101, scharr_window};
+use super::arith::{Bilinear, Coordinate, FlowArith};
+use super::window::{LANES, Lanes, Packed, Window};
+use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::image::{ImageMut, ImageView};
 use crate::pyramid::Pyramid;
 use crate::{Error, Result};
-
-/// Shift from Q14-weighted pixels to the template's 1/32 grey levels.
-const PIX_SHIFT: u32 = W_BITS - 5;
-
-#[inline]
-fn descale(v: i32, n: u32) -> i32 {
-    (v + (1 << (n - 1))) >> n
-}
-
-/// Copies the `n x n` pixels at `(x0, y0)` of `img` into `out`, reflecting outside the image.
-fn fetch_patch(img: &ImageView<'_, u8>, x0: i32, y0: i32, n: usize, out: &mut [i16]) {
-    let (w, h) = (img.width() as i32, img.height() as i32);
-    let inside = x0 >= 0 && y0 >= 0 && x0 + n as i32 <= w && y0 + n as i32 <= h;
-    for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
-        let y = y0 as isize + j as isize;
-        let src = img.row_clamped(reflect101(y, img.height()) as isize);
-        if inside {
-            let seg = src.iter().skip(x0 as usize);
-            for (o, &p) in row.iter_mut().zip(seg) {
-                *o = i16::from(p);
-            }
-        } else {
-            for (i, o) in row.iter_mut().enumerate() {
-                let x = reflect101(x0 as isize + i as isize, img.width());
-                *o = i16::from(src.get(x).copied().unwrap_or(0));
-            }
-        }
-    }
-}
-
-/// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside.
-fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
-    for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
-        let y = y0 + j as i32;
-        let src = if y >= 0 { g.row(y as usize) } else { None };
-        for (i, o) in row.iter_mut().enumerate() {
-            let x = x0 + i as i32;
-            *o = match src {
-                Some(r) if x >= 0 => r.get(x as usize).copied().unwrap_or([0, 0]),
-                _ => [0, 0],
-            };
-        }
-    }
-}
 
 /// `true` when the window at integer corner `(x, y)` still touches the image (OpenCV's test).
 #[inline]
@@ -72,216 +28,10 @@ struct Level<'a, 'g, A: FlowArith> {
     params: A::Params,
 }
 
-/// The scratch split into its parts.
-struct Scratch<'s> {
-    gwin: &'s mut [[i16; 2]],
-    patch: &'s mut [i16],
-    /// The interpolated template: `[I, Ix, Iy]` a pixel, together so that the mismatch loop
-    /// reads one run of memory (and keeps one pointer live).
-    tmpl: &'s mut [[i16; 3]],
-}
-
-fn split_scratch(scratch: &mut [i16], win: usize) -> Result<Scratch<'_>> {
-    let n2 = (win + 1) * (win + 1);
-    let w2 = win * win;
-    let (g, rest) = scratch
-        .split_at_mut_checked(2 * n2)
-        .ok_or(Error::BufferTooSmall("scratch"))?;
-    let (patch, rest) = rest
-        .split_at_mut_checked(n2)
-        .ok_or(Error::BufferTooSmall("scratch"))?;
-    let t = rest
-        .get_mut(..3 * w2)
-        .ok_or(Error::BufferTooSmall("scratch"))?;
-    let (gwin, _) = g.as_chunks_mut::<2>();
-    let (tmpl, _) = t.as_chunks_mut::<3>();
-    Ok(Scratch { gwin, patch, tmpl })
-}
-
-/// The `n` rows of the `n x n` block at `(x0, y0)` of `img`, straight from the image, when
-/// the block lies inside it (then no copy into the scratch patch is needed).
-fn block_rows<'a>(
-    img: &ImageView<'a, u8>,
-    x0: i32,
-    y0: i32,
-    n: usize,
-) -> Option<impl Iterator<Item = &'a [u8]> + Clone> {
-    let (x0, y0) = (usize::try_from(x0).ok()?, usize::try_from(y0).ok()?);
-    if x0 + n > img.width() || y0 + n > img.height() {
-        return None;
-    }
-    let img = *img;
-    Some((y0..y0 + n).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + n)).unwrap_or(&[])))
-}
-
-/// The `n` rows of the `n x n` scratch patch (as `patch.chunks_exact(n)`, whose length the
-/// zips above would compute with a division the optimiser cannot prove non-zero).
-fn patch_rows(patch: &[i16], n: usize) -> impl Iterator<Item = &[i16]> + Clone {
-    (0..n).map(move |r| patch.get(r * n..(r + 1) * n).unwrap_or(&[]))
-}
-
-/// The four taps of `m` bilinear samples along two rows: `(r0[x], r0[x+1], r1[x], r1[x+1])`
-/// for `x < m`, as four slices of exactly `m` (empty when a row is shorter than `m + 1`).
-///
-/// Exact lengths let the zips below run on one index with no per-element length tests, so
-/// the loop bodies stay straight-line (the Cortex-M7 keeps the four weights and both sums in
-/// registers; with unequal lengths it predicated every instruction and spilled the weights).
-#[inline(always)]
-fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
-    match (r0.get(..m + 1), r1.get(..m + 1)) {
-        (Some(a), Some(b)) => [
-            a.get(..m).unwrap_or(&[]),
-            a.get(1..).unwrap_or(&[]),
-            b.get(..m).unwrap_or(&[]),
-            b.get(1..).unwrap_or(&[]),
-        ],
-        _ => [&[]; 4],
-    }
-}
-
-/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
-#[inline(always)]
-fn lerp<P: Copy + Into<i32>>(p00: P, p01: P, p10: P, p11: P, w: &[i32; 4]) -> i32 {
-    p00.into() * w[0] + p01.into() * w[1] + p10.into() * w[2] + p11.into() * w[3]
-}
-
-/// One row of [`mismatch`]: `Σ (J - I) Ix`, `Σ (J - I) Iy` over the template row `t`, `J`
-/// bilinear in rows `r0`, `r1`. Row sums in `i32` are exact: `|J - I| <= 255 · 32` and
-/// `|Ix| <= 16 · 255`, so a row of at most `MAX_WIN = 63` products is below
-/// `63 · 8160 · 4080 < 2³¹`. One loop (here, unlike [`template_row`], two passes through a
-/// row buffer measured 15 % slower on the Cortex-M7).
-#[inline(always)]
-fn mismatch_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], t: &[[i16; 3]], w: &[i32; 4]) -> [i32; 2] {
-    let [p00, p01, p10, p11] = taps(r0, r1, t.len());
-    let (mut s1, mut s2) = (0i32, 0i32);
-    for ((((&a, &b), &c), &d), &[iv, dx, dy]) in p00.iter().zip(p01).zip(p10).zip(p11).zip(t) {
-        let diff = descale(lerp(a, b, c, d, w), PIX_SHIFT) - i32::from(iv);
-        s1 = s1.wrapping_add(diff * i32::from(dx));
-        s2 = s2.wrapping_add(diff * i32::from(dy));
-    }
-    [s1, s2]
-}
-
-/// One row of [`mismatch`]'s `Σ |J - I|` (at most `63 · 8160 < 2³¹`).
-#[inline(always)]
-fn abs_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], t: &[[i16; 3]], w: &[i32; 4]) -> u32 {
-    let [p00, p01, p10, p11] = taps(r0, r1, t.len());
-    let mut s = 0u32;
-    for ((((&a, &b), &c), &d), &[iv, _, _]) in p00.iter().zip(p01).zip(p10).zip(p11).zip(t) {
-        let diff = descale(lerp(a, b, c, d, w), PIX_SHIFT) - i32::from(iv);
-        s = s.wrapping_add(diff.unsigned_abs());
-    }
-    s
-}
-
-/// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
-/// `win + 1` rows `rows` (image rows or the scratch patch).
-fn mismatch<'p, P: Copy + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
-    tmpl: &[[i16; 3]],
-    win: usize,
-    w: [i32; 4],
-    abs: bool,
-) -> (i64, i64) {
-    let (mut b1, mut b2) = (0i64, 0i64);
-    let pairs = rows.clone().zip(rows.skip(1));
-    for ((r0, r1), t) in pairs.zip(tmpl.chunks_exact(win.max(1))) {
-        if abs {
-            b1 += i64::from(abs_row(r0, r1, t, &w));
-        } else {
-            let [s1, s2] = mismatch_row(r0, r1, t, &w);
-            b1 += i64::from(s1);
-            b2 += i64::from(s2);
-        }
-    }
-    (b1, b2)
-}
-
-/// One row of [`template`]: the template and its derivatives at weights `w` into `out`;
-/// returns the row's `Σ Ix²`, `Σ Ix Iy`, `Σ Iy²` (exact in `i32`: `|Ix| <= 16 · 255`, so 63
-/// squares stay below 2³¹). Three passes, the pixels, `Ix`, then `Iy`: one loop over all
-/// three ran out of registers on the Cortex-M7 (about 60 instructions a pixel with the
-/// weights reloaded from the stack).
-#[inline(always)]
-fn template_row<P: Copy + Into<i32>>(
-    (r0, r1): (&[P], &[P]),
-    (g0, g1): (&[[i16; 2]], &[[i16; 2]]),
-    out: &mut [[i16; 3]],
-    w: &[i32; 4],
-) -> [i32; 3] {
-    let m = out.len();
-    let [p00, p01, p10, p11] = taps(r0, r1, m);
-    let px = p00.iter().zip(p01).zip(p10).zip(p11);
-    for ((((&a, &b), &c), &d), o) in px.zip(out.iter_mut()) {
-        o[0] = descale(lerp(a, b, c, d, w), PIX_SHIFT) as i16;
-    }
-    let [q00, q01, q10, q11] = taps(g0, g1, m);
-    let gr = || q00.iter().zip(q01).zip(q10).zip(q11);
-    let mut s11 = 0i32;
-    for ((((g00, g01), g10), g11), o) in gr().zip(out.iter_mut()) {
-        let ix = descale(lerp(g00[0], g01[0], g10[0], g11[0], w), W_BITS);
-        o[1] = ix as i16;
-        s11 = s11.wrapping_add(ix * ix);
-    }
-    let (mut s12, mut s22) = (0i32, 0i32);
-    for ((((g00, g01), g10), g11), o) in gr().zip(out.iter_mut()) {
-        let iy = descale(lerp(g00[1], g01[1], g10[1], g11[1], w), W_BITS);
-        o[2] = iy as i16;
-        s12 = s12.wrapping_add(i32::from(o[1]) * iy);
-        s22 = s22.wrapping_add(iy * iy);
-    }
-    [s11, s12, s22]
-}
-
-/// Interpolates the template (from the `win + 1` rows `rows` of `I`) and its derivatives
-/// (from `gwin`) at weights `w` into `tmpl`; returns `G`'s sums.
-fn template<'p, P: Copy + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
-    gwin: &[[i16; 2]],
-    tmpl: &mut [[i16; 3]],
-    win: usize,
-    w: [i32; 4],
-) -> (i64, i64, i64) {
-    let n = win + 1;
-    let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let grows = gwin.chunks_exact(n.max(1));
-    let pairs = rows
-        .clone()
-        .zip(rows.skip(1))
-        .zip(grows.clone().zip(grows.skip(1)));
-    for ((r, g), out) in pairs.zip(tmpl.chunks_exact_mut(win.max(1))) {
-        let [s11, s12, s22] = template_row(r, g, out, &w);
-        a11 += i64::from(s11);
-        a12 += i64::from(s12);
-        a22 += i64::from(s22);
-    }
-    (a11, a12, a22)
-}
-
-/// [`mismatch`] of the window of `J` at integer corner `(x, y)`: straight from the image
-/// when inside it, else through the reflected scratch patch.
-fn mismatch_at(
-    j: &ImageView<'_, u8>,
-    s: &mut Scratch<'_>,
-    (x, y): (i32, i32),
-    win: usize,
-    w: [i32; 4],
-    abs: bool,
-) -> (i64, i64) {
-    let n = win + 1;
-    match block_rows(j, x, y, n) {
-        Some(rows) => mismatch(rows, s.tmpl, win, w, abs),
-        None => {
-            fetch_patch(j, x, y, n, s.patch);
-            mismatch(patch_rows(s.patch, n), s.tmpl, win, w, abs)
-        }
-    }
-}
-
 /// One point on one level (OpenCV's `LKTrackerInvoker` body).
-fn track_point<A: FlowArith>(
+fn track_point<'s, A: FlowArith, W: Window<'s>>(
     lv: &Level<'_, '_, A>,
-    s: &mut Scratch<'_>,
+    s: &mut W,
     prev_pt: [A::Coord; 2],
     f: &mut Flow<A::Coord>,
 ) {
@@ -313,20 +63,7 @@ fn track_point<A: FlowArith>(
         }
         return;
     }
-    let n = win + 1;
-    match &lv.grad {
-        Some(g) => fetch_grad(g, bi.x, bi.y, n, s.gwin),
-        None => {
-            let _ = scharr_window(&lv.i, bi.x as isize, bi.y as isize, n, n, s.gwin);
-        }
-    }
-    let (a11, a12, a22) = match block_rows(&lv.i, bi.x, bi.y, n) {
-        Some(rows) => template(rows, s.gwin, s.tmpl, win, bi.w),
-        None => {
-            fetch_patch(&lv.i, bi.x, bi.y, n, s.patch);
-            template(patch_rows(s.patch, n), s.gwin, s.tmpl, win, bi.w)
-        }
-    };
+    let (a11, a12, a22) = s.template(&lv.i, lv.grad.as_ref(), &bi);
     let gram = match A::gram(a11, a12, a22, &lv.params) {
         Ok(g) => g,
         Err(status) => {
@@ -349,7 +86,7 @@ fn track_point<A: FlowArith>(
             }
             break;
         }
-        let (b1, b2) = mismatch_at(&lv.j, s, (bj.x, bj.y), win, bj.w, false);
+        let (b1, b2) = s.mismatch(&lv.j, &bj, false);
         let delta = A::step(&gram, b1, b2);
         next = [next[0] + delta[0], next[1] + delta[1]];
         f.x = next[0] + half;
@@ -373,7 +110,7 @@ fn track_point<A: FlowArith>(
             f.status = FlowStatus::OutOfBounds;
             return;
         }
-        let (sum, _) = mismatch_at(&lv.j, s, (bj.x, bj.y), win, bj.w, true);
+        let (sum, _) = s.mismatch(&lv.j, &bj, true);
         f.err = A::error(sum.unsigned_abs(), area);
     }
 }
@@ -393,20 +130,17 @@ fn usable_levels(prev: &Pyramid<'_>, next: &Pyramid<'_>, cfg: &LkConfig) -> usiz
 }
 
 /// The driver: every level from the coarsest down, every point on each level.
-fn run<A: FlowArith>(
+fn run<'s, A: FlowArith, W: Window<'s>>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     pts: impl Fn(usize) -> Option<[A::Coord; 2]>,
     flows: &mut [Flow<A::Coord>],
     params: &LkParams,
     grads: &mut Gradients<'_>,
-    scratch: &mut [i16],
+    scratch: &'s mut [i16],
 ) -> Result<()> {
     let cfg = params.config();
-    if scratch.len() < scratch_len(cfg.win) {
-        return Err(Error::BufferTooSmall("scratch"));
-    }
-    let mut s = split_scratch(scratch, cfg.win)?;
+    let mut s = W::new(scratch, cfg.win)?;
     let top = usable_levels(prev, next, cfg);
     let params = A::params(params, (cfg.win * cfg.win) as u32);
     for f in flows.iter_mut() {
@@ -456,6 +190,23 @@ fn run<A: FlowArith>(
     Ok(())
 }
 
+/// [`run`] with the kernel of this target ([`LANES`]).
+fn run_native<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    pts: impl Fn(usize) -> Option<[A::Coord; 2]>,
+    flows: &mut [Flow<A::Coord>],
+    params: &LkParams,
+    grads: &mut Gradients<'_>,
+    scratch: &mut [i16],
+) -> Result<()> {
+    if LANES {
+        run::<A, Lanes<'_>>(prev, next, pts, flows, params, grads, scratch)
+    } else {
+        run::<A, Packed<'_>>(prev, next, pts, flows, params, grads, scratch)
+    }
+}
+
 /// Tracks `prev_pts` from `prev` to `next` (OpenCV's `calcOpticalFlowPyrLK`).
 ///
 /// `flows[k]` receives the position of `prev_pts[k]` in `next` with its status and error
@@ -463,7 +214,7 @@ fn run<A: FlowArith>(
 /// full-resolution pixel coordinates, `(0, 0)` the centre of the top-left pixel.
 ///
 /// Errors: [`Error::LengthMismatch`] when the slices differ in length,
-/// [`Error::BufferTooSmall`] for scratch shorter than [`scratch_len`]`(win)` (or a
+/// [`Error::BufferTooSmall`] for scratch shorter than [`scratch_len`](super::scratch_len)`(win)` (or a
 /// [`Gradients::PerLevel`] buffer too short), [`Error::InvalidImage`] when the pyramids'
 /// levels differ in size. The configuration was checked once by [`LkConfig::check`].
 pub fn calc_flow<A: FlowArith>(
@@ -478,7 +229,7 @@ pub fn calc_flow<A: FlowArith>(
     if prev_pts.len() != flows.len() {
         return Err(Error::LengthMismatch);
     }
-    run::<A>(
+    run_native::<A>(
         prev,
         next,
         |k| prev_pts.get(k).copied(),
@@ -513,7 +264,7 @@ pub fn forward_backward<A: FlowArith>(
     let bcfg = cfg.with_initial_flow(false);
     {
         let fw: &[Flow<A::Coord>] = flows;
-        run::<A>(
+        run_native::<A>(
             next,
             prev,
             |k| fw.get(k).map(|f| [f.x, f.y]),
@@ -537,7 +288,7 @@ pub fn forward_backward<A: FlowArith>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Fixed, Q16};
+    use super::super::{Fixed, Q16, scratch_len};
     use super::*;
     use std::vec::Vec;
 
@@ -669,6 +420,144 @@ mod tests {
     /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,
     /// and skips only the final range check: a point whose last step leaves the image stays
     /// `Tracked` without it.
+    /// The two window kernels ([`super::super::window`]) compute the same integers: flows,
+    /// statuses and errors equal to the bit, for both arithmetics, both gradient sources, odd
+    /// and whole-vector windows, on a noisy texture with points inside, near and past every
+    /// border (the reflected-patch paths) and moved by up to a few pixels.
+    #[test]
+    fn both_window_kernels_agree_bit_for_bit() {
+        let (w, h) = (97, 61);
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let noise: Vec<i32> = (0..w * h).map(|_| (next() % 41) as i32 - 20).collect();
+        let textured = |dx: f64, dy: f64| -> Vec<u8> {
+            scene(w, h, dx, dy)
+                .iter()
+                .zip(&noise)
+                .map(|(&p, &n)| (i32::from(p) + n).clamp(0, 255) as u8)
+                .collect()
+        };
+        let (a, b) = (textured(0.0, 0.0), textured(2.3, -1.6));
+        let mut ba = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
+        let mut bb = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut ba, 2).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut bb, 2).unwrap();
+        let pts: Vec<[f32; 2]> = (0..120)
+            .map(|_| {
+                let mut u = |m: usize| (next() % (m as u64 * 64)) as f32 / 64.0 - 6.0;
+                [u(w + 12), u(h + 12)]
+            })
+            .collect();
+        // And points whose fractions are tiny, where the bilinear weight `w11` comes out as -1.
+        let mut pts = pts;
+        let tiny: Vec<[f32; 2]> = (1..400)
+            .flat_map(|a| (1..400).map(move |b| [a, b]))
+            .filter(|&[a, b]| {
+                let (x, y) = (
+                    Q16::from_bits(a + (40 << 16)),
+                    Q16::from_bits(b + (30 << 16)),
+                );
+                Fixed::bilinear(x, y).is_some_and(|w| w.w[3] < 0)
+            })
+            .take(20)
+            .map(|[a, b]| [40.0 + a as f32 / 65536.0, 30.0 + b as f32 / 65536.0])
+            .collect();
+        assert!(!tiny.is_empty());
+        pts.extend(tiny);
+        let qpts: Vec<[Q16; 2]> = pts
+            .iter()
+            .map(|p| p.map(Q16::saturating_from_f32))
+            .collect();
+        for win in [3, 8, 9, 16, 21] {
+            let cfg = LkConfig {
+                win,
+                max_level: 2,
+                ..LkConfig::default()
+            }
+            .check()
+            .unwrap();
+            let len =
+                super::super::packed::scratch_len(win).max(super::super::lanes::scratch_len(win));
+            let mut s = std::vec![0i16; len];
+            for per_level in [false, true] {
+                let mut g = std::vec![[0i16; 2]; w * h];
+                fn grads(g: &mut [[i16; 2]], per_level: bool) -> Gradients<'_> {
+                    match per_level {
+                        true => Gradients::PerLevel(g),
+                        false => Gradients::PerWindow,
+                    }
+                }
+                let f = |k: usize| pts.get(k).copied();
+                let mut f1 = std::vec![Flow::<f32>::default(); pts.len()];
+                let mut f2 = f1.clone();
+                run::<f32, Packed<'_>>(
+                    &pa,
+                    &pb,
+                    f,
+                    &mut f1,
+                    &cfg,
+                    &mut grads(&mut g, per_level),
+                    &mut s,
+                )
+                .unwrap();
+                run::<f32, Lanes<'_>>(
+                    &pa,
+                    &pb,
+                    f,
+                    &mut f2,
+                    &cfg,
+                    &mut grads(&mut g, per_level),
+                    &mut s,
+                )
+                .unwrap();
+                let bits = |v: &[Flow<f32>]| -> Vec<_> {
+                    v.iter()
+                        .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
+                        .collect()
+                };
+                assert_eq!(
+                    bits(&f1),
+                    bits(&f2),
+                    "f32, win {win}, per level {per_level}"
+                );
+                let tracked = f1
+                    .iter()
+                    .filter(|f| f.status == FlowStatus::Tracked)
+                    .count();
+                assert!(tracked > 40, "win {win}: only {tracked} tracked");
+                let f = |k: usize| qpts.get(k).copied();
+                let mut q1 = std::vec![Flow::<Q16>::default(); pts.len()];
+                let mut q2 = q1.clone();
+                run::<Fixed, Packed<'_>>(
+                    &pa,
+                    &pb,
+                    f,
+                    &mut q1,
+                    &cfg,
+                    &mut grads(&mut g, per_level),
+                    &mut s,
+                )
+                .unwrap();
+                run::<Fixed, Lanes<'_>>(
+                    &pa,
+                    &pb,
+                    f,
+                    &mut q2,
+                    &cfg,
+                    &mut grads(&mut g, per_level),
+                    &mut s,
+                )
+                .unwrap();
+                assert_eq!(q1, q2, "fixed, win {win}, per level {per_level}");
+            }
+        }
+    }
+
     #[test]
     fn without_the_error_pass_the_positions_are_the_same() {
         let (w, h) = (64, 48);

@@ -54,8 +54,11 @@
 use crate::{Error, Result};
 
 mod arith;
+mod lanes;
 mod lk;
+mod packed;
 mod tracker;
+mod window;
 
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
@@ -68,11 +71,13 @@ pub use tracker::{
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;
 
-/// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows:
-/// `3 (win + 1)² + 3 win²` (derivatives and pixels at integer positions, the interpolated
-/// template and its derivatives). 2 775 (5.4 KB) for 21x21.
+/// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows: the window's
+/// derivatives and pixels at integer positions, the interpolated template and its
+/// derivatives. On cores without vector units `3 (win + 1)² + 3 win²`, 2 775 (5.4 KB) for
+/// 21x21; on targets with 128-bit SIMD (x86-64, aarch64, ...) the rows are padded to a
+/// multiple of 8 lanes, `s = 8 ⌈win / 8⌉`: `3 (win + 1)(s + 1) + 3 win s`, 3 162 for 21x21.
 pub const fn scratch_len(win: usize) -> usize {
-    3 * (win + 1) * (win + 1) + 3 * win * win
+    window::native_scratch_len(win)
 }
 
 /// `[Ix, Iy]` elements a [`Gradients::PerLevel`] buffer needs for a `width x height` frame

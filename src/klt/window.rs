@@ -1,0 +1,193 @@
+//! The per-window work of one tracking step, in the shape that suits the target.
+//!
+//! Both kernels compute the same integers (tested to agree bit for bit): the template `I`, `Ix`,
+//! `Iy` bilinear at a window's weights with `G`'s sums, and the mismatch sums
+//! `Σ (J - I) [Ix Iy]` (or `Σ |J - I|`). They differ in memory layout only:
+//!
+//! - [`Packed`] (Cortex-M, RISC-V without vectors): the template interleaved `[I, Ix, Iy]` a
+//!   pixel, rows exactly `win` wide, so the mismatch loop keeps one template pointer, two image
+//!   rows, four weights and both sums in the thirteen registers of an M-class core.
+//! - [`Lanes`] (targets with 128-bit SIMD: SSE2, NEON, wasm `simd128`): the template and the
+//!   window derivatives in separate planes, rows padded to a multiple of eight lanes (`Ix`,
+//!   `Iy` zero in the padding, so it adds nothing to any sum), so every loop runs on whole
+//!   vectors of eight `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64).
+
+use super::arith::{Bilinear, W_BITS};
+use crate::Result;
+use crate::gradient::reflect101;
+use crate::image::ImageView;
+
+pub(super) use super::lanes::Lanes;
+pub(super) use super::packed::Packed;
+
+/// Whether this target runs [`Lanes`] (128-bit SIMD) rather than [`Packed`]. A constant: the
+/// other kernel is compiled out of every optimised build.
+pub(super) const LANES: bool = cfg!(any(
+    target_arch = "x86_64",
+    all(target_arch = "x86", target_feature = "sse2"),
+    target_arch = "aarch64",
+    all(target_arch = "arm", target_feature = "neon"),
+    all(target_arch = "wasm32", target_feature = "simd128"),
+));
+
+/// `i16` elements of scratch the target's kernel needs for `win x win` windows.
+pub(super) const fn native_scratch_len(win: usize) -> usize {
+    if LANES {
+        super::lanes::scratch_len(win)
+    } else {
+        super::packed::scratch_len(win)
+    }
+}
+
+/// The per-window kernel over its part of the caller's scratch.
+pub(super) trait Window<'s>: Sized {
+    /// Splits `scratch` for `win x win` windows ([`crate::Error::BufferTooSmall`] when short).
+    fn new(scratch: &'s mut [i16], win: usize) -> Result<Self>;
+    /// Interpolates the template at the window of `i` with integer corner `(b.x, b.y)` and
+    /// weights `b.w` (derivatives from `grad`, the level's, or by Scharr from `i`); returns
+    /// `G`'s sums `(Σ Ix², Σ Ix Iy, Σ Iy²)`.
+    fn template(
+        &mut self,
+        i: &ImageView<'_, u8>,
+        grad: Option<&ImageView<'_, [i16; 2]>>,
+        b: &Bilinear,
+    ) -> (i64, i64, i64);
+    /// `(Σ (J - I) Ix, Σ (J - I) Iy)` over the window of `j` at `b` against the template
+    /// (`(Σ |J - I|, 0)` when `abs`); `J` reflected outside the image.
+    fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64);
+}
+
+/// Shift from Q14-weighted pixels to the template's 1/32 grey levels.
+pub(super) const PIX_SHIFT: u32 = W_BITS - 5;
+
+/// `v / 2ⁿ` rounded half up.
+#[inline(always)]
+pub(super) fn descale(v: i32, n: u32) -> i32 {
+    (v + (1 << (n - 1))) >> n
+}
+
+/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
+#[inline(always)]
+pub(super) fn lerp<P: Copy + Into<i32>, W: Copy + Into<i32>>(
+    p00: P,
+    p01: P,
+    p10: P,
+    p11: P,
+    w: &[W; 4],
+) -> i32 {
+    p00.into() * w[0].into()
+        + p01.into() * w[1].into()
+        + p10.into() * w[2].into()
+        + p11.into() * w[3].into()
+}
+
+/// The four taps of `m` bilinear samples along two rows: `(r0[x], r0[x+1], r1[x], r1[x+1])`
+/// for `x < m`, as four slices of exactly `m` (empty when a row is shorter than `m + 1`).
+///
+/// Exact lengths let the zips below run on one index with no per-element length tests, so
+/// the loop bodies stay straight-line (the Cortex-M7 keeps the four weights and both sums in
+/// registers; with unequal lengths it predicated every instruction and spilled the weights).
+#[inline(always)]
+pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
+    match (r0.get(..m + 1), r1.get(..m + 1)) {
+        (Some(a), Some(b)) => [
+            a.get(..m).unwrap_or(&[]),
+            a.get(1..).unwrap_or(&[]),
+            b.get(..m).unwrap_or(&[]),
+            b.get(1..).unwrap_or(&[]),
+        ],
+        _ => [&[]; 4],
+    }
+}
+
+/// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
+/// outside the image. Each row's columns inside the image are one straight copy; only the
+/// columns left and right of it are reflected one by one.
+pub(super) fn fetch_patch(
+    img: &ImageView<'_, u8>,
+    (x0, y0): (i32, i32),
+    cols: usize,
+    rows: usize,
+    out: &mut [i16],
+) {
+    let w = img.width() as isize;
+    let x0 = x0 as isize;
+    // Columns `lo .. hi` of the patch lie inside the image.
+    let lo = (-x0).clamp(0, cols as isize) as usize;
+    let hi = (w - x0).clamp(lo as isize, cols as isize) as usize;
+    let inner = (x0 + lo as isize).max(0) as usize..(x0 + hi as isize).max(0) as usize;
+    for (j, row) in out.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
+        let y = y0 as isize + j as isize;
+        let src = img.row_clamped(reflect101(y, img.height()) as isize);
+        let (head, rest) = row.split_at_mut(lo.min(row.len()));
+        let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
+        for (o, &p) in mid.iter_mut().zip(src.get(inner.clone()).unwrap_or(&[])) {
+            *o = i16::from(p);
+        }
+        let outside = head
+            .iter_mut()
+            .enumerate()
+            .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
+        for (i, o) in outside {
+            let x = reflect101(x0 + i as isize, img.width());
+            *o = i16::from(src.get(x).copied().unwrap_or(0));
+        }
+    }
+}
+
+/// The `rows` rows, `cols` wide, of the block at `(x0, y0)` of `img`, straight from the image,
+/// when the block lies inside it (then no copy into a scratch patch is needed).
+pub(super) fn block_rows<'a>(
+    img: &ImageView<'a, u8>,
+    (x0, y0): (i32, i32),
+    cols: usize,
+    rows: usize,
+) -> Option<impl Iterator<Item = &'a [u8]> + Clone> {
+    let (x0, y0) = (usize::try_from(x0).ok()?, usize::try_from(y0).ok()?);
+    if x0 + cols > img.width() || y0 + rows > img.height() {
+        return None;
+    }
+    let img = *img;
+    Some((y0..y0 + rows).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + cols)).unwrap_or(&[])))
+}
+
+/// The `rows` rows, `cols` wide, of a row-major scratch block (as `chunks_exact(cols)`, whose
+/// length the zips of the kernels would compute with a division the optimiser cannot prove
+/// non-zero).
+pub(super) fn block_of(
+    buf: &[i16],
+    cols: usize,
+    rows: usize,
+) -> impl Iterator<Item = &[i16]> + Clone {
+    (0..rows).map(move |r| buf.get(r * cols..(r + 1) * cols).unwrap_or(&[]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every patch, inside, across each border and wholly outside, equals the per-pixel
+    /// reflection of its definition.
+    #[test]
+    fn patches_reflect_outside_the_image() {
+        let (w, h) = (13usize, 9usize);
+        let img: std::vec::Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
+        let view = ImageView::packed(&img, w, h).unwrap();
+        for (cols, rows) in [(1, 1), (4, 3), (10, 10), (25, 12)] {
+            for y0 in -14..12 {
+                for x0 in -30..16 {
+                    let mut got = std::vec![-1i16; cols * rows];
+                    fetch_patch(&view, (x0, y0), cols, rows, &mut got);
+                    for (k, &g) in got.iter().enumerate() {
+                        let (x, y) = (
+                            x0 as isize + (k % cols) as isize,
+                            y0 as isize + (k / cols) as isize,
+                        );
+                        let want = img[reflect101(y, h) * w + reflect101(x, w)];
+                        assert_eq!(g, i16::from(want), "{cols}x{rows} at ({x0}, {y0}), {k}");
+                    }
+                }
+            }
+        }
+    }
+}
