@@ -43,6 +43,10 @@ pub(super) struct Lanes<'s> {
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
     /// `win x s` each; `Ix` and `Iy` are zero beyond column `win`.
     tmpl: &'s mut [i16],
+    /// The integer corner of the window of `J` in `patch`, if it holds one: the iterations of
+    /// a point near the border move less than a pixel once they settle, and reuse it.
+    /// Cleared by [`Window::template`] (a new point or level, or `I` in the patch).
+    patch_at: Option<(i32, i32)>,
 }
 
 impl<'s> Window<'s> for Lanes<'s> {
@@ -61,6 +65,7 @@ impl<'s> Window<'s> for Lanes<'s> {
             gy,
             patch,
             tmpl,
+            patch_at: None,
         })
     }
 
@@ -74,19 +79,24 @@ impl<'s> Window<'s> for Lanes<'s> {
         match grad {
             Some(g) => fetch_grad(g, (b.x, b.y), c, n, self.gx, self.gy),
             None => {
-                // Scharr writes `[Ix, Iy]` pairs: into the template planes, free until the
-                // interpolation below (`2 (win + 1)(s + 1) <= 3 win s` for `win >= 3`), then
-                // split into the two planes.
+                // Scharr writes `[Ix, Iy]` pairs, `win + 1` a row (the padding columns only
+                // reach lanes that are zeroed after the interpolation): into the template
+                // planes, free until the interpolation below (`2 (win + 1)² <= 3 win s` for
+                // `win >= 3`), then split into the two planes.
                 let (pairs, _) = self.tmpl.as_chunks_mut::<2>();
-                if let Some(pairs) = pairs.get_mut(..n * c) {
-                    let _ = scharr_window(i, b.x as isize, b.y as isize, c, n, pairs);
-                    let planes = self.gx.iter_mut().zip(self.gy.iter_mut());
-                    for (&[dx, dy], (x, y)) in pairs.iter().zip(planes) {
-                        (*x, *y) = (dx, dy);
+                if let Some(pairs) = pairs.get_mut(..n * n) {
+                    let _ = scharr_window(i, b.x as isize, b.y as isize, n, n, pairs);
+                    let rows = pairs.chunks_exact(n);
+                    let planes = self.gx.chunks_exact_mut(c).zip(self.gy.chunks_exact_mut(c));
+                    for (row, (rx, ry)) in rows.zip(planes) {
+                        for (&[dx, dy], (x, y)) in row.iter().zip(rx.iter_mut().zip(ry)) {
+                            (*x, *y) = (dx, dy);
+                        }
                     }
                 }
             }
         }
+        self.patch_at = None;
         let w = weights(b);
         let (grads, tmpl) = ((&*self.gx, &*self.gy), &mut *self.tmpl);
         match block_rows(i, (b.x, b.y), c, n) {

@@ -101,8 +101,8 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 }
 
 /// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
-/// outside the image. Each row's columns inside the image are one straight copy; only the
-/// columns left and right of it are reflected one by one.
+/// outside the image. Each row's columns inside the image are one straight copy (eight at a
+/// time); the columns left and right of it read through a column map made once a call.
 pub(super) fn fetch_patch(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
@@ -110,18 +110,32 @@ pub(super) fn fetch_patch(
     rows: usize,
     out: &mut [i16],
 ) {
+    /// Columns the map covers: a patch is at most `MAX_WIN + 9` wide (the padded rows of the
+    /// vector kernel); wider ones reflect column by column.
+    const MAP: usize = 80;
     let w = img.width() as isize;
     let x0 = x0 as isize;
-    // Columns `lo .. hi` of the patch lie inside the image.
-    let lo = (-x0).clamp(0, cols as isize) as usize;
-    let hi = (w - x0).clamp(lo as isize, cols as isize) as usize;
+    // Columns `lo .. hi` of the patch lie inside the image (`max` then `min`: `clamp` asserts
+    // its bounds are in order, a panic path the optimiser cannot remove).
+    let lo = (-x0).max(0).min(cols as isize) as usize;
+    let hi = (w - x0).min(cols as isize).max(lo as isize) as usize;
     let inner = (x0 + lo as isize).max(0) as usize..(x0 + hi as isize).max(0) as usize;
+    let mut map = [0u16; MAP];
+    for (i, m) in map.iter_mut().enumerate().take(cols) {
+        *m = reflect101(x0 + i as isize, img.width()) as u16;
+    }
     for (j, row) in out.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
         let y = y0 as isize + j as isize;
         let src = img.row_clamped(reflect101(y, img.height()) as isize);
         let (head, rest) = row.split_at_mut(lo.min(row.len()));
         let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
-        for (o, &p) in mid.iter_mut().zip(src.get(inner.clone()).unwrap_or(&[])) {
+        let seg = src.get(inner.clone()).unwrap_or(&[]);
+        let (m8, mr) = mid.as_chunks_mut::<8>();
+        let (s8, sr) = seg.as_chunks::<8>();
+        for (o, p) in m8.iter_mut().zip(s8) {
+            *o = p.map(i16::from);
+        }
+        for (o, &p) in mr.iter_mut().zip(sr) {
             *o = i16::from(p);
         }
         let outside = head
@@ -129,7 +143,10 @@ pub(super) fn fetch_patch(
             .enumerate()
             .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
         for (i, o) in outside {
-            let x = reflect101(x0 + i as isize, img.width());
+            let x = match map.get(i) {
+                Some(&m) if cols <= MAP => usize::from(m),
+                _ => reflect101(x0 + i as isize, img.width()),
+            };
             *o = i16::from(src.get(x).copied().unwrap_or(0));
         }
     }
