@@ -30,15 +30,39 @@
 use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result};
 
-/// Source coordinate of destination index `i` in Q8 (`256 x_s`), clamped to `[0, n_s - 1]`.
-#[inline]
+/// Source coordinate of destination index `i` in Q8 (`256 x_s`), clamped to `[0, n_s - 1]`:
+/// `⌊(256 (2i + 1) n_s + n_d) / (2 n_d)⌋ - 128` (rounded `256 ((2i + 1) n_s / (2 n_d) - ½)`).
+#[cfg(test)]
 fn source_q8(i: usize, n_src: usize, n_dst: usize) -> u32 {
-    // 256 ((2i + 1) n_s / (2 n_d) - ½), all in u64: n <= MAX_DIM = 2^13.
+    // All in u64: n <= MAX_DIM = 2^13.
     let num = (2 * i as u64 + 1) * n_src as u64 * 256;
     let den = 2 * n_dst as u64;
     let v = (num + den / 2) / den;
     let v = v.saturating_sub(128);
     v.min((n_src as u64 - 1) * 256) as u32
+}
+
+/// The source coordinates of destination indices `0, 1, 2, ..` in Q8, as `source_q8` (tests)
+/// gives them, by one division and then a quotient and remainder carried from index to index:
+/// the numerator grows by `512 n_s` a step (a division per pixel is a library call on a
+/// Cortex-M).
+fn source_q8s(n_src: usize, n_dst: usize) -> impl Iterator<Item = u32> {
+    let (ns, den) = (n_src as u64, 2 * (n_dst as u64).max(1));
+    let step = 512 * ns;
+    let (dq, dr) = (step / den, step % den);
+    let start = 256 * ns + den / 2;
+    let (mut q, mut r) = (start / den, start % den);
+    let max = ns.saturating_sub(1) * 256;
+    core::iter::from_fn(move || {
+        let v = q.saturating_sub(128).min(max) as u32;
+        q += dq;
+        r += dr;
+        if r >= den {
+            r -= den;
+            q += 1;
+        }
+        Some(v)
+    })
 }
 
 /// Resizes `src` into `dst` (any sizes) by bilinear interpolation (module docs).
@@ -50,14 +74,12 @@ pub fn resize_bilinear(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> R
     if ws == 0 || hs == 0 {
         return Err(Error::InvalidImage);
     }
-    for y in 0..hd {
-        let sy = source_q8(y, hs, hd);
+    for (y, sy) in (0..hd).zip(source_q8s(hs, hd)) {
         let (y0, fy) = ((sy >> 8) as usize, sy & 255);
         let r0 = src.row(y0).unwrap_or(&[]);
         let r1 = src.row((y0 + 1).min(hs - 1)).unwrap_or(&[]);
         let Some(out) = dst.row_mut(y) else { break };
-        for (x, o) in out.iter_mut().enumerate() {
-            let sx = source_q8(x, ws, wd);
+        for (o, sx) in out.iter_mut().zip(source_q8s(ws, wd)) {
             let (x0, fx) = ((sx >> 8) as usize, sx & 255);
             let x1 = (x0 + 1).min(ws - 1);
             let p = |r: &[u8], c: usize| u32::from(r.get(c).copied().unwrap_or(0));
@@ -93,5 +115,25 @@ mod tests {
         let v = ImageView::packed(&one, 1, 1).unwrap();
         resize_bilinear(&v, &mut ImageMut::packed(&mut big, 4, 3).unwrap()).unwrap();
         assert!(big.iter().all(|&b| b == 77));
+    }
+
+    /// The carried quotients are the divisions of the definition, for every index of
+    /// reductions, enlargements and the ORB pyramid's 1/1.2 steps.
+    #[test]
+    fn carried_coordinates_are_the_divisions() {
+        let sizes = [1usize, 2, 3, 5, 7, 64, 100, 533, 640, 1000, 8191];
+        for &ns in &sizes {
+            for &nd in &sizes.map(|n| n.max(1)) {
+                let got: std::vec::Vec<u32> = source_q8s(ns, nd).take(nd).collect();
+                let want: std::vec::Vec<u32> = (0..nd).map(|i| source_q8(i, ns, nd)).collect();
+                assert_eq!(got, want, "{ns} -> {nd}");
+            }
+        }
+        for ns in [640usize, 533, 444, 370] {
+            let nd = (ns as f64 / 1.2).round() as usize;
+            let got: std::vec::Vec<u32> = source_q8s(ns, nd).take(nd).collect();
+            let want: std::vec::Vec<u32> = (0..nd).map(|i| source_q8(i, ns, nd)).collect();
+            assert_eq!(got, want, "{ns} -> {nd}");
+        }
     }
 }
