@@ -15,9 +15,10 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::hypot;
+use super::reduction::{solve_lower_transposed, solve_upper};
 use super::svd::{Svd, svd_jacobi};
 use crate::Result;
-use crate::scalar::{Real, check_finite};
+use crate::scalar::{Real, above, check_finite};
 
 /// The upper-triangular `R` (`C x C`) of all rows pushed so far, `RᵀR = AᵀA`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,6 +143,103 @@ impl<T: Real, const C: usize> StreamingQr<T, C> {
     }
 }
 
+/// Bound on the inverse iterations of [`StreamingQr::null_vector_of_rank`] (each halves the
+/// error at least when `σ_C < 0.7 σ_{C-1}`; slower problems take the SVD).
+const MAX_INVERSE_ITERATIONS: usize = 40;
+
+impl<T: Real, const C: usize> StreamingQr<T, C> {
+    /// The least-squares null vector of the rows pushed (the unit `x` minimising `|A x|`, as
+    /// [`Self::null_vector`]) when they have rank at least `C - 1`, else
+    /// [`crate::Error::Degenerate`]: `σ_{C-1} ≤ tol |R|_F` (at most `√C` times stricter than
+    /// the `σ_{C-1} ≤ tol σ₁` of a full SVD) or `R = 0`. [`crate::Error::NonFinite`] for a
+    /// non-finite `R`.
+    ///
+    /// By inverse iteration on `RᵀR = AᵀA` without forming it: each step solves `Rᵀ y = x`
+    /// and `R z = y` (two triangular solves, `C²` products) and normalises, so the error
+    /// shrinks by `(σ_C / σ_{C-1})²` a step; then the same, kept orthogonal to the null vector,
+    /// bounds `σ_{C-1}` from above (`min |R x|` over `x ⊥ v` is `σ_{C-1}`), enough for the
+    /// rank test. A fraction of the Jacobi SVD's cost; problems it does not settle in 40
+    /// steps (close `σ_C`, `σ_{C-1}`, or a zero on `R`'s diagonal) take the SVD.
+    pub fn null_vector_of_rank(&self, tol: T) -> Result<SVector<T, C>> {
+        const { assert!(C > 1, "a rank test needs two columns") };
+        check_finite(self.r.as_slice())?;
+        let norm = self.r.norm();
+        if norm == T::zero() {
+            return Err(crate::Error::Degenerate);
+        }
+        let settled = T::EPSILON * T::lit(8.0);
+        let diagonal_ok = (0..C).all(|k| {
+            self.r
+                .get((k, k))
+                .is_some_and(|d| above(d.abs(), T::EPSILON * norm))
+        });
+        let inverse = |x: &SVector<T, C>| solve_upper(&self.r, solve_lower_transposed(&self.r, *x));
+        if diagonal_ok {
+            let mut v = SVector::<T, C>::zeros();
+            if let Some(last) = v.get_mut(C - 1) {
+                *last = T::one();
+            }
+            let mut found = false;
+            for _ in 0..MAX_INVERSE_ITERATIONS {
+                let z = inverse(&v);
+                let n = z.norm();
+                if !above(n, T::zero()) || !n.finite() {
+                    break;
+                }
+                let next = z / n;
+                let change = (next - v).amax();
+                v = next;
+                if !above(change, settled) {
+                    found = true;
+                    break;
+                }
+            }
+            if found {
+                // σ_{C-1}: a start orthogonal to v, then deflated inverse iteration.
+                let mut u = SVector::<T, C>::zeros();
+                let k = v.iamin();
+                if let Some(e) = u.get_mut(k) {
+                    *e = T::one();
+                }
+                let mut bound = None;
+                for _ in 0..MAX_INVERSE_ITERATIONS {
+                    u -= v * v.dot(&u);
+                    let n = u.norm();
+                    if !above(n, T::zero()) || !n.finite() {
+                        break;
+                    }
+                    u /= n;
+                    let s = (self.r * u).norm();
+                    let z = inverse(&u);
+                    let settled_s =
+                        bound.is_some_and(|b: T| !above((b - s).abs(), T::lit(1e-3) * s));
+                    bound = Some(s);
+                    if settled_s || !above(s, tol * norm) {
+                        break;
+                    }
+                    u = z;
+                }
+                return match bound {
+                    Some(s) if above(s, tol * norm) => Ok(v),
+                    Some(_) => Err(crate::Error::Degenerate),
+                    None => self.null_vector_by_svd(tol),
+                };
+            }
+        }
+        self.null_vector_by_svd(tol)
+    }
+
+    /// [`Self::null_vector_of_rank`] by the Jacobi SVD of `R`.
+    fn null_vector_by_svd(&self, tol: T) -> Result<SVector<T, C>> {
+        let svd = self.svd()?;
+        let s = svd.singular_values.as_slice();
+        match (s.first(), s.get(C - 2)) {
+            (Some(&s1), Some(&s2)) if above(s2, tol * s1) => Ok(svd.null_vector()),
+            _ => Err(crate::Error::Degenerate),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -239,6 +337,59 @@ mod tests {
         a.absorb(&b).unwrap();
         assert_eq!(a.rows(), 13);
         assert!((a.gram() - all.gram()).amax() < 1e-12);
+    }
+
+    /// The inverse iteration's null vector is the SVD's (to the angle rounding allows,
+    /// `1e-12` in `f64`, `1e-4` in `f32` for these well separated `σ`s) on tall random
+    /// matrices from well conditioned to nearly rank `C - 1`, and both call the same problems
+    /// degenerate (rank `C - 2`, a zero matrix).
+    #[test]
+    fn inverse_iteration_null_vector_is_the_svds() {
+        let mut g = Pcg32::new(11);
+        for trial in 0..300 {
+            // Rows near a random hyperplane: σ₉ set by the noise, 1e-9 .. 1e-1.
+            let normal = SVector::<f64, 9>::from_fn(|_, _| g.uniform(-1.0, 1.0)).normalize();
+            let noise = 10f64.powf(g.uniform(-9.0, -1.0));
+            let mut qr = StreamingQr::<f64, 9>::new();
+            let mut qr32 = StreamingQr::<f32, 9>::new();
+            for _ in 0..(9 + trial % 60) {
+                let mut row = SVector::<f64, 9>::from_fn(|_, _| g.uniform(-1.0, 1.0));
+                row -= normal * normal.dot(&row);
+                row += normal * g.uniform(-noise, noise);
+                let r: [f64; 9] = row.into();
+                qr.push_row(&r).unwrap();
+                qr32.push_row(&r.map(|v| v as f32)).unwrap();
+            }
+            let tol = 1.5e-8;
+            let (want, _) = qr.null_vector().unwrap();
+            let got = qr.null_vector_of_rank(tol).unwrap();
+            let angle = (want - got).amax().min((want + got).amax());
+            assert!(angle < 1e-12, "trial {trial}: {angle:e}, noise {noise:e}");
+            if noise > 1e-3 {
+                let (want32, _) = qr32.null_vector().unwrap();
+                let got32 = qr32.null_vector_of_rank(3.5e-4).unwrap();
+                let angle = (want32 - got32).amax().min((want32 + got32).amax());
+                assert!(
+                    angle < 1e-4,
+                    "f32 trial {trial}: {angle:e}, noise {noise:e}"
+                );
+            }
+        }
+        // Rank 7 of 9 (two null directions): degenerate by either route.
+        let mut qr = StreamingQr::<f64, 9>::new();
+        for _ in 0..30 {
+            let mut row = [0.0; 9];
+            for v in row.iter_mut().take(7) {
+                *v = g.uniform(-1.0, 1.0);
+            }
+            qr.push_row(&row).unwrap();
+        }
+        assert_eq!(qr.null_vector_of_rank(1.5e-8), Err(Error::Degenerate));
+        assert_eq!(qr.null_vector_by_svd(1.5e-8), Err(Error::Degenerate));
+        assert_eq!(
+            StreamingQr::<f64, 9>::new().null_vector_of_rank(1.5e-8),
+            Err(Error::Degenerate)
+        );
     }
 
     #[test]

@@ -79,9 +79,29 @@ impl<T: Real, const C: usize, const K: usize> Reduced<T, C, K> {
     }
 }
 
+/// `U⁻ᵀ b` for an upper triangular `U` by forward substitution on `Uᵀ` (`b` overwritten in
+/// place). A zero on the diagonal gives non-finite entries.
+pub(crate) fn solve_lower_transposed<T: Real, const K: usize>(
+    u: &SMatrix<T, K, K>,
+    mut b: SVector<T, K>,
+) -> SVector<T, K> {
+    for i in 0..K {
+        let mut s = b.get(i).copied().unwrap_or(T::zero());
+        for j in 0..i {
+            if let (Some(uji), Some(bj)) = (u.get((j, i)), b.get(j)) {
+                s -= *uji * *bj;
+            }
+        }
+        if let (Some(bi), Some(uii)) = (b.get_mut(i), u.get((i, i))) {
+            *bi = s / *uii;
+        }
+    }
+    b
+}
+
 /// `U⁻¹ b` for an upper triangular `U` by back substitution (`b` overwritten in place). A zero
 /// on the diagonal gives non-finite entries.
-fn solve_upper<T: Real, const K: usize>(
+pub(crate) fn solve_upper<T: Real, const K: usize>(
     u: &SMatrix<T, K, K>,
     mut b: SVector<T, K>,
 ) -> SVector<T, K> {

@@ -9,7 +9,7 @@ use super::refine::refine_fundamental_iter;
 use crate::homography::{Normalization, rank_tolerance};
 use crate::linalg::{StreamingQr, null_space};
 use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
-use crate::scalar::{Real, above, check_finite};
+use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
 /// Most fundamental matrices [`seven_point`] returns (the real roots of a cubic).
@@ -124,15 +124,8 @@ where
     for (a, b) in pairs {
         qr.push_row(&epipolar_row(&n1.apply(&a), &n2.apply(&b)))?;
     }
-    let svd = qr.svd()?;
-    let sv = svd.singular_values.as_slice();
-    let (Some(&s1), Some(&s8)) = (sv.first(), sv.get(7)) else {
-        return Err(Error::Degenerate);
-    };
-    if !above(s8, rank_tolerance::<T>() * s1) {
-        return Err(Error::Degenerate);
-    }
-    let fhat = Fundamental::from_matrix(&unvec(&svd.null_vector()))?;
+    let f = qr.null_vector_of_rank(rank_tolerance::<T>())?;
+    let fhat = Fundamental::from_matrix(&unvec(&f))?;
     denormalize(&fhat, &n1, &n2)
 }
 
