@@ -21,6 +21,10 @@ pub(super) struct Packed<'s> {
     /// The interpolated template: `[I, Ix, Iy]` a pixel, together so that the mismatch loop
     /// reads one run of memory (and keeps one pointer live).
     tmpl: &'s mut [[i16; 3]],
+    /// The integer corner of the window of `J` in `patch`, if it holds one: the iterations of
+    /// a point near the border move less than a pixel once they settle, and reuse it.
+    /// Cleared by [`Window::template`] (a new point or level, or `I` in the patch).
+    patch_at: Option<(i32, i32)>,
 }
 
 impl<'s> Window<'s> for Packed<'s> {
@@ -43,6 +47,7 @@ impl<'s> Window<'s> for Packed<'s> {
             gwin,
             patch,
             tmpl,
+            patch_at: None,
         })
     }
 
@@ -59,6 +64,7 @@ impl<'s> Window<'s> for Packed<'s> {
                 let _ = scharr_window(i, b.x as isize, b.y as isize, n, n, self.gwin);
             }
         }
+        self.patch_at = None;
         match block_rows(i, (b.x, b.y), n, n) {
             Some(rows) => template(rows, self.gwin, self.tmpl, win, b.w),
             None => {
@@ -73,7 +79,10 @@ impl<'s> Window<'s> for Packed<'s> {
         match block_rows(j, (b.x, b.y), n, n) {
             Some(rows) => mismatch(rows, self.tmpl, win, b.w, abs),
             None => {
-                fetch_patch(j, (b.x, b.y), n, n, self.patch);
+                if self.patch_at != Some((b.x, b.y)) {
+                    fetch_patch(j, (b.x, b.y), n, n, self.patch);
+                    self.patch_at = Some((b.x, b.y));
+                }
                 mismatch(block_of(self.patch, n, n), self.tmpl, win, b.w, abs)
             }
         }
