@@ -3,11 +3,13 @@
 //!
 //! - the normalised 8-point algorithm on [`EIGHT_N`] pairs,
 //! - the 7-point solver (a loop of [`MINIMAL_REPS`] samples),
-//! - the 5-point solver (the same loop; it computes in f64 inside, which the M7's
-//!   single-precision FPU runs in software),
+//! - the 5-point solver (the same loop; native `f32`),
 //! - F-RANSAC and E-RANSAC on [`RANSAC_N`] pairs (50 % outliers), each configured to draw
 //!   exactly [`F_ITERATIONS`] / [`E_ITERATIONS`] samples (confidence 1): enough for a 99 %
 //!   chance of an all-inlier sample (`1 - (1 - 0.5⁷)⁶⁰⁰`, `1 - (1 - 0.5⁵)¹⁵⁰`),
+//! - E-RANSAC as an application runs it: [`E_ADAPTIVE_N`] pairs, 50 % outliers, 1 px,
+//!   confidence 0.999, the sample count adapted to the inlier ratio found (the cost the
+//!   board goal "under 50M instructions" is about),
 //! - `recover_pose` and optimal triangulation of [`POSE_N`] pairs,
 //!
 //! on a synthetic scene (camera `f = 600`, `c = (320, 240)`, depths 4..8, a sideways baseline
@@ -40,6 +42,7 @@ const RANSAC_N: usize = 100;
 const RANSAC_OUTLIERS: usize = 50;
 const F_ITERATIONS: u32 = 600;
 const E_ITERATIONS: u32 = 150;
+const E_ADAPTIVE_N: usize = 200;
 const POSE_N: usize = 50;
 const NOISE: f64 = 0.5;
 
@@ -109,7 +112,7 @@ fn libm_acos_deg(c: f64) -> f32 {
 #[entry]
 fn main() -> ! {
     cost::start();
-    let mut costs = CostTable::<8>::new();
+    let mut costs = CostTable::<9>::new();
     let mut g = Pcg32::new(0x5456_4657_4245_4e43);
     let k64 = match Intrinsics::new(600.0, 600.0, 320.0, 240.0) {
         Ok(k) => k,
@@ -229,6 +232,32 @@ fn main() -> ! {
         Err(e) => fail("find_essential", e),
     };
 
+    // ---- E-RANSAC with the sample count adapted, 200 pairs ----
+    let (ea, mut eb) = pairs::<E_ADAPTIVE_N>(&mut g, &k64, NOISE);
+    for q in eb.iter_mut().step_by(2) {
+        *q = Point2::new(g.uniform(0.0, 640.0), g.uniform(0.0, 480.0)).cast();
+    }
+    let (ea, eb) = black_box((ea, eb));
+    let acfg = black_box(RansacConfig::<f32> {
+        threshold: 1.0,
+        confidence: 0.999,
+        ..RansacConfig::default()
+    });
+    let mut amask = [false; E_ADAPTIVE_N];
+    let (ar, a_cost) = measure(|| find_essential(&k, &k, &ea, &eb, &acfg, &mut amask));
+    match ar {
+        Ok((_, rep)) => {
+            costs.record("e_ransac_200_adaptive", a_cost, rep.iterations.max(1));
+            defmt::info!(
+                "e_ransac_200_adaptive: {=usize} inliers, {=u32} samples",
+                rep.inliers,
+                rep.iterations
+            );
+            check(rep.inliers >= 90, "adaptive E-RANSAC finds the inliers");
+        }
+        Err(e) => fail("find_essential (adaptive)", e),
+    }
+
     // ---- recover_pose and triangulation ----
     let mut pmask = [true; POSE_N];
     let (rp, pose_cost) = measure(|| recover_pose(&e, &k, &k, &pa, &pb, 50.0, &mut pmask));
@@ -262,12 +291,13 @@ fn main() -> ! {
     let (stack, stack_size) = board::stack_usage();
     defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
     defmt::info!(
-        "twoview bench: eight_point_64 {=u32}, seven_point {=u32}, five_point {=u32}, f_ransac_100_600it {=u32}, e_ransac_100_150it {=u32}, recover_pose_50 {=u32}, triangulate_optimal_50 {=u32} instructions",
+        "twoview bench: eight_point_64 {=u32}, seven_point {=u32}, five_point {=u32}, f_ransac_100_600it {=u32}, e_ransac_100_150it {=u32}, e_ransac_200_adaptive {=u32}, recover_pose_50 {=u32}, triangulate_optimal_50 {=u32} instructions",
         eight_cost,
         seven_cost / MINIMAL_REPS as u32,
         five_cost / MINIMAL_REPS as u32,
         f_cost,
         e_cost,
+        a_cost,
         pose_cost,
         tri_cost
     );
