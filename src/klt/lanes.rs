@@ -7,7 +7,9 @@
 //! only the `win` real columns.
 
 use super::arith::{Bilinear, W_BITS};
-use super::window::{PIX_SHIFT, Window, block_of, block_rows, descale, fetch_patch, lerp, taps};
+use super::window::{
+    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, lerp, taps,
+};
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
 use crate::{Error, Result};
@@ -43,9 +45,8 @@ pub(super) struct Lanes<'s> {
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
     /// `win x s` each; `Ix` and `Iy` are zero beyond column `win`.
     tmpl: &'s mut [i16],
-    /// The integer corner of the window of `J` in `patch`, if it holds one: the iterations of
-    /// a point near the border move less than a pixel once they settle, and reuse it.
-    /// Cleared by [`Window::template`] (a new point or level, or `I` in the patch).
+    /// The integer corner of the window of `J` in `patch`, if it holds one
+    /// ([`cached_patch`]); cleared by [`Window::template`].
     patch_at: Option<(i32, i32)>,
 }
 
@@ -114,15 +115,9 @@ impl<'s> Window<'s> for Lanes<'s> {
         match block_rows(j, (b.x, b.y), c, n) {
             Some(rows) => mismatch(rows, self.tmpl, self.win, self.s, w, abs),
             None => {
-                fetch_patch(j, (b.x, b.y), c, n, self.patch);
-                mismatch(
-                    block_of(self.patch, c, n),
-                    self.tmpl,
-                    self.win,
-                    self.s,
-                    w,
-                    abs,
-                )
+                let at = (b.x, b.y);
+                let patch = cached_patch(j, at, (c, n), self.patch, &mut self.patch_at);
+                mismatch(block_of(patch, c, n), self.tmpl, self.win, self.s, w, abs)
             }
         }
     }

@@ -2,7 +2,9 @@
 //! interleaved `[I, Ix, Iy]` a pixel, rows exactly `win` wide.
 
 use super::arith::{Bilinear, W_BITS};
-use super::window::{PIX_SHIFT, Window, block_of, block_rows, descale, fetch_patch, lerp, taps};
+use super::window::{
+    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, lerp, taps,
+};
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
 use crate::{Error, Result};
@@ -21,9 +23,8 @@ pub(super) struct Packed<'s> {
     /// The interpolated template: `[I, Ix, Iy]` a pixel, together so that the mismatch loop
     /// reads one run of memory (and keeps one pointer live).
     tmpl: &'s mut [[i16; 3]],
-    /// The integer corner of the window of `J` in `patch`, if it holds one: the iterations of
-    /// a point near the border move less than a pixel once they settle, and reuse it.
-    /// Cleared by [`Window::template`] (a new point or level, or `I` in the patch).
+    /// The integer corner of the window of `J` in `patch`, if it holds one
+    /// ([`cached_patch`]); cleared by [`Window::template`].
     patch_at: Option<(i32, i32)>,
 }
 
@@ -79,11 +80,9 @@ impl<'s> Window<'s> for Packed<'s> {
         match block_rows(j, (b.x, b.y), n, n) {
             Some(rows) => mismatch(rows, self.tmpl, win, b.w, abs),
             None => {
-                if self.patch_at != Some((b.x, b.y)) {
-                    fetch_patch(j, (b.x, b.y), n, n, self.patch);
-                    self.patch_at = Some((b.x, b.y));
-                }
-                mismatch(block_of(self.patch, n, n), self.tmpl, win, b.w, abs)
+                let at = (b.x, b.y);
+                let patch = cached_patch(j, at, (n, n), self.patch, &mut self.patch_at);
+                mismatch(block_of(patch, n, n), self.tmpl, win, b.w, abs)
             }
         }
     }

@@ -168,6 +168,24 @@ pub(super) fn block_rows<'a>(
     Some((y0..y0 + rows).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + cols)).unwrap_or(&[])))
 }
 
+/// The `cols x rows` block of `j` at the integer corner `at`, reflected into `patch`
+/// ([`fetch_patch`]) unless `patch_at` says it already holds that corner: the iterations of
+/// a point near the border move less than a pixel once they settle, and reuse the copy. A
+/// kernel clears `patch_at` whenever `patch` gets anything else (a template's `I`).
+pub(super) fn cached_patch<'p>(
+    j: &ImageView<'_, u8>,
+    at: (i32, i32),
+    (cols, rows): (usize, usize),
+    patch: &'p mut [i16],
+    patch_at: &mut Option<(i32, i32)>,
+) -> &'p [i16] {
+    if *patch_at != Some(at) {
+        fetch_patch(j, at, cols, rows, patch);
+        *patch_at = Some(at);
+    }
+    patch
+}
+
 /// The `rows` rows, `cols` wide, of a row-major scratch block (as `chunks_exact(cols)`, whose
 /// length the zips of the kernels would compute with a division the optimiser cannot prove
 /// non-zero).
