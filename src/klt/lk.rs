@@ -420,6 +420,31 @@ mod tests {
     /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,
     /// and skips only the final range check: a point whose last step leaves the image stays
     /// `Tracked` without it.
+    /// `prev_pts` tracked by [`Packed`] and by [`Lanes`] (per-window or per-level gradients).
+    #[allow(clippy::type_complexity)]
+    fn both_kernels<A: FlowArith>(
+        pa: &Pyramid<'_>,
+        pb: &Pyramid<'_>,
+        prev_pts: &[[A::Coord; 2]],
+        cfg: &LkParams,
+        per_level: bool,
+        g: &mut [[i16; 2]],
+        s: &mut [i16],
+    ) -> (Vec<Flow<A::Coord>>, Vec<Flow<A::Coord>>) {
+        fn grads(g: &mut [[i16; 2]], per_level: bool) -> Gradients<'_> {
+            match per_level {
+                true => Gradients::PerLevel(g),
+                false => Gradients::PerWindow,
+            }
+        }
+        let pts = |k: usize| prev_pts.get(k).copied();
+        let mut f1 = std::vec![Flow::<A::Coord>::default(); prev_pts.len()];
+        let mut f2 = f1.clone();
+        run::<A, Packed<'_>>(pa, pb, pts, &mut f1, cfg, &mut grads(g, per_level), s).unwrap();
+        run::<A, Lanes<'_>>(pa, pb, pts, &mut f2, cfg, &mut grads(g, per_level), s).unwrap();
+        (f1, f2)
+    }
+
     /// The two window kernels ([`super::super::window`]) compute the same integers: flows,
     /// statuses and errors equal to the bit, for both arithmetics, both gradient sources, odd
     /// and whole-vector windows, on a noisy texture with points inside, near and past every
@@ -484,37 +509,9 @@ mod tests {
             let len =
                 super::super::packed::scratch_len(win).max(super::super::lanes::scratch_len(win));
             let mut s = std::vec![0i16; len];
+            let mut g = std::vec![[0i16; 2]; w * h];
             for per_level in [false, true] {
-                let mut g = std::vec![[0i16; 2]; w * h];
-                fn grads(g: &mut [[i16; 2]], per_level: bool) -> Gradients<'_> {
-                    match per_level {
-                        true => Gradients::PerLevel(g),
-                        false => Gradients::PerWindow,
-                    }
-                }
-                let f = |k: usize| pts.get(k).copied();
-                let mut f1 = std::vec![Flow::<f32>::default(); pts.len()];
-                let mut f2 = f1.clone();
-                run::<f32, Packed<'_>>(
-                    &pa,
-                    &pb,
-                    f,
-                    &mut f1,
-                    &cfg,
-                    &mut grads(&mut g, per_level),
-                    &mut s,
-                )
-                .unwrap();
-                run::<f32, Lanes<'_>>(
-                    &pa,
-                    &pb,
-                    f,
-                    &mut f2,
-                    &cfg,
-                    &mut grads(&mut g, per_level),
-                    &mut s,
-                )
-                .unwrap();
+                let (f1, f2) = both_kernels::<f32>(&pa, &pb, &pts, &cfg, per_level, &mut g, &mut s);
                 let bits = |v: &[Flow<f32>]| -> Vec<_> {
                     v.iter()
                         .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
@@ -530,29 +527,8 @@ mod tests {
                     .filter(|f| f.status == FlowStatus::Tracked)
                     .count();
                 assert!(tracked > 40, "win {win}: only {tracked} tracked");
-                let f = |k: usize| qpts.get(k).copied();
-                let mut q1 = std::vec![Flow::<Q16>::default(); pts.len()];
-                let mut q2 = q1.clone();
-                run::<Fixed, Packed<'_>>(
-                    &pa,
-                    &pb,
-                    f,
-                    &mut q1,
-                    &cfg,
-                    &mut grads(&mut g, per_level),
-                    &mut s,
-                )
-                .unwrap();
-                run::<Fixed, Lanes<'_>>(
-                    &pa,
-                    &pb,
-                    f,
-                    &mut q2,
-                    &cfg,
-                    &mut grads(&mut g, per_level),
-                    &mut s,
-                )
-                .unwrap();
+                let (q1, q2) =
+                    both_kernels::<Fixed>(&pa, &pb, &qpts, &cfg, per_level, &mut g, &mut s);
                 assert_eq!(q1, q2, "fixed, win {win}, per level {per_level}");
             }
         }
