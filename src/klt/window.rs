@@ -102,7 +102,8 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 
 /// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
 /// outside the image. Each row's columns inside the image are one straight copy (eight at a
-/// time); the columns left and right of it read through a column map made once a call.
+/// time); the columns left and right of it read through a column map made once a call (for
+/// those columns only).
 pub(super) fn fetch_patch(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
@@ -121,8 +122,10 @@ pub(super) fn fetch_patch(
     let hi = (w - x0).min(cols as isize).max(lo as isize) as usize;
     let inner = (x0 + lo as isize).max(0) as usize..(x0 + hi as isize).max(0) as usize;
     let mut map = [0u16; MAP];
-    for (i, m) in map.iter_mut().enumerate().take(cols) {
-        *m = reflect101(x0 + i as isize, img.width()) as u16;
+    for i in (0..lo).chain(hi..cols) {
+        if let Some(m) = map.get_mut(i) {
+            *m = reflect101(x0 + i as isize, img.width()) as u16;
+        }
     }
     for (j, row) in out.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
         let y = y0 as isize + j as isize;

@@ -210,14 +210,13 @@ impl<T: Real, const C: usize> StreamingQr<T, C> {
                     }
                     u /= n;
                     let s = (self.r * u).norm();
-                    let z = inverse(&u);
                     let settled_s =
                         bound.is_some_and(|b: T| !above((b - s).abs(), T::lit(1e-3) * s));
                     bound = Some(s);
                     if settled_s || !above(s, tol * norm) {
                         break;
                     }
-                    u = z;
+                    u = inverse(&u);
                 }
                 return match bound {
                     Some(s) if above(s, tol * norm) => Ok(v),
