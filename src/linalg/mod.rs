@@ -33,12 +33,14 @@
 //! # Ok::<(), camgeom::Error>(())
 //! ```
 
+mod eigen;
 pub mod lm;
 mod nullspace;
 mod qr;
 mod reduction;
 mod svd;
 
+pub(crate) use eigen::{eigenvector, real_eigenvalues};
 pub(crate) use nullspace::null_space;
 pub use qr::StreamingQr;
 pub(crate) use reduction::Reduced;

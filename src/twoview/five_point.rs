@@ -1,47 +1,56 @@
-//! The 5-point essential matrix solver (Nistér 2004), hidden-variable form, in the precision
-//! of the caller's scalar.
+//! The 5-point essential matrix solver in the precision of the caller's scalar: Nistér's
+//! hidden variable (2004) in `f64`, the action matrix of Stewénius, Engels and Nistér (2006)
+//! in `f32`.
 //!
 //! 1. The five rows `x̂₂ᵀ E x̂₁ = 0` leave a 4-dimensional null space:
 //!    `E = x X + y Y + z Z + W`.
 //! 2. `det E = 0` and the trace constraint `2 E Eᵀ E - tr(E Eᵀ) E = 0` give ten cubics in
 //!    `(x, y, z)` over twenty monomials, ordered
 //!    `x³ y³ x²y xy² x²z x² y²z y² xyz xy | xz² xz x yz² yz y z³ z² z 1`.
+//!
+//! Hidden variable (`f64`, [`hidden_variable`]):
+//!
 //! 3. Gauss-Jordan elimination of the first ten columns (partial pivoting).
 //! 4. With `⟨m⟩` the row whose leading monomial is `m`, the differences
 //!    `⟨x²z⟩ - z ⟨x²⟩`, `⟨y²z⟩ - z ⟨y²⟩`, `⟨xyz⟩ - z ⟨xy⟩` are three equations linear in
 //!    `(x, y, 1)` with coefficients polynomial in `z` (degrees 3, 3, 4): `B(z) (x, y, 1)ᵀ = 0`.
 //! 5. `det B(z) = 0`, a degree-10 polynomial, has the (up to 10) real roots `z`, found by
-//!    derivative isolation and a safeguarded iteration ([`super::poly`]), not by an
-//!    eigen-solver: no 10x10 non-symmetric eigenproblem (awkward without allocation), bounded
-//!    work.
+//!    derivative isolation and a safeguarded Newton iteration ([`super::poly`]).
 //! 6. For each root, `(x, y, 1) ∝` the null vector of `B(z)` (the largest cross product of two
-//!    of its rows), polished by Gauss-Newton (the constraints are well conditioned where the
-//!    degree-10 polynomial, with clustered roots, is not), then `E` is kept if it satisfies the
-//!    constraints and the five epipolar equations.
+//!    of its rows), polished by Gauss-Newton on the reduced cubics (the constraints are well
+//!    conditioned where the degree-10 polynomial, with clustered roots, is not), projected
+//!    onto the manifold, then kept if it satisfies the five epipolar equations.
 //!
-//! `f64` and `f32` run the same steps in their own type (no conversion to `f64` on an `f32`
-//! call: a board with a single-precision FPU, Cortex-M4F/M7 or ESP32-S3, runs no software
-//! double), with different choices where `f32` needs them ([`Precision`]):
+//! Action matrix (`f32`, [`action_matrix`]):
 //!
-//! | step | `f64` (results of the first version, to the bit) | `f32` |
-//! |---|---|---|
-//! | 1 | last four right singular vectors of the QR + Jacobi SVD | Gauss-Jordan with full pivoting, `[-B; I]` orthonormalised ([`crate::linalg`]'s `null_space`): a fraction of the cost |
-//! | 5 | Cauchy bound, safeguarded Newton to `2ε` | tight bound, Laguerre with bisection, stop at rounding level (`poly::RootSearch::Fast`) |
-//! | 6 | Gauss-Newton on the reduced cubics, SVD projection onto the manifold | chord-method Gauss-Newton on the constraints evaluated from `E` itself ([`polish_direct`]), accepted at `1e-5`, scaled to `|E| = √2` |
-//! | passes | one | two, the second with another basis vector as `W` |
+//! 3. The same cubics, the ten monomials of degree 3 eliminated (Gauss-Jordan), which leaves
+//!    each as a combination of the ten of degree ≤ 2, `b`.
+//! 4. Multiplication by `x` on `b` is then a 10x10 matrix `M` with `M b = x b` at every
+//!    solution: its real eigenvalues ([`crate::linalg`]'s `real_eigenvalues`: balancing,
+//!    Hessenberg, Francis QR, bounded) are the solutions' `x`, its eigenvectors (inverse
+//!    iteration) give `(x : y : z : 1)`.
+//! 5. Each is polished by the chord method on the ten constraints evaluated from `E` itself
+//!    ([`polish_direct`]), accepted at `1e-5`, scaled to `|E| = √2`, and kept if it satisfies
+//!    the five epipolar equations.
 //!
-//! In `f32` the elimination and the degree-10 polynomial lose digits; the polish on `E` brings
-//! the roots back to `f32` rounding, and the second pass finds the solutions the first puts
-//! at large `(x, y, z)`. [`SINGLE`] gives the figures.
+//! `f32` never converts to `f64` (a board with a single-precision FPU, Cortex-M4F/M7 or
+//! ESP32-S3, runs no software double). It does not use the hidden variable because the
+//! degree-10 polynomial's roots cluster where solutions share a similar `z`, and a cluster's
+//! roots move far more than `ε` when the coefficients are rounded to `f32`: one pass missed
+//! the true solution in 232 of 2000 random problems, a second pass with another basis vector
+//! as `W` (twice the cost) still in 32; the action matrix misses 21 ([`SINGLE`]). The null
+//! space in `f32` comes from Gauss-Jordan with full pivoting, `[-B; I]` orthonormalised
+//! ([`crate::linalg`]'s `null_space`), a fraction of the cost of `f64`'s QR and SVD. The `f64`
+//! results are those of the first version, to the bit.
 
 use heapless::Vec;
 use nalgebra::{Matrix3, Point2, Vector3};
 
 use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
-use super::poly::{RootSearch, eval, real_roots_with};
+use super::poly::{eval, real_roots};
 use crate::corners::swap_checked;
-use crate::linalg::{StreamingQr, null_space};
+use crate::linalg::{StreamingQr, eigenvector, null_space, real_eigenvalues};
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
 
@@ -57,72 +66,77 @@ enum NullSpace {
     GaussJordan,
 }
 
+/// How the ten cubics are solved.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Method {
+    /// Nistér's hidden variable: the degree-10 polynomial `det B(z)`, its real roots, Gauss-Newton
+    /// on the reduced cubics, SVD projection onto the manifold.
+    HiddenVariable,
+    /// Stewénius' action matrix: the real eigenvalues and eigenvectors of multiplication by
+    /// `x` on the ten monomials of degree ≤ 2 ([`action_matrix`]), then the chord polish on
+    /// `E` itself ([`polish_direct`]).
+    ActionMatrix,
+}
+
 /// The precision-dependent choices of the solver.
 #[derive(Debug, Clone, Copy)]
 struct Precision {
     null_space: NullSpace,
+    method: Method,
     /// Smallest `σ₅ / σ₁` (SVD) or last pivot / first pivot (Gauss-Jordan) of the five rows.
     rank: f64,
     /// Smallest pivot of the 10x20 elimination, relative to the largest entry.
     pivot: f64,
-    /// Smallest `|v_z| / |v|` of the null vector `(x, y, 1) ∝ v` of `B(z)`.
+    /// Smallest `|w| / |(x, y, z, w)|` of a solution's homogeneous coordinates in the basis
+    /// (`w = 0`: at infinity in the parametrisation `E = x X + y Y + z Z + W`).
     homogeneous: f64,
     /// Largest `|x̂₂ᵀ E x̂₁| / (|E| |row|)` over the five pairs for a root to count as a
     /// solution.
     solution: f64,
-    /// Polish on the constraints evaluated from `E` itself (`true`, [`polish_direct`]) or on
-    /// the ten cubics as reduced by the elimination ([`polish`]).
-    polish_direct: bool,
-    /// The assignments of the null-space basis `(b₀, b₁, b₂, b₃)` to `(X, Y, Z, W)` solved,
-    /// as `[iX, iY, iZ, iW]`; the solutions of all are merged.
-    passes: &'static [[usize; 4]],
     /// Two solutions closer than this (max entry, up to sign) are one.
     duplicate: f64,
-    /// How the real roots of the degree-10 polynomial are found.
-    roots: RootSearch,
 }
 
 /// `f64`: the solver as first written (its results are kept to the bit).
 const DOUBLE: Precision = Precision {
     null_space: NullSpace::Svd,
+    method: Method::HiddenVariable,
     rank: 1e-10,
     pivot: 1e-12,
     homogeneous: 1e-12,
     solution: 1e-9,
-    polish_direct: false,
-    passes: &[[0, 1, 2, 3]],
     duplicate: 0.0,
-    roots: RootSearch::Reference,
 };
 
 /// `f32` (`ε = 1.2e-7`).
 ///
 /// - Rank: a pivot ratio of `1e-4` leaves a null space accurate to `ε / 1e-4 ~ 1e-3`, which
 ///   the polish can still pull in.
-/// - Two passes: the hidden-variable form `E = x X + y Y + z Z + W` puts a solution with a
-///   small `W` component at large `(x, y, z)`, where the ten cubics (monomials up to `|x|³`)
-///   lose the digits `f32` has; a second pass with another basis vector as `W` finds those.
-///   On 2000 random exact problems (`tests::f32_agrees_with_f64`) two passes find the true
-///   `E` in 98.4 % of them (one pass: about 90 %), against 99.95 % for `f64`; on the noise
-///   study's scene (`examples/twoview_precision.rs`) two passes miss the `f64` solution in
-///   0.2-0.4 % of the minimal samples, one pass in 5-7 %, at half the cost.
+/// - The action matrix, not the hidden variable: the degree-10 polynomial's roots cluster
+///   where several solutions share a similar `z`, and roots in a cluster move by far more
+///   than `ε` when the coefficients are rounded (rounding the coefficients of an exactly
+///   computed polynomial to `f32` loses the true root in most of the problems where a single
+///   `f32` pass misses it); an eigenvalue of the action matrix moves by `ε |A|` times its own
+///   condition number whatever the spacing of the others. On 2000 random exact problems
+///   (`tests::f32_agrees_with_f64`) the action matrix misses 21 of the true solutions `f64`
+///   finds; the hidden variable missed 232 in one pass and 32 in two (with a second basis
+///   vector as `W`), at twice the cost. The one remaining risk, two solutions with the same
+///   `x` (a double eigenvalue, its eigenvectors mixed), has probability zero on generic data;
+///   RANSAC draws another sample.
 /// - Polish on the constraints evaluated from `E = x X + y Y + z Z + W` itself: at rounding
-///   level at the true root, while the elimination (growth up to `1e4`) leaves the reduced
-///   cubics far less accurate; and a tenth of the cost of evaluating the cubics.
+///   level at the true root, and a tenth of the cost of evaluating the reduced cubics.
 /// - Solution: the ten constraints to `1e-5 |E|³` and the five epipolar ones to `1e-5`
-///   relative; true roots polish to a few `1e-7`, a spurious root (a near-double complex
-///   pair, or lost precision) stays far above. No SVD projection: the polished `E` is on the
-///   manifold to that accuracy (`σ₃ ~ 1e-5`), scaled to `|E| = √2`.
+///   relative; true roots polish to a few `1e-7`, a spurious one stays far above. No SVD
+///   projection: the polished `E` is on the manifold to that accuracy (`σ₃ ~ 1e-5`), scaled
+///   to `|E| = √2`.
 const SINGLE: Precision = Precision {
     null_space: NullSpace::GaussJordan,
+    method: Method::ActionMatrix,
     rank: 1e-4,
     pivot: 1e-6,
     homogeneous: 1e-6,
     solution: 1e-5,
-    polish_direct: true,
-    passes: &[[0, 1, 2, 3], [3, 0, 1, 2]],
     duplicate: 1e-3,
-    roots: RootSearch::Fast,
 };
 
 /// The tolerances of a [`Precision`] in `T`, converted where the precision is a constant
@@ -203,6 +217,76 @@ const LL: [[u8; 4]; 4] = build_ll();
 
 /// `QL[i][j]`: the [`EXPONENTS`] slot of `QUADRATIC[i] · LINEAR[j]`.
 const QL: [[u8; 4]; 10] = build_ql();
+
+/// The monomials of [`action_matrix`]'s elimination, as exponents `(x, y, z)`: the ten of
+/// degree 3, eliminated, then its basis `b`, the ten of degree ≤ 2.
+const ACTION_MONOMIALS: [[u8; 3]; 20] = [
+    [3, 0, 0],
+    [2, 1, 0],
+    [2, 0, 1],
+    [1, 2, 0],
+    [1, 1, 1],
+    [1, 0, 2],
+    [0, 3, 0],
+    [0, 2, 1],
+    [0, 1, 2],
+    [0, 0, 3],
+    [2, 0, 0],
+    [1, 1, 0],
+    [1, 0, 1],
+    [0, 2, 0],
+    [0, 1, 1],
+    [0, 0, 2],
+    [1, 0, 0],
+    [0, 1, 0],
+    [0, 0, 1],
+    [0, 0, 0],
+];
+
+/// Where each of [`ACTION_MONOMIALS`] sits in [`EXPONENTS`] (the column order of
+/// [`constraints`]).
+const ACTION_COLUMNS: [u8; 20] = build_action_columns();
+
+/// `x b_j` for each monomial `b_j` of the action basis: `(true, i)` for the eliminated
+/// monomial `i`, `(false, k)` for the basis monomial `k`.
+const X_TIMES_BASIS: [(bool, u8); 10] = build_x_times_basis();
+
+#[allow(clippy::indexing_slicing)] // Evaluated at compile time: a bad index fails the build.
+const fn build_action_columns() -> [u8; 20] {
+    let mut t = [u8::MAX; 20];
+    let mut i = 0;
+    while i < 20 {
+        let e = ACTION_MONOMIALS[i];
+        t[i] = INDEX[e[0] as usize][e[1] as usize][e[2] as usize];
+        assert!(t[i] != u8::MAX);
+        i += 1;
+    }
+    t
+}
+
+#[allow(clippy::indexing_slicing)] // Evaluated at compile time: a bad index fails the build.
+const fn build_x_times_basis() -> [(bool, u8); 10] {
+    let mut t = [(false, u8::MAX); 10];
+    let mut j = 0;
+    while j < 10 {
+        let e = ACTION_MONOMIALS[10 + j];
+        let mut k = 0;
+        while k < 20 {
+            let f = ACTION_MONOMIALS[k];
+            if f[0] == e[0] + 1 && f[1] == e[1] && f[2] == e[2] {
+                t[j] = if k < 10 {
+                    (true, k as u8)
+                } else {
+                    (false, (k - 10) as u8)
+                };
+            }
+            k += 1;
+        }
+        assert!(t[j].1 != u8::MAX);
+        j += 1;
+    }
+    t
+}
 
 #[allow(clippy::indexing_slicing)] // Evaluated at compile time: a bad index fails the build.
 const fn build_index() -> [[[u8; 4]; 4]; 4] {
@@ -451,38 +535,26 @@ fn solve<T: Real>(
         NullSpace::GaussJordan => null_space(&rows5, tol.rank)?.map(|v| unvec(&v.into())),
     };
     let mut out = Vec::new();
-    let mut failure = None;
-    for order in precision.passes {
-        let ordered = order.map(|k| basis.get(k).copied().unwrap_or_else(Matrix3::zeros));
-        if let Err(e) = solve_pass(&ordered, &rows5, precision, tol, &mut out) {
-            failure = Some(e);
-        }
+    match precision.method {
+        Method::HiddenVariable => hidden_variable(&basis, &rows5, tol, &mut out)?,
+        Method::ActionMatrix => action_matrix(&basis, &rows5, tol, &mut out)?,
     }
-    match (out.is_empty(), failure) {
-        (false, _) => Ok(out),
-        (true, Some(e)) => Err(e),
-        (true, None) => Err(Error::Degenerate),
+    if out.is_empty() {
+        Err(Error::Degenerate)
+    } else {
+        Ok(out)
     }
 }
 
-/// One hidden-variable solve with `E = x X + y Y + z Z + W` for `basis = [X, Y, Z, W]`,
-/// appending the solutions not already in `out`.
-fn solve_pass<T: Real>(
+/// The hidden-variable solve (module docs, steps 3-6) with `E = x X + y Y + z Z + W` for
+/// `basis = [X, Y, Z, W]`, appending the solutions to `out`.
+fn hidden_variable<T: Real>(
     basis: &[Matrix3<T>; 4],
     rows5: &[[T; 9]; 5],
-    precision: &Precision,
     tol: &Tolerances<T>,
     out: &mut Vec<Essential<T>, MAX_FIVE_POINT_SOLUTIONS>,
 ) -> Result<()> {
-    let [bx, by, bz, bw] = basis;
-    // E as linear polynomials in (x, y, z, 1), row-major.
-    let e: [[Linear<T>; 3]; 3] = core::array::from_fn(|i| {
-        core::array::from_fn(|j| {
-            let at = |m: &Matrix3<T>| m.get((i, j)).copied().unwrap_or(T::zero());
-            [at(bx), at(by), at(bz), at(bw)]
-        })
-    });
-    let mut a = constraints(&e);
+    let mut a = constraints(&linear_entries(basis));
     gauss_jordan(&mut a, tol.pivot)?;
 
     let [.., r4, r5, r6, r7, r8, r9] = &a;
@@ -509,8 +581,9 @@ fn solve_pass<T: Real>(
         add_assign(&mut d, &t3);
         d
     };
+    let [bx, by, bz, bw] = basis;
     // By reference: `heapless::Vec`'s by-value iterator slices on drop (a bounds check).
-    for &z in real_roots_with(&det, precision.roots).iter() {
+    for &z in real_roots(&det).iter() {
         let row = |p: &[Poly1<T>; 3]| {
             let [a, b, c] = p;
             Vector3::new(eval(a, z), eval(b, z), eval(c, z))
@@ -530,54 +603,136 @@ fn solve_pass<T: Real>(
         if !above(v.z.abs(), tol.homogeneous * v.norm()) {
             continue;
         }
-        let e = if precision.polish_direct {
-            // The polished E meets the ten constraints to rounding: it is on the manifold to
-            // that accuracy, scaled to |E| = √2 (unit translation); a root whose constraint
-            // residual stays above `solution` |E|³ is not a solution.
-            let (x, y, z, cost) = polish_direct(basis, v.x / v.z, v.y / v.z, z);
-            let m: Matrix3<T> = *bx * x + *by * y + *bz * z + *bw;
-            let n = m.norm();
-            let bound = tol.solution * n * n * n;
-            if !above(bound * bound, cost) || !above(n, T::zero()) {
-                continue;
-            }
-            let e = m * (T::lit(core::f64::consts::SQRT_2) / n);
-            if !e.iter().all(|v| v.finite()) {
-                continue;
-            }
-            Essential { e }
-        } else {
-            let (x, y, z) = polish(&a, v.x / v.z, v.y / v.z, z);
-            let m: Matrix3<T> = *bx * x + *by * y + *bz * z + *bw;
-            // Projected onto the manifold; a near-double root that is not a solution (its
-            // polish stalls) moves there, while true solutions stay at rounding level.
-            let Ok(e) = Essential::<T>::from_matrix(&m) else {
-                continue;
-            };
-            e
-        };
-        let et = e.matrix().transpose();
-        let worst = rows5.iter().fold(T::zero(), |w, r| {
-            let v = r
-                .iter()
-                .zip(et.iter())
-                .fold(T::zero(), |acc, (a, b)| acc + *a * *b);
-            w.max(v.abs())
-        });
-        if !above(tol.solution, worst) {
+        let (x, y, z) = polish(&a, v.x / v.z, v.y / v.z, z);
+        let m: Matrix3<T> = *bx * x + *by * y + *bz * z + *bw;
+        // Projected onto the manifold; a near-double root that is not a solution (its
+        // polish stalls) moves there, while true solutions stay at rounding level.
+        let Ok(e) = Essential::<T>::from_matrix(&m) else {
             continue;
-        }
-        let known = out.iter().any(|o| {
-            let d = (o.matrix() - e.matrix())
-                .amax()
-                .min((o.matrix() + e.matrix()).amax());
-            !above(d, tol.duplicate)
-        });
-        if !known || precision.passes.len() < 2 {
-            let _ = out.push(e);
-        }
+        };
+        keep(e, rows5, tol, out);
     }
     Ok(())
+}
+
+/// The action-matrix solve with `E = x X + y Y + z Z + W` for `basis = [X, Y, Z, W]`,
+/// appending the solutions to `out`.
+///
+/// 1. The ten cubics (module docs, step 2), their columns ordered as [`ACTION_COLUMNS`]: the
+///    ten monomials of degree 3 first, then the basis `b = (x², xy, xz, y², yz, z², x, y,
+///    z, 1)`. Gauss-Jordan elimination of the first ten columns gives each cubic monomial as
+///    a combination of `b` at every solution.
+/// 2. Multiplication by `x` maps each monomial of `b` to a cubic one (six of them: a row of
+///    the eliminated system) or to one of `b` (four: a unit row): `M b = x b` at every
+///    solution, so the solutions' `x` are the real eigenvalues of the 10x10 `M`, and `b` its
+///    eigenvectors (Stewénius, Engels and Nistér 2006).
+/// 3. For each real eigenvalue: the eigenvector by inverse iteration, `(x : y : z : 1)` read
+///    from the part of `b` with the largest last entry (`(x, y, z, 1)` itself, or its
+///    multiple by `x`, `y` or `z` for a solution far from the origin), then the chord polish
+///    on `E` ([`polish_direct`]) and the checks of [`keep`].
+fn action_matrix<T: Real>(
+    basis: &[Matrix3<T>; 4],
+    rows5: &[[T; 9]; 5],
+    tol: &Tolerances<T>,
+    out: &mut Vec<Essential<T>, MAX_FIVE_POINT_SOLUTIONS>,
+) -> Result<()> {
+    let a = constraints(&linear_entries(basis));
+    let mut p: [Poly<T>; 10] =
+        a.map(|row| ACTION_COLUMNS.map(|c| row.get(usize::from(c)).copied().unwrap_or(T::zero())));
+    gauss_jordan(&mut p, tol.pivot)?;
+    // Row j of M: x b_j as a combination of b.
+    let m: [[T; 10]; 10] = X_TIMES_BASIS.map(|(eliminated, i)| {
+        let i = usize::from(i);
+        if eliminated {
+            let row = p.get(i).copied().unwrap_or([T::zero(); 20]);
+            core::array::from_fn(|k| -row.get(10 + k).copied().unwrap_or(T::zero()))
+        } else {
+            core::array::from_fn(|k| if k == i { T::one() } else { T::zero() })
+        }
+    });
+    let Some(eigenvalues) = real_eigenvalues(&m) else {
+        return Err(Error::Degenerate);
+    };
+    let [bx, by, bz, bw] = basis;
+    for &lambda in eigenvalues.iter() {
+        let Some(v) = eigenvector(&m, lambda) else {
+            continue;
+        };
+        let [b0, b1, b2, b3, b4, b5, b6, b7, b8, b9] = v;
+        // (x, y, z, 1) times 1, x, y, z: the one with the largest last entry.
+        let h = [
+            [b6, b7, b8, b9],
+            [b0, b1, b2, b6],
+            [b1, b3, b4, b7],
+            [b2, b4, b5, b8],
+        ]
+        .into_iter()
+        .fold([T::zero(); 4], |best, c| {
+            if c[3].abs() > best[3].abs() { c } else { best }
+        });
+        let [hx, hy, hz, hw] = h;
+        let size = (hx * hx + hy * hy + hz * hz + hw * hw).sqrt();
+        if !above(hw.abs(), tol.homogeneous * size) {
+            continue;
+        }
+        // The polished E meets the ten constraints to rounding: it is on the manifold to
+        // that accuracy, scaled to |E| = √2 (unit translation); a root whose constraint
+        // residual stays above `solution` |E|³ is not a solution.
+        let (x, y, z, cost) = polish_direct(basis, hx / hw, hy / hw, hz / hw);
+        let e: Matrix3<T> = *bx * x + *by * y + *bz * z + *bw;
+        let n = e.norm();
+        let bound = tol.solution * n * n * n;
+        if !above(bound * bound, cost) || !above(n, T::zero()) {
+            continue;
+        }
+        let e = e * (T::lit(core::f64::consts::SQRT_2) / n);
+        if !e.iter().all(|v| v.finite()) {
+            continue;
+        }
+        keep(Essential { e }, rows5, tol, out);
+    }
+    Ok(())
+}
+
+/// `E` as linear polynomials in `(x, y, z, 1)`, row-major, for `basis = [X, Y, Z, W]`.
+fn linear_entries<T: Real>(basis: &[Matrix3<T>; 4]) -> [[Linear<T>; 3]; 3] {
+    let [bx, by, bz, bw] = basis;
+    core::array::from_fn(|i| {
+        core::array::from_fn(|j| {
+            let at = |m: &Matrix3<T>| m.get((i, j)).copied().unwrap_or(T::zero());
+            [at(bx), at(by), at(bz), at(bw)]
+        })
+    })
+}
+
+/// Appends `e` to `out` when it meets the five epipolar equations to `tol.solution` (unit
+/// rows) and is not within `tol.duplicate` of a solution already there.
+fn keep<T: Real>(
+    e: Essential<T>,
+    rows5: &[[T; 9]; 5],
+    tol: &Tolerances<T>,
+    out: &mut Vec<Essential<T>, MAX_FIVE_POINT_SOLUTIONS>,
+) {
+    let et = e.matrix().transpose();
+    let worst = rows5.iter().fold(T::zero(), |w, r| {
+        let v = r
+            .iter()
+            .zip(et.iter())
+            .fold(T::zero(), |acc, (a, b)| acc + *a * *b);
+        w.max(v.abs())
+    });
+    if !above(tol.solution, worst) {
+        return;
+    }
+    let known = out.iter().any(|o| {
+        let d = (o.matrix() - e.matrix())
+            .amax()
+            .min((o.matrix() + e.matrix()).amax());
+        !above(d, tol.duplicate)
+    });
+    if !known || tol.duplicate == T::zero() {
+        let _ = out.push(e);
+    }
 }
 
 /// The ten cubics (module docs, step 2) of `E` given as linear polynomials: `det E` and the

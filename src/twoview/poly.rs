@@ -10,7 +10,7 @@
 
 use heapless::Vec;
 
-use crate::scalar::{Real, above};
+use crate::scalar::Real;
 
 /// Highest degree handled (the 5-point solver's 10).
 pub(crate) const MAX_DEGREE: usize = 10;
@@ -34,30 +34,11 @@ fn eval_with_derivative<T: Real>(coeffs: &[T], x: T) -> (T, T) {
     (p, d)
 }
 
-/// How [`real_roots_with`] isolates and refines the roots.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum RootSearch {
-    /// The Cauchy bound, safeguarded Newton to `2ε` (the first version; the `f64` minimal
-    /// solvers keep it so their results stay the same to the bit).
-    Reference,
-    /// A root bound within a factor 2 of the smallest ([`tight_bound`]), Laguerre steps with
-    /// bisection whenever a step does not halve the one before, and a stop at the rounding
-    /// level of the evaluation ([`bracketed_root_fast`]): about a quarter of the iterations,
-    /// for callers that polish the roots afterwards (the `f32` five-point solver).
-    Fast,
-}
-
 /// Every simple real root of `Σ coeffs[i] xⁱ` (degree ≤ [`MAX_DEGREE`]), ascending.
 ///
 /// Leading coefficients below `ε max|aᵢ|` are dropped (the degree falls). Empty for a
 /// constant, an all-zero or a non-finite polynomial.
 pub(crate) fn real_roots<T: Real>(coeffs: &[T]) -> Vec<T, MAX_DEGREE> {
-    real_roots_with(coeffs, RootSearch::Reference)
-}
-
-/// [`real_roots`] with the given search ([`RootSearch`]).
-pub(crate) fn real_roots_with<T: Real>(coeffs: &[T], search: RootSearch) -> Vec<T, MAX_DEGREE> {
-    let fast = search == RootSearch::Fast;
     let mut out = Vec::new();
     let amax = coeffs.iter().fold(T::zero(), |m, a| m.max(a.abs()));
     if !coeffs.iter().all(|a| a.finite()) || !amax.finite() || amax == T::zero() {
@@ -83,7 +64,7 @@ pub(crate) fn real_roots_with<T: Real>(coeffs: &[T], search: RootSearch) -> Vec<
     let top = p.get(..=degree).unwrap_or(&[]);
     // Where `p` overflows at the Cauchy bound (a small leading coefficient in `f32`:
     // `1e6¹⁰ > 3.4e38`), its brackets would hold no finite sign.
-    if fast || !eval(top, bound).finite() || !eval(top, -bound).finite() {
+    if !eval(top, bound).finite() || !eval(top, -bound).finite() {
         bound = tight_bound(top, bound);
     }
     // derivative k of p, ascending: coefficient i is a_{i+k} (i+k)! / i!.
@@ -91,21 +72,8 @@ pub(crate) fn real_roots_with<T: Real>(coeffs: &[T], search: RootSearch) -> Vec<
         let mut d = [T::zero(); MAX_DEGREE + 1];
         for (i, di) in d.iter_mut().enumerate().take(degree + 1 - k) {
             let mut c = p.get(i + k).copied().unwrap_or(T::zero());
-            if fast {
-                // The factors (i+1)..(i+k) as sums of ones: exact, and no integer-to-`f64`
-                // conversion (software on a single-precision FPU).
-                let mut f = T::zero();
-                for _ in 0..=i {
-                    f += T::one();
-                }
-                for _ in 0..k {
-                    c *= f;
-                    f += T::one();
-                }
-            } else {
-                for f in (i + 1)..=(i + k) {
-                    c *= T::lit(f as f64);
-                }
+            for f in (i + 1)..=(i + k) {
+                c *= T::lit(f as f64);
             }
             *di = c;
         }
@@ -128,13 +96,7 @@ pub(crate) fn real_roots_with<T: Real>(coeffs: &[T], search: RootSearch) -> Vec<
         let mut next: Vec<T, MAX_DEGREE> = Vec::new();
         let mut lo = -bound;
         for hi in roots.iter().copied().chain(core::iter::once(bound)) {
-            let found = if fast {
-                // The roots of the derivatives only bound brackets: 1e-4 relative is enough.
-                let tol = if k == 0 { T::zero() } else { T::lit(1e-4) };
-                bracketed_root_fast(q, lo, hi, tol)
-            } else {
-                bracketed_root(q, lo, hi)
-            };
+            let found = bracketed_root(q, lo, hi);
             if hi > lo
                 && let Some(r) = found
             {
@@ -178,80 +140,6 @@ fn tight_bound<T: Real>(p: &[T], cauchy: T) -> T {
         b *= two;
     }
     cauchy
-}
-
-/// [`bracketed_root`] for [`RootSearch::Fast`]: Laguerre steps, `x - n / (G ± √((n - 1)(n H -
-/// G²)))` with `G = q'/q`, `H = G² - q''/q` and the sign making the denominator largest (exact
-/// for `(x - r)ⁿ`, cubic near a simple root, fast from far away where Newton only gains
-/// `1 - 1/n` per step), Newton where the root is of a negative number, bisection whenever the
-/// step leaves the bracket or does not halve the step before last (as Numerical Recipes'
-/// `rtsafe`); it stops when `|q(x)| ≤ 4 (n + 1) ε Σ |qᵢ| |x|ⁱ`, the rounding error of Horner's
-/// rule, where `q` has no sign left to follow, or when the step or the bracket is below
-/// `max(2ε, rel) (1 + |x|)`. One fused Horner pass per iteration.
-fn bracketed_root_fast<T: Real>(q: &[T], lo: T, hi: T, rel: T) -> Option<T> {
-    let (flo, fhi) = (eval(q, lo), eval(q, hi));
-    if flo == T::zero() {
-        return Some(lo);
-    }
-    if fhi == T::zero() {
-        return Some(hi);
-    }
-    if (flo > T::zero()) == (fhi > T::zero()) || !flo.finite() || !fhi.finite() {
-        return None;
-    }
-    let (mut a, mut b) = if flo < T::zero() { (lo, hi) } else { (hi, lo) };
-    let two = T::lit(2.0);
-    let mut n = T::zero();
-    for _ in q.iter().skip(1) {
-        n += T::one();
-    }
-    let noise = T::lit(4.0) * (n + T::one()) * T::EPSILON;
-    let mut x = (a + b) / two;
-    let mut older = (a - b).abs();
-    let mut last = older;
-    for _ in 0..MAX_ROOT_ITERATIONS {
-        let (mut f, mut d, mut dd, mut size) = (T::zero(), T::zero(), T::zero(), T::zero());
-        let ax = x.abs();
-        for c in q.iter().rev() {
-            dd = dd * x + d;
-            d = d * x + f;
-            f = f * x + *c;
-            size = size * ax + c.abs();
-        }
-        if f.abs() <= noise * size {
-            return Some(x);
-        }
-        if f < T::zero() {
-            a = x;
-        } else {
-            b = x;
-        }
-        let g = d / f;
-        let h = g * g - (dd + dd) / f;
-        let disc = (n - T::one()) * (n * h - g * g);
-        let step = if disc >= T::zero() && above(n, T::one()) {
-            let r = disc.sqrt();
-            n / if g >= T::zero() { g + r } else { g - r }
-        } else {
-            f / d
-        };
-        let candidate = x - step;
-        let inside = (candidate - a) * (candidate - b) < T::zero();
-        let slow = step.abs() * two > older;
-        let next = if inside && candidate.finite() && !slow {
-            candidate
-        } else {
-            (a + b) / two
-        };
-        older = last;
-        last = (next - x).abs();
-        let tol = (T::EPSILON * two).max(rel) * (T::one() + next.abs());
-        if last <= tol || (a - b).abs() <= tol {
-            return Some(next);
-        }
-        x = next;
-    }
-    Some(x)
 }
 
 /// The root of `q` in `[lo, hi]` when `q` changes sign there (it is monotone inside).
@@ -336,39 +224,5 @@ mod tests {
         assert!(real_roots::<f64>(&[]).is_empty());
         assert!(real_roots(&[f64::NAN, 1.0]).is_empty());
         assert!(real_roots(&[1.0, 0.0, 1.0]).is_empty());
-    }
-
-    #[test]
-    fn fast_search_finds_the_same_roots() {
-        // The polynomials of the reference test, and one whose Cauchy bound overflows f32 at
-        // degree 10 (leading coefficient 1e-6 of the largest): both searches agree to the
-        // accuracy of the evaluation.
-        let roots = [-7.5, -1.0, -0.3, 0.01, 0.2, 1.5, 2.0, 3.25, 40.0, 100.0];
-        let p = from_roots(&roots);
-        let found = real_roots_with(&p, RootSearch::Fast);
-        assert_eq!(found.len(), 10, "{found:?}");
-        for (a, b) in found.iter().zip(roots.iter()) {
-            // A stop at the rounding level of the evaluation: the roots are within a few
-            // 1e-9 relative of the exact ones here (simple, well separated).
-            assert!((a - b).abs() < 1e-6 * (1.0 + b.abs()), "{a} vs {b}");
-        }
-        let wide = from_roots(&[-3.0, -0.5, 0.25, 2.0]).map(|c| c as f32);
-        let mut p = [0.0f32; MAX_DEGREE + 1];
-        p[..5].copy_from_slice(&wide[..5]);
-        // Scaled up so the leading coefficient is 1e-7 of the constant one, plus x¹⁰ 1e-7.
-        for c in p.iter_mut().take(5) {
-            *c *= 1e7;
-        }
-        p[10] = 1.0;
-        let r = real_roots_with(&p, RootSearch::Fast);
-        for want in [-3.0f32, -0.5, 0.25, 2.0] {
-            assert!(r.iter().any(|x| (x - want).abs() < 1e-3), "{want} in {r:?}");
-        }
-        assert!(real_roots_with::<f64>(&[], RootSearch::Fast).is_empty());
-        assert!(real_roots_with(&[f32::NAN, 1.0], RootSearch::Fast).is_empty());
-        assert_eq!(
-            real_roots_with(&[-2.0f32, 1.0, -2.0, 1.0], RootSearch::Fast).len(),
-            1
-        );
     }
 }
