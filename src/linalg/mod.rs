@@ -40,7 +40,7 @@ mod qr;
 mod reduction;
 mod svd;
 
-pub(crate) use eigen::{eigenvector, real_eigenvalues};
+pub(crate) use eigen::{null_vector, real_eigenvalues};
 pub(crate) use nullspace::null_space;
 pub use qr::StreamingQr;
 pub(crate) use reduction::Reduced;

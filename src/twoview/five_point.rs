@@ -38,7 +38,7 @@
 //! degree-10 polynomial's roots cluster where solutions share a similar `z`, and a cluster's
 //! roots move far more than `ε` when the coefficients are rounded to `f32`: one pass missed
 //! the true solution in 232 of 2000 random problems, a second pass with another basis vector
-//! as `W` (twice the cost) still in 32; the action matrix misses 21 ([`SINGLE`]). The null
+//! as `W` (twice the cost) still in 32; the action matrix misses 19 ([`SINGLE`]). The null
 //! space in `f32` comes from Gauss-Jordan with full pivoting, `[-B; I]` orthonormalised
 //! ([`crate::linalg`]'s `null_space`), a fraction of the cost of `f64`'s QR and SVD. The `f64`
 //! results are those of the first version, to the bit.
@@ -50,7 +50,7 @@ use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
 use super::poly::{eval, real_roots};
 use crate::corners::swap_checked;
-use crate::linalg::{StreamingQr, eigenvector, null_space, real_eigenvalues};
+use crate::linalg::{StreamingQr, null_space, null_vector, real_eigenvalues};
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
 
@@ -118,7 +118,7 @@ const DOUBLE: Precision = Precision {
 ///   computed polynomial to `f32` loses the true root in most of the problems where a single
 ///   `f32` pass misses it); an eigenvalue of the action matrix moves by `ε |A|` times its own
 ///   condition number whatever the spacing of the others. On 2000 random exact problems
-///   (`tests::f32_agrees_with_f64`) the action matrix misses 21 of the true solutions `f64`
+///   (`tests::f32_agrees_with_f64`) the action matrix misses 19 of the true solutions `f64`
 ///   finds; the hidden variable missed 232 in one pass and 32 in two (with a second basis
 ///   vector as `W`), at twice the cost. The one remaining risk, two solutions with the same
 ///   `x` (a double eigenvalue, its eigenvectors mixed), has probability zero on generic data;
@@ -626,10 +626,9 @@ fn hidden_variable<T: Real>(
 ///    the eliminated system) or to one of `b` (four: a unit row): `M b = x b` at every
 ///    solution, so the solutions' `x` are the real eigenvalues of the 10x10 `M`, and `b` its
 ///    eigenvectors (Stewénius, Engels and Nistér 2006).
-/// 3. For each real eigenvalue: the eigenvector by inverse iteration, `(x : y : z : 1)` read
-///    from the part of `b` with the largest last entry (`(x, y, z, 1)` itself, or its
-///    multiple by `x`, `y` or `z` for a solution far from the origin), then the chord polish
-///    on `E` ([`polish_direct`]) and the checks of [`keep`].
+/// 3. For each real eigenvalue `x`: `(x : y : z : 1)` from the eigenvector
+///    ([`eigenvector_point`]), then the chord polish on `E` ([`polish_direct`]) and the checks
+///    of [`keep`].
 fn action_matrix<T: Real>(
     basis: &[Matrix3<T>; 4],
     rows5: &[[T; 9]; 5],
@@ -655,21 +654,9 @@ fn action_matrix<T: Real>(
     };
     let [bx, by, bz, bw] = basis;
     for &lambda in eigenvalues.iter() {
-        let Some(v) = eigenvector(&m, lambda) else {
+        let Some(h) = eigenvector_point(&m, lambda) else {
             continue;
         };
-        let [b0, b1, b2, b3, b4, b5, b6, b7, b8, b9] = v;
-        // (x, y, z, 1) times 1, x, y, z: the one with the largest last entry.
-        let h = [
-            [b6, b7, b8, b9],
-            [b0, b1, b2, b6],
-            [b1, b3, b4, b7],
-            [b2, b4, b5, b8],
-        ]
-        .into_iter()
-        .fold([T::zero(); 4], |best, c| {
-            if c[3].abs() > best[3].abs() { c } else { best }
-        });
         let [hx, hy, hz, hw] = h;
         let size = (hx * hx + hy * hy + hz * hz + hw * hw).sqrt();
         if !above(hw.abs(), tol.homogeneous * size) {
@@ -692,6 +679,75 @@ fn action_matrix<T: Real>(
         keep(Essential { e }, rows5, tol, out);
     }
     Ok(())
+}
+
+/// `(x, y, z, 1)` up to scale at the solution whose `x` is the eigenvalue `lambda` of the
+/// action matrix `m` ([`action_matrix`]), from its eigenvector `b`.
+///
+/// The four unit rows of `M b = x b` say `b₀ = x b₆`, `b₁ = x b₇`, `b₂ = x b₈`, `b₆ = x b₉`
+/// (`x² = x·x`, `xy = x·y`, `xz = x·z`, `x = x·1`); substituted into the six other rows they
+/// leave a 6x6 system `A(x) (y², yz, z², y, z, 1) = 0`, whose null vector
+/// ([`crate::linalg`]'s `null_vector`: LU, inverse iteration) costs a seventh of the 10x10
+/// one. The point is read with the largest available last entry: `(x, y, z, 1)` itself, or
+/// its multiple by `y` or `z` for a solution far from the origin (`x` is exact either way).
+fn eigenvector_point<T: Real>(m: &[[T; 10]; 10], lambda: T) -> Option<[T; 4]> {
+    let l = lambda;
+    let row = |r: usize| m.get(r).copied().unwrap_or([T::zero(); 10]);
+    if l.abs() <= T::one() {
+        // Unknowns (y², yz, z², y, z, 1): b₀ = x² b₉, b₁ = x b₇, b₂ = x b₈, b₆ = x b₉.
+        let a: [[T; 6]; 6] = core::array::from_fn(|r| {
+            let row = row(r);
+            let at = |k: usize| row.get(k).copied().unwrap_or(T::zero());
+            // Entry k of row r of M - λ I.
+            let d = |k: usize| if k == r { at(k) - l } else { at(k) };
+            [
+                d(3),
+                d(4),
+                d(5),
+                d(7) + l * d(1),
+                d(8) + l * d(2),
+                d(9) + l * (d(6) + l * d(0)),
+            ]
+        });
+        let [y2, yz, z2, y, z, one] = null_vector(&a)?;
+        // (y, z, 1) times 1, y, z: the one with the largest last entry.
+        let [hy, hz, hw] =
+            [[y, z, one], [y2, yz, y], [yz, z2, z]]
+                .into_iter()
+                .fold([T::zero(); 3], |best, c| {
+                    if c[2].abs() > best[2].abs() { c } else { best }
+                });
+        Some([l * hw, hy, hz, hw])
+    } else {
+        // |x| > 1, the substitution the other way (as partial pivoting would take it):
+        // unknowns (x², xy, xz, y², yz, z²) with b₆ = b₀ / x, b₇ = b₁ / x, b₈ = b₂ / x,
+        // b₉ = b₀ / x².
+        let u = T::one() / l;
+        let a: [[T; 6]; 6] = core::array::from_fn(|r| {
+            let row = row(r);
+            let at = |k: usize| row.get(k).copied().unwrap_or(T::zero());
+            let d = |k: usize| if k == r { at(k) - l } else { at(k) };
+            [
+                d(0) + u * (d(6) + u * d(9)),
+                d(1) + u * d(7),
+                d(2) + u * d(8),
+                d(3),
+                d(4),
+                d(5),
+            ]
+        });
+        let [x2, xy, xz, y2, yz, z2] = null_vector(&a)?;
+        // x (x, y, z), y (x, y, z), z (x, y, z), each with its last entry (x, y, z) / x
+        // times x: the one with the largest.
+        let [hx, hy, hz] = [[x2, xy, xz], [xy, y2, yz], [xz, yz, z2]].into_iter().fold(
+            [T::zero(); 3],
+            |best, c| {
+                if c[0].abs() > best[0].abs() { c } else { best }
+            },
+        );
+        // (hx, hy, hz) = s (x, y, z) with s = hx / x.
+        Some([hx, hy, hz, hx * u])
+    }
 }
 
 /// `E` as linear polynomials in `(x, y, z, 1)`, row-major, for `basis = [X, Y, Z, W]`.
