@@ -11,7 +11,7 @@
 //!
 //! The eigenvalues of a matrix rather than the roots of its characteristic polynomial, whose
 //! coefficients (in `f32` especially) lose the roots that cluster. About 13 QR iterations for
-//! a 10x10 action matrix (7k flops).
+//! the five-point solver's 10x10 action matrix (about 10k flops in all).
 
 use crate::scalar::{Real, above};
 
@@ -24,7 +24,8 @@ pub(crate) const MAX_QR_ITERATIONS: u32 = 30;
 const MAX_BALANCE_SWEEPS: u32 = 16;
 
 /// Inverse iteration steps in [`null_vector`]: from a matrix singular to rounding one step gives
-/// the null vector to working precision, the second confirms it.
+/// the null vector nearly to working precision; the second (measured on the five-point noise
+/// study: 47 misses in 16 000 minimal samples against 63 with one) makes it so.
 const INVERSE_ITERATIONS: u32 = 2;
 
 /// A square matrix with checked element access (no indexing panics in library code).

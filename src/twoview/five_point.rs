@@ -120,9 +120,9 @@ const DOUBLE: Precision = Precision {
 ///   condition number whatever the spacing of the others. On 2000 random exact problems
 ///   (`tests::f32_agrees_with_f64`) the action matrix misses 19 of the true solutions `f64`
 ///   finds; the hidden variable missed 232 in one pass and 32 in two (with a second basis
-///   vector as `W`), at twice the cost. The one remaining risk, two solutions with the same
-///   `x` (a double eigenvalue, its eigenvectors mixed), has probability zero on generic data;
-///   RANSAC draws another sample.
+///   vector as `W`), at twice the cost. What it still misses is mostly a close pair of real
+///   eigenvalues that rounding makes a complex pair (two solutions with nearly the same
+///   `x`); RANSAC draws another sample.
 /// - Polish on the constraints evaluated from `E = x X + y Y + z Z + W` itself: at rounding
 ///   level at the true root, and a tenth of the cost of evaluating the reduced cubics.
 /// - Solution: the ten constraints to `1e-5 |E|³` and the five epipolar ones to `1e-5`
@@ -686,10 +686,13 @@ fn action_matrix<T: Real>(
 ///
 /// The four unit rows of `M b = x b` say `b₀ = x b₆`, `b₁ = x b₇`, `b₂ = x b₈`, `b₆ = x b₉`
 /// (`x² = x·x`, `xy = x·y`, `xz = x·z`, `x = x·1`); substituted into the six other rows they
-/// leave a 6x6 system `A(x) (y², yz, z², y, z, 1) = 0`, whose null vector
-/// ([`crate::linalg`]'s `null_vector`: LU, inverse iteration) costs a seventh of the 10x10
-/// one. The point is read with the largest available last entry: `(x, y, z, 1)` itself, or
-/// its multiple by `y` or `z` for a solution far from the origin (`x` is exact either way).
+/// leave a 6x6 system whose null vector ([`crate::linalg`]'s `null_vector`: LU, inverse
+/// iteration) costs about a fifth of the 10x10 one. For `|x| ≤ 1` the unknowns are the low
+/// monomials `(y², yz, z², y, z, 1)` (factors `x`, `x²` in the substitution); above, the
+/// high ones `(x², xy, xz, y², yz, z²)` (factors `1/x`, `1/x²`), as partial pivoting would
+/// choose: one way only, the `x²`, `x³` of a solution far from the origin cost its digits
+/// (noise-study misses 0.4-0.6 % against 0.2-0.45 %). The point is read from the multiple of
+/// `(y, z, 1)` or of `(x, y, z)` with the largest factor; `x` itself is the eigenvalue.
 fn eigenvector_point<T: Real>(m: &[[T; 10]; 10], lambda: T) -> Option<[T; 4]> {
     let l = lambda;
     let row = |r: usize| m.get(r).copied().unwrap_or([T::zero(); 10]);
@@ -737,8 +740,8 @@ fn eigenvector_point<T: Real>(m: &[[T; 10]; 10], lambda: T) -> Option<[T; 4]> {
             ]
         });
         let [x2, xy, xz, y2, yz, z2] = null_vector(&a)?;
-        // x (x, y, z), y (x, y, z), z (x, y, z), each with its last entry (x, y, z) / x
-        // times x: the one with the largest.
+        // (x², xy, xz) = x (x, y, z), (xy, y², yz) = y (x, y, z), (xz, yz, z²) = z (x, y, z):
+        // the one with the largest factor (its first entry over x).
         let [hx, hy, hz] = [[x2, xy, xz], [xy, y2, yz], [xz, yz, z2]].into_iter().fold(
             [T::zero(); 3],
             |best, c| {
@@ -1339,7 +1342,9 @@ mod tests {
         std::println!(
             "f32 five-point: true E found in {both} of {trials} problems, missed in {f64_only} that f64 solves; {solutions} solutions; worst residual {worst_residual:e}"
         );
-        assert!(f64_only * 50 <= trials, "{f64_only} misses");
+        // 19 misses measured (the action matrix; two hidden-variable passes: 32): at most
+        // 1.5 %, room for other rounding on other targets.
+        assert!(f64_only * 200 <= trials * 3, "{f64_only} misses");
         // The acceptance bound, with a few ulps for recomputing the rows here.
         assert!(worst_residual < 1.001e-5, "{worst_residual:e}");
     }
