@@ -695,31 +695,30 @@ fn action_matrix<T: Real>(
 /// `(y, z, 1)` or of `(x, y, z)` with the largest factor; `x` itself is the eigenvalue.
 fn eigenvector_point<T: Real>(m: &[[T; 10]; 10], lambda: T) -> Option<[T; 4]> {
     let l = lambda;
-    let row = |r: usize| m.get(r).copied().unwrap_or([T::zero(); 10]);
+    // Entry (r, k) of M - λ I.
+    let d = |r: usize, k: usize| {
+        let v = m
+            .get(r)
+            .and_then(|row| row.get(k))
+            .copied()
+            .unwrap_or(T::zero());
+        if k == r { v - l } else { v }
+    };
     if l.abs() <= T::one() {
         // Unknowns (y², yz, z², y, z, 1): b₀ = x² b₉, b₁ = x b₇, b₂ = x b₈, b₆ = x b₉.
         let a: [[T; 6]; 6] = core::array::from_fn(|r| {
-            let row = row(r);
-            let at = |k: usize| row.get(k).copied().unwrap_or(T::zero());
-            // Entry k of row r of M - λ I.
-            let d = |k: usize| if k == r { at(k) - l } else { at(k) };
             [
-                d(3),
-                d(4),
-                d(5),
-                d(7) + l * d(1),
-                d(8) + l * d(2),
-                d(9) + l * (d(6) + l * d(0)),
+                d(r, 3),
+                d(r, 4),
+                d(r, 5),
+                d(r, 7) + l * d(r, 1),
+                d(r, 8) + l * d(r, 2),
+                d(r, 9) + l * (d(r, 6) + l * d(r, 0)),
             ]
         });
         let [y2, yz, z2, y, z, one] = null_vector(&a)?;
-        // (y, z, 1) times 1, y, z: the one with the largest last entry.
-        let [hy, hz, hw] =
-            [[y, z, one], [y2, yz, y], [yz, z2, z]]
-                .into_iter()
-                .fold([T::zero(); 3], |best, c| {
-                    if c[2].abs() > best[2].abs() { c } else { best }
-                });
+        // (y, z, 1) times 1, y or z: the one with the largest factor (its last entry).
+        let [hy, hz, hw] = largest_at([[y, z, one], [y2, yz, y], [yz, z2, z]], 2);
         Some([l * hw, hy, hz, hw])
     } else {
         // |x| > 1, the substitution the other way (as partial pivoting would take it):
@@ -727,30 +726,30 @@ fn eigenvector_point<T: Real>(m: &[[T; 10]; 10], lambda: T) -> Option<[T; 4]> {
         // b₉ = b₀ / x².
         let u = T::one() / l;
         let a: [[T; 6]; 6] = core::array::from_fn(|r| {
-            let row = row(r);
-            let at = |k: usize| row.get(k).copied().unwrap_or(T::zero());
-            let d = |k: usize| if k == r { at(k) - l } else { at(k) };
             [
-                d(0) + u * (d(6) + u * d(9)),
-                d(1) + u * d(7),
-                d(2) + u * d(8),
-                d(3),
-                d(4),
-                d(5),
+                d(r, 0) + u * (d(r, 6) + u * d(r, 9)),
+                d(r, 1) + u * d(r, 7),
+                d(r, 2) + u * d(r, 8),
+                d(r, 3),
+                d(r, 4),
+                d(r, 5),
             ]
         });
         let [x2, xy, xz, y2, yz, z2] = null_vector(&a)?;
-        // (x², xy, xz) = x (x, y, z), (xy, y², yz) = y (x, y, z), (xz, yz, z²) = z (x, y, z):
-        // the one with the largest factor (its first entry over x).
-        let [hx, hy, hz] = [[x2, xy, xz], [xy, y2, yz], [xz, yz, z2]].into_iter().fold(
-            [T::zero(); 3],
-            |best, c| {
-                if c[0].abs() > best[0].abs() { c } else { best }
-            },
-        );
+        // (x, y, z) times x, y or z: the one with the largest factor (its first entry over x).
+        let [hx, hy, hz] = largest_at([[x2, xy, xz], [xy, y2, yz], [xz, yz, z2]], 0);
         // (hx, hy, hz) = s (x, y, z) with s = hx / x.
         Some([hx, hy, hz, hx * u])
     }
+}
+
+/// The candidate with the largest `|c[at]|` (the first of equal ones).
+fn largest_at<T: Real>(candidates: [[T; 3]; 3], at: usize) -> [T; 3] {
+    let key = |c: &[T; 3]| c.get(at).map_or(T::zero(), |v| v.abs());
+    candidates.into_iter().fold(
+        [T::zero(); 3],
+        |best, c| if key(&c) > key(&best) { c } else { best },
+    )
 }
 
 /// `E` as linear polynomials in `(x, y, z, 1)`, row-major, for `basis = [X, Y, Z, W]`.
