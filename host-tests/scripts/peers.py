@@ -454,8 +454,10 @@ def run_benches(args):
     env = dict(os.environ, CARGO_TARGET_DIR=args.target_dir)
     names = [a for n in BENCHES for a in ("--bench", n)]
     if args.smoke:
-        # criterion's test mode: each bench body once, in the test profile (no timing).
-        cmd = ["cargo", "test", "-p", "camgeom-host"] + names
+        # criterion's test mode: each bench body once, in the test profile (no timing). With
+        # `--workspace` the features resolve as in CI's `cargo test --workspace`, whose
+        # dependencies (nalgebra, camgeom, ...) are then reused: only the benches compile.
+        cmd = ["cargo", "test", "--workspace"] + names
     else:
         cmd = ["cargo", "bench", "-p", "camgeom-host"] + names
     if os.environ.get("CI") in ("true", "1"):

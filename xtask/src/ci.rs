@@ -149,9 +149,9 @@ fn steps() -> Vec<Step> {
     );
     // Measured on the shared 2-core machine (load average 5): panic check ~3.5 min (one release
     // LTO link of every area with f32 and f64 per target, thumbv7em ~110 s and thumbv6m ~90 s,
-    // each building camgeom for its target); fuzz smoke: the build (~95 s when there were five
-    // targets) then 5 s for each of the nine targets from the committed corpus (56 s with the
-    // targets built); a fresh machine also spends ~95 s in `setup` installing cargo-fuzz.
+    // each building camgeom for its target); fuzz smoke: the build (~57 s for the nine targets)
+    // then 3 s for each from the committed corpus; a fresh machine also spends ~95 s in `setup`
+    // installing cargo-fuzz.
     add(
         "panic freedom (firmware link check)",
         Box::new(crate::panic_check::check_panic_free),
