@@ -109,6 +109,44 @@ pub(crate) fn lift<T: Real>(p: &Point2<T>) -> Vector3<T> {
     Vector3::new(p.x, p.y, T::one())
 }
 
+/// Whether pairs `x₁ ↔ x₂` meet the oriented epipolar constraint of `M` (Chum, Werner & Matas,
+/// "Epipolar geometry estimation via RANSAC benefits from the oriented epipolar constraint",
+/// ICPR 2004): with `e₂` spanning the left null space of `M` (`Mᵀ e₂ = 0`, the epipole in
+/// image 2), the signs of `sᵢ = (e₂ × x₂ᵢ) · (M x₁ᵢ)` all agree.
+///
+/// Why: for `M = E = [t]ₓ R` and a scene point at depths `λ₁`, `λ₂` (`λ₂ x₂ = λ₁ R x₁ + t`),
+/// `λ₂ (t × x₂) = λ₁ t × R x₁ = λ₁ E x₁`, so `(t × x₂) · (E x₁) = (λ₁/λ₂) |E x₁|²`: one sign
+/// for every point in front of both cameras (and for every point behind both), whatever the
+/// sign of `M` and of `e₂`. A model whose own minimal sample splits the signs puts some of
+/// those points in front of one camera and behind the other, so it is not the true geometry of
+/// an all-inlier sample and RANSAC need not score it. The same holds for `F` in pixels. A
+/// pair with `sᵢ = 0` (at an epipole) votes neither way. `e₂` is the largest of the three
+/// cross products of `M`'s columns (the columns are all orthogonal to `e₂`, so each product is
+/// parallel to it for a rank-2 `M`); a rank-1 or zero `M` passes (nothing to test).
+pub(crate) fn oriented_consistent<T: Real>(
+    m: &Matrix3<T>,
+    x1: &[Point2<T>],
+    x2: &[Point2<T>],
+) -> bool {
+    let (c0, c1, c2) = (m.column(0), m.column(1), m.column(2));
+    let e2 = [c1.cross(&c2), c2.cross(&c0)]
+        .into_iter()
+        .fold(c0.cross(&c1), |best, c| {
+            if c.norm_squared() > best.norm_squared() {
+                c
+            } else {
+                best
+            }
+        });
+    let (mut positive, mut negative) = (false, false);
+    for (a, b) in x1.iter().zip(x2) {
+        let s = e2.cross(&lift(b)).dot(&(m * lift(a)));
+        positive |= s > T::zero();
+        negative |= s < T::zero();
+    }
+    !(positive && negative)
+}
+
 /// The squared Sampson distance of a pair under a bilinear constraint `x₂ᵀ M x₁ = 0`:
 ///
 /// `d² = (x₂ᵀ M x₁)² / ((M x₁)₁² + (M x₁)₂² + (Mᵀ x₂)₁² + (Mᵀ x₂)₂²)`,
@@ -346,6 +384,61 @@ mod tests {
             assert_eq!(sampson_distance_sq(&m, &x1, &x2), reference(&m, &x1, &x2));
             let (m, x1, x2) = (m.cast::<f32>(), x1.cast::<f32>(), x2.cast::<f32>());
             assert_eq!(sampson_distance_sq(&m, &x1, &x2), reference(&m, &x1, &x2));
+        }
+    }
+
+    #[test]
+    fn oriented_constraint_follows_the_depth_signs() {
+        use std::vec::Vec;
+        // Random scene points sorted by the signs of their depths in the two cameras: five in
+        // front of both (or behind both) pass under E, -E and F in pixels; four in front and
+        // one in front of camera 1 only fail. Points within 0.05 of a zero depth are skipped
+        // (their sign is then a matter of rounding, not of the test).
+        let truth = pose();
+        let e = Essential::from_pose(&truth).unwrap();
+        let k = Intrinsics::new(500.0, 510.0, 320.0, 240.0).unwrap();
+        let f = e.to_fundamental(&k, &k).unwrap();
+        let mut g = crate::rng::Pcg32::new(11);
+        let (mut front, mut behind, mut split) = (Vec::new(), Vec::new(), Vec::new());
+        while front.len() < 40 || behind.len() < 40 || split.len() < 40 {
+            let p = nalgebra::Point3::new(
+                g.uniform(-4.0, 4.0),
+                g.uniform(-4.0, 4.0),
+                g.uniform(-3.0, 3.0),
+            );
+            let q = truth.apply(&p);
+            if p.z.abs() < 0.05 || q.z.abs() < 0.05 {
+                continue;
+            }
+            let pair = (
+                Point2::new(p.x / p.z, p.y / p.z),
+                Point2::new(q.x / q.z, q.y / q.z),
+            );
+            match (p.z > 0.0, q.z > 0.0) {
+                (true, true) => front.push(pair),
+                (false, false) => behind.push(pair),
+                (true, false) => split.push(pair),
+                _ => {}
+            }
+        }
+        let check = |pairs: &[(Point2<f64>, Point2<f64>)]| {
+            let (a, b): (Vec<_>, Vec<_>) = pairs.iter().copied().unzip();
+            let (pa, pb): (Vec<_>, Vec<_>) = pairs
+                .iter()
+                .map(|(a, b)| (k.normalized_to_pixel(a), k.normalized_to_pixel(b)))
+                .unzip();
+            let under_e = oriented_consistent(e.matrix(), &a, &b);
+            assert_eq!(under_e, oriented_consistent(&-e.matrix(), &a, &b));
+            assert_eq!(under_e, oriented_consistent(f.matrix(), &pa, &pb));
+            under_e
+        };
+        for i in 0..8 {
+            let five = |set: &[(Point2<f64>, Point2<f64>)]| set[5 * i..5 * i + 5].to_vec();
+            assert!(check(&five(&front)));
+            assert!(check(&five(&behind)));
+            let mut mixed = five(&front);
+            mixed[i % 5] = split[i];
+            assert!(!check(&mixed));
         }
     }
 
