@@ -477,6 +477,13 @@ fn score<T: Real, E: Estimator<Scalar = T>>(e: &E, model: &E::Model, t2: T) -> (
 /// and floating-point addition of a non-negative term never lowers a non-negative sum, so a
 /// partial cost already at the rival's is final-or-worse; the inlier count can grow by at
 /// most the points left. A model dropped here would have lost every comparison in full.
+///
+/// The rivals are reduced once to two bounds: the MSAC cost a model must stay under to beat
+/// every cost ranking's best (the largest of their costs), and the outliers it may have to
+/// beat every inlier-count ranking's best (the largest `n - best_count`; at exactly that many,
+/// the cost decides). They are tested at outliers only, where the outlier count moves: a model
+/// that turns hopeless at an inlier is dropped at the next outlier, or scored in full and then
+/// loses the comparison in [`ransac`]; either way the result is the same.
 fn score_bounded<T: Real, E: Estimator<Scalar = T>>(
     e: &E,
     model: &E::Model,
@@ -487,17 +494,27 @@ fn score_bounded<T: Real, E: Estimator<Scalar = T>>(
     if rivals.iter().any(Option::is_none) {
         return Some(score(e, model, t2));
     }
-    let hopeless = |cost: T, count: usize, left: usize| {
-        rivals
-            .iter()
-            .flatten()
-            .all(|&(order, best_cost, best_count)| match order {
-                Scoring::Msac | Scoring::Adaptive => cost >= best_cost,
-                Scoring::InlierCount => {
-                    let most = count + left;
-                    most < best_count || (most == best_count && cost >= best_cost)
-                }
-            })
+    // `None`: no rival of that kind, the condition holds.
+    let mut cost_bound: Option<T> = None;
+    let mut count_bound: Option<(usize, T)> = None;
+    for &(order, best_cost, best_count) in rivals.iter().flatten() {
+        match order {
+            Scoring::Msac | Scoring::Adaptive => {
+                cost_bound = Some(cost_bound.map_or(best_cost, |c| c.max(best_cost)));
+            }
+            Scoring::InlierCount => {
+                let allowed = n.saturating_sub(best_count);
+                count_bound = Some(match count_bound {
+                    Some((a, c)) if (a, c) > (allowed, best_cost) => (a, c),
+                    _ => (allowed, best_cost),
+                });
+            }
+        }
+    }
+    let hopeless = |cost: T, outliers: usize| {
+        cost_bound.is_none_or(|c| cost >= c)
+            && count_bound
+                .is_none_or(|(allowed, c)| outliers > allowed || (outliers == allowed && cost >= c))
     };
     let mut cost = T::zero();
     let mut count = 0;
@@ -507,10 +524,12 @@ fn score_bounded<T: Real, E: Estimator<Scalar = T>>(
                 cost += r;
                 count += 1;
             }
-            _ => cost += t2,
-        }
-        if hopeless(cost, count, n - 1 - i) {
-            return None;
+            _ => {
+                cost += t2;
+                if hopeless(cost, i + 1 - count) {
+                    return None;
+                }
+            }
         }
     }
     Some((cost, count))
