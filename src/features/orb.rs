@@ -62,7 +62,7 @@ const UMAX: [i32; PATCH_RADIUS + 1] = [15, 15, 15, 15, 14, 14, 14, 13, 13, 12, 1
 /// The 7 smoothing taps, summing to 128.
 const BLUR: [u32; 7] = [9, 17, 24, 28, 24, 17, 9];
 /// Output pixels per tile of the horizontal smoothing pass.
-const TILE: usize = 64;
+const TILE: usize = 256;
 
 const fn splitmix64(state: &mut u64) -> u64 {
     *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
@@ -448,14 +448,20 @@ pub fn steered_brief(smoothed: &ImageView<'_, u8>, x: usize, y: usize, angle: f3
 
 /// Separable smoothing with the taps `BLUR` / 128 in x and y, borders replicated. `dst`
 /// must have `src`'s size.
+///
+/// The taps are symmetric, so each pass adds the pairs of samples that share a tap first
+/// (`9 (s₀ + s₆) + 17 (s₁ + s₅) + 24 (s₂ + s₄) + 28 s₃`): four multiplies an output instead
+/// of seven, with the same integer result (no sum overflows its lane: a vertical sum is at
+/// most `128 · 255`, a pair of them fits `u16`, a horizontal sum `128² · 255` fits `u32`).
 pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
     let (w, h) = (src.width(), src.height());
     if (dst.width(), dst.height()) != (w, h) {
         return Err(Error::InvalidImage);
     }
+    let [g0, g1, g2, g3] = [BLUR[0], BLUR[1], BLUR[2], BLUR[3]].map(|g| g as u16);
     let mut vs = [0u16; TILE + 6];
     for y in 0..h {
-        let rows: [&[u8]; 7] =
+        let [r0, r1, r2, r3, r4, r5, r6]: [&[u8]; 7] =
             core::array::from_fn(|j| src.row_clamped(y as isize + j as isize - 3));
         let Some(out) = dst.row_mut(y) else { break };
         for (tile, out_tile) in out.chunks_mut(TILE).enumerate() {
@@ -468,37 +474,52 @@ pub fn smooth(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()>
             let k1 = (wi - first).min(n as isize).max(k0 as isize) as usize;
             let c0 = (first + k0 as isize).max(0) as usize;
             if let Some(mid) = vs.get_mut(k0..k1) {
-                mid.fill(0);
-                for (r, g) in rows.iter().zip(BLUR) {
-                    let src = r.get(c0..c0 + mid.len()).unwrap_or(&[]);
-                    for (v, &p) in mid.iter_mut().zip(src) {
-                        // s <= 128 · 255 fits u16.
-                        *v += g as u16 * u16::from(p);
-                    }
+                fn span(r: &[u8], at: usize, len: usize) -> &[u8] {
+                    r.get(at..at + len).unwrap_or(&[])
+                }
+                let len = mid.len();
+                let taps = span(r0, c0, len)
+                    .iter()
+                    .zip(span(r1, c0, len))
+                    .zip(span(r2, c0, len))
+                    .zip(span(r3, c0, len))
+                    .zip(span(r4, c0, len))
+                    .zip(span(r5, c0, len))
+                    .zip(span(r6, c0, len));
+                for (v, ((((((&a, &b), &c), &d), &e), &f), &g)) in mid.iter_mut().zip(taps) {
+                    let pair = |x: u8, y: u8| u16::from(x) + u16::from(y);
+                    *v = g0 * pair(a, g) + g1 * pair(b, f) + g2 * pair(c, e) + g3 * u16::from(d);
                 }
             }
-            for (k, v) in vs.iter_mut().enumerate().take(n) {
-                if (k0..k1).contains(&k) {
-                    continue;
-                }
+            for k in (0..k0).chain(k1..n) {
                 // `max` then `min`: `clamp` asserts `0 <= w - 1`, which the optimiser cannot
                 // see (a view is never empty).
                 let col = (first + k as isize).max(0).min(wi - 1) as usize;
-                let s: u32 = rows
+                let s: u32 = [r0, r1, r2, r3, r4, r5, r6]
                     .iter()
                     .zip(BLUR)
                     .map(|(r, g)| g * u32::from(r.get(col).copied().unwrap_or(0)))
                     .sum();
-                *v = s as u16;
-            }
-            // Horizontal taps, tap by tap over the tile.
-            let mut acc = [0u32; TILE];
-            for (j, g) in BLUR.iter().enumerate() {
-                for (a, &v) in acc.iter_mut().zip(vs.iter().skip(j)) {
-                    *a += g * u32::from(v);
+                if let Some(v) = vs.get_mut(k) {
+                    *v = s as u16;
                 }
             }
-            for (o, &a) in out_tile.iter_mut().zip(&acc) {
+            // Horizontal taps: seven shifted views of the tile's vertical sums.
+            let m = out_tile.len();
+            let view = |j: usize| vs.get(j..j + m).unwrap_or(&[]);
+            let taps = view(0)
+                .iter()
+                .zip(view(1))
+                .zip(view(2))
+                .zip(view(3))
+                .zip(view(4))
+                .zip(view(5))
+                .zip(view(6));
+            for (o, ((((((&a, &b), &c), &d), &e), &f), &g)) in out_tile.iter_mut().zip(taps) {
+                let a = u32::from(g0) * u32::from(a + g)
+                    + u32::from(g1) * u32::from(b + f)
+                    + u32::from(g2) * u32::from(c + e)
+                    + u32::from(g3) * u32::from(d);
                 // a <= 128² · 255: the rounded quotient fits u8.
                 *o = ((a + 8192) >> 14) as u8;
             }
