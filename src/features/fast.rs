@@ -573,28 +573,40 @@ pub const HARRIS_K_Q10: i64 = 41;
 ///
 /// `None` unless the block and its Sobel taps fit in the image (`4 <= x < width - 4`, same in y).
 pub fn harris_response(img: &ImageView<'_, u8>, x: usize, y: usize) -> Option<i64> {
-    let r = HARRIS_BLOCK / 2 + 1;
-    if x < r || y < r || x + r >= img.width() || y + r >= img.height() {
+    const R: usize = HARRIS_BLOCK / 2 + 1;
+    const N: usize = HARRIS_BLOCK + 2;
+    if x < R || y < R || x + R >= img.width() || y + R >= img.height() {
         return None;
     }
-    let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
-    for yy in y - 3..=y + 3 {
-        let up = img.row(yy - 1)?;
-        let mid = img.row(yy)?;
-        let dn = img.row(yy + 1)?;
-        for xx in x - 3..=x + 3 {
-            let p = |row: &[u8], col: usize| i32::from(row.get(col).copied().unwrap_or(0));
-            let ix = (p(mid, xx + 1) - p(mid, xx - 1)) * 2
-                + (p(up, xx + 1) - p(up, xx - 1))
-                + (p(dn, xx + 1) - p(dn, xx - 1));
-            let iy = (p(dn, xx) - p(up, xx)) * 2
-                + (p(dn, xx - 1) - p(up, xx - 1))
-                + (p(dn, xx + 1) - p(up, xx + 1));
-            a += i64::from(ix * ix);
-            b += i64::from(iy * iy);
-            c += i64::from(ix * iy);
+    // The 9 rows of the block and its taps, each as its 9 columns: per row, the horizontal
+    // difference `p[k + 2] - p[k]` and smoothing `p[k] + 2 p[k + 1] + p[k + 2]`; the Sobel
+    // derivatives are then `Ix = d₀ + 2 d₁ + d₂` and `Iy = s₂ - s₀` down three rows. Fixed
+    // sizes throughout, so the loops unroll without bounds checks.
+    let mut d = [[0i32; HARRIS_BLOCK]; N];
+    let mut s = [[0i32; HARRIS_BLOCK]; N];
+    for (j, (dr, sr)) in d.iter_mut().zip(s.iter_mut()).enumerate() {
+        let row: &[u8; N] = img.row(y - R + j)?.get(x - R..x + R + 1)?.try_into().ok()?;
+        let p = row.map(i32::from);
+        for (k, (dv, sv)) in dr.iter_mut().zip(sr.iter_mut()).enumerate() {
+            let [a, b, c] = [k, k + 1, k + 2].map(|i| p.get(i).copied().unwrap_or(0));
+            *dv = c - a;
+            *sv = a + 2 * b + c;
         }
     }
+    // |Ix|, |Iy| <= 4 · 255, so each of the 49 products is below 2²⁰ and the sums fit `i32`.
+    let (mut a, mut b, mut c) = (0i32, 0i32, 0i32);
+    for ((d3, s0), s2) in d.windows(3).zip(s.iter()).zip(s.iter().skip(2)) {
+        let [d0, d1, d2] = [0, 1, 2].map(|i| d3.get(i).copied().unwrap_or_default());
+        for k in 0..HARRIS_BLOCK {
+            let at = |r: &[i32; HARRIS_BLOCK]| r.get(k).copied().unwrap_or(0);
+            let ix = at(&d0) + 2 * at(&d1) + at(&d2);
+            let iy = at(s2) - at(s0);
+            a += ix * ix;
+            b += iy * iy;
+            c += ix * iy;
+        }
+    }
+    let (a, b, c) = (i64::from(a), i64::from(b), i64::from(c));
     Some(a * b - c * c - ((HARRIS_K_Q10 * (a + b) * (a + b)) >> 10))
 }
 
@@ -838,5 +850,46 @@ mod tests {
         );
         assert_eq!(harris_response(&img, 3, 20), None);
         assert_eq!(harris_response(&img, 20, 36), None);
+    }
+
+    #[test]
+    fn harris_matches_the_sobel_definition() {
+        // Every position of a random image (strided view, extreme values included) against
+        // the 3x3 Sobel sums written out per pixel: equal, and `None` exactly where the block
+        // or its taps leave the image.
+        let (w, h, stride) = (23usize, 17usize, 29usize);
+        let mut g = crate::rng::Pcg32::new(5);
+        let data: Vec<u8> = (0..stride * h)
+            .map(|_| match g.below(8) {
+                0 => 0,
+                1 => 255,
+                _ => g.below(256) as u8,
+            })
+            .collect();
+        let img = ImageView::new(&data, w, h, stride).unwrap();
+        let p = |x: usize, y: usize| i64::from(data[y * stride + x]);
+        for y in 0..h {
+            for x in 0..w {
+                let inside = (4..w - 4).contains(&x) && (4..h - 4).contains(&y);
+                let want = inside.then(|| {
+                    let (mut a, mut b, mut c) = (0i64, 0i64, 0i64);
+                    for yy in y - 3..=y + 3 {
+                        for xx in x - 3..=x + 3 {
+                            let ix = 2 * (p(xx + 1, yy) - p(xx - 1, yy))
+                                + (p(xx + 1, yy - 1) - p(xx - 1, yy - 1))
+                                + (p(xx + 1, yy + 1) - p(xx - 1, yy + 1));
+                            let iy = 2 * (p(xx, yy + 1) - p(xx, yy - 1))
+                                + (p(xx - 1, yy + 1) - p(xx - 1, yy - 1))
+                                + (p(xx + 1, yy + 1) - p(xx + 1, yy - 1));
+                            a += ix * ix;
+                            b += iy * iy;
+                            c += ix * iy;
+                        }
+                    }
+                    a * b - c * c - ((HARRIS_K_Q10 * (a + b) * (a + b)) >> 10)
+                });
+                assert_eq!(harris_response(&img, x, y), want, "at {x},{y}");
+            }
+        }
     }
 }
