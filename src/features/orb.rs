@@ -402,14 +402,24 @@ pub fn orientation(img: &ImageView<'_, u8>, x: usize, y: usize) -> f32 {
             continue;
         };
         let (mut sum, mut moment) = (0i32, 0i32);
-        for du in -umax..=umax {
-            let p = i32::from(
-                row.get(x.wrapping_add_signed(du as isize))
-                    .copied()
-                    .unwrap_or(0),
-            );
-            sum += p;
-            moment += du * p;
+        let first = x.wrapping_add_signed(-umax as isize);
+        match row.get(first..=x.wrapping_add_signed(umax as isize)) {
+            // The whole span inside the row (always, for keypoints at least `MIN_BORDER`
+            // inside): one straight pass.
+            Some(span) => {
+                for (du, &p) in (-umax..=umax).zip(span) {
+                    sum += i32::from(p);
+                    moment += du * i32::from(p);
+                }
+            }
+            None => {
+                for du in -umax..=umax {
+                    let at = x.wrapping_add_signed(du as isize);
+                    let p = i32::from(row.get(at).copied().unwrap_or(0));
+                    sum += p;
+                    moment += du * p;
+                }
+            }
         }
         m10 += moment;
         m01 += dv * sum;
@@ -418,29 +428,44 @@ pub fn orientation(img: &ImageView<'_, u8>, x: usize, y: usize) -> f32 {
 }
 
 /// The steered BRIEF descriptor at `(x, y)` of the smoothed level for orientation `angle`.
+///
+/// Each pattern point `p` is rotated by the angle in Q14 and rounded,
+/// `r = ((p_x c - p_y s + 2¹³) >> 14, (p_x s + p_y c + 2¹³) >> 14)`, so `|r_x|, |r_y| <=
+/// PATTERN_RADIUS + 1`; when that square lies inside the image (every keypoint at least
+/// [`MIN_BORDER`] inside), a sample is one load at the offset `r_y · stride + r_x` from the
+/// keypoint, else it goes through [`ImageView::get`] (0 outside).
 pub fn steered_brief(smoothed: &ImageView<'_, u8>, x: usize, y: usize, angle: f32) -> Descriptor {
     let (s, c) = libm::sincosf(angle);
     let (sq, cq) = (
         libm::roundf(s * 16384.0) as i32,
         libm::roundf(c * 16384.0) as i32,
     );
-    let sample = |px: i8, py: i8| -> u8 {
+    let rotate = |px: i8, py: i8| -> (isize, isize) {
         let (px, py) = (i32::from(px), i32::from(py));
         let rx = (px * cq - py * sq + 8192) >> 14;
         let ry = (px * sq + py * cq + 8192) >> 14;
-        smoothed
-            .get(
-                x.wrapping_add_signed(rx as isize),
-                y.wrapping_add_signed(ry as isize),
-            )
-            .unwrap_or(0)
+        (rx as isize, ry as isize)
+    };
+    let r = PATTERN_RADIUS as usize + 1;
+    let inside = x >= r && y >= r && x + r < smoothed.width() && y + r < smoothed.height();
+    let stride = smoothed.stride() as isize;
+    let (data, centre) = (smoothed.data(), y * smoothed.stride() + x);
+    let sample = |px: i8, py: i8| -> u8 {
+        let (rx, ry) = rotate(px, py);
+        if inside {
+            data.get(centre.wrapping_add_signed(ry * stride + rx))
+                .copied()
+                .unwrap_or(0)
+        } else {
+            smoothed
+                .get(x.wrapping_add_signed(rx), y.wrapping_add_signed(ry))
+                .unwrap_or(0)
+        }
     };
     let mut bits = [0u32; 8];
-    for (i, [x1, y1, x2, y2]) in PATTERN.iter().copied().enumerate() {
-        if sample(x1, y1) < sample(x2, y2)
-            && let Some(word) = bits.get_mut(i / 32)
-        {
-            *word |= 1 << (i % 32);
+    for (word, pairs) in bits.iter_mut().zip(PATTERN.chunks_exact(32)) {
+        for (k, &[x1, y1, x2, y2]) in pairs.iter().enumerate() {
+            *word |= u32::from(sample(x1, y1) < sample(x2, y2)) << k;
         }
     }
     Descriptor(bits)
