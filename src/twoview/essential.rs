@@ -125,11 +125,12 @@ impl<T: Real> Estimator for EssentialEstimator<'_, T> {
         if let Ok(models) = five_point(&a, &b) {
             // Solutions that split the sample across the cameras cannot be the geometry of an
             // all-inlier sample: not scored ([`oriented_consistent`]).
-            for e in models
-                .into_iter()
-                .filter(|e| oriented_consistent(e.matrix(), &a, &b))
-            {
-                if let Some(m) = self.model(e) {
+            // By reference: `heapless`'s owning iterator drops its rest through a slice index
+            // the optimiser could not prove in range behind the filter (a panic path).
+            for e in models.iter() {
+                if oriented_consistent(e.matrix(), &a, &b)
+                    && let Some(m) = self.model(*e)
+                {
                     emit(m);
                 }
             }

@@ -128,7 +128,7 @@ pub(crate) fn oriented_consistent<T: Real>(
     x1: &[Point2<T>],
     x2: &[Point2<T>],
 ) -> bool {
-    let (c0, c1, c2) = (m.column(0), m.column(1), m.column(2));
+    let [c0, c1, c2] = <[[T; 3]; 3]>::from(*m).map(Vector3::from);
     let e2 = [c1.cross(&c2), c2.cross(&c0)]
         .into_iter()
         .fold(c0.cross(&c1), |best, c| {
