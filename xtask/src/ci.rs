@@ -127,9 +127,18 @@ fn steps() -> Vec<Step> {
         }),
     );
     add(
-        "examples: each runs (cargo run -p camgeom --example NAME)",
+        "examples: each runs (the test step built them: cargo test builds every example)",
         Box::new(|| {
-            // The test profile's camgeom (opt-level 2, built by the test step) serves them too.
+            // `cargo run -p camgeom --example NAME` would resolve camgeom's features alone and
+            // rebuild it and its dependencies (about 30 s); the binaries `cargo test
+            // --workspace` left in the target directory are the same programs. The build
+            // below is a no-op after the test step and builds them on a step run alone.
+            run(locked(&mut root_cargo(&[
+                "build",
+                "--workspace",
+                "--examples",
+            ])))?;
+            let dir = target_dir().join("debug").join("examples");
             for example in [
                 "project_points",
                 "homography",
@@ -137,8 +146,8 @@ fn steps() -> Vec<Step> {
                 "klt_two_frames",
                 "track_box",
             ] {
-                let mut cmd = root_cargo(&["run", "-q", "-p", "camgeom", "--example", example]);
-                run(locked(&mut cmd))?;
+                let mut cmd = Command::new(dir.join(example));
+                run(cmd.current_dir(root()))?;
             }
             Ok(())
         }),
@@ -206,6 +215,15 @@ fn steps() -> Vec<Step> {
         Box::new(|| crate::mainjob::run(&crate::mainjob::Options::full())),
     );
     steps
+}
+
+/// The root workspace's target directory (`CARGO_TARGET_DIR`, relative to the root when
+/// relative, else `target/`).
+fn target_dir() -> std::path::PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(dir) => root().join(dir),
+        None => root().join("target"),
+    }
 }
 
 /// The host's target triple (`rustc -vV`), for the firmware workspace's host-side tests.
