@@ -77,6 +77,15 @@ pub(crate) fn above<T: Real>(x: T, bound: T) -> bool {
     x > bound
 }
 
+/// The larger of `a` and `b` by one comparison (`a` when `b` is NaN): for a running maximum
+/// that starts finite, the value `a.max(b)` gives, without the `fmaxf` library call that
+/// becomes on cores with no float maximum instruction (Cortex-M4/M7 call it for every entry of
+/// a scan).
+#[inline]
+pub(crate) fn larger<T: Real>(a: T, b: T) -> T {
+    if b > a { b } else { a }
+}
+
 /// `x ≤ bound`, false for NaN: the form of every "within tolerance" test, so that NaN never is.
 #[inline]
 pub(crate) fn at_most<T: Real>(x: T, bound: T) -> bool {

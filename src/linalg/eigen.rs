@@ -13,7 +13,7 @@
 //! coefficients (in `f32` especially) lose the roots that cluster. About 13 QR iterations for
 //! the five-point solver's 10x10 action matrix (about 10k flops in all).
 
-use crate::scalar::{Real, above};
+use crate::scalar::{Real, above, larger};
 
 /// Bound on the QR iterations spent on one eigenvalue (or pair), as EISPACK's `hqr`: with
 /// exceptional shifts at 10 and 20, convergence takes 2-4 in practice.
@@ -406,7 +406,10 @@ pub(crate) fn real_eigenvalues<T: Real, const N: usize>(
 /// eigenvector. `None` when `a` is zero or not finite, or a solve overflows.
 pub(crate) fn null_vector<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<[T; N]> {
     let mut lu = Square(*a);
-    let scale = a.iter().flatten().fold(T::zero(), |m, v| m.max(v.abs()));
+    let scale = a
+        .iter()
+        .flatten()
+        .fold(T::zero(), |m, v| larger(m, v.abs()));
     if !above(scale, T::zero()) || !scale.finite() {
         return None;
     }
@@ -471,7 +474,7 @@ pub(crate) fn null_vector<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<[T
             }
             *wi /= row.get(i).copied().unwrap_or(T::one());
         }
-        let n = w.iter().fold(T::zero(), |m, x| m.max(x.abs()));
+        let n = w.iter().fold(T::zero(), |m, x| larger(m, x.abs()));
         if !above(n, T::zero()) || !n.finite() {
             return None;
         }

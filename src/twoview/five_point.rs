@@ -51,7 +51,7 @@ use super::fundamental::{epipolar_row, unvec};
 use super::poly::{eval, real_roots};
 use crate::corners::swap_checked;
 use crate::linalg::{StreamingQr, null_space, null_vector, real_eigenvalues};
-use crate::scalar::{Real, above, check_finite};
+use crate::scalar::{Real, above, check_finite, larger};
 use crate::{Error, Result};
 
 /// Most essential matrices [`five_point`] returns.
@@ -777,7 +777,7 @@ fn keep<T: Real>(
             .iter()
             .zip(et.iter())
             .fold(T::zero(), |acc, (a, b)| acc + *a * *b);
-        w.max(v.abs())
+        larger(w, v.abs())
     });
     if !above(tol.solution, worst) {
         return;
@@ -1036,7 +1036,7 @@ fn polish_direct<T: Real>(basis: &[Matrix3<T>; 4], x: T, y: T, z: T) -> (T, T, T
             cost = c;
             let size = T::one() + p[0].abs() + p[1].abs() + p[2].abs();
             if !above(
-                sx.abs().max(sy.abs()).max(sz.abs()),
+                larger(larger(sx.abs(), sy.abs()), sz.abs()),
                 T::lit(POLISH_STEP) * size,
             ) {
                 break 'factor;
@@ -1070,7 +1070,7 @@ impl<T: Real> Mgs10x3<T> {
         };
         let mut q = *columns;
         let mut r = [[T::zero(); 3]; 3];
-        let first = q.iter().fold(T::zero(), |m, c| m.max(dot(c, c)));
+        let first = q.iter().fold(T::zero(), |m, c| larger(m, dot(c, c)));
         if !above(first, T::zero()) || !first.finite() {
             return None;
         }
@@ -1130,7 +1130,7 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
     let scale = a
         .iter()
         .flat_map(|r| r.iter())
-        .fold(T::zero(), |m, v| m.max(v.abs()));
+        .fold(T::zero(), |m, v| larger(m, v.abs()));
     if !above(scale, T::zero()) || !scale.finite() {
         return Err(Error::Degenerate);
     }
