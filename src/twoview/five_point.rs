@@ -49,7 +49,6 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
 use super::poly::{eval, real_roots};
-use crate::corners::swap_checked;
 use crate::linalg::{StreamingQr, null_space, null_vector, real_eigenvalues};
 use crate::scalar::{Real, above, check_finite, larger};
 use crate::{Error, Result};
@@ -950,6 +949,7 @@ const POLISH_STEP: f64 = 1e-5;
 /// The ten constraints of `E`: `r = (det E, vec(2 S E - tr(S) E))`, `S = E Eᵀ` (row-major
 /// `vec`), with the cofactor matrix and `S`, `EᵀE`, `tr S` for [`constraint_jacobian`].
 #[allow(clippy::type_complexity)]
+#[inline(always)]
 fn constraint_residuals<T: Real>(
     e: &Matrix3<T>,
 ) -> ([T; 10], Matrix3<T>, Matrix3<T>, Matrix3<T>, T) {
@@ -1145,8 +1145,18 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
                 pmax = v;
             }
         }
-        swap_checked(a, c, p);
-        let Some(mut pivot) = a.get(c).copied() else {
+        // In place, entry by entry: whole-row copies and swaps of these 80-byte rows are
+        // `memcpy` calls on a Cortex-M.
+        if p > c {
+            let (upper, lower) = a.split_at_mut(p);
+            if let (Some(x), Some(y)) = (upper.get_mut(c), lower.first_mut()) {
+                x.iter_mut()
+                    .zip(y.iter_mut())
+                    .for_each(|(u, v)| core::mem::swap(u, v));
+            }
+        }
+        let (before, rest) = a.split_at_mut(c);
+        let Some((pivot, after)) = rest.split_first_mut() else {
             return Err(Error::Degenerate);
         };
         let pv = pivot.get(c).copied().unwrap_or(T::zero());
@@ -1154,14 +1164,10 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
             return Err(Error::Degenerate);
         }
         pivot.iter_mut().for_each(|v| *v /= pv);
-        for (i, row) in a.iter_mut().enumerate() {
-            if i == c {
-                *row = pivot;
-            } else {
-                let f = row.get(c).copied().unwrap_or(T::zero());
-                if f != T::zero() {
-                    axpy(row, -f, &pivot);
-                }
+        for row in before.iter_mut().chain(after.iter_mut()) {
+            let f = row.get(c).copied().unwrap_or(T::zero());
+            if f != T::zero() {
+                axpy(row, -f, pivot);
             }
         }
     }
