@@ -13,6 +13,7 @@
 //! coefficients (in `f32` especially) lose the roots that cluster. About 13 QR iterations for
 //! the five-point solver's 10x10 action matrix (about 10k flops in all).
 
+use super::swap_rows;
 use crate::scalar::{Real, above, larger};
 
 /// Bound on the QR iterations spent on one eigenvalue (or pair), as EISPACK's `hqr`: with
@@ -128,8 +129,8 @@ fn hessenberg<T: Real, const N: usize>(a: &mut Square<T, N>) {
                 pivot = j;
             }
         }
-        if pivot != m {
-            a.0.swap(pivot, m);
+        if pivot > m {
+            swap_rows(&mut a.0, m, pivot);
             for row in a.0.iter_mut() {
                 row.swap(pivot, m);
             }
@@ -422,8 +423,8 @@ pub(crate) fn null_vector<T: Real, const N: usize>(a: &[[T; N]; N]) -> Option<[T
                 p = r;
             }
         }
-        if p != c {
-            lu.0.swap(p, c);
+        if p > c {
+            swap_rows(&mut lu.0, c, p);
             perm.swap(p, c);
         }
         let mut pivot = lu.at(c, c);

@@ -98,6 +98,20 @@ pub(crate) fn column<T: Real, const R: usize, const C: usize>(
     v
 }
 
+/// Swaps rows `i < j` of `rows` entry by entry (nothing for `i >= j` or out of range): a
+/// whole-array swap of rows this size is a `memcpy` call on a Cortex-M, this stays in registers.
+#[inline]
+pub(crate) fn swap_rows<T, const N: usize>(rows: &mut [[T; N]], i: usize, j: usize) {
+    if i < j {
+        let (upper, lower) = rows.split_at_mut(j);
+        if let (Some(x), Some(y)) = (upper.get_mut(i), lower.first_mut()) {
+            x.iter_mut()
+                .zip(y.iter_mut())
+                .for_each(|(u, v)| core::mem::swap(u, v));
+        }
+    }
+}
+
 /// `√(a² + b²)` without intermediate overflow or underflow, computed in `T`.
 ///
 /// Used instead of `hypot` because libm's `hypotf` works in `f64`, which is software-emulated

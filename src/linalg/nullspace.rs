@@ -1,5 +1,6 @@
 //! The null space of a few rows by Gauss-Jordan elimination (minimal solvers).
 
+use super::swap_rows;
 use crate::corners::swap_checked;
 use crate::scalar::{Real, above};
 use crate::{Error, Result};
@@ -42,21 +43,19 @@ pub(crate) fn null_space<T: Real, const R: usize, const C: usize, const K: usize
             return Err(Error::Degenerate);
         }
         // `i`, `pr` < rows and `i`, `pc` < columns (the search above).
-        swap_checked(&mut m, i, pr);
+        swap_rows(&mut m, i, pr);
         for row in m.iter_mut() {
             swap_checked(row, i, pc);
         }
         swap_checked(&mut perm, i, pc);
-        let Some(mut pivot) = m.get(i).copied() else {
+        // In place, the pivot row borrowed: whole-row copies are `memcpy` calls on a Cortex-M.
+        let (before, rest) = m.split_at_mut(i);
+        let Some((pivot, after)) = rest.split_first_mut() else {
             return Err(Error::Degenerate);
         };
         let inv = T::one() / pivot.get(i).copied().unwrap_or(T::one());
         pivot.iter_mut().for_each(|v| *v *= inv);
-        for (r, row) in m.iter_mut().enumerate() {
-            if r == i {
-                *row = pivot;
-                continue;
-            }
+        for row in before.iter_mut().chain(after.iter_mut()) {
             let f = row.get(i).copied().unwrap_or(T::zero());
             row.iter_mut()
                 .zip(pivot.iter())

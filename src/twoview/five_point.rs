@@ -49,7 +49,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use super::Essential;
 use super::fundamental::{epipolar_row, unvec};
 use super::poly::{eval, real_roots};
-use crate::linalg::{StreamingQr, null_space, null_vector, real_eigenvalues};
+use crate::linalg::{StreamingQr, null_space, null_vector, real_eigenvalues, swap_rows};
 use crate::scalar::{Real, above, check_finite, larger};
 use crate::{Error, Result};
 
@@ -1145,16 +1145,8 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
                 pmax = v;
             }
         }
-        // In place, entry by entry: whole-row copies and swaps of these 80-byte rows are
-        // `memcpy` calls on a Cortex-M.
-        if p > c {
-            let (upper, lower) = a.split_at_mut(p);
-            if let (Some(x), Some(y)) = (upper.get_mut(c), lower.first_mut()) {
-                x.iter_mut()
-                    .zip(y.iter_mut())
-                    .for_each(|(u, v)| core::mem::swap(u, v));
-            }
-        }
+        // In place: whole-row copies of these 80-byte rows are `memcpy` calls on a Cortex-M.
+        swap_rows(a, c, p);
         let (before, rest) = a.split_at_mut(c);
         let Some((pivot, after)) = rest.split_first_mut() else {
             return Err(Error::Degenerate);
