@@ -102,13 +102,13 @@ pub(crate) fn column<T: Real, const R: usize, const C: usize>(
 /// whole-array swap of rows this size is a `memcpy` call on a Cortex-M, this stays in registers.
 #[inline]
 pub(crate) fn swap_rows<T, const N: usize>(rows: &mut [[T; N]], i: usize, j: usize) {
-    if i < j {
-        let (upper, lower) = rows.split_at_mut(j);
-        if let (Some(x), Some(y)) = (upper.get_mut(i), lower.first_mut()) {
-            x.iter_mut()
-                .zip(y.iter_mut())
-                .for_each(|(u, v)| core::mem::swap(u, v));
-        }
+    if i < j
+        && let Some((upper, lower)) = rows.split_at_mut_checked(j)
+        && let (Some(x), Some(y)) = (upper.get_mut(i), lower.first_mut())
+    {
+        x.iter_mut()
+            .zip(y.iter_mut())
+            .for_each(|(u, v)| core::mem::swap(u, v));
     }
 }
 

@@ -49,7 +49,9 @@ pub(crate) fn null_space<T: Real, const R: usize, const C: usize, const K: usize
         }
         swap_checked(&mut perm, i, pc);
         // In place, the pivot row borrowed: whole-row copies are `memcpy` calls on a Cortex-M.
-        let (before, rest) = m.split_at_mut(i);
+        let Some((before, rest)) = m.split_at_mut_checked(i) else {
+            return Err(Error::Degenerate);
+        };
         let Some((pivot, after)) = rest.split_first_mut() else {
             return Err(Error::Degenerate);
         };

@@ -1147,7 +1147,9 @@ fn gauss_jordan<T: Real>(a: &mut [Poly<T>; 10], tol: T) -> Result<()> {
         }
         // In place: whole-row copies of these 80-byte rows are `memcpy` calls on a Cortex-M.
         swap_rows(a, c, p);
-        let (before, rest) = a.split_at_mut(c);
+        let Some((before, rest)) = a.split_at_mut_checked(c) else {
+            return Err(Error::Degenerate);
+        };
         let Some((pivot, after)) = rest.split_first_mut() else {
             return Err(Error::Degenerate);
         };
