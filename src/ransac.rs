@@ -56,7 +56,7 @@
 //! ```
 
 use crate::rng::Pcg32;
-use crate::scalar::Real;
+use crate::scalar::{Real, larger};
 use crate::{Error, Result};
 
 /// Largest minimal sample an [`Estimator`] may ask for (the 8-point algorithm).
@@ -500,7 +500,7 @@ fn score_bounded<T: Real, E: Estimator<Scalar = T>>(
     for &(order, best_cost, best_count) in rivals.iter().flatten() {
         match order {
             Scoring::Msac | Scoring::Adaptive => {
-                cost_bound = Some(cost_bound.map_or(best_cost, |c| c.max(best_cost)));
+                cost_bound = Some(cost_bound.map_or(best_cost, |c| larger(c, best_cost)));
             }
             Scoring::InlierCount => {
                 let allowed = n.saturating_sub(best_count);
