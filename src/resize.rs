@@ -110,8 +110,8 @@ pub fn resize_bilinear(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> R
             let sx = xs.next().unwrap_or(0);
             let x0 = (sx >> 8) as usize;
             let first = *lo.get_or_insert(x0);
-            *a = (x0 - first) & (SPAN - 1);
-            *b = ((x0 + 1).min(ws - 1) - first) & (SPAN - 1);
+            *a = x0 - first;
+            *b = (x0 + 1).min(ws - 1) - first;
             *f = sx & 255;
         }
         let lo = lo.unwrap_or(0);
