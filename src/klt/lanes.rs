@@ -8,12 +8,12 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, lerp, taps,
+    PIX_SHIFT, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, grad_span,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
 use crate::{Error, Result};
-use wide::{i16x8, i32x4, i32x8};
+use wide::{i16x8, i32x4, i32x8, u8x16};
 
 /// Lanes of one vector of `i16` (128 bits).
 const L: usize = 8;
@@ -40,8 +40,9 @@ pub(super) struct Lanes<'s> {
     gx: &'s mut [i16],
     /// `Iy` at integer positions, `(win + 1) x (s + 1)`.
     gy: &'s mut [i16],
-    /// Pixels of a block that leaves the image (reflected), `(win + 1) x (s + 1)`.
-    patch: &'s mut [i16],
+    /// Pixels of a block that leaves the image (reflected), `(win + 1) x (s + 1)` bytes (in
+    /// the first half of its `i16` part of the scratch).
+    patch: &'s mut [u8],
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
     /// `win x s` each; `Ix` and `Iy` are zero beyond column `win`.
     tmpl: &'s mut [i16],
@@ -58,6 +59,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         let (gx, rest) = scratch.split_at_mut_checked(block).ok_or(short)?;
         let (gy, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
         let (patch, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
+        let patch = bytemuck::cast_slice_mut::<i16, u8>(patch);
         let tmpl = rest.get_mut(..3 * win * s).ok_or(short)?;
         Ok(Self {
             win,
@@ -131,7 +133,7 @@ fn weights(b: &Bilinear) -> [i16; 4] {
 }
 
 /// Copies the `cols x rows` derivatives at `(x0, y0)` of a precomputed level into the planes
-/// `gx`, `gy`, zero outside.
+/// `gx`, `gy`, zero outside: each row's span inside the level in one pass.
 fn fetch_grad(
     g: &ImageView<'_, [i16; 2]>,
     (x0, y0): (i32, i32),
@@ -140,18 +142,21 @@ fn fetch_grad(
     gx: &mut [i16],
     gy: &mut [i16],
 ) {
+    let (inner, span) = grad_span(g, x0, cols);
     let planes = gx
         .chunks_exact_mut(cols.max(1))
         .zip(gy.chunks_exact_mut(cols.max(1)));
     for (j, (rx, ry)) in planes.take(rows).enumerate() {
-        let y = y0 + j as i32;
-        let src = if y >= 0 { g.row(y as usize) } else { None };
-        for (i, (x, y)) in rx.iter_mut().zip(ry.iter_mut()).enumerate() {
-            let c = x0 + i as i32;
-            [*x, *y] = match src {
-                Some(r) if c >= 0 => r.get(c as usize).copied().unwrap_or([0, 0]),
-                _ => [0, 0],
-            };
+        rx.fill(0);
+        ry.fill(0);
+        let Some(seg) = grad_row(g, y0, j, span.clone()) else {
+            continue;
+        };
+        let (Some(x), Some(y)) = (rx.get_mut(inner.clone()), ry.get_mut(inner.clone())) else {
+            continue;
+        };
+        for ((x, y), &[dx, dy]) in x.iter_mut().zip(y.iter_mut()).zip(seg) {
+            (*x, *y) = (dx, dy);
         }
     }
 }
@@ -192,6 +197,67 @@ fn interpolate<P: Copy + Into<i16>>(
 /// The four weights, each splat across a vector.
 type Weights = [i16x8; 4];
 
+/// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
+/// for the upper row, `[w10, w11, ...]` for the lower.
+struct PairWeights {
+    upper: i16x8,
+    lower: i16x8,
+}
+
+impl PairWeights {
+    fn new(w: &[i16; 4]) -> Self {
+        let [w00, w01, w10, w11] = *w;
+        let pair = |a: i16, b: i16| i16x8::new([a, b, a, b, a, b, a, b]);
+        Self {
+            upper: pair(w00, w01),
+            lower: pair(w10, w11),
+        }
+    }
+}
+
+/// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of a row, interleaved and widened to
+/// `i16`: pixels 0-3 and 4-7, each as four pairs (two 8-byte loads, one byte interleave).
+#[inline(always)]
+fn tap_pairs(r: &[u8; L + 1]) -> (i16x8, i16x8) {
+    let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
+        return (i16x8::ZERO, i16x8::ZERO);
+    };
+    let widen = |h: &[u8; L]| {
+        let mut v = [0u8; 16];
+        if let Some(lo) = v.first_chunk_mut::<L>() {
+            *lo = *h;
+        }
+        u8x16::new(v)
+    };
+    let p = u8x16::unpack_low(widen(left), widen(right));
+    (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
+}
+
+/// `⌊Σ taps · w / 2⁹⌉` for the 8 pixels of rows `r0`, `r1` (in 1/32 grey levels, at most
+/// `255 · 32`): each row's tap pairs weighed by one `i16` dot product (`pmaddwd` on SSE2),
+/// exact in `i32` (at most `255 · 2¹⁴`), then packed back to `i16`.
+#[inline(always)]
+fn pixels(r0: &[u8; L + 1], r1: &[u8; L + 1], w: &PairWeights) -> i16x8 {
+    let (a0, a1) = tap_pairs(r0);
+    let (b0, b1) = tap_pairs(r1);
+    let half = i32x4::splat(1 << (PIX_SHIFT - 1));
+    let lo = (a0.dot(w.upper) + b0.dot(w.lower) + half) >> PIX_SHIFT;
+    let hi = (a1.dot(w.upper) + b1.dot(w.lower) + half) >> PIX_SHIFT;
+    i16x8::from_i32x8_saturate(bytemuck::cast::<[i32x4; 2], i32x8>([lo, hi]))
+}
+
+/// One row of the template's pixel plane (`r0`, `r1` at least `out.len() + 1` long).
+#[inline(always)]
+fn pixel_row(r0: &[u8], r1: &[u8], out: &mut [i16], w: &PairWeights) {
+    let (out, _) = out.as_chunks_mut::<L>();
+    for (k, o) in out.iter_mut().enumerate() {
+        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
+            return;
+        };
+        *o = pixels(a, b, w).to_array();
+    }
+}
+
 /// One plane row of the template (`r0`, `r1` at least `out.len() + 1` long).
 #[inline(always)]
 fn interpolate_row<P: Copy + Into<i16>>(
@@ -213,8 +279,8 @@ fn interpolate_row<P: Copy + Into<i16>>(
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
 /// `gx`, `gy`) at weights `w`; returns `G`'s sums. Row sums in `i32` are exact: at most
 /// `64 · (16 · 255)² < 2³¹`.
-fn template<'p, P: Copy + Into<i16> + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
+fn template<'p>(
+    rows: impl Iterator<Item = &'p [u8]> + Clone,
     (gx, gy): (&[i16], &[i16]),
     tmpl: &mut [i16],
     win: usize,
@@ -231,9 +297,10 @@ fn template<'p, P: Copy + Into<i16> + Into<i32> + 'p>(
     let pairs = |b| block_of(b, c, n).zip(block_of(b, c, n).skip(1));
     let taps = rows.clone().zip(rows.skip(1)).zip(pairs(gx).zip(pairs(gy)));
     let vw = w.map(i16x8::splat);
+    let pw = PairWeights::new(&w);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
-        interpolate_row(r0, r1, oi, &vw, PIX_SHIFT);
+        pixel_row(r0, r1, oi, &pw);
         interpolate_row(x.0, x.1, ox, &vw, W_BITS);
         interpolate_row(y.0, y.1, oy, &vw, W_BITS);
         // The padding: `Ix`, `Iy` zero beyond column `win`.
@@ -263,47 +330,56 @@ fn sum(v: i32x4) -> i64 {
 }
 
 /// One row of [`mismatch`]: `Σ (J - I) Ix`, `Σ (J - I) Iy` over the template rows `ti`, `tx`,
-/// `ty` (`s` long), `J` bilinear in rows `r0`, `r1` (at least `s + 1` long). `J - I` fits
-/// `i16` (both in `0 ..= 255 · 32`); a lane of the `i32` sums adds two products of at most
-/// `8160 · 4080` a vector, at most 8 vectors: below 2³¹.
+/// `ty` (`s` long), `J` bilinear in rows `r0`, `r1` (at least `s + 1` long), added to the
+/// lanes of `acc`. `J - I` fits `i16` (both in `0 ..= 255 · 32`); a lane gains two products of
+/// at most `8160 · 4080` a vector ([`ROW_BOUND`] a row of `s / 8` vectors).
 #[inline(always)]
-fn mismatch_row<P: Copy + Into<i16>>(
-    (r0, r1): (&[P], &[P]),
+fn mismatch_row(
+    (r0, r1): (&[u8], &[u8]),
     (ti, tx, ty): (&[i16], &[i16], &[i16]),
-    w: &Weights,
-) -> (i64, i64) {
+    w: &PairWeights,
+    acc: &mut [i32x4; 2],
+) {
     let (ti, _) = ti.as_chunks::<L>();
     let (tx, _) = tx.as_chunks::<L>();
     let (ty, _) = ty.as_chunks::<L>();
-    let (mut s1, mut s2) = (i32x4::ZERO, i32x4::ZERO);
+    let [s1, s2] = acc;
     for (k, ((&i, &x), &y)) in ti.iter().zip(tx).zip(ty).enumerate() {
         let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
             break;
         };
-        let diff = interpolate(a, b, w, PIX_SHIFT) - i16x8::new(i);
-        s1 += diff.dot(i16x8::new(x));
-        s2 += diff.dot(i16x8::new(y));
+        let diff = pixels(a, b, w) - i16x8::new(i);
+        *s1 += diff.dot(i16x8::new(x));
+        *s2 += diff.dot(i16x8::new(y));
     }
-    (sum(s1), sum(s2))
 }
 
-/// One row of [`mismatch`]'s `Σ |J - I|` over the `win` real columns of `ti` (at most
-/// `63 · 8160 < 2³¹`).
+/// The most one vector adds to a lane of [`mismatch_row`]'s sums: `2 · 8160 · 4080`.
+const ROW_BOUND: i64 = 2 * 8160 * 4080;
+
+/// One row of [`mismatch`]'s `Σ |J - I|` over the `win` real columns of `ti` (the padding lanes
+/// masked off; at most `63 · 8160 < 2³¹`).
 #[inline(always)]
-fn abs_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], ti: &[i16], w: &[i16; 4]) -> u32 {
-    let [p00, p01, p10, p11] = taps(r0, r1, ti.len());
-    let mut s = 0u32;
-    for ((((&a, &b), &c), &d), &i) in p00.iter().zip(p01).zip(p10).zip(p11).zip(ti) {
-        let diff = descale(lerp(a, b, c, d, w), PIX_SHIFT) - i32::from(i);
-        s = s.wrapping_add(diff.unsigned_abs());
+fn abs_row(r0: &[u8], r1: &[u8], ti: &[i16], win: usize, w: &PairWeights) -> i64 {
+    let (ti, _) = ti.as_chunks::<L>();
+    let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
+    let mut s = i32x4::ZERO;
+    for (k, &i) in ti.iter().enumerate() {
+        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
+            break;
+        };
+        let left = win.saturating_sub(k * L).min(L) as i16;
+        let real = lane.simd_lt(i16x8::splat(left));
+        s += ((pixels(a, b, w) - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
     }
-    s
+    sum(s)
 }
 
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
-/// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide).
-fn mismatch<'p, P: Copy + Into<i16> + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
+/// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide). The products are
+/// summed in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
+fn mismatch<'p>(
+    rows: impl Iterator<Item = &'p [u8]> + Clone,
     tmpl: &[i16],
     win: usize,
     s: usize,
@@ -315,16 +391,23 @@ fn mismatch<'p, P: Copy + Into<i16> + Into<i32> + 'p>(
     let planes = ti
         .chunks_exact(s.max(L))
         .zip(tx.chunks_exact(s.max(L)).zip(ty.chunks_exact(s.max(L))));
-    let vw = w.map(i16x8::splat);
+    let pw = PairWeights::new(&w);
+    let pairs = rows.clone().zip(rows.skip(1)).zip(planes);
+    if abs {
+        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, win, &pw));
+        return (sum_abs.sum(), 0);
+    }
+    // Rows whose sums a lane of `i32` holds (at least one: `s <= 64`, 8 vectors).
+    let batch = (i64::from(i32::MAX) / (ROW_BOUND * (s / L).max(1) as i64)).max(1) as usize;
     let (mut b1, mut b2) = (0i64, 0i64);
-    for ((r0, r1), (i, (x, y))) in rows.clone().zip(rows.skip(1)).zip(planes) {
-        if abs {
-            b1 += i64::from(abs_row(r0, r1, i.get(..win).unwrap_or(&[]), &w));
-        } else {
-            let (s1, s2) = mismatch_row((r0, r1), (i, x, y), &vw);
-            b1 += s1;
-            b2 += s2;
+    let mut acc = [i32x4::ZERO; 2];
+    for (k, ((r0, r1), (i, (x, y)))) in pairs.enumerate() {
+        mismatch_row((r0, r1), (i, x, y), &pw, &mut acc);
+        if (k + 1) % batch == 0 {
+            b1 += sum(acc[0]);
+            b2 += sum(acc[1]);
+            acc = [i32x4::ZERO; 2];
         }
     }
-    (b1, b2)
+    (b1 + sum(acc[0]), b2 + sum(acc[1]))
 }

@@ -3,7 +3,8 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, lerp, taps,
+    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, grad_row,
+    grad_span, lerp, taps,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
@@ -88,17 +89,15 @@ impl<'s> Window<'s> for Packed<'s> {
     }
 }
 
-/// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside.
+/// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside: each
+/// row's span inside the level in one copy.
 fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
+    let (inner, span) = grad_span(g, x0, n);
     for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
-        let y = y0 + j as i32;
-        let src = if y >= 0 { g.row(y as usize) } else { None };
-        for (i, o) in row.iter_mut().enumerate() {
-            let x = x0 + i as i32;
-            *o = match src {
-                Some(r) if x >= 0 => r.get(x as usize).copied().unwrap_or([0, 0]),
-                _ => [0, 0],
-            };
+        row.fill([0, 0]);
+        let seg = grad_row(g, y0, j, span.clone());
+        if let (Some(seg), Some(o)) = (seg, row.get_mut(inner.clone())) {
+            o.copy_from_slice(seg);
         }
     }
 }

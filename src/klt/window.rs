@@ -104,12 +104,12 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 /// outside the image. Each row's columns inside the image are one straight copy (eight at a
 /// time); the columns left and right of it read through a column map made once a call (for
 /// those columns only).
-pub(super) fn fetch_patch(
+pub(super) fn fetch_patch<T: Copy + From<u8>>(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
     cols: usize,
     rows: usize,
-    out: &mut [i16],
+    out: &mut [T],
 ) {
     /// Columns the map covers: a patch is at most `MAX_WIN + 9` wide (the padded rows of the
     /// vector kernel); wider ones reflect column by column.
@@ -136,10 +136,10 @@ pub(super) fn fetch_patch(
         let (m8, mr) = mid.as_chunks_mut::<8>();
         let (s8, sr) = seg.as_chunks::<8>();
         for (o, p) in m8.iter_mut().zip(s8) {
-            *o = p.map(i16::from);
+            *o = p.map(T::from);
         }
         for (o, &p) in mr.iter_mut().zip(sr) {
-            *o = i16::from(p);
+            *o = T::from(p);
         }
         let outside = head
             .iter_mut()
@@ -150,9 +150,37 @@ pub(super) fn fetch_patch(
                 Some(&m) if cols <= MAP => usize::from(m),
                 _ => reflect101(x0 + i as isize, img.width()),
             };
-            *o = i16::from(src.get(x).copied().unwrap_or(0));
+            *o = T::from(src.get(x).copied().unwrap_or(0));
         }
     }
+}
+
+/// The columns of a `cols`-wide block at column `x0` of `g` that lie inside it: as columns of
+/// the block, and as columns of the level (equally long; empty when none).
+pub(super) fn grad_span<P: Copy>(
+    g: &ImageView<'_, P>,
+    x0: i32,
+    cols: usize,
+) -> (core::ops::Range<usize>, core::ops::Range<usize>) {
+    let (w, x0) = (g.width() as i64, i64::from(x0));
+    let cols = cols as i64;
+    // `max` then `min`: `clamp` asserts its bounds are in order.
+    let lo = (-x0).max(0).min(cols);
+    let hi = (w - x0).min(cols).max(lo);
+    let at = |c: i64| (x0 + c).max(0) as usize;
+    (lo as usize..hi as usize, at(lo)..at(hi))
+}
+
+/// The columns `span` of row `y0 + j` of `g`, if that row is inside it.
+#[inline(always)]
+pub(super) fn grad_row<'a, P: Copy>(
+    g: &ImageView<'a, P>,
+    y0: i32,
+    j: usize,
+    span: core::ops::Range<usize>,
+) -> Option<&'a [P]> {
+    let y = usize::try_from(i64::from(y0) + j as i64).ok()?;
+    g.row(y)?.get(span)
 }
 
 /// The `rows` rows, `cols` wide, of the block at `(x0, y0)` of `img`, straight from the image,
@@ -175,13 +203,13 @@ pub(super) fn block_rows<'a>(
 /// ([`fetch_patch`]) unless `patch_at` says it already holds that corner: the iterations of
 /// a point near the border move less than a pixel once they settle, and reuse the copy. A
 /// kernel clears `patch_at` whenever `patch` gets anything else (a template's `I`).
-pub(super) fn cached_patch<'p>(
+pub(super) fn cached_patch<'p, T: Copy + From<u8>>(
     j: &ImageView<'_, u8>,
     at: (i32, i32),
     (cols, rows): (usize, usize),
-    patch: &'p mut [i16],
+    patch: &'p mut [T],
     patch_at: &mut Option<(i32, i32)>,
-) -> &'p [i16] {
+) -> &'p [T] {
     if *patch_at != Some(at) {
         fetch_patch(j, at, cols, rows, patch);
         *patch_at = Some(at);
@@ -192,11 +220,11 @@ pub(super) fn cached_patch<'p>(
 /// The `rows` rows, `cols` wide, of a row-major scratch block (as `chunks_exact(cols)`, whose
 /// length the zips of the kernels would compute with a division the optimiser cannot prove
 /// non-zero).
-pub(super) fn block_of(
-    buf: &[i16],
+pub(super) fn block_of<T>(
+    buf: &[T],
     cols: usize,
     rows: usize,
-) -> impl Iterator<Item = &[i16]> + Clone {
+) -> impl Iterator<Item = &[T]> + Clone {
     (0..rows).map(move |r| buf.get(r * cols..(r + 1) * cols).unwrap_or(&[]))
 }
 
