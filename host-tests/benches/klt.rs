@@ -20,7 +20,7 @@ use camgeom::klt::LkConfig;
 use camgeom_host::bench::{Answers, load_rows};
 use camgeom_host::data_dir;
 use camgeom_host::images::load_gray;
-use camgeom_host::klt::{Path, corners, flow_pyramids, levels, pyramid};
+use camgeom_host::klt::{Derivatives, Path, corners, flow_pyramids, levels, pyramid};
 use camgeom_host::known_motion::{warp, warps};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use serde_json::json;
@@ -62,14 +62,16 @@ fn bench(c: &mut Criterion) {
     for n in [100usize, 1000] {
         let p = &pts[..n.min(pts.len())];
         g.throughput(Throughput::Elements(p.len() as u64));
-        for (name, path, per_level) in [
-            ("fixed_window", Path::Fixed, false),
-            ("f32_window", Path::F32, false),
-            ("fixed_level", Path::Fixed, true),
-            ("f32_level", Path::F32, true),
+        for (name, path, derivs) in [
+            ("fixed_window", Path::Fixed, Derivatives::Window),
+            ("f32_window", Path::F32, Derivatives::Window),
+            ("fixed_level", Path::Fixed, Derivatives::Level),
+            ("f32_level", Path::F32, Derivatives::Level),
+            ("fixed_auto", Path::Fixed, Derivatives::Auto),
+            ("f32_auto", Path::F32, Derivatives::Auto),
         ] {
             g.bench_with_input(BenchmarkId::new(name, n), &p, |bn, p| {
-                bn.iter(|| flow_pyramids(&pa, &pb, black_box(p), &cfg, path, per_level).unwrap())
+                bn.iter(|| flow_pyramids(&pa, &pb, black_box(p), &cfg, path, derivs).unwrap())
             });
         }
         // The peer crate optical-flow-lk on the same points, pyramids and window (its pyramid
@@ -96,14 +98,16 @@ fn bench(c: &mut Criterion) {
     g.sample_size(20);
     g.throughput(Throughput::Elements(known.len() as u64));
     for (name, path) in [("fixed", Path::Fixed), ("f32", Path::F32)] {
-        let res = flow_pyramids(&pa, &pw, &known, &cfg, path, false).unwrap();
+        let res = flow_pyramids(&pa, &pw, &known, &cfg, path, Derivatives::Auto).unwrap();
         let end: Vec<Option<[f64; 2]>> = res
             .iter()
             .map(|f| (f.status == FlowStatus::Tracked).then_some([f.x, f.y]))
             .collect();
         answers.record(&format!("homography/{name}"), json!({ "points": end }));
         g.bench_function(BenchmarkId::new(name, "homography"), |bn| {
-            bn.iter(|| flow_pyramids(&pa, &pw, black_box(&known), &cfg, path, false).unwrap())
+            bn.iter(|| {
+                flow_pyramids(&pa, &pw, black_box(&known), &cfg, path, Derivatives::Auto).unwrap()
+            })
         });
     }
     let op = to_peer(&known);

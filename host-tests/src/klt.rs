@@ -45,6 +45,18 @@ pub fn pyramid<'a>(img: &'a GrayImage, buf: &'a mut Vec<u8>, levels: usize) -> P
     Pyramid::build(view, buf, levels).expect("pyramid")
 }
 
+/// Where [`flow_pyramids`] takes the window derivatives from ([`Gradients`]; a level-0 sized
+/// buffer for the two that need one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Derivatives {
+    /// [`Gradients::PerWindow`].
+    Window,
+    /// [`Gradients::PerLevel`].
+    Level,
+    /// [`Gradients::Auto`].
+    Auto,
+}
+
 /// Runs `calc_flow` (and the forward-backward check when `cfg.fb_threshold` is set) on
 /// pyramids already built.
 pub fn flow_pyramids(
@@ -53,32 +65,29 @@ pub fn flow_pyramids(
     pts: &[[f64; 2]],
     cfg: &LkConfig,
     path: Path,
-    per_level: bool,
+    derivs: Derivatives,
 ) -> camgeom::Result<Vec<FlowPoint>> {
     fn go<A: FlowArith>(
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
         pts: Vec<[A::Coord; 2]>,
         cfg: &LkConfig,
-        per_level: bool,
+        derivs: Derivatives,
     ) -> camgeom::Result<Vec<FlowPoint>> {
         let params = cfg.check()?;
         let mut scratch = vec![0i16; scratch_len(cfg.win)];
         let l0 = prev.level(0).ok_or(camgeom::Error::InvalidImage)?;
-        let mut grad = vec![
-            [0i16; 2];
-            if per_level {
-                l0.width() * l0.height()
-            } else {
-                0
-            }
-        ];
+        let len = match derivs {
+            Derivatives::Window => 0,
+            Derivatives::Level | Derivatives::Auto => l0.width() * l0.height(),
+        };
+        let mut grad = vec![[0i16; 2]; len];
         let mut flows = vec![Flow::<A::Coord>::default(); pts.len()];
-        fn g(grad: &mut [[i16; 2]], per_level: bool) -> Gradients<'_> {
-            if per_level {
-                Gradients::PerLevel(grad)
-            } else {
-                Gradients::PerWindow
+        fn g(grad: &mut [[i16; 2]], derivs: Derivatives) -> Gradients<'_> {
+            match derivs {
+                Derivatives::Window => Gradients::PerWindow,
+                Derivatives::Level => Gradients::PerLevel(grad),
+                Derivatives::Auto => Gradients::Auto(grad),
             }
         }
         calc_flow::<A>(
@@ -87,7 +96,7 @@ pub fn flow_pyramids(
             &pts,
             &mut flows,
             &params,
-            g(&mut grad, per_level),
+            g(&mut grad, derivs),
             &mut scratch,
         )?;
         if cfg.fb_threshold.is_some() {
@@ -99,7 +108,7 @@ pub fn flow_pyramids(
                 &mut flows,
                 &mut back,
                 &params,
-                g(&mut grad, per_level),
+                g(&mut grad, derivs),
                 &mut scratch,
             )?;
         }
@@ -126,14 +135,14 @@ pub fn flow_pyramids(
                 })
                 .collect(),
             cfg,
-            per_level,
+            derivs,
         ),
         Path::F32 => go::<f32>(
             prev,
             next,
             pts.iter().map(|p| [p[0] as f32, p[1] as f32]).collect(),
             cfg,
-            per_level,
+            derivs,
         ),
     }
 }
@@ -153,7 +162,7 @@ pub fn flow(
     let (mut ba, mut bb) = (Vec::new(), Vec::new());
     let pa = pyramid(a, &mut ba, l);
     let pb = pyramid(b, &mut bb, l);
-    flow_pyramids(&pa, &pb, pts, cfg, path, false)
+    flow_pyramids(&pa, &pb, pts, cfg, path, Derivatives::Window)
 }
 
 /// Shi-Tomasi corners of `img` (up to `max`), strongest first, as pixel positions.

@@ -154,19 +154,26 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
         if (i.width(), i.height()) != (j.width(), j.height()) {
             return Err(Error::InvalidImage);
         }
-        let grad = match grads {
+        let len = i.width() * i.height();
+        let buf = match grads {
             Gradients::PerWindow => None,
-            Gradients::PerLevel(buf) => {
-                let len = i.width() * i.height();
-                let b = buf
-                    .get_mut(..len)
-                    .ok_or(Error::BufferTooSmall("gradients"))?;
+            Gradients::PerLevel(buf) => Some(
+                buf.get_mut(..len)
+                    .ok_or(Error::BufferTooSmall("gradients"))?,
+            ),
+            Gradients::Auto(buf) => buf
+                .get_mut(..len)
+                .filter(|_| len <= flows.len().saturating_mul((cfg.win + 1) * (cfg.win + 1))),
+        };
+        let grad = match buf {
+            Some(b) => {
                 crate::gradient::scharr_level(
                     &i,
                     &mut ImageMut::packed(b, i.width(), i.height())?,
                 )?;
                 Some(ImageView::packed(&*b, i.width(), i.height())?)
             }
+            None => None,
         };
         let lv = Level::<A> {
             i,
@@ -415,6 +422,43 @@ mod tests {
         )
         .unwrap();
         assert_eq!(f1, f2);
+    }
+
+    /// [`Gradients::Auto`] gives the per-window numbers bit for bit whichever source it picks:
+    /// the level where 40 points' windows (4 000 pixels) outweigh the 3 072-pixel level, the
+    /// windows with 4 points or a buffer too short for the level (no error then).
+    #[test]
+    fn auto_gradients_agree_bit_for_bit() {
+        let (w, h) = (64, 48);
+        let a = scene(w, h, 0.0, 0.0);
+        let b = scene(w, h, -0.8, 1.3);
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+        let cfg = LkConfig {
+            win: 9,
+            max_level: 0,
+            ..LkConfig::default()
+        }
+        .check()
+        .unwrap();
+        let pts: Vec<[Q16; 2]> = (0..40)
+            .map(|k| {
+                [(k % 8) * 8 + 2, (k / 8) * 10 - 1].map(|c| Q16::from_bits((c << 16) + 777 * k))
+            })
+            .collect();
+        let mut s = std::vec![0i16; scratch_len(9)];
+        for n in [40, 4] {
+            let p = &pts[..n];
+            let mut want = std::vec![Flow::<Q16>::default(); n];
+            calc_flow::<Fixed>(&pa, &pb, p, &mut want, &cfg, Gradients::PerWindow, &mut s).unwrap();
+            for len in [w * h, w * h - 1, 0] {
+                let mut g = std::vec![[0i16; 2]; len];
+                let mut got = std::vec![Flow::<Q16>::default(); n];
+                let grads = Gradients::Auto(&mut g);
+                calc_flow::<Fixed>(&pa, &pb, p, &mut got, &cfg, grads, &mut s).unwrap();
+                assert_eq!(got, want, "{n} points, buffer {len}");
+            }
+        }
     }
 
     /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,

@@ -243,4 +243,11 @@ pub enum Gradients<'a> {
     /// Computed once per level into this buffer of at least
     /// [`level_gradient_len`]`(w, h)` elements of the level-0 size.
     PerLevel(&'a mut [[i16; 2]]),
+    /// Per level where that is the cheaper way and the level fits this buffer, per window
+    /// elsewhere. A level's pass costs about its `w h` pixels; the windows cost
+    /// `n (win + 1)²` for `n` points. So the coarse levels go per level (with 278 points and
+    /// 21x21 windows on a 640x480 frame: levels 1 to 3; with 50 points on 320x240: every
+    /// level but 0), and a buffer of [`level_gradient_len`] of the level-1 size (a quarter of
+    /// the frame's) or smaller serves them.
+    Auto(&'a mut [[i16; 2]]),
 }

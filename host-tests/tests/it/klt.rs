@@ -17,7 +17,9 @@ use camgeom::corners::CornerConfig;
 use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
 use camgeom_host::data_dir;
 use camgeom_host::images::{GrayImage, load_gray};
-use camgeom_host::klt::{Path, corners, flow, flow_pyramids, levels, pyramid, track_sequence};
+use camgeom_host::klt::{
+    Derivatives, Path, corners, flow, flow_pyramids, levels, pyramid, track_sequence,
+};
 use camgeom_host::known_motion::{Mat3, apply, warp, warps};
 use camgeom_host::points::read_csv;
 
@@ -308,7 +310,7 @@ fn real_pairs_match_opencv_point_by_point() {
     }
 }
 
-/// Same numbers whether derivatives come per window or per level, on a real pair.
+/// Same numbers whether derivatives come per window, per level or by cost, on a real pair.
 #[test]
 fn per_window_and_per_level_gradients_agree() {
     let (a, b) = pair("basketball");
@@ -320,9 +322,11 @@ fn per_window_and_per_level_gradients_agree() {
     let pa = pyramid(&a, &mut ba, l);
     let pb = pyramid(&b, &mut bb, l);
     for path in [Path::Fixed, Path::F32] {
-        let w = flow_pyramids(&pa, &pb, &pts, &c, path, false).unwrap();
-        let g = flow_pyramids(&pa, &pb, &pts, &c, path, true).unwrap();
+        let w = flow_pyramids(&pa, &pb, &pts, &c, path, Derivatives::Window).unwrap();
+        let g = flow_pyramids(&pa, &pb, &pts, &c, path, Derivatives::Level).unwrap();
         assert_eq!(w, g, "{path:?}");
+        let a = flow_pyramids(&pa, &pb, &pts, &c, path, Derivatives::Auto).unwrap();
+        assert_eq!(w, a, "{path:?}");
     }
 }
 

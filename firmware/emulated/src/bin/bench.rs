@@ -200,12 +200,13 @@ fn main() -> ! {
         let (stack, stack_size) = board::stack_usage();
         defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
         defmt::info!(
-            "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32} instructions",
+            "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32} instructions",
             four_cost / FOUR_POINT_REPS as u32,
             dlt_cost,
             ransac_cost,
             k.pyramid,
             k.fixed_50,
+            k.fixed_50_auto,
             k.fixed_200,
             k.f32_50,
             k.target_frame
@@ -234,7 +235,7 @@ mod klt_bench {
     use camgeom::image::{ImageMut, ImageView};
     use camgeom::klt::{
         Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow,
-        pipeline_ram, scratch_len,
+        level_gradient_len, pipeline_ram, scratch_len,
     };
     use camgeom::nalgebra::{Point2, Vector2, Vector3};
     use camgeom::pyramid::{Pyramid, buffer_len};
@@ -275,6 +276,10 @@ mod klt_bench {
     static PYR_B: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
     static FLOW_SCRATCH: ConstStaticCell<[i16; scratch_len(WIN)]> =
         ConstStaticCell::new([0; scratch_len(WIN)]);
+    /// Level derivatives for [`Gradients::Auto`]: the level-1 size (76.8 KB), so levels 1 to
+    /// 3 can go per level.
+    const GRAD_LEN: usize = level_gradient_len(W / 2, H / 2);
+    static GRAD: ConstStaticCell<[[i16; 2]; GRAD_LEN]> = ConstStaticCell::new([[0; 2]; GRAD_LEN]);
     /// The planar target of the loop, with its work buffers.
     type Target =
         PlanarTarget<Fixed, 32, { flow_scratch_len(WIN) }, { corner_scratch_len(W) }, CANDIDATES>;
@@ -284,6 +289,7 @@ mod klt_bench {
     pub struct Summary {
         pub pyramid: u32,
         pub fixed_50: u32,
+        pub fixed_50_auto: u32,
         pub fixed_200: u32,
         pub f32_50: u32,
         pub target_frame: u32,
@@ -298,8 +304,10 @@ mod klt_bench {
         (SHIFT.0 as f32 / 256.0, SHIFT.1 as f32 / 256.0)
     }
 
-    /// KLT of `K` grid points from `pa` to `pb` with arithmetic `A`; checks every point against
-    /// the known shift and records the cost.
+    /// KLT of `K` grid points from `pa` to `pb` with arithmetic `A` (derivatives per window,
+    /// or [`Gradients::Auto`] with `grad`); checks every point against the known shift and
+    /// records the cost.
+    #[allow(clippy::too_many_arguments)]
     fn track<A: FlowArith, const K: usize>(
         name: &'static str,
         max_level: usize,
@@ -307,8 +315,13 @@ mod klt_bench {
         pa: &Pyramid<'_>,
         pb: &Pyramid<'_>,
         scratch: &mut [i16],
+        grad: Option<&mut [[i16; 2]]>,
         costs: &mut CostTable<16>,
     ) -> u32 {
+        let grads = match grad {
+            Some(g) => Gradients::Auto(g),
+            None => Gradients::PerWindow,
+        };
         let cols = if K >= 200 { 20 } else { 10 };
         let rows = K / cols;
         let pts: [[A::Coord; 2]; K] = black_box(core::array::from_fn(|k| {
@@ -334,7 +347,7 @@ mod klt_bench {
                 &pts,
                 &mut flows,
                 &cfg,
-                Gradients::PerWindow,
+                grads,
                 scratch,
             )
         });
@@ -406,6 +419,7 @@ mod klt_bench {
         let pyr_a = PYR_A.take();
         let pyr_b = PYR_B.take();
         let fscr = FLOW_SCRATCH.take();
+        let grad = GRAD.take();
         let target = TARGET.take();
         defmt::info!(
             "klt bench: {=usize}x{=usize}, {=usize} levels, shift ({=i32}, {=i32})/256 px; pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) = {=usize} bytes",
@@ -438,7 +452,7 @@ mod klt_bench {
         };
 
         // ---- 2. KLT from A to B ----
-        let (fixed_50, fixed_200, f32_50) = {
+        let (fixed_50, fixed_50_auto, fixed_200, f32_50) = {
             let view_b = match ImageView::packed(&frame_b[..], W, H) {
                 Ok(v) => v,
                 Err(e) => fail("frame B", e),
@@ -447,14 +461,17 @@ mod klt_bench {
                 Ok(p) => p,
                 Err(e) => fail("pyramid B", e),
             };
-            let fixed_50 =
-                track::<Fixed, 50>("klt_fixed_50", 3, false, &pa, &pb, &mut fscr[..], costs);
+            let s = &mut fscr[..];
+            let fixed_50 = track::<Fixed, 50>("klt_fixed_50", 3, false, &pa, &pb, s, None, costs);
+            let g = Some(&mut grad[..]);
+            let fixed_50_auto =
+                track::<Fixed, 50>("klt_fixed_50_auto", 3, false, &pa, &pb, s, g, costs);
             let fixed_200 =
-                track::<Fixed, 200>("klt_fixed_200", 3, false, &pa, &pb, &mut fscr[..], costs);
-            let f32_50 = track::<f32, 50>("klt_f32_50", 3, false, &pa, &pb, &mut fscr[..], costs);
+                track::<Fixed, 200>("klt_fixed_200", 3, false, &pa, &pb, s, None, costs);
+            let f32_50 = track::<f32, 50>("klt_f32_50", 3, false, &pa, &pb, s, None, costs);
             // The accuracy check proper: max level 2, where the texture does not alias.
-            track::<Fixed, 200>("klt_fixed_200_ml2", 2, true, &pa, &pb, &mut fscr[..], costs);
-            (fixed_50, fixed_200, f32_50)
+            track::<Fixed, 200>("klt_fixed_200_ml2", 2, true, &pa, &pb, s, None, costs);
+            (fixed_50, fixed_50_auto, fixed_200, f32_50)
         };
 
         // ---- 3. one frame of the planar-target loop ----
@@ -557,6 +574,7 @@ mod klt_bench {
         Summary {
             pyramid,
             fixed_50,
+            fixed_50_auto,
             fixed_200,
             f32_50,
             target_frame: total,

@@ -1,0 +1,56 @@
+//! KLT on the host bench's case (basketball1 -> basketball2, 640x480, 21x21, 4 levels, the
+//! 1000 bench points, fixed point, per-window derivatives) for instruction counts
+//! (BENCHMARKS.md, "KLT / Host speed per tracked feature"); prints a checksum of the tracks
+//! so that two builds can be compared:
+//!
+//! ```sh
+//! cargo build --release -p camgeom-host --example klt_count
+//! valgrind --tool=callgrind --toggle-collect='*flow_pyramids*' target/release/examples/klt_count
+//! ```
+
+use camgeom::klt::LkConfig;
+use camgeom_host::bench::load_rows;
+use camgeom_host::data_dir;
+use camgeom_host::images::load_gray;
+use camgeom_host::klt::{Derivatives, Path, flow_pyramids, levels, pyramid};
+
+fn main() {
+    let mb = data_dir().join("middlebury");
+    let a = load_gray(mb.join("basketball1.png")).unwrap();
+    let b = load_gray(mb.join("basketball2.png")).unwrap();
+    let pts: Vec<[f64; 2]> = load_rows(
+        &data_dir().join("fixtures/klt/basketball_bench_pts.csv"),
+        &["x", "y"],
+    )
+    .iter()
+    .map(|r| [r[0], r[1]])
+    .collect();
+    let cfg = LkConfig::default();
+    let l = levels(&cfg);
+    let (mut ba, mut bb) = (Vec::new(), Vec::new());
+    let pa = pyramid(&a, &mut ba, l);
+    let pb = pyramid(&b, &mut bb, l);
+    let n: usize = std::env::args()
+        .nth(1)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1);
+    // `auto` as the second argument: derivatives per level where cheaper.
+    let derivs = match std::env::args().nth(2).as_deref() {
+        Some("auto") => Derivatives::Auto,
+        _ => Derivatives::Window,
+    };
+    let mut sum = 0u64;
+    let mut tracked = 0;
+    for _ in 0..n {
+        let flows = flow_pyramids(&pa, &pb, &pts, &cfg, Path::Fixed, derivs).unwrap();
+        tracked = 0;
+        for f in &flows {
+            let ok = f.status == camgeom::klt::FlowStatus::Tracked;
+            tracked += usize::from(ok);
+            sum = sum.wrapping_mul(31).wrapping_add(
+                f.x.to_bits() ^ (f.y.to_bits() << 1) ^ (f.err.to_bits() << 2) ^ u64::from(ok),
+            );
+        }
+    }
+    println!("{} points, {tracked} tracked, checksum {sum}", pts.len());
+}
