@@ -33,7 +33,9 @@ struct Input {
     use_initial_flow: bool,
     compute_error: bool,
     fb: Option<Num>,
-    per_level: bool,
+    /// Derivative source: `% 3` per window, per level, `Auto` (its buffer halved
+    /// `derivs / 3 % 4` times).
+    derivs: u8,
     scratch_slack: i8,
     points: std::vec::Vec<(Num, Num)>,
     fixed_points: std::vec::Vec<(i32, i32)>,
@@ -59,11 +61,19 @@ fn frame(w: usize, h: usize, px: &[u8], dx: i32, dy: i32) -> std::vec::Vec<u8> {
     v
 }
 
-fn grads(per_level: bool, g: &mut [[i16; 2]]) -> Gradients<'_> {
-    if per_level {
-        Gradients::PerLevel(g)
-    } else {
-        Gradients::PerWindow
+fn grads(derivs: u8, g: &mut [[i16; 2]]) -> Gradients<'_> {
+    match derivs % 3 {
+        0 => Gradients::PerWindow,
+        1 => Gradients::PerLevel(g),
+        _ => Gradients::Auto(g),
+    }
+}
+
+fn grad_len(derivs: u8, w: usize, h: usize) -> usize {
+    match derivs % 3 {
+        0 => 0,
+        1 => level_gradient_len(w, h),
+        _ => level_gradient_len(w, h) >> (derivs / 3 % 4),
     }
 }
 
@@ -123,7 +133,7 @@ fuzz_target!(|inp: Input| {
     let slen =
         (scratch_len(cfg.win.min(63)) as i64 + i64::from(inp.scratch_slack % 3)).max(0) as usize;
     let mut scratch = std::vec![0i16; slen];
-    let mut grad = std::vec![[0i16; 2]; if inp.per_level { level_gradient_len(w, h) } else { 0 }];
+    let mut grad = std::vec![[0i16; 2]; grad_len(inp.derivs, w, h)];
 
     let pts: std::vec::Vec<[f32; 2]> = inp
         .points
@@ -144,7 +154,7 @@ fuzz_target!(|inp: Input| {
         &pts,
         &mut flows,
         &params,
-        grads(inp.per_level, &mut grad),
+        grads(inp.derivs, &mut grad),
         &mut scratch,
     )
     .is_ok()
@@ -171,7 +181,7 @@ fuzz_target!(|inp: Input| {
         &fpts,
         &mut fflows,
         &params,
-        grads(inp.per_level, &mut grad),
+        grads(inp.derivs, &mut grad),
         &mut scratch,
     )
     .is_ok()

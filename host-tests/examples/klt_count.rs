@@ -6,6 +6,7 @@
 //! ```sh
 //! cargo build --release -p camgeom-host --example klt_count
 //! valgrind --tool=callgrind --toggle-collect='*flow_pyramids*' target/release/examples/klt_count
+//! target/release/examples/klt_count 1 auto 278   # Gradients::Auto, the first 278 points
 //! ```
 
 use camgeom::klt::LkConfig;
@@ -34,15 +35,23 @@ fn main() {
         .nth(1)
         .and_then(|s| s.parse().ok())
         .unwrap_or(1);
-    // `auto` as the second argument: derivatives per level where cheaper.
+    // `auto` as the second argument: derivatives per level where cheaper; a third: only the
+    // first that many points (278, the peer table's count).
     let derivs = match std::env::args().nth(2).as_deref() {
         Some("auto") => Derivatives::Auto,
         _ => Derivatives::Window,
     };
+    let pts = match std::env::args()
+        .nth(3)
+        .and_then(|s| s.parse::<usize>().ok())
+    {
+        Some(k) => &pts[..k.min(pts.len())],
+        None => &pts[..],
+    };
     let mut sum = 0u64;
     let mut tracked = 0;
     for _ in 0..n {
-        let flows = flow_pyramids(&pa, &pb, &pts, &cfg, Path::Fixed, derivs).unwrap();
+        let flows = flow_pyramids(&pa, &pb, pts, &cfg, Path::Fixed, derivs).unwrap();
         tracked = 0;
         for f in &flows {
             let ok = f.status == camgeom::klt::FlowStatus::Tracked;

@@ -167,36 +167,6 @@ fn taps_of<P: Copy>(row: &[P], k: usize) -> Option<&[P; L + 1]> {
     row.get(k * L..k * L + L + 1)?.try_into().ok()
 }
 
-/// Lanes `off .. off + L` of `t` as a vector.
-#[inline(always)]
-fn load<P: Copy + Into<i16>>(t: &[P; L + 1], off: usize) -> i16x8 {
-    i16x8::new(core::array::from_fn(|l| {
-        t.get(l + off).map_or(0, |&p| p.into())
-    }))
-}
-
-/// `⌊(Σ taps · w) / 2^shift⌉` for the `L` lanes of vector `k` of rows `r0`, `r1`: four
-/// widening products `i16 x i16 -> i32`, exact (at most `255 · 2¹⁴` for pixels,
-/// `16 · 255 · 2¹⁴` for derivatives), then packed back to `i16`, where every result fits
-/// (pixels at most `255 · 32` in 1/32 grey levels, derivatives `16 · 255`).
-#[inline(always)]
-fn interpolate<P: Copy + Into<i16>>(
-    a: &[P; L + 1],
-    b: &[P; L + 1],
-    w: &Weights,
-    shift: u32,
-) -> i16x8 {
-    let j = load(a, 0).widening_mul(w[0])
-        + load(a, 1).widening_mul(w[1])
-        + load(b, 0).widening_mul(w[2])
-        + load(b, 1).widening_mul(w[3]);
-    let half = i32x8::splat(1 << (shift - 1));
-    i16x8::from_i32x8_saturate((j + half) >> shift)
-}
-
-/// The four weights, each splat across a vector.
-type Weights = [i16x8; 4];
-
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
 /// for the upper row, `[w10, w11, ...]` for the lower.
 struct PairWeights {
@@ -215,58 +185,92 @@ impl PairWeights {
     }
 }
 
-/// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of a row, interleaved and widened to
-/// `i16`: pixels 0-3 and 4-7, each as four pairs (two 8-byte loads, one byte interleave).
-#[inline(always)]
-fn tap_pairs(r: &[u8; L + 1]) -> (i16x8, i16x8) {
-    let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
-        return (i16x8::ZERO, i16x8::ZERO);
-    };
-    let widen = |h: &[u8; L]| {
-        let mut v = [0u8; 16];
-        if let Some(lo) = v.first_chunk_mut::<L>() {
-            *lo = *h;
-        }
-        u8x16::new(v)
-    };
-    let p = u8x16::unpack_low(widen(left), widen(right));
-    (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
+/// Pixels (`u8`) or derivatives (`i16`) along a row of a block.
+trait Tap: Copy {
+    /// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r`, interleaved as `i16`:
+    /// lanes 0-3 and 4-7, each as four pairs, for one `i16` dot product (`pmaddwd`) a pair.
+    fn pairs(r: &[Self; L + 1]) -> (i16x8, i16x8);
 }
 
-/// `⌊Σ taps · w / 2⁹⌉` for the 8 pixels of rows `r0`, `r1` (in 1/32 grey levels, at most
-/// `255 · 32`): each row's tap pairs weighed by one `i16` dot product (`pmaddwd` on SSE2),
-/// exact in `i32` (at most `255 · 2¹⁴`), then packed back to `i16`.
+impl Tap for u8 {
+    /// Two 8-byte loads, one byte interleave, widened.
+    #[inline(always)]
+    fn pairs(r: &[u8; L + 1]) -> (i16x8, i16x8) {
+        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
+            return (i16x8::ZERO, i16x8::ZERO);
+        };
+        let widen = |h: &[u8; L]| {
+            let mut v = [0u8; 16];
+            if let Some(lo) = v.first_chunk_mut::<L>() {
+                *lo = *h;
+            }
+            u8x16::new(v)
+        };
+        let p = u8x16::unpack_low(widen(left), widen(right));
+        (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
+    }
+}
+
+impl Tap for i16 {
+    /// Two loads and the 16-bit interleaves (`punpcklwd`, `punpckhwd`).
+    #[inline(always)]
+    fn pairs(r: &[i16; L + 1]) -> (i16x8, i16x8) {
+        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
+            return (i16x8::ZERO, i16x8::ZERO);
+        };
+        interleave(i16x8::new(*left), i16x8::new(*right))
+    }
+}
+
+/// `(a0, b0, a1, b1, a2, b2, a3, b3)` and `(a4, b4, ..., a7, b7)`: SSE2's `punpcklwd` and
+/// `punpckhwd` (`wide` has no 16-bit interleave; LLVM did not find it in the lane-by-lane
+/// form below, which the other targets use).
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn pixels(r0: &[u8; L + 1], r1: &[u8; L + 1], w: &PairWeights) -> i16x8 {
-    let (a0, a1) = tap_pairs(r0);
-    let (b0, b1) = tap_pairs(r1);
-    let half = i32x4::splat(1 << (PIX_SHIFT - 1));
-    let lo = (a0.dot(w.upper) + b0.dot(w.lower) + half) >> PIX_SHIFT;
-    let hi = (a1.dot(w.upper) + b1.dot(w.lower) + half) >> PIX_SHIFT;
+fn interleave(a: i16x8, b: i16x8) -> (i16x8, i16x8) {
+    use safe_arch::{m128i, unpack_high_i16_m128i, unpack_low_i16_m128i};
+    let (a, b): (m128i, m128i) = (bytemuck::cast(a), bytemuck::cast(b));
+    (
+        bytemuck::cast(unpack_low_i16_m128i(a, b)),
+        bytemuck::cast(unpack_high_i16_m128i(a, b)),
+    )
+}
+
+/// `(a0, b0, a1, b1, a2, b2, a3, b3)` and `(a4, b4, ..., a7, b7)`.
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn interleave(a: i16x8, b: i16x8) -> (i16x8, i16x8) {
+    let [a0, a1, a2, a3, a4, a5, a6, a7] = a.to_array();
+    let [b0, b1, b2, b3, b4, b5, b6, b7] = b.to_array();
+    (
+        i16x8::new([a0, b0, a1, b1, a2, b2, a3, b3]),
+        i16x8::new([a4, b4, a5, b5, a6, b6, a7, b7]),
+    )
+}
+
+/// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of rows `r0`, `r1`: each row's tap pairs weighed
+/// by one `i16` dot product, exact in `i32` (at most `255 · 2¹⁴` for pixels, `16 · 255 · 2¹⁴`
+/// for derivatives), then packed back to `i16`, where every result fits (pixels at most
+/// `255 · 32` in 1/32 grey levels, derivatives `16 · 255`).
+#[inline(always)]
+fn interpolate<P: Tap>(r0: &[P; L + 1], r1: &[P; L + 1], w: &PairWeights, shift: i32) -> i16x8 {
+    let (a0, a1) = P::pairs(r0);
+    let (b0, b1) = P::pairs(r1);
+    let half = i32x4::splat(1 << (shift - 1));
+    let lo = (a0.dot(w.upper) + b0.dot(w.lower) + half) >> shift;
+    let hi = (a1.dot(w.upper) + b1.dot(w.lower) + half) >> shift;
     i16x8::from_i32x8_saturate(bytemuck::cast::<[i32x4; 2], i32x8>([lo, hi]))
 }
 
-/// One row of the template's pixel plane (`r0`, `r1` at least `out.len() + 1` long).
+/// [`interpolate`] of pixels, in 1/32 grey levels.
 #[inline(always)]
-fn pixel_row(r0: &[u8], r1: &[u8], out: &mut [i16], w: &PairWeights) {
-    let (out, _) = out.as_chunks_mut::<L>();
-    for (k, o) in out.iter_mut().enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
-            return;
-        };
-        *o = pixels(a, b, w).to_array();
-    }
+fn pixels(r0: &[u8; L + 1], r1: &[u8; L + 1], w: &PairWeights) -> i16x8 {
+    interpolate(r0, r1, w, PIX_SHIFT as i32)
 }
 
 /// One plane row of the template (`r0`, `r1` at least `out.len() + 1` long).
 #[inline(always)]
-fn interpolate_row<P: Copy + Into<i16>>(
-    r0: &[P],
-    r1: &[P],
-    out: &mut [i16],
-    w: &Weights,
-    shift: u32,
-) {
+fn interpolate_row<P: Tap>(r0: &[P], r1: &[P], out: &mut [i16], w: &PairWeights, shift: i32) {
     let (out, _) = out.as_chunks_mut::<L>();
     for (k, o) in out.iter_mut().enumerate() {
         let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
@@ -296,13 +300,12 @@ fn template<'p>(
     );
     let pairs = |b| block_of(b, c, n).zip(block_of(b, c, n).skip(1));
     let taps = rows.clone().zip(rows.skip(1)).zip(pairs(gx).zip(pairs(gy)));
-    let vw = w.map(i16x8::splat);
     let pw = PairWeights::new(&w);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
-        pixel_row(r0, r1, oi, &pw);
-        interpolate_row(x.0, x.1, ox, &vw, W_BITS);
-        interpolate_row(y.0, y.1, oy, &vw, W_BITS);
+        interpolate_row(r0, r1, oi, &pw, PIX_SHIFT as i32);
+        interpolate_row(x.0, x.1, ox, &pw, W_BITS as i32);
+        interpolate_row(y.0, y.1, oy, &pw, W_BITS as i32);
         // The padding: `Ix`, `Iy` zero beyond column `win`.
         for pad in [ox.get_mut(win..), oy.get_mut(win..)].into_iter().flatten() {
             pad.fill(0);
@@ -410,4 +413,25 @@ fn mismatch<'p>(
         }
     }
     (b1 + sum(acc[0]), b2 + sum(acc[1]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The tap pairs of both element types and the interleave against their definitions.
+    #[test]
+    fn tap_pairs_interleave() {
+        let px: [u8; L + 1] = core::array::from_fn(|k| (k * 37 + 200) as u8);
+        let dv: [i16; L + 1] = core::array::from_fn(|k| (k as i16 - 4) * 1019);
+        let want = |f: &dyn Fn(usize) -> i16| {
+            let pairs: [i16; 16] = core::array::from_fn(|l| f(l / 2 + l % 2));
+            (
+                i16x8::new(pairs.first_chunk::<8>().copied().unwrap()),
+                i16x8::new(pairs.last_chunk::<8>().copied().unwrap()),
+            )
+        };
+        assert_eq!(u8::pairs(&px), want(&|k| i16::from(px[k])));
+        assert_eq!(i16::pairs(&dv), want(&|k| dv[k]));
+    }
 }
