@@ -8,7 +8,7 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, grad_span,
+    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, grad_span,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
@@ -283,8 +283,8 @@ fn interpolate_row<P: Tap>(r0: &[P], r1: &[P], out: &mut [i16], w: &PairWeights,
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
 /// `gx`, `gy`) at weights `w`; returns `G`'s sums. Row sums in `i32` are exact: at most
 /// `64 · (16 · 255)² < 2³¹`.
-fn template<'p>(
-    rows: impl Iterator<Item = &'p [u8]> + Clone,
+fn template(
+    rows: Rows<'_, u8>,
     (gx, gy): (&[i16], &[i16]),
     tmpl: &mut [i16],
     win: usize,
@@ -298,8 +298,8 @@ fn template<'p>(
         tx.chunks_exact_mut(s.max(L))
             .zip(ty.chunks_exact_mut(s.max(L))),
     );
-    let pairs = |b| block_of(b, c, n).zip(block_of(b, c, n).skip(1));
-    let taps = rows.clone().zip(rows.skip(1)).zip(pairs(gx).zip(pairs(gy)));
+    let pairs = |b| block_of(b, c, n).pairs();
+    let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
     let pw = PairWeights::new(&w);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
@@ -381,8 +381,8 @@ fn abs_row(r0: &[u8], r1: &[u8], ti: &[i16], win: usize, w: &PairWeights) -> i64
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
 /// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide). The products are
 /// summed in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
-fn mismatch<'p>(
-    rows: impl Iterator<Item = &'p [u8]> + Clone,
+fn mismatch(
+    rows: Rows<'_, u8>,
     tmpl: &[i16],
     win: usize,
     s: usize,
@@ -395,7 +395,7 @@ fn mismatch<'p>(
         .chunks_exact(s.max(L))
         .zip(tx.chunks_exact(s.max(L)).zip(ty.chunks_exact(s.max(L))));
     let pw = PairWeights::new(&w);
-    let pairs = rows.clone().zip(rows.skip(1)).zip(planes);
+    let pairs = rows.pairs().zip(planes);
     if abs {
         let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, win, &pw));
         return (sum_abs.sum(), 0);
@@ -404,12 +404,15 @@ fn mismatch<'p>(
     let batch = (i64::from(i32::MAX) / (ROW_BOUND * (s / L).max(1) as i64)).max(1) as usize;
     let (mut b1, mut b2) = (0i64, 0i64);
     let mut acc = [i32x4::ZERO; 2];
-    for (k, ((r0, r1), (i, (x, y)))) in pairs.enumerate() {
+    let mut room = batch;
+    for ((r0, r1), (i, (x, y))) in pairs {
         mismatch_row((r0, r1), (i, x, y), &pw, &mut acc);
-        if (k + 1) % batch == 0 {
+        room -= 1;
+        if room == 0 {
             b1 += sum(acc[0]);
             b2 += sum(acc[1]);
             acc = [i32x4::ZERO; 2];
+            room = batch;
         }
     }
     (b1 + sum(acc[0]), b2 + sum(acc[1]))

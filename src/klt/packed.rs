@@ -3,7 +3,7 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Window, block_of, block_rows, cached_patch, descale, fetch_patch, grad_row,
+    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, descale, fetch_patch, grad_row,
     grad_span, lerp, taps,
 };
 use crate::gradient::scharr_window;
@@ -133,15 +133,15 @@ fn abs_row<P: Copy + Into<i32>>(r0: &[P], r1: &[P], t: &[[i16; 3]], w: &[i32; 4]
 
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
 /// `win + 1` rows `rows` (image rows or the scratch patch).
-fn mismatch<'p, P: Copy + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
+fn mismatch<P: Copy + Into<i32>>(
+    rows: Rows<'_, P>,
     tmpl: &[[i16; 3]],
     win: usize,
     w: [i32; 4],
     abs: bool,
 ) -> (i64, i64) {
     let (mut b1, mut b2) = (0i64, 0i64);
-    let pairs = rows.clone().zip(rows.skip(1));
+    let pairs = rows.pairs();
     for ((r0, r1), t) in pairs.zip(tmpl.chunks_exact(win.max(1))) {
         if abs {
             b1 += i64::from(abs_row(r0, r1, t, &w));
@@ -192,8 +192,8 @@ fn template_row<P: Copy + Into<i32>>(
 
 /// Interpolates the template (from the `win + 1` rows `rows` of `I`) and its derivatives
 /// (from `gwin`) at weights `w` into `tmpl`; returns `G`'s sums.
-fn template<'p, P: Copy + Into<i32> + 'p>(
-    rows: impl Iterator<Item = &'p [P]> + Clone,
+fn template<P: Copy + Into<i32>>(
+    rows: Rows<'_, P>,
     gwin: &[[i16; 2]],
     tmpl: &mut [[i16; 3]],
     win: usize,
@@ -201,11 +201,7 @@ fn template<'p, P: Copy + Into<i32> + 'p>(
 ) -> (i64, i64, i64) {
     let n = win + 1;
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let grows = gwin.chunks_exact(n.max(1));
-    let pairs = rows
-        .clone()
-        .zip(rows.skip(1))
-        .zip(grows.clone().zip(grows.skip(1)));
+    let pairs = rows.pairs().zip(block_of(gwin, n, n).pairs());
     for ((r, g), out) in pairs.zip(tmpl.chunks_exact_mut(win.max(1))) {
         let [s11, s12, s22] = template_row(r, g, out, &w);
         a11 += i64::from(s11);

@@ -183,6 +183,43 @@ pub(super) fn grad_row<'a, P: Copy>(
     g.row(y)?.get(span)
 }
 
+/// `left` rows of `cols` elements, `stride` apart, from the start of `rest`: a block of an
+/// image or of a row-major scratch buffer. Each row costs two slice bounds tests (the row,
+/// then the rest of the block); [`Rows::pairs`] hands each row on to the next pair instead
+/// of finding it twice.
+#[derive(Clone)]
+pub(super) struct Rows<'a, P> {
+    rest: &'a [P],
+    stride: usize,
+    cols: usize,
+    left: usize,
+}
+
+impl<'a, P> Iterator for Rows<'a, P> {
+    type Item = &'a [P];
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<&'a [P]> {
+        self.left = self.left.checked_sub(1)?;
+        let row = self.rest.get(..self.cols)?;
+        self.rest = self.rest.get(self.stride..).unwrap_or(&[]);
+        Some(row)
+    }
+}
+
+impl<'a, P> Rows<'a, P> {
+    /// Consecutive rows `(r, r + 1)`: `left - 1` pairs.
+    #[inline(always)]
+    pub(super) fn pairs(mut self) -> impl Iterator<Item = (&'a [P], &'a [P])> {
+        let mut prev = self.next();
+        core::iter::from_fn(move || {
+            let r1 = self.next()?;
+            let r0 = prev.replace(r1)?;
+            Some((r0, r1))
+        })
+    }
+}
+
 /// The `rows` rows, `cols` wide, of the block at `(x0, y0)` of `img`, straight from the image,
 /// when the block lies inside it (then no copy into a scratch patch is needed).
 pub(super) fn block_rows<'a>(
@@ -190,13 +227,18 @@ pub(super) fn block_rows<'a>(
     (x0, y0): (i32, i32),
     cols: usize,
     rows: usize,
-) -> Option<impl Iterator<Item = &'a [u8]> + Clone> {
+) -> Option<Rows<'a, u8>> {
     let (x0, y0) = (usize::try_from(x0).ok()?, usize::try_from(y0).ok()?);
     if x0 + cols > img.width() || y0 + rows > img.height() {
         return None;
     }
-    let img = *img;
-    Some((y0..y0 + rows).map(move |y| img.row(y).and_then(|r| r.get(x0..x0 + cols)).unwrap_or(&[])))
+    let stride = img.stride();
+    Some(Rows {
+        rest: img.data().get(y0 * stride + x0..)?,
+        stride,
+        cols,
+        left: rows,
+    })
 }
 
 /// The `cols x rows` block of `j` at the integer corner `at`, reflected into `patch`
@@ -217,15 +259,14 @@ pub(super) fn cached_patch<'p, T: Copy + From<u8>>(
     patch
 }
 
-/// The `rows` rows, `cols` wide, of a row-major scratch block (as `chunks_exact(cols)`, whose
-/// length the zips of the kernels would compute with a division the optimiser cannot prove
-/// non-zero).
-pub(super) fn block_of<T>(
-    buf: &[T],
-    cols: usize,
-    rows: usize,
-) -> impl Iterator<Item = &[T]> + Clone {
-    (0..rows).map(move |r| buf.get(r * cols..(r + 1) * cols).unwrap_or(&[]))
+/// The `rows` rows, `cols` wide, of a row-major scratch block.
+pub(super) fn block_of<T>(buf: &[T], cols: usize, rows: usize) -> Rows<'_, T> {
+    Rows {
+        rest: buf,
+        stride: cols,
+        cols,
+        left: rows,
+    }
 }
 
 #[cfg(test)]
