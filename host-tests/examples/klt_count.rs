@@ -6,7 +6,8 @@
 //! ```sh
 //! cargo build --release -p camgeom-host --example klt_count
 //! valgrind --tool=callgrind --toggle-collect='*flow_pyramids*' target/release/examples/klt_count
-//! target/release/examples/klt_count 1 auto 278   # Gradients::Auto, the first 278 points
+//! target/release/examples/klt_count 1 auto 278         # Gradients::Auto, the first 278 points
+//! target/release/examples/klt_count 1 auto 278 known   # the peer table's KLT case
 //! ```
 
 use camgeom::klt::LkConfig;
@@ -19,13 +20,27 @@ fn main() {
     let mb = data_dir().join("middlebury");
     let a = load_gray(mb.join("basketball1.png")).unwrap();
     let b = load_gray(mb.join("basketball2.png")).unwrap();
-    let pts: Vec<[f64; 2]> = load_rows(
-        &data_dir().join("fixtures/klt/basketball_bench_pts.csv"),
-        &["x", "y"],
-    )
-    .iter()
-    .map(|r| [r[0], r[1]])
-    .collect();
+    // `known` as the fourth argument: the peer table's case (basketball1 and its warp by the
+    // test homography, the 278 Shi-Tomasi corners).
+    let known = std::env::args().nth(4).as_deref() == Some("known");
+    let file = if known {
+        "basketball_corners.csv"
+    } else {
+        "basketball_bench_pts.csv"
+    };
+    let pts: Vec<[f64; 2]> = load_rows(&data_dir().join("fixtures/klt").join(file), &["x", "y"])
+        .iter()
+        .map(|r| [r[0], r[1]])
+        .collect();
+    let b = if known {
+        let (_, h) = camgeom_host::known_motion::warps(a.width, a.height)
+            .into_iter()
+            .find(|(name, _)| *name == "homography")
+            .expect("the homography warp");
+        camgeom_host::known_motion::warp(&a, &h)
+    } else {
+        b
+    };
     let cfg = LkConfig::default();
     let l = levels(&cfg);
     let (mut ba, mut bb) = (Vec::new(), Vec::new());

@@ -301,23 +301,32 @@ fn template(
     let pairs = |b| block_of(b, c, n).pairs();
     let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
     let pw = PairWeights::new(&w);
+    let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
         interpolate_row(r0, r1, oi, &pw, PIX_SHIFT as i32);
-        interpolate_row(x.0, x.1, ox, &pw, W_BITS as i32);
-        interpolate_row(y.0, y.1, oy, &pw, W_BITS as i32);
-        // The padding: `Ix`, `Iy` zero beyond column `win`.
-        for pad in [ox.get_mut(win..), oy.get_mut(win..)].into_iter().flatten() {
-            pad.fill(0);
-        }
+        // The derivatives, zero beyond column `win` (the padding), and `G`'s sums of the row
+        // from the same vectors.
         let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
-        let (vx, _) = ox.as_chunks::<L>();
-        let (vy, _) = oy.as_chunks::<L>();
-        for (&x, &y) in vx.iter().zip(vy) {
-            let (x, y) = (i16x8::new(x), i16x8::new(y));
-            s11 += x.dot(x);
-            s12 += x.dot(y);
-            s22 += y.dot(y);
+        let (vx, _) = ox.as_chunks_mut::<L>();
+        let (vy, _) = oy.as_chunks_mut::<L>();
+        for (k, (vx, vy)) in vx.iter_mut().zip(vy).enumerate() {
+            let taps = (
+                taps_of(x.0, k),
+                taps_of(x.1, k),
+                taps_of(y.0, k),
+                taps_of(y.1, k),
+            );
+            let (Some(x0), Some(x1), Some(y0), Some(y1)) = taps else {
+                break;
+            };
+            let real = lane.simd_lt(i16x8::splat(win.saturating_sub(k * L).min(L) as i16));
+            let ix = interpolate(x0, x1, &pw, W_BITS as i32) & real;
+            let iy = interpolate(y0, y1, &pw, W_BITS as i32) & real;
+            (*vx, *vy) = (ix.to_array(), iy.to_array());
+            s11 += ix.dot(ix);
+            s12 += ix.dot(iy);
+            s22 += iy.dot(iy);
         }
         a11 += sum(s11);
         a12 += sum(s12);
