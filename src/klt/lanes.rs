@@ -81,6 +81,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         let (n, c) = (self.win + 1, self.s + 1);
         match grad {
             Some(g) => fetch_grad(g, (b.x, b.y), c, n, self.gx, self.gy),
+            None if scharr_planes(i, (b.x, b.y), n, c, self.gx, self.gy) => {}
             None => {
                 // Scharr writes `[Ix, Iy]` pairs, `win + 1` a row (the padding columns only
                 // reach lanes that are zeroed after the interpolation): into the template
@@ -123,6 +124,74 @@ impl<'s> Window<'s> for Lanes<'s> {
             }
         }
     }
+}
+
+/// The derivatives of the `n x n` pixels at `(x0, y0)` of `img` into the planes `gx`, `gy`
+/// (rows `c` apart), eight columns a step, when the block and its one-pixel ring lie inside
+/// the image (then no pixel reflects; `false` and nothing written otherwise). The same
+/// integers as [`scharr_window`]: `Ix = 3 (a₊ - a₋) + 10 (b₊ - b₋) + 3 (c₊ - c₋)` over the
+/// rows above (`a`), at (`b`) and below (`c`), `Iy` likewise down the columns; at most
+/// `16 · 255` in magnitude, so `i16` lanes hold every step. Columns from `n` to the end of a
+/// whole vector are written too; only the masked padding lanes read them.
+fn scharr_planes(
+    img: &ImageView<'_, u8>,
+    (x0, y0): (i32, i32),
+    n: usize,
+    c: usize,
+    gx: &mut [i16],
+    gy: &mut [i16],
+) -> bool {
+    let vectors = n.div_ceil(L);
+    // Columns x0 - 1 .. x0 + 8 vectors + 1 of rows y0 - 1 .. y0 + n + 1.
+    let cols = L * vectors + 2;
+    let Some(mut rows) = block_rows(img, (x0 - 1, y0 - 1), cols, n + 2) else {
+        return false;
+    };
+    let (Some(mut a), Some(mut b)) = (rows.next(), rows.next()) else {
+        return false;
+    };
+    if c < L * vectors {
+        return false;
+    }
+    // Columns `at - 1`, `at`, `at + 1` of eight outputs from their ten bytes.
+    let widen = |h: Option<&[u8; L]>| {
+        let mut v = [0u8; 16];
+        if let (Some(lo), Some(h)) = (v.first_chunk_mut::<L>(), h) {
+            *lo = *h;
+        }
+        i16x8::from_u8x16_low(u8x16::new(v))
+    };
+    let three_taps = |t: &[u8; L + 2]| {
+        let mid = t
+            .first_chunk::<{ L + 1 }>()
+            .and_then(|m| m.last_chunk::<L>());
+        [
+            widen(t.first_chunk::<L>()),
+            widen(mid),
+            widen(t.last_chunk::<L>()),
+        ]
+    };
+    let (three, ten) = (i16x8::splat(3), i16x8::splat(10));
+    let planes = gx.chunks_exact_mut(c).zip(gy.chunks_exact_mut(c));
+    for ((rx, ry), cc) in planes.take(n).zip(rows) {
+        let (vx, _) = rx.as_chunks_mut::<L>();
+        let (vy, _) = ry.as_chunks_mut::<L>();
+        let [ta, tb, tc] = [a, b, cc].map(|p| p.windows(L + 2).step_by(L));
+        let vecs = ta.zip(tb).zip(tc);
+        for ((ox, oy), ((a, b), cc)) in vx.iter_mut().zip(vy).zip(vecs) {
+            let [Some(a), Some(b), Some(cc)] = [a, b, cc].map(|t| t.first_chunk::<{ L + 2 }>())
+            else {
+                break;
+            };
+            let ([a0, a1, a2], [b0, _, b2], [c0, c1, c2]) =
+                (three_taps(a), three_taps(b), three_taps(cc));
+            let ix = three * (a2 - a0 + c2 - c0) + ten * (b2 - b0);
+            let iy = three * (c0 - a0 + c2 - a2) + ten * (c1 - a1);
+            (*ox, *oy) = (ix.to_array(), iy.to_array());
+        }
+        (a, b) = (b, cc);
+    }
+    true
 }
 
 /// The Q14 weights as `i16`, so that every product is `i16 x i16`: each within one unit of
@@ -430,6 +499,38 @@ fn mismatch(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The vector Scharr equals the scalar one on every block it accepts, and accepts the
+    /// blocks whose one-pixel ring lies inside the image.
+    #[test]
+    fn vector_scharr_matches_scalar() {
+        let (w, h) = (53usize, 37usize);
+        let img: std::vec::Vec<u8> = (0..w * h).map(|i| ((i * 97 % 251) ^ (i / 7)) as u8).collect();
+        let view = ImageView::packed(&img, w, h).unwrap();
+        for n in [4usize, 10, 22] {
+            let c = stride(n - 1) + 1;
+            let (mut gx, mut gy) = (std::vec![0i16; c * n], std::vec![0i16; c * n]);
+            let mut want = std::vec![[0i16; 2]; n * n];
+            for y0 in -2..h as i32 {
+                for x0 in -2..w as i32 {
+                    let took = scharr_planes(&view, (x0, y0), n, c, &mut gx, &mut gy);
+                    let inside = x0 >= 1
+                        && y0 >= 1
+                        && x0 as usize + n.div_ceil(L) * L < w
+                        && y0 as usize + n < h;
+                    assert_eq!(took, inside, "n {n} at ({x0}, {y0})");
+                    if !took {
+                        continue;
+                    }
+                    scharr_window(&view, x0 as isize, y0 as isize, n, n, &mut want).unwrap();
+                    for (k, &[dx, dy]) in want.iter().enumerate() {
+                        let at = (k / n) * c + k % n;
+                        assert_eq!([gx[at], gy[at]], [dx, dy], "n {n} at ({x0}, {y0}), {k}");
+                    }
+                }
+            }
+        }
+    }
 
     /// The tap pairs of both element types and the interleave against their definitions.
     #[test]
