@@ -46,7 +46,7 @@ pub fn pyramid<'a>(img: &'a GrayImage, buf: &'a mut Vec<u8>, levels: usize) -> P
 }
 
 /// Where [`flow_pyramids`] takes the window derivatives from ([`Gradients`]; a level-0 sized
-/// buffer for the two that need one).
+/// buffer for `Level`, a level-1 sized one for `Auto`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Derivatives {
     /// [`Gradients::PerWindow`].
@@ -77,9 +77,13 @@ pub fn flow_pyramids(
         let params = cfg.check()?;
         let mut scratch = vec![0i16; scratch_len(cfg.win)];
         let l0 = prev.level(0).ok_or(camgeom::Error::InvalidImage)?;
+        // `Auto` with the buffer its documentation suggests, the level-1 size: the coarse
+        // levels per level, level 0 per window.
+        let l1 = prev.level(1).map_or(0, |l| l.width() * l.height());
         let len = match derivs {
             Derivatives::Window => 0,
-            Derivatives::Level | Derivatives::Auto => l0.width() * l0.height(),
+            Derivatives::Level => l0.width() * l0.height(),
+            Derivatives::Auto => l1,
         };
         let mut grad = vec![[0i16; 2]; len];
         let mut flows = vec![Flow::<A::Coord>::default(); pts.len()];

@@ -505,7 +505,9 @@ mod tests {
     #[test]
     fn vector_scharr_matches_scalar() {
         let (w, h) = (53usize, 37usize);
-        let img: std::vec::Vec<u8> = (0..w * h).map(|i| ((i * 97 % 251) ^ (i / 7)) as u8).collect();
+        let img: std::vec::Vec<u8> = (0..w * h)
+            .map(|i| ((i * 97 % 251) ^ (i / 7)) as u8)
+            .collect();
         let view = ImageView::packed(&img, w, h).unwrap();
         for n in [4usize, 10, 22] {
             let c = stride(n - 1) + 1;

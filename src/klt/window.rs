@@ -141,16 +141,22 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
         for (o, &p) in mr.iter_mut().zip(sr) {
             *o = T::from(p);
         }
-        let outside = head
-            .iter_mut()
-            .enumerate()
-            .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
-        for (i, o) in outside {
-            let x = match map.get(i) {
-                Some(&m) if cols <= MAP => usize::from(m),
-                _ => reflect101(x0 + i as isize, img.width()),
-            };
-            *o = T::from(src.get(x).copied().unwrap_or(0));
+        if cols <= MAP {
+            // The reflected columns through the map: two straight loops.
+            let (mh, rest) = map.split_at(lo.min(MAP));
+            let mt = rest.get(hi - lo..cols - lo).unwrap_or(&[]);
+            for (o, &m) in head.iter_mut().zip(mh).chain(tail.iter_mut().zip(mt)) {
+                *o = T::from(src.get(usize::from(m)).copied().unwrap_or(0));
+            }
+        } else {
+            let outside = head
+                .iter_mut()
+                .enumerate()
+                .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
+            for (i, o) in outside {
+                let x = reflect101(x0 + i as isize, img.width());
+                *o = T::from(src.get(x).copied().unwrap_or(0));
+            }
         }
     }
 }
