@@ -369,11 +369,22 @@ impl FlowArith for f32 {
         if !(x.abs() < lim && y.abs() < lim) {
             return None;
         }
-        let (fx, fy) = (libm::floorf(x), libm::floorf(y));
+        // ⌊x⌋ by truncation, one down for negative fractions (exact: |x| < 2²⁴ here, and
+        // libm's `floorf` is a call, without SSE4.1's `roundss` on the x86-64 baseline).
+        let floor = |v: f32| {
+            let t = v as i32 as f32;
+            if t > v { t - 1.0 } else { t }
+        };
+        let (fx, fy) = (floor(x), floor(y));
         let (a, b) = (x - fx, y - fy);
         let s = (1u32 << W_BITS) as f32;
-        // cvRound: nearest, ties to even.
-        let r = |v: f32| libm::rintf(v) as i32;
+        // cvRound: nearest, ties to even. Adding and taking away 1.5 · 2²³ rounds `v` so in
+        // f32's own nearest-even rounding (exact for |v| < 2²², the weights are in
+        // 0 ..= 2¹⁴): libm's `rintf` to the bit, without its call.
+        let r = |v: f32| {
+            const MAGIC: f32 = 12_582_912.0;
+            ((v + MAGIC) - MAGIC) as i32
+        };
         let w00 = r((1.0 - a) * (1.0 - b) * s);
         let w01 = r(a * (1.0 - b) * s);
         let w10 = r((1.0 - a) * b * s);
@@ -464,6 +475,39 @@ mod tests {
                 "{n} 2^{shift} / {d}: {got} vs {want}"
             );
         }
+    }
+
+    /// The `f32` path's weights and corner against libm's `floorf` and `rintf` (which the
+    /// bilinear split replaced) on positions with every kind of fraction, ties included.
+    #[test]
+    fn float_weights_match_libm() {
+        let s = (1u32 << W_BITS) as f32;
+        let mut checked = 0;
+        for i in -4000..4000 {
+            for frac in [0.0f32, 0.5, 0.25, 0.125, 0.999_99, 1.0 / 3.0, 0.000_03, 0.7] {
+                for sign in [1.0f32, -1.0] {
+                    let x = sign * (i as f32 * 0.37 + frac);
+                    let y = -x * 0.61 + frac;
+                    let b = <f32 as FlowArith>::bilinear(x, y).unwrap();
+                    let (fx, fy) = (libm::floorf(x), libm::floorf(y));
+                    assert_eq!((b.x, b.y), (fx as i32, fy as i32), "{x}, {y}");
+                    let (a, c) = (x - fx, y - fy);
+                    let r = |v: f32| libm::rintf(v) as i32;
+                    let w00 = r((1.0 - a) * (1.0 - c) * s);
+                    let w01 = r(a * (1.0 - c) * s);
+                    let w10 = r((1.0 - a) * c * s);
+                    assert_eq!(b.w[..3], [w00, w01, w10], "{x}, {y}");
+                    checked += 1;
+                }
+            }
+        }
+        // Exact ties of the rounding: halves round to even.
+        for k in 0..(1 << W_BITS) {
+            let v = k as f32 + 0.5;
+            let want = libm::rintf(v) as i32;
+            assert_eq!(((v + 12_582_912.0) - 12_582_912.0) as i32, want, "{v}");
+        }
+        assert!(checked > 100_000);
     }
 
     #[test]
