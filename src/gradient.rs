@@ -15,6 +15,9 @@
 //!   than a whole level as long as `N (win + 1)² < w h` (for 21x21 windows on 320x240: fewer
 //!   than ~160 features per level). The board default.
 //!
+//! [`crate::klt::Gradients::Auto`] takes whichever is cheaper level by level (with a buffer for
+//! the levels it computes whole: the coarse ones, usually).
+//!
 //! ```
 //! use camgeom::gradient::scharr_level;
 //! use camgeom::image::{ImageMut, ImageView};
