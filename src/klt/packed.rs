@@ -97,7 +97,9 @@ fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut
         row.fill([0, 0]);
         let seg = grad_row(g, y0, j, span.clone());
         if let (Some(seg), Some(o)) = (seg, row.get_mut(inner.clone())) {
-            o.copy_from_slice(seg);
+            for (o, &d) in o.iter_mut().zip(seg) {
+                *o = d;
+            }
         }
     }
 }

@@ -143,7 +143,7 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
         }
         if cols <= MAP {
             // The reflected columns through the map: two straight loops.
-            let (mh, rest) = map.split_at(lo.min(MAP));
+            let (mh, rest) = map.split_at_checked(lo).unwrap_or((&map, &[]));
             let mt = rest.get(hi - lo..cols - lo).unwrap_or(&[]);
             for (o, &m) in head.iter_mut().zip(mh).chain(tail.iter_mut().zip(mt)) {
                 *o = T::from(src.get(usize::from(m)).copied().unwrap_or(0));
