@@ -1,14 +1,16 @@
 //! The window kernel for targets with 128-bit SIMD ([`super::window`]): the template and the
 //! window derivatives in planes, rows padded to whole vectors of [`L`] `i16`.
 //!
-//! Every loop is over whole vectors with products of two `i16` summed in `i32` lanes, the shape
-//! LLVM turns into `pmaddwd` (SSE2) or `smlal` (NEON). Row sums are the same integers as
-//! [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the `Σ |J - I|` pass reads
-//! only the `win` real columns.
+//! Every loop is over whole vectors of eight lanes. A bilinear sample interleaves each row's
+//! taps `(p[x], p[x + 1])` and weighs a pair with one `i16` dot product (`pmaddwd` on SSE2,
+//! OpenCV's shape); the mismatch's products are dot products too, summed in `i32` lanes over
+//! as many rows as cannot overflow them. Row sums are the same integers as
+//! [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the `Σ |J - I|` pass masks
+//! them off.
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, grad_span,
+    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, inside_span,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
@@ -211,7 +213,7 @@ fn fetch_grad(
     gx: &mut [i16],
     gy: &mut [i16],
 ) {
-    let (inner, span) = grad_span(g, x0, cols);
+    let (inner, span) = inside_span(g, x0, cols);
     let planes = gx
         .chunks_exact_mut(cols.max(1))
         .zip(gy.chunks_exact_mut(cols.max(1)));

@@ -4,7 +4,7 @@
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
     PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, descale, fetch_patch, grad_row,
-    grad_span, lerp, taps,
+    inside_span, lerp, taps,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
@@ -92,7 +92,7 @@ impl<'s> Window<'s> for Packed<'s> {
 /// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside: each
 /// row's span inside the level in one copy.
 fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
-    let (inner, span) = grad_span(g, x0, n);
+    let (inner, span) = inside_span(g, x0, n);
     for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
         row.fill([0, 0]);
         let seg = grad_row(g, y0, j, span.clone());

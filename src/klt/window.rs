@@ -114,13 +114,10 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
     /// Columns the map covers: a patch is at most `MAX_WIN + 9` wide (the padded rows of the
     /// vector kernel); wider ones reflect column by column.
     const MAP: usize = 80;
-    let w = img.width() as isize;
+    // Columns `lo .. hi` of the patch lie inside the image: its columns `span`.
+    let (inner, span) = inside_span(img, x0, cols);
+    let (lo, hi) = (inner.start, inner.end);
     let x0 = x0 as isize;
-    // Columns `lo .. hi` of the patch lie inside the image (`max` then `min`: `clamp` asserts
-    // its bounds are in order, a panic path the optimiser cannot remove).
-    let lo = (-x0).max(0).min(cols as isize) as usize;
-    let hi = (w - x0).min(cols as isize).max(lo as isize) as usize;
-    let inner = (x0 + lo as isize).max(0) as usize..(x0 + hi as isize).max(0) as usize;
     let mut map = [0u16; MAP];
     for i in (0..lo).chain(hi..cols) {
         if let Some(m) = map.get_mut(i) {
@@ -132,7 +129,7 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
         let src = img.row_clamped(reflect101(y, img.height()) as isize);
         let (head, rest) = row.split_at_mut(lo.min(row.len()));
         let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
-        let seg = src.get(inner.clone()).unwrap_or(&[]);
+        let seg = src.get(span.clone()).unwrap_or(&[]);
         let (m8, mr) = mid.as_chunks_mut::<8>();
         let (s8, sr) = seg.as_chunks::<8>();
         for (o, p) in m8.iter_mut().zip(s8) {
@@ -162,15 +159,16 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
 }
 
 /// The columns of a `cols`-wide block at column `x0` of `g` that lie inside it: as columns of
-/// the block, and as columns of the level (equally long; empty when none).
-pub(super) fn grad_span<P: Copy>(
+/// the block, and as columns of `g` (equally long; empty when none).
+pub(super) fn inside_span<P: Copy>(
     g: &ImageView<'_, P>,
     x0: i32,
     cols: usize,
 ) -> (core::ops::Range<usize>, core::ops::Range<usize>) {
     let (w, x0) = (g.width() as i64, i64::from(x0));
     let cols = cols as i64;
-    // `max` then `min`: `clamp` asserts its bounds are in order.
+    // `max` then `min`: `clamp` asserts its bounds are in order, a panic path the optimiser
+    // cannot remove.
     let lo = (-x0).max(0).min(cols);
     let hi = (w - x0).min(cols).max(lo);
     let at = |c: i64| (x0 + c).max(0) as usize;

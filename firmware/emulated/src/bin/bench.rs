@@ -340,17 +340,7 @@ mod klt_bench {
             Ok(c) => black_box(c),
             Err(e) => fail(name, e),
         };
-        let (r, cost) = measure(|| {
-            calc_flow::<A>(
-                pa,
-                pb,
-                &pts,
-                &mut flows,
-                &cfg,
-                grads,
-                scratch,
-            )
-        });
+        let (r, cost) = measure(|| calc_flow::<A>(pa, pb, &pts, &mut flows, &cfg, grads, scratch));
         if let Err(e) = r {
             fail(name, e)
         }
