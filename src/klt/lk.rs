@@ -384,20 +384,27 @@ mod tests {
         run_both(9.5, 7.25);
     }
 
-    #[test]
-    fn per_level_and_per_window_agree_bit_for_bit() {
-        let (w, h) = (64, 48);
-        let a = scene(w, h, 0.0, 0.0);
-        let b = scene(w, h, 1.7, 0.4);
-        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
-        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+    /// 64x48 frames of the scene and of the scene moved by `(dx, dy)`, and 9x9 windows on
+    /// level 0 only.
+    fn small_pair(dx: f64, dy: f64) -> (Vec<u8>, Vec<u8>, LkParams) {
         let cfg = LkConfig {
             win: 9,
             max_level: 0,
             ..LkConfig::default()
-        }
-        .check()
-        .unwrap();
+        };
+        (
+            scene(64, 48, 0.0, 0.0),
+            scene(64, 48, dx, dy),
+            cfg.check().unwrap(),
+        )
+    }
+
+    #[test]
+    fn per_level_and_per_window_agree_bit_for_bit() {
+        let (w, h) = (64, 48);
+        let (a, b, cfg) = small_pair(1.7, 0.4);
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
         // Including points near and past the border.
         let pts = [
             [0, 0],
@@ -430,17 +437,9 @@ mod tests {
     #[test]
     fn auto_gradients_agree_bit_for_bit() {
         let (w, h) = (64, 48);
-        let a = scene(w, h, 0.0, 0.0);
-        let b = scene(w, h, -0.8, 1.3);
+        let (a, b, cfg) = small_pair(-0.8, 1.3);
         let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
         let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
-        let cfg = LkConfig {
-            win: 9,
-            max_level: 0,
-            ..LkConfig::default()
-        }
-        .check()
-        .unwrap();
         let pts: Vec<[Q16; 2]> = (0..40)
             .map(|k| {
                 [(k % 8) * 8 + 2, (k / 8) * 10 - 1].map(|c| Q16::from_bits((c << 16) + 777 * k))
