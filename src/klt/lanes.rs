@@ -156,13 +156,7 @@ fn scharr_planes(
         return false;
     }
     // Columns `at - 1`, `at`, `at + 1` of eight outputs from their ten bytes.
-    let widen = |h: Option<&[u8; L]>| {
-        let mut v = [0u8; 16];
-        if let (Some(lo), Some(h)) = (v.first_chunk_mut::<L>(), h) {
-            *lo = *h;
-        }
-        i16x8::from_u8x16_low(u8x16::new(v))
-    };
+    let widen = |h: Option<&[u8; L]>| h.map_or(i16x8::ZERO, |h| i16x8::from_u8x16_low(low(h)));
     let three_taps = |t: &[u8; L + 2]| {
         let mid = t
             .first_chunk::<{ L + 1 }>()
@@ -256,6 +250,16 @@ impl PairWeights {
     }
 }
 
+/// Eight bytes in the low half of a vector (one 8-byte load), the high half zero.
+#[inline(always)]
+fn low(h: &[u8; L]) -> u8x16 {
+    let mut v = [0u8; 16];
+    if let Some(lo) = v.first_chunk_mut::<L>() {
+        *lo = *h;
+    }
+    u8x16::new(v)
+}
+
 /// Pixels (`u8`) or derivatives (`i16`) along a row of a block.
 trait Tap: Copy {
     /// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r`, interleaved as `i16`:
@@ -270,14 +274,7 @@ impl Tap for u8 {
         let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
             return (i16x8::ZERO, i16x8::ZERO);
         };
-        let widen = |h: &[u8; L]| {
-            let mut v = [0u8; 16];
-            if let Some(lo) = v.first_chunk_mut::<L>() {
-                *lo = *h;
-            }
-            u8x16::new(v)
-        };
-        let p = u8x16::unpack_low(widen(left), widen(right));
+        let p = u8x16::unpack_low(low(left), low(right));
         (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
     }
 }
