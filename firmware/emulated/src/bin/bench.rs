@@ -200,7 +200,7 @@ fn main() -> ! {
         let (stack, stack_size) = board::stack_usage();
         defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
         defmt::info!(
-            "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32} instructions",
+            "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32}; warp a pixel: f32 {=u32}, fixed {=u32} instructions",
             four_cost / FOUR_POINT_REPS as u32,
             dlt_cost,
             ransac_cost,
@@ -209,7 +209,9 @@ fn main() -> ! {
             k.fixed_50_auto,
             k.fixed_200,
             k.f32_50,
-            k.target_frame
+            k.target_frame,
+            k.warp_f32,
+            k.warp_fixed
         );
     }
     #[cfg(feature = "size-baseline")]
@@ -243,6 +245,7 @@ mod klt_bench {
         GivenCorners, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
         flow_scratch_len,
     };
+    use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
     use camgeom_fw_app::texture::textured_frame;
 
     use super::check;
@@ -284,6 +287,10 @@ mod klt_bench {
     type Target =
         PlanarTarget<Fixed, 32, { flow_scratch_len(WIN) }, { corner_scratch_len(W) }, CANDIDATES>;
     static TARGET: ConstStaticCell<Target> = ConstStaticCell::new(Target::new());
+    /// The warp's logo (the top-left corner of frame A) and its quadrilateral in frame B (the
+    /// host bench's, `host-tests/benches/features.rs`).
+    const LOGO: usize = 96;
+    const QUAD: [(f32, f32); 4] = [(60.3, 40.7), (250.2, 62.9), (231.6, 205.1), (41.8, 180.4)];
 
     /// The summary figures.
     pub struct Summary {
@@ -293,6 +300,9 @@ mod klt_bench {
         pub fixed_200: u32,
         pub f32_50: u32,
         pub target_frame: u32,
+        /// Instructions a written pixel.
+        pub warp_f32: u32,
+        pub warp_fixed: u32,
     }
 
     fn fail(what: &str, e: camgeom::Error) -> ! {
@@ -561,6 +571,33 @@ mod klt_bench {
         check(dt < 0.005, "target translation within 5 mm");
         check(angle < 2.0, "target rotation within 2 degrees");
         check(drawn > 0, "cube drawn");
+
+        // ---- 4. the warp: a 96x96 patch of frame A into a quadrilateral of frame B ----
+        let logo = match ImageView::new(&frame_a[..], LOGO, LOGO, W) {
+            Ok(v) => black_box(v),
+            Err(e) => fail("logo", e),
+        };
+        let quad = black_box(QUAD.map(|(x, y)| Point2::new(x, y)));
+        let mut warp = |name: &'static str, arithmetic: Arithmetic| {
+            let cfg = WarpConfig {
+                alpha: 255,
+                arithmetic,
+            };
+            let (r, cost) = measure(|| {
+                let mut dst = ImageMut::packed(&mut frame_b[..], W, H)?;
+                warp_into_quad(&logo, &mut dst, &quad, &cfg)
+            });
+            match r {
+                Ok(r) => {
+                    costs.record(name, cost, r.written);
+                    check(r.written > 20_000, "the warp covers the quadrilateral");
+                    cost / r.written.max(1)
+                }
+                Err(e) => fail(name, e),
+            }
+        };
+        let warp_f32 = warp("warp_f32", Arithmetic::Float);
+        let warp_fixed = warp("warp_fixed", Arithmetic::Fixed);
         Summary {
             pyramid,
             fixed_50,
@@ -568,6 +605,8 @@ mod klt_bench {
             fixed_200,
             f32_50,
             target_frame: total,
+            warp_f32,
+            warp_fixed,
         }
     }
 }
