@@ -18,20 +18,26 @@
 //!
 //! Two arithmetics, chosen by [`Arithmetic`]:
 //!
-//! - [`Arithmetic::Float`]: `f32`; `x_s = X / W` per pixel, rounded to 10 fraction bits, then
-//!   the integer bilinear sample below with 10-bit weights. The coordinates of 16 pixels are
-//!   computed in one straight-line pass (vectorised: the divisions run several lanes at a
-//!   time), then sampled one by one.
+//! - [`Arithmetic::Float`]: `f32`; `x_s = X / W` per pixel and the bilinear sample
+//!   `t + (b - t) f_y` (`t`, `b` the cell's rows at `f_x`) in `f32`, rounded once at the end.
 //! - [`Arithmetic::Fixed`], for cores without an FPU: `M` is quantised once to `i64` with `F`
 //!   fractional bits (the largest `F <= 40` that keeps every product below 2⁶² — see
 //!   [`warp_perspective_into`]). Along a scanline the homogeneous numerators and the
 //!   denominator advance by constant integer deltas, `X += m₁₁`, `Y += m₂₁`, `W += m₃₁`, which
 //!   is exact: the stepped values *are* the quantised `M` applied to the pixel, with no
-//!   accumulated error. Per pixel: two `i64` divisions `u = ⌊(256 X + W/2) / W⌋` (source
-//!   coordinate in Q8) and the integer bilinear sample with 8-bit weights. The only floating
-//!   point is the once-per-warp set-up (inverse and quantisation of `M`). The difference from
+//!   accumulated error. Per pixel: the source coordinates in Q8, `u = ⌊(256 X + W/2) / W⌋`
+//!   (exact quotients, carried from pixel to pixel and corrected by comparisons rather than
+//!   divided: a board's 64-bit division is a library call), and the integer bilinear sample
+//!   with 8-bit weights, exact. The only floating point is the once-per-warp set-up (inverse
+//!   and quantisation of `M`). The difference from
 //!   the `f32` path is at most one grey level on the pixels both write (tested), and the set
 //!   of written pixels differs only where a pixel centre is within rounding of the outline.
+//!
+//! Both work on 16 pixels of a scanline at a time in vectors of four lanes (`wide`: SSE2,
+//! NEON, or arrays on the boards): the source points and cells, then the loads of each cell's
+//! 2x2 pixels (the only scalar step, two bytes a row), then the samples, whose weighted pairs
+//! are `i16` dot products in the integer path (`pmaddwd`; on Cortex-M4/M7 the
+//! DSP halfword multiply-accumulates `SMLABB`/`SMLATB`).
 //!
 //! Optional constant-alpha blending: `out = (α s + (255 - α) d + 127) / 255`.
 //!
@@ -64,6 +70,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 use crate::homography::Homography;
 use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result};
+use wide::{f32x4, i16x8, i32x4, u8x16};
 
 /// Arithmetic of the per-pixel work of [`warp_perspective_into`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -276,88 +283,261 @@ fn clip_f32(lo: &mut f32, hi: &mut f32, a: f32, b: f32) {
     }
 }
 
-/// Fraction bits of [`warp_float`]'s source coordinates and weights (OpenCV's bilinear
-/// remap uses 5 and 15-bit weights; 10 keeps the float path's samples within rounding of an
-/// exact bilinear interpolation).
-const FLOAT_BITS: u32 = 10;
+/// Lanes of the warp's vectors: four `f32` or `i32` (128 bits: SSE2 on x86-64, NEON on
+/// aarch64, an array of four on the boards).
+const LANES: usize = 4;
 
-/// Pixels of a scanline whose source coordinates [`warp_float`] computes in one straight-line
-/// pass (which LLVM vectorises: the divisions and conversions run several lanes at a time)
-/// before sampling them one by one.
-const FLOAT_CHUNK: usize = 16;
+/// Whether `wide`'s vectors are SIMD registers on this target (else arrays, where the
+/// few steps that are cheaper a lane at a time take that form).
+const SIMD: bool = cfg!(any(
+    target_arch = "x86_64",
+    all(target_arch = "x86", target_feature = "sse2"),
+    target_arch = "aarch64",
+    all(target_arch = "arm", target_feature = "neon"),
+    all(target_arch = "wasm32", target_feature = "simd128"),
+));
+
+/// Pixels of a scanline the warp handles in one pass: the source points and cells of
+/// [`VECS`] vectors, then the loads of their pixels, then the samples.
+const CHUNK: usize = 16;
+
+/// Vectors of a chunk.
+const VECS: usize = CHUNK / LANES;
+
+/// A chunk's cells ([`Source::cells_f32`], [`Source::cells_q8`]): the column and row of each
+/// pixel's cell, and the source point's position in it, `f_x` and `f_y` (fractions of 1 for
+/// `f32`, of `2⁸` for Q8).
+struct Cells<F> {
+    cx: [i32x4; VECS],
+    cy: [i32x4; VECS],
+    fx: [F; VECS],
+    fy: [F; VECS],
+}
 
 /// The source image as the bilinear sampler reads it: cells of 2x2 pixels.
 #[derive(Clone, Copy)]
 struct Source<'a> {
     data: &'a [u8],
-    stride: usize,
+    /// The row stride, and `(1, stride - 1)` as an `i16` pair per lane (`stride` is at most
+    /// `4 MAX_DIM = 2¹⁵`): a cell's index `c_y stride + c_x` is one dot product plus `c_y`.
+    stride: (usize, i16x8),
     /// Largest column and row of a cell's top-left pixel (`width - 2`, `height - 2`, or 0 for
     /// a source one pixel wide or high).
-    cell: (u32, u32),
-    /// From a cell's top-left pixel to its right and lower neighbours (1 and `stride`, or 0
-    /// for a source one pixel wide or high).
-    step: (usize, usize),
+    cell: (i32, i32),
+    /// From a cell's top-left pixel to its lower neighbours (`stride`, or 0 for a source one
+    /// pixel high); `wide` is false for a source one pixel wide (no right neighbour).
+    down: usize,
+    wide: bool,
+    /// The largest source coordinates, `width - 1` and `height - 1`.
+    end: (f32, f32),
 }
 
 impl<'a> Source<'a> {
     fn new(src: &ImageView<'a, u8>) -> Self {
         let (w, h, stride) = (src.width(), src.height(), src.stride());
+        let pair = pairs(i32x4::splat(1), i32x4::splat(stride as i32 - 1));
         Self {
             data: src.data(),
-            stride,
-            // `MAX_DIM` bounds both, far inside `u32`.
-            cell: (w.saturating_sub(2) as u32, h.saturating_sub(2) as u32),
-            step: (usize::from(w > 1), if h > 1 { stride } else { 0 }),
+            stride: (stride, bytemuck::cast(pair)),
+            // `MAX_DIM` bounds both, far inside `i32`.
+            cell: (w.saturating_sub(2) as i32, h.saturating_sub(2) as i32),
+            down: if h > 1 { stride } else { 0 },
+            wide: w > 1,
+            end: ((w - 1) as f32, (h - 1) as f32),
         }
     }
 
-    /// The cell of the source coordinates `(u, v) / 2ᴮ` (fixed point with `B` fraction bits,
-    /// `0 <= u <= 2ᴮ (w - 1)`, `0 <= v <= 2ᴮ (h - 1)`): the column and row of its top-left
-    /// pixel and the weights `f_x, f_y` in `0..=2ᴮ` of its right column and lower row,
-    /// `[ix, iy, fx, fy]`. On the last column or row the cell is the one before it with weight
-    /// `2ᴮ`, which reads the same pixels at the same weights as a clamped cell would. Any
-    /// `(u, v)` gives a cell inside the image. Plain `u32` arithmetic, the same in every lane:
-    /// it vectorises.
-    #[inline]
-    fn cell<const B: u32>(&self, u: u32, v: u32) -> [u32; 4] {
-        let ix = (u >> B).min(self.cell.0);
-        let iy = (v >> B).min(self.cell.1);
-        // `ix <= u / 2ᴮ`: no underflow; the bound only acts on out-of-range input.
-        [
-            ix,
-            iy,
-            (u - (ix << B)).min(1 << B),
-            (v - (iy << B)).min(1 << B),
-        ]
+    /// The cells of the source points `(sx, sy)` (lanes), each clamped into
+    /// `[0, w-1] x [0, h-1]` first (NaN to 0): `c = min(⌊s⌋, w - 2)` and `f = s - c` in
+    /// `[0, 1]` (on the last column or row the cell before it with `f = 1`).
+    #[inline(always)]
+    fn cells_f32(&self, s: [(f32x4, f32x4); VECS]) -> Cells<f32x4> {
+        let (end, cell) = (
+            (f32x4::splat(self.end.0), f32x4::splat(self.end.1)),
+            (
+                f32x4::splat(self.cell.0 as f32),
+                f32x4::splat(self.cell.1 as f32),
+            ),
+        );
+        // `fast_max(s, 0)` is 0 for NaN on SSE2; elsewhere the truncation's NaN rule (0 on
+        // NEON, `as` in the fallback) does the same.
+        let s = s.map(|(x, y)| {
+            (
+                x.fast_max(f32x4::ZERO).fast_min(end.0),
+                y.fast_max(f32x4::ZERO).fast_min(end.1),
+            )
+        });
+        let c = s.map(|(x, y)| {
+            (
+                x.fast_min(cell.0).fast_trunc_int(),
+                y.fast_min(cell.1).fast_trunc_int(),
+            )
+        });
+        let mut f = [(f32x4::ZERO, f32x4::ZERO); VECS];
+        for (f, ((x, y), (cx, cy))) in f.iter_mut().zip(s.iter().zip(&c)) {
+            *f = (*x - cx.round_float(), *y - cy.round_float());
+        }
+        Cells {
+            cx: c.map(|c| c.0),
+            cy: c.map(|c| c.1),
+            fx: f.map(|f| f.0),
+            fy: f.map(|f| f.1),
+        }
     }
 
-    /// Bilinear sample of the cell `[ix, iy, fx, fy]` ([`Self::cell`], `B <= 10`), rounded:
-    /// `((p₀₀ (2ᴮ - f_x) + p₀₁ f_x) (2ᴮ - f_y) + (p₁₀ (2ᴮ - f_x) + p₁₁ f_x) f_y + 2²ᴮ⁻¹) >> 2B`,
-    /// each `a (2ᴮ - f) + b f` formed as `2ᴮ a + (b - a) f` (the same integers, one product;
-    /// below `2³⁰` for `B = 10`).
-    #[inline]
-    fn sample<const B: u32>(&self, [ix, iy, fx, fy]: [u32; 4]) -> u8 {
-        const { assert!(B >= 1 && B <= 10, "sample: 1 to 10 fraction bits fit i32") };
-        let i = iy as usize * self.stride + ix as usize;
-        let p = |i: usize| i32::from(self.data.get(i).copied().unwrap_or(0));
-        let (fx, fy) = (fx as i32, fy as i32);
-        let (a, b) = (p(i), p(i + self.step.0));
-        let top = (a << B) + (b - a) * fx;
-        let j = i + self.step.1;
-        let (a, b) = (p(j), p(j + self.step.0));
-        let bot = (a << B) + (b - a) * fx;
-        (((top << B) + (bot - top) * fy + (1 << (2 * B - 1))) >> (2 * B)) as u8
+    /// The cells of the source points `(u, v) / 2⁸` (Q8 lanes, `0 <= u <= 2⁸ (w - 1)`,
+    /// `0 <= v <= 2⁸ (h - 1)`; other values are clamped): `c = min(⌊u / 2⁸⌋, w - 2)` and
+    /// `f = u - 2⁸ c` in `0..=2⁸`.
+    #[inline(always)]
+    fn cells_q8(&self, u: [i32x4; VECS], v: [i32x4; VECS]) -> Cells<i32x4> {
+        let cx = u.map(|u| clamp_lanes(u >> 8_i32, self.cell.0));
+        let cy = v.map(|v| clamp_lanes(v >> 8_i32, self.cell.1));
+        let (mut fx, mut fy) = ([i32x4::ZERO; VECS], [i32x4::ZERO; VECS]);
+        for ((fx, fy), ((u, v), (cx, cy))) in fx
+            .iter_mut()
+            .zip(fy.iter_mut())
+            .zip(u.iter().zip(&v).zip(cx.iter().zip(&cy)))
+        {
+            *fx = clamp_lanes(*u - (*cx << 8_i32), 1 << 8);
+            *fy = clamp_lanes(*v - (*cy << 8_i32), 1 << 8);
+        }
+        Cells { cx, cy, fx, fy }
+    }
+
+    /// The 2x2 pixels of each cell of a chunk, per vector as `i16` pairs, the shape of a dot
+    /// product with a pair of weights: the top rows' `(p₀₀, p₀₁)` of the four lanes, then
+    /// the bottom rows' `(p₁₀, p₁₁)`. Each cell is one checked read of `stride + 2` pixels
+    /// (a lane out of the image, which callers never pass, reads 0); these loads are the
+    /// only scalar part of a sample.
+    #[inline(always)]
+    fn gather<F>(&self, cells: &Cells<F>) -> [(i16x8, i16x8); VECS] {
+        let mut rows = [[0u16; 2 * LANES]; VECS];
+        let s = self.down;
+        for (rows, (cx, cy)) in rows.iter_mut().zip(cells.cx.iter().zip(&cells.cy)) {
+            // `c_y stride + c_x`: one dot product with SIMD, a multiply-add a lane without.
+            let index = if SIMD {
+                bytemuck::cast::<i32x4, i16x8>(pairs(*cx, *cy)).dot(self.stride.1) + *cy
+            } else {
+                let (x, y) = (cx.to_array(), cy.to_array());
+                i32x4::new(core::array::from_fn(|j| {
+                    let (x, y) = (x.get(j).copied(), y.get(j).copied());
+                    y.unwrap_or(0) * self.stride.0 as i32 + x.unwrap_or(0)
+                }))
+            };
+            let (top, bot) = rows.split_at_mut(LANES);
+            for ((t, b), i) in top.iter_mut().zip(bot.iter_mut()).zip(index.to_array()) {
+                let i = i as usize;
+                if self.wide {
+                    if let Some(c) = self.data.get(i..i + s + 2) {
+                        let pair = |k: usize| match c.get(k..k + 2) {
+                            Some(&[a, b]) => u16::from_le_bytes([a, b]),
+                            _ => 0,
+                        };
+                        (*t, *b) = (pair(0), pair(s));
+                    }
+                } else {
+                    // A source one pixel wide: each row's pixel twice.
+                    let p = |i: usize| u16::from(self.data.get(i).copied().unwrap_or(0)) * 0x101;
+                    (*t, *b) = (p(i), p(i + s));
+                }
+            }
+        }
+        rows.map(|r| {
+            if SIMD {
+                let bytes = bytemuck::cast::<[u16; 2 * LANES], u8x16>(r);
+                (
+                    bytemuck::cast(u8x16::unpack_low(bytes, u8x16::ZERO)),
+                    bytemuck::cast(u8x16::unpack_high(bytes, u8x16::ZERO)),
+                )
+            } else {
+                // The same lanes, a byte at a time (an array shuffle would move each twice).
+                let spread = |base: usize| {
+                    i16x8::new(core::array::from_fn(|k| {
+                        let pair = r.get(base + k / 2).copied().unwrap_or(0);
+                        (if k % 2 == 0 { pair & 0xFF } else { pair >> 8 }) as i16
+                    }))
+                };
+                (spread(0), spread(LANES))
+            }
+        })
     }
 }
 
-/// `x` rounded to the nearest integer (ties to even) for `0 <= x < 2²³`, by the float's own
-/// rounding: adding `2²³` leaves the integer in the low mantissa bits. Branch-free and alike
-/// in every lane, so the chunk loop of [`warp_float`] vectorises (the saturating `as u32`
-/// does not); Q10 coordinates of a [`crate::image::MAX_DIM`] source stay below `2²³`
-/// (`8191 · 1024 = 8,387,584`).
+/// Bilinear samples in `f32` of the pairs `(top, bot)` ([`Source::gather`]) at `(f_x, f_y)`,
+/// rounded to the nearest grey level: `t = p₀₀ + (p₀₁ - p₀₀) f_x`,
+/// `b = p₁₀ + (p₁₁ - p₁₀) f_x`, `t + (b - t) f_y`.
+#[inline(always)]
+fn sample_f32((top, bot): (i16x8, i16x8), fx: f32x4, fy: f32x4) -> i32x4 {
+    let (top, bot) = (
+        bytemuck::cast::<i16x8, i32x4>(top),
+        bytemuck::cast::<i16x8, i32x4>(bot),
+    );
+    let low = i32x4::splat(0xFFFF);
+    let (p00, p01) = ((top & low).round_float(), (top >> 16_i32).round_float());
+    let (p10, p11) = ((bot & low).round_float(), (bot >> 16_i32).round_float());
+    let t = p00 + (p01 - p00) * fx;
+    let b = p10 + (p11 - p10) * fx;
+    // In `[0, 255]` up to rounding: `+ 1/2` and truncation round it.
+    (t + (b - t) * fy + f32x4::splat(0.5)).fast_trunc_int()
+}
+
+/// Bilinear samples in integers of the pairs `(top, bot)` ([`Source::gather`]) at
+/// `(f_x, f_y) / 2⁸`, exact: `t = p₀₀ (2⁸ - f_x) + p₀₁ f_x`, `b = p₁₀ (2⁸ - f_x) + p₁₁ f_x`
+/// and the sample `(t (2⁸ - f_y) + b f_y + 2¹⁵) >> 16`. Each weighted pair is one `i16` dot
+/// product (`pmaddwd`; `SMLABB`/`SMLATB` on Cortex-M4/M7): `t` and `b` (up to 65,280)
+/// enter the vertical one less `2¹⁵`, so that they fit `i16`, and the `2¹⁵ · 2⁸` this takes
+/// off is added back.
+#[inline(always)]
+fn sample_q8((top, bot): (i16x8, i16x8), fx: i32x4, fy: i32x4) -> i32x4 {
+    let one = i32x4::splat(1 << 8);
+    let wx = bytemuck::cast(pairs(one - fx, fx));
+    let half = i32x4::splat(1 << 15);
+    let t = top.dot(wx) - half;
+    let b = bot.dot(wx) - half;
+    let s = bytemuck::cast::<i32x4, i16x8>(pairs(t, b)).dot(bytemuck::cast(pairs(one - fy, fy)));
+    (s + i32x4::splat((1 << 23) + (1 << 15))) >> 16_i32
+}
+
+/// `i32` lanes clamped into `0..=hi`.
 #[inline]
-fn round_small(x: f32) -> u32 {
-    (x + 8_388_608.0).to_bits().wrapping_sub(0x4B00_0000)
+fn clamp_lanes(v: i32x4, hi: i32) -> i32x4 {
+    v.max(i32x4::ZERO).min(i32x4::splat(hi))
+}
+
+/// Each lane `a | b << 16`: the `i16` pair `(a, b)` of lanes in `-2¹⁵..2¹⁵`.
+#[inline]
+fn pairs(a: i32x4, b: i32x4) -> i32x4 {
+    (a & i32x4::splat(0xFFFF)) | (b << 16_i32)
+}
+
+/// Writes the pixels of a chunk's samples `val` (grey levels) that `keep` has set into `out`,
+/// blended, and returns how many.
+#[inline(always)]
+fn put(out: &mut [u8], val: [i32x4; VECS], keep: u32, alpha: u8) -> u32 {
+    // Every sample is in `0..=255`: SIMD packs them with saturation (`packssdw`,
+    // `packuswb`), elsewhere a truncation a lane is the same and cheaper.
+    let bytes = if SIMD {
+        let [a, b, c, d] = val;
+        let narrow = |a: i32x4, b: i32x4| i16x8::from_i32x8_saturate(bytemuck::cast([a, b]));
+        u8x16::narrow_i16x8(narrow(a, b), narrow(c, d)).to_array()
+    } else {
+        bytemuck::cast::<[i32x4; VECS], [i32; CHUNK]>(val).map(|v| v as u8)
+    };
+    if keep == (1 << CHUNK) - 1
+        && alpha == 255
+        && let Ok(whole) = <&mut [u8; CHUNK]>::try_from(&mut *out)
+    {
+        *whole = bytes;
+        return CHUNK as u32;
+    }
+    let mut n = 0;
+    for (j, (d, v)) in out.iter_mut().zip(bytes).enumerate() {
+        if keep >> j & 1 != 0 {
+            *d = blend(v, *d, alpha);
+            n += 1;
+        }
+    }
+    n
 }
 
 fn warp_float(
@@ -368,8 +548,10 @@ fn warp_float(
 ) -> WarpReport {
     let m: Matrix3<f32> = s.m.map(|v| v as f32);
     let source = Source::new(src);
-    let (sw, sh) = ((src.width() - 1) as f32, (src.height() - 1) as f32);
-    let q = (1u32 << FLOAT_BITS) as f32;
+    let (sw, sh) = source.end;
+    let steps: [f32x4; VECS] = core::array::from_fn(|v| {
+        f32x4::new([0.0, 1.0, 2.0, 3.0]) + f32x4::splat((v * LANES) as f32)
+    });
     let mut written = 0u32;
     for y in s.y0..=s.y1 {
         let yf = y as f32;
@@ -388,26 +570,34 @@ fn warp_float(
         let Some(out) = dst.row_mut(y as usize).and_then(|r| r.get_mut(lo..=hi)) else {
             continue;
         };
-        for (k, chunk) in out.chunks_mut(FLOAT_CHUNK).enumerate() {
-            // The chunk's cells from its source coordinates `2ᴮ X / W` (`B = FLOAT_BITS`),
-            // rounded and clamped into the source, and each `W` (a pixel with `W <= 0` is
-            // skipped).
-            let x0 = (lo + k * FLOAT_CHUNK) as f32;
-            let mut cells = [[0u32; 4]; FLOAT_CHUNK];
-            let mut ws = [0.0f32; FLOAT_CHUNK];
-            for (j, (c, w)) in cells.iter_mut().zip(ws.iter_mut()).enumerate() {
-                let xf = x0 + j as f32;
-                *w = m.m31 * xf + bw;
-                let u = round_small((q * (m.m11 * xf + bx) / *w).clamp(0.0, q * sw));
-                let v = round_small((q * (m.m21 * xf + by) / *w).clamp(0.0, q * sh));
-                *c = source.cell::<FLOAT_BITS>(u, v);
+        let (bx, by, bw) = (f32x4::splat(bx), f32x4::splat(by), f32x4::splat(bw));
+        let (m11, m21, m31) = (
+            f32x4::splat(m.m11),
+            f32x4::splat(m.m21),
+            f32x4::splat(m.m31),
+        );
+        for (k, chunk) in out.chunks_mut(CHUNK).enumerate() {
+            // Frame columns below `MAX_DIM`: exact in `f32`.
+            let x0 = f32x4::splat((lo + k * CHUNK) as f32);
+            let x = steps.map(|s| x0 + s);
+            let w = x.map(|x| m31 * x + bw);
+            let mut points = [(f32x4::ZERO, f32x4::ZERO); VECS];
+            // A pixel with `W <= 0` (only on the outline) is skipped.
+            let mut keep = 0;
+            for (j, (p, (x, w))) in points.iter_mut().zip(x.iter().zip(&w)).enumerate() {
+                *p = ((m11 * *x + bx) / *w, (m21 * *x + by) / *w);
+                keep |= w.simd_gt(f32x4::ZERO).to_bitmask() << (j * LANES);
             }
-            for (d, (&c, &w)) in chunk.iter_mut().zip(cells.iter().zip(ws.iter())) {
-                if w > 0.0 {
-                    *d = blend(source.sample::<FLOAT_BITS>(c), *d, alpha);
-                    written += 1;
-                }
+            let cells = source.cells_f32(points);
+            let taps = source.gather(&cells);
+            let mut val = [i32x4::ZERO; VECS];
+            for (v, (t, (fx, fy))) in val
+                .iter_mut()
+                .zip(taps.iter().zip(cells.fx.iter().zip(&cells.fy)))
+            {
+                *v = sample_f32(*t, *fx, *fy);
             }
+            written += put(chunk, val, keep, alpha);
         }
     }
     WarpReport {
@@ -431,6 +621,48 @@ fn clip_i64(lo: &mut i64, hi: &mut i64, a: i64, b: i64) {
         *hi = (*hi).min(b.div_euclid(-a));
     } else if b < 0 {
         *hi = i64::MIN;
+    }
+}
+
+/// `⌊n / d⌋` along a scanline ([`Arithmetic::Fixed`]'s source coordinates `(2⁸ X + W/2) / W`),
+/// without a division per pixel. The quotient moves by nearly the same step from pixel to
+/// pixel, so the last quotient plus the last step, `q`, is `⌊n / d⌋` or next to it: the
+/// remainder `e = n - q d` tells which (`0 <= e < d`: `q`; `-d <= e < 0`: `q - 1`;
+/// `d <= e < 2d`: `q + 1`), exactly; any other `e` (the first pixel, a turn of the
+/// perspective) costs one division. The quotients are the divisions', bit for bit.
+///
+/// Bounds: every quotient of a pixel inside the quadrilateral lies in `0..=hi`
+/// (`hi = 2⁸ (w - 1)`: the clip keeps `0 <= X <= (w - 1) W`), so a prediction lies in
+/// `-hi..=2 hi`; with `0 <= n, d < 2⁶²` and `hi d < 2⁶²` (the warp's choice of `F`), `q d`
+/// and `e` stay inside `i64`.
+struct Quotient {
+    /// The last quotient and the step to it.
+    q: i64,
+    step: i64,
+    hi: i64,
+}
+
+impl Quotient {
+    /// Quotients in `0..=hi` (values outside come from the division and are clamped by the
+    /// caller).
+    fn new(hi: i64) -> Self {
+        Self { q: 0, step: 0, hi }
+    }
+
+    /// `⌊n / d⌋` for `d > 0`.
+    #[inline]
+    fn next(&mut self, n: i64, d: i64) -> i64 {
+        // `q` in `-hi..=2 hi` (both quotients in `0..=hi`): `|q d| < 2⁶³`, no overflow.
+        let q = self.q + self.step;
+        let e = n - q * d;
+        let q = if e < -d || e >= 2 * d {
+            n.div_euclid(d)
+        } else {
+            q + i64::from(e >= d) - i64::from(e < 0)
+        };
+        self.step = q - self.q;
+        self.q = q;
+        q
     }
 }
 
@@ -464,6 +696,9 @@ fn warp_fixed(
     let (m21, m22, m23) = (m.m21, m.m22, m.m23);
     let (m31, m32, m33) = (m.m31, m.m32, m.m33);
     let source = Source::new(src);
+    // `⌊(2⁸ n + W / 2) / W⌋` clamped to `0..=2⁸ end`: a source coordinate in Q8 (below
+    // `2⁸ MAX_DIM`, inside `i32`).
+    let q8 = |q: &mut Quotient, n: i64, w: i64| q.next(256 * n + (w >> 1), w).clamp(0, q.hi) as i32;
     let mut written = 0u32;
     for y in s.y0..=s.y1 {
         // |m y| < 2^62 by the choice of F; the sums stay below 2^63.
@@ -478,23 +713,46 @@ fn warp_fixed(
         if lo > hi {
             continue;
         }
-        let Some(row) = dst.row_mut(y as usize) else {
+        let Some(out) = dst
+            .row_mut(y as usize)
+            .and_then(|r| r.get_mut(lo as usize..=hi as usize))
+        else {
             continue;
         };
         let (mut xn, mut yn, mut wn) = (m11 * lo + bx, m21 * lo + by, m31 * lo + bw);
-        for x in lo..=hi {
-            if wn > 0 {
-                let u = ((256 * xn + wn / 2).div_euclid(wn)).clamp(0, 256 * sw);
-                let v = ((256 * yn + wn / 2).div_euclid(wn)).clamp(0, 256 * sh);
-                let val = source.sample::<8>(source.cell::<8>(u as u32, v as u32));
-                if let Some(d) = row.get_mut(x as usize) {
-                    *d = blend(val, *d, alpha);
-                    written += 1;
+        let (mut qu, mut qv) = (Quotient::new(256 * sw), Quotient::new(256 * sh));
+        for chunk in out.chunks_mut(CHUNK) {
+            // The columns, then the rows (one quotient's state at a time stays in registers).
+            let (mut u, mut v, mut keep) = ([0i32; CHUNK], [0i32; CHUNK], 0u32);
+            let mut w = wn;
+            for (j, u) in u.iter_mut().take(chunk.len()).enumerate() {
+                // A pixel with `W <= 0` (only on the outline) is skipped.
+                if w > 0 {
+                    *u = q8(&mut qu, xn, w);
+                    keep |= 1 << j;
                 }
+                xn += m11;
+                w += m31;
             }
-            xn += m11;
-            yn += m21;
-            wn += m31;
+            let mut w = wn;
+            for v in v.iter_mut().take(chunk.len()) {
+                if w > 0 {
+                    *v = q8(&mut qv, yn, w);
+                }
+                yn += m21;
+                w += m31;
+            }
+            wn = w;
+            let cells = source.cells_q8(bytemuck::cast(u), bytemuck::cast(v));
+            let taps = source.gather(&cells);
+            let mut val = [i32x4::ZERO; VECS];
+            for (v, (t, (fx, fy))) in val
+                .iter_mut()
+                .zip(taps.iter().zip(cells.fx.iter().zip(&cells.fy)))
+            {
+                *v = sample_q8(*t, *fx, *fy);
+            }
+            written += put(chunk, val, keep, alpha);
         }
     }
     Ok(WarpReport {
@@ -672,6 +930,37 @@ mod tests {
         }
     }
 
+    /// Sources one pixel wide or high (cells with no right or lower neighbour): stretched by 2
+    /// along their length, every sample is the exact interpolation (`x_s` stays exactly 0).
+    #[test]
+    fn one_pixel_wide_and_high_sources() {
+        let line = [0u8, 60, 120, 180];
+        let want = [0u8, 30, 60, 90, 120, 150, 180];
+        for cfg in [FLOAT, FIXED] {
+            let sv = ImageView::packed(&line, 1, 4).unwrap();
+            let mut out = [7u8; 2 * 8];
+            let mut dv = ImageMut::packed(&mut out, 2, 8).unwrap();
+            let stretch = hom([1., 0., 0., 0., 2., 0., 0., 0., 1.]);
+            let r = warp_perspective_into(&sv, &mut dv, &stretch, &cfg).unwrap();
+            assert_eq!(r.written, 7, "{cfg:?}");
+            let column: Vec<u8> = out.chunks(2).map(|row| row[0]).collect();
+            assert_eq!(column[..7], want, "{cfg:?}");
+            assert!(
+                out.chunks(2).all(|row| row[1] == 7) && column[7] == 7,
+                "{cfg:?}"
+            );
+
+            let sv = ImageView::packed(&line, 4, 1).unwrap();
+            let mut out = [7u8; 8 * 2];
+            let mut dv = ImageMut::packed(&mut out, 8, 2).unwrap();
+            let stretch = hom([2., 0., 0., 0., 1., 0., 0., 0., 1.]);
+            let r = warp_perspective_into(&sv, &mut dv, &stretch, &cfg).unwrap();
+            assert_eq!(r.written, 7, "{cfg:?}");
+            assert_eq!(out[..7], want, "{cfg:?}");
+            assert!(out[7..].iter().all(|&v| v == 7), "{cfg:?}");
+        }
+    }
+
     #[test]
     fn alpha_blends() {
         let src = [200u8; 16];
@@ -690,7 +979,70 @@ mod tests {
         assert!(out.iter().all(|&v| v == 125), "{out:?}");
     }
 
+    /// The integer pixel pairs of four cells, as [`Source::gather`] hands them over.
+    fn taps(p: &[u8; 16]) -> (i16x8, i16x8) {
+        let lane = |k: usize| i16::from(p[k]);
+        (
+            i16x8::new(core::array::from_fn(|k| lane(4 * (k / 2) + k % 2))),
+            i16x8::new(core::array::from_fn(|k| lane(4 * (k / 2) + 2 + k % 2))),
+        )
+    }
+
     proptest! {
+        /// The Q8 sampler is the integer bilinear formula exactly; the `f32` sampler is within
+        /// rounding of bilinear interpolation in `f64` (half a grey level, plus `f32`'s
+        /// rounding of a few operations on values up to 255: `1e-3` is ample).
+        #[test]
+        fn samplers_match_the_formula(
+            p in proptest::array::uniform16(any::<u8>()),
+            f in proptest::array::uniform8(0i32..=256),
+            g in proptest::array::uniform8(0.0f32..=1.0),
+        ) {
+            let (fx, fy) = (i32x4::new([f[0], f[1], f[2], f[3]]), i32x4::new([f[4], f[5], f[6], f[7]]));
+            let q8 = sample_q8(taps(&p), fx, fy).to_array();
+            let (gx, gy) = (f32x4::new([g[0], g[1], g[2], g[3]]), f32x4::new([g[4], g[5], g[6], g[7]]));
+            let fl = sample_f32(taps(&p), gx, gy).to_array();
+            for j in 0..4 {
+                let c: [i32; 4] = core::array::from_fn(|k| i32::from(p[4 * j + k]));
+                let (fx, fy) = (f[j], f[4 + j]);
+                let t = c[0] * (256 - fx) + c[1] * fx;
+                let b = c[2] * (256 - fx) + c[3] * fx;
+                prop_assert_eq!(q8[j], ((t << 8) + (b - t) * fy + (1 << 15)) >> 16);
+                let (gx, gy) = (f64::from(g[j]), f64::from(g[4 + j]));
+                let c = c.map(f64::from);
+                let t = c[0] + (c[1] - c[0]) * gx;
+                let b = c[2] + (c[3] - c[2]) * gx;
+                let exact = t + (b - t) * gy;
+                prop_assert!((f64::from(fl[j]) - exact).abs() <= 0.5 + 1e-3, "{} vs {exact}", fl[j]);
+            }
+        }
+
+        /// The carried quotient is the division's, along straight runs (steps of `n` and `d`
+        /// as along a scanline) and after jumps (a fresh division).
+        #[test]
+        fn carried_quotients_are_exact(
+            q0 in 0i64..1 << 21,
+            d0 in 1i64..1 << 38,
+            r in 0.0f64..1.0,
+            a in -(1i64 << 36)..1 << 36,
+            b in -(1i64 << 28)..1 << 28,
+            jumps in proptest::collection::vec((0usize..40, 0i64..1 << 21), 0..3),
+        ) {
+            let hi = 1i64 << 21;
+            let mut q = Quotient::new(hi);
+            let mut n0 = q0 * d0 + (r * d0 as f64) as i64;
+            for k in 0..40i64 {
+                if let Some(&(_, to)) = jumps.iter().find(|j| j.0 as i64 == k) {
+                    n0 = to * (d0 + b * k) - a * k;
+                }
+                let (n, d) = (n0 + a * k, d0 + b * k);
+                if d <= 0 || n < 0 || n / d > hi {
+                    break;
+                }
+                prop_assert_eq!(q.next(n, d), n.div_euclid(d), "k = {}", k);
+            }
+        }
+
         /// Random quads anywhere (mostly partly outside): the writes stay inside the view (a
         /// guard band around it in the same buffer keeps its value), and the fixed path
         /// never fails where the float path succeeds.

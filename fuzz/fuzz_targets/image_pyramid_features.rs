@@ -1,6 +1,7 @@
 //! Image views of arbitrary geometry over buffers of arbitrary length, Gaussian pyramids into
 //! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch, the
-//! view warped into a frame through an arbitrary quadrilateral in both arithmetics.
+//! view warped into a frame through an arbitrary quadrilateral and an arbitrary homography in
+//! both arithmetics.
 //! Contract: no panic; a view exists only for a valid geometry; a pyramid's levels have the
 //! documented sizes; corners lie inside the image and respect the output capacity; a warp
 //! writes at most the frame's pixels.
@@ -9,10 +10,11 @@
 use arbitrary::Arbitrary;
 use camgeom::corners::{Corner, CornerConfig, good_features};
 use camgeom::heapless::Vec;
+use camgeom::homography::Homography;
 use camgeom::image::{ImageMut, ImageView, buffer_len};
-use camgeom::nalgebra::Point2;
+use camgeom::nalgebra::{Matrix3, Point2};
 use camgeom::pyramid::{self, Pyramid};
-use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
 use libfuzzer_sys::fuzz_target;
 
 #[derive(Debug, Arbitrary)]
@@ -32,6 +34,8 @@ struct Input {
     existing: [(u8, u8); 3],
     seed: u32,
     quad: [(f32, f32); 4],
+    /// A homography for `warp_perspective_into` (any matrix `from_matrix` accepts).
+    map: [f32; 9],
     alpha: u8,
 }
 
@@ -126,6 +130,11 @@ fuzz_target!(|inp: Input| {
             arithmetic,
         };
         if let Ok(r) = warp_into_quad(&view, &mut dst, &quad, &cfg) {
+            assert!(r.written <= 64 * 48, "written beyond the frame");
+        }
+        if let Ok(map) = Homography::from_matrix(&Matrix3::from_row_slice(&inp.map))
+            && let Ok(r) = warp_perspective_into(&view, &mut dst, &map, &cfg)
+        {
             assert!(r.written <= 64 * 48, "written beyond the frame");
         }
     }
