@@ -234,8 +234,8 @@ pub fn warp_perspective_into(
         return Ok(WarpReport::default());
     };
     match config.arithmetic {
-        Arithmetic::Float => Ok(warp_float(src, dst, &s, config.alpha)),
-        Arithmetic::Fixed => warp_fixed(src, dst, &s, config.alpha),
+        Arithmetic::Float => Ok(warp_float::<SIMD>(src, dst, &s, config.alpha)),
+        Arithmetic::Fixed => warp_fixed::<SIMD>(src, dst, &s, config.alpha),
     }
 }
 
@@ -288,7 +288,8 @@ fn clip_f32(lo: &mut f32, hi: &mut f32, a: f32, b: f32) {
 const LANES: usize = 4;
 
 /// Whether `wide`'s vectors are SIMD registers on this target (else arrays, where the
-/// few steps that are cheaper a lane at a time take that form).
+/// few steps that are cheaper a lane at a time take that form). The kernels take it as their
+/// `V` parameter, so that the host tests run both forms.
 const SIMD: bool = cfg!(any(
     target_arch = "x86_64",
     all(target_arch = "x86", target_feature = "sse2"),
@@ -410,12 +411,12 @@ impl<'a> Source<'a> {
     /// (a lane out of the image, which callers never pass, reads 0); these loads are the
     /// only scalar part of a sample.
     #[inline(always)]
-    fn gather<F>(&self, cells: &Cells<F>) -> [(i16x8, i16x8); VECS] {
+    fn gather<const V: bool, F>(&self, cells: &Cells<F>) -> [(i16x8, i16x8); VECS] {
         let mut rows = [[0u16; 2 * LANES]; VECS];
         let s = self.down;
         for (rows, (cx, cy)) in rows.iter_mut().zip(cells.cx.iter().zip(&cells.cy)) {
             // `c_y stride + c_x`: one dot product with SIMD, a multiply-add a lane without.
-            let index = if SIMD {
+            let index = if V {
                 bytemuck::cast::<i32x4, i16x8>(pairs(*cx, *cy)).dot(self.stride.1) + *cy
             } else {
                 let (x, y) = (cx.to_array(), cy.to_array());
@@ -443,7 +444,7 @@ impl<'a> Source<'a> {
             }
         }
         rows.map(|r| {
-            if SIMD {
+            if V {
                 let bytes = bytemuck::cast::<[u16; 2 * LANES], u8x16>(r);
                 (
                     bytemuck::cast(u8x16::unpack_low(bytes, u8x16::ZERO)),
@@ -513,10 +514,10 @@ fn pairs(a: i32x4, b: i32x4) -> i32x4 {
 /// Writes the pixels of a chunk's samples `val` (grey levels) that `keep` has set into `out`,
 /// blended, and returns how many.
 #[inline(always)]
-fn put(out: &mut [u8], val: [i32x4; VECS], keep: u32, alpha: u8) -> u32 {
+fn put<const V: bool>(out: &mut [u8], val: [i32x4; VECS], keep: u32, alpha: u8) -> u32 {
     // Every sample is in `0..=255`: SIMD packs them with saturation (`packssdw`,
     // `packuswb`), elsewhere a truncation a lane is the same and cheaper.
-    let bytes = if SIMD {
+    let bytes = if V {
         let [a, b, c, d] = val;
         let narrow = |a: i32x4, b: i32x4| i16x8::from_i32x8_saturate(bytemuck::cast([a, b]));
         u8x16::narrow_i16x8(narrow(a, b), narrow(c, d)).to_array()
@@ -540,7 +541,7 @@ fn put(out: &mut [u8], val: [i32x4; VECS], keep: u32, alpha: u8) -> u32 {
     n
 }
 
-fn warp_float(
+fn warp_float<const V: bool>(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,
     s: &Setup,
@@ -586,10 +587,18 @@ fn warp_float(
             let mut keep = 0;
             for (j, (p, (x, w))) in points.iter_mut().zip(x.iter().zip(&w)).enumerate() {
                 *p = ((m11 * *x + bx) / *w, (m21 * *x + by) / *w);
-                keep |= w.simd_gt(f32x4::ZERO).to_bitmask() << (j * LANES);
+                let positive = if V {
+                    w.simd_gt(f32x4::ZERO).to_bitmask()
+                } else {
+                    let w = w.to_array();
+                    (0..LANES).fold(0, |m, l| {
+                        m | u32::from(w.get(l).is_some_and(|&w| w > 0.0)) << l
+                    })
+                };
+                keep |= positive << (j * LANES);
             }
             let cells = source.cells_f32(points);
-            let taps = source.gather(&cells);
+            let taps = source.gather::<V, _>(&cells);
             let mut val = [i32x4::ZERO; VECS];
             for (v, (t, (fx, fy))) in val
                 .iter_mut()
@@ -597,7 +606,7 @@ fn warp_float(
             {
                 *v = sample_f32(*t, *fx, *fy);
             }
-            written += put(chunk, val, keep, alpha);
+            written += put::<V>(chunk, val, keep, alpha);
         }
     }
     WarpReport {
@@ -666,7 +675,7 @@ impl Quotient {
     }
 }
 
-fn warp_fixed(
+fn warp_fixed<const V: bool>(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,
     s: &Setup,
@@ -744,7 +753,7 @@ fn warp_fixed(
             }
             wn = w;
             let cells = source.cells_q8(bytemuck::cast(u), bytemuck::cast(v));
-            let taps = source.gather(&cells);
+            let taps = source.gather::<V, _>(&cells);
             let mut val = [i32x4::ZERO; VECS];
             for (v, (t, (fx, fy))) in val
                 .iter_mut()
@@ -752,7 +761,7 @@ fn warp_fixed(
             {
                 *v = sample_q8(*t, *fx, *fy);
             }
-            written += put(chunk, val, keep, alpha);
+            written += put::<V>(chunk, val, keep, alpha);
         }
     }
     Ok(WarpReport {
@@ -958,6 +967,51 @@ mod tests {
             assert_eq!(r.written, 7, "{cfg:?}");
             assert_eq!(out[..7], want, "{cfg:?}");
             assert!(out[7..].iter().all(|&v| v == 7), "{cfg:?}");
+        }
+    }
+
+    /// The lane-at-a-time forms the boards run give the SIMD forms' pixels, bit for bit
+    /// (both arithmetics, alpha, partial chunks, a mirror, a strided source).
+    #[test]
+    fn board_and_simd_forms_agree() {
+        let (w, h) = (70, 50);
+        let buf = logo(80, h);
+        let sv = ImageView::new(&buf, w, h, 80).unwrap();
+        let maps = [
+            [
+                1.46, -0.146, 60.3, 0.166, 1.098, 40.7, -1.37e-4, -9.3e-6, 1.0,
+            ],
+            [0.7, 0.3, 20.0, -0.25, 0.9, 90.0, 1.2e-3, -8e-4, 1.0],
+            [-1.0, 0.0, 150.0, 0.0, 1.0, 10.0, 0.0, 0.0, 1.0],
+        ];
+        for m in maps {
+            let setup = setup((w, h), (200, 150), &hom(m)).unwrap().unwrap();
+            for alpha in [255, 100] {
+                let run = |simd: bool, fixed: bool| {
+                    let mut out = std::vec![7u8; 200 * 150];
+                    let mut dv = ImageMut::packed(&mut out, 200, 150).unwrap();
+                    let n = match (simd, fixed) {
+                        (true, false) => warp_float::<true>(&sv, &mut dv, &setup, alpha).written,
+                        (false, false) => warp_float::<false>(&sv, &mut dv, &setup, alpha).written,
+                        (true, true) => {
+                            warp_fixed::<true>(&sv, &mut dv, &setup, alpha)
+                                .unwrap()
+                                .written
+                        }
+                        (false, true) => {
+                            warp_fixed::<false>(&sv, &mut dv, &setup, alpha)
+                                .unwrap()
+                                .written
+                        }
+                    };
+                    (out, n)
+                };
+                for fixed in [false, true] {
+                    let (a, b) = (run(true, fixed), run(false, fixed));
+                    assert!(a.1 > 1000, "{m:?}");
+                    assert_eq!(a, b, "{m:?} alpha {alpha} fixed {fixed}");
+                }
+            }
         }
     }
 
