@@ -1,5 +1,7 @@
 //! Features, matching and warp timings (compare with `host-tests/scripts/bench_features.py`,
-//! OpenCV with one thread on the same inputs).
+//! OpenCV with one thread on the same inputs). FAST's corners, ORB's keypoints and the warped
+//! frames are left in `target/tmp/peers/` (`features.json`, `warp_*.png`), which
+//! `scripts/peers.py` scores against OpenCV's on the same inputs.
 //!
 //! `cargo bench -p camgeom-host --bench features`
 
@@ -10,8 +12,10 @@ use camgeom::features::{Descriptor, Match, MatchConfig, fast, match_descriptors,
 use camgeom::heapless::Vec as HVec;
 use camgeom::nalgebra::Point2;
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
-use camgeom_host::images::{GrayImage, load_gray};
+use camgeom_host::bench::Answers;
+use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use criterion::{Criterion, criterion_group, criterion_main};
+use serde_json::json;
 
 fn graf1() -> GrayImage {
     load_gray(camgeom_host::data_dir().join("oxford-graf/graf1.png")).unwrap()
@@ -21,6 +25,13 @@ fn bench_features(c: &mut Criterion) {
     let img = graf1();
     let view = img.view().unwrap();
     let mut fscratch = vec![0u8; fast::scratch_len(img.width)];
+    let mut answers = Answers::new(env!("CARGO_TARGET_TMPDIR"), "features");
+    let mut found = Vec::new();
+    fast::fast_detect(&view, &fast::FastConfig::default(), &mut fscratch, |c| {
+        found.push([c.x, c.y])
+    })
+    .unwrap();
+    answers.record("fast/graf1", json!({ "corners": found }));
     c.bench_function("fast_t20_nonmax_graf1_800x640", |b| {
         b.iter(|| {
             let mut n = 0usize;
@@ -34,6 +45,9 @@ fn bench_features(c: &mut Criterion) {
     let config = OrbConfig::default();
     let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
     let mut out: Box<HVec<Feature, 500>> = Box::default();
+    orb::orb_detect(&view, &config, &mut scratch, &mut out).unwrap();
+    let keypoints: Vec<[f32; 2]> = out.iter().map(|f| [f.keypoint.x, f.keypoint.y]).collect();
+    answers.record("orb/graf1", json!({ "keypoints": keypoints }));
     c.bench_function("orb_500_graf1_800x640", |b| {
         b.iter(|| {
             orb::orb_detect(&view, &config, &mut scratch, &mut out).unwrap();
@@ -82,6 +96,20 @@ fn bench_features(c: &mut Criterion) {
             alpha: 255,
             arithmetic,
         };
+        let mut once = GrayImage::filled(320, 240, 100);
+        warp_into_quad(
+            &logo.view().unwrap(),
+            &mut once.view_mut().unwrap(),
+            &quad,
+            &cfg,
+        )
+        .unwrap();
+        let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join("peers")
+            .join(format!("{name}.png"));
+        std::fs::create_dir_all(png.parent().unwrap()).unwrap();
+        save_gray(&once, &png).unwrap();
+        answers.record(&format!("warp/{name}"), json!({ "png": png }));
         c.bench_function(name, |b| {
             b.iter(|| {
                 let r = warp_into_quad(
@@ -95,6 +123,7 @@ fn bench_features(c: &mut Criterion) {
             })
         });
     }
+    answers.save();
 }
 
 criterion_group!(benches, bench_features);

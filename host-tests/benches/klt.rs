@@ -124,6 +124,31 @@ fn bench(c: &mut Criterion) {
         bn.iter(|| optical_flow_lk::calc_optical_flow_ex(&oa, &ow, black_box(&op), None, params))
     });
     g.finish();
+
+    // The pyramid's levels (FNV-1a of each level's bytes) and the corners, for the peer
+    // table's comparison with `cv2.pyrDown` and `cv2.goodFeaturesToTrack`.
+    let mut buf = Vec::new();
+    let p = pyramid(&a, &mut buf, 4);
+    let levels: Vec<String> = (1..p.len())
+        .filter_map(|l| p.level(l))
+        .map(|l| {
+            let h = (0..l.height())
+                .filter_map(|y| l.row(y))
+                .flatten()
+                .fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
+                    (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+                });
+            format!("{h:016x}")
+        })
+        .collect();
+    answers.record("pyramid/basketball1", json!({ "fnv1a": levels }));
+    let ccfg = CornerConfig {
+        quality: 0.01,
+        min_distance: 10,
+        max_corners: 0,
+    };
+    let found = corners(&a, &ccfg, 400).unwrap();
+    answers.record("good_features/basketball1", json!({ "corners": found }));
     answers.save();
 
     let mut g = c.benchmark_group("klt_setup");
@@ -135,11 +160,6 @@ fn bench(c: &mut Criterion) {
             black_box(p.len())
         })
     });
-    let ccfg = CornerConfig {
-        quality: 0.01,
-        min_distance: 10,
-        max_corners: 0,
-    };
     g.bench_function("good_features_640x480_400", |bn| {
         bn.iter(|| corners(black_box(&a), &ccfg, 400).unwrap())
     });
