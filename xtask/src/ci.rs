@@ -106,8 +106,9 @@ fn steps() -> Vec<Step> {
             run(&mut cmd)
         }),
     );
-    // The core has no target-specific code (no `cfg(target_*)`), so one compilation per feature
-    // set and instruction set is what catches a `std` leak or a missing `core` item. The firmware
+    // The core's only target-specific code is `cfg!` constants that pick a SIMD or a scalar form
+    // of a kernel, so one compilation per feature set and instruction set is what catches a
+    // `std` leak or a missing `core` item. The firmware
     // steps below compile it in release with `defmt` for every emulated board's target
     // (thumbv7em, thumbv7m, thumbv8m.main, riscv32imac) and the OpenMV H7, and without it for
     // thumbv6m (the pipeline cross-compile); this one is RISC-V without `defmt`.
