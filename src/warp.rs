@@ -462,6 +462,23 @@ impl<'a> Source<'a> {
             }
         })
     }
+
+    /// The samples of a chunk's cells: [`Self::gather`]'s pixels, then `sample`
+    /// ([`sample_f32`] or [`sample_q8`]) a vector at a time.
+    #[inline(always)]
+    fn samples<const V: bool, F: Copy>(
+        &self,
+        cells: &Cells<F>,
+        sample: impl Fn((i16x8, i16x8), F, F) -> i32x4,
+    ) -> [i32x4; VECS] {
+        let taps = self.gather::<V, F>(cells);
+        let mut val = [i32x4::ZERO; VECS];
+        let fractions = cells.fx.iter().zip(&cells.fy);
+        for (v, (t, (fx, fy))) in val.iter_mut().zip(taps.iter().zip(fractions)) {
+            *v = sample(*t, *fx, *fy);
+        }
+        val
+    }
 }
 
 /// Bilinear samples in `f32` of the pairs `(top, bot)` ([`Source::gather`]) at `(f_x, f_y)`,
@@ -598,14 +615,7 @@ fn warp_float<const V: bool>(
                 keep |= positive << (j * LANES);
             }
             let cells = source.cells_f32(points);
-            let taps = source.gather::<V, _>(&cells);
-            let mut val = [i32x4::ZERO; VECS];
-            for (v, (t, (fx, fy))) in val
-                .iter_mut()
-                .zip(taps.iter().zip(cells.fx.iter().zip(&cells.fy)))
-            {
-                *v = sample_f32(*t, *fx, *fy);
-            }
+            let val = source.samples::<V, _>(&cells, sample_f32);
             written += put::<V>(chunk, val, keep, alpha);
         }
     }
@@ -753,14 +763,7 @@ fn warp_fixed<const V: bool>(
             }
             wn = w;
             let cells = source.cells_q8(bytemuck::cast(u), bytemuck::cast(v));
-            let taps = source.gather::<V, _>(&cells);
-            let mut val = [i32x4::ZERO; VECS];
-            for (v, (t, (fx, fy))) in val
-                .iter_mut()
-                .zip(taps.iter().zip(cells.fx.iter().zip(&cells.fy)))
-            {
-                *v = sample_q8(*t, *fx, *fy);
-            }
+            let val = source.samples::<V, _>(&cells, sample_q8);
             written += put::<V>(chunk, val, keep, alpha);
         }
     }

@@ -10,7 +10,6 @@ use std::hint::black_box;
 use camgeom::features::orb::{self, Feature, OrbConfig};
 use camgeom::features::{Descriptor, Match, MatchConfig, fast, match_descriptors, matching};
 use camgeom::heapless::Vec as HVec;
-use camgeom::nalgebra::Point2;
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
 use camgeom_host::bench::Answers;
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
@@ -72,21 +71,7 @@ fn bench_features(c: &mut Criterion) {
         })
     });
 
-    let mut logo = GrayImage::filled(128, 128, 0);
-    for (i, p) in logo.data.iter_mut().enumerate() {
-        *p = if ((i % 128) / 16 + (i / 128) / 16) % 2 == 0 {
-            230
-        } else {
-            30
-        };
-    }
-    let quad = [
-        (60.3f32, 40.7f32),
-        (250.2, 62.9),
-        (231.6, 205.1),
-        (41.8, 180.4),
-    ]
-    .map(|(x, y)| Point2::new(x, y));
+    let (logo, quad) = camgeom_host::bench::warp_case();
     let mut frame = GrayImage::filled(320, 240, 100);
     for (name, arithmetic) in [
         ("warp_128_into_320x240_f32", Arithmetic::Float),

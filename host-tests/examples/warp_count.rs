@@ -8,7 +8,6 @@
 //!     target/release/examples/warp_count 20 f32     # or `fixed`
 //! ```
 
-use camgeom::nalgebra::Point2;
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
 use camgeom_host::images::GrayImage;
 
@@ -19,22 +18,8 @@ fn main() {
         Some("fixed") => Arithmetic::Fixed,
         _ => Arithmetic::Float,
     };
-    // The bench's logo and quadrilateral (`host-tests/benches/features.rs`).
-    let mut logo = GrayImage::filled(128, 128, 0);
-    for (i, p) in logo.data.iter_mut().enumerate() {
-        *p = if ((i % 128) / 16 + (i / 128) / 16) % 2 == 0 {
-            230
-        } else {
-            30
-        };
-    }
-    let quad = [
-        (60.3f32, 40.7f32),
-        (250.2, 62.9),
-        (231.6, 205.1),
-        (41.8, 180.4),
-    ]
-    .map(|(x, y)| Point2::new(x, y));
+    // The features bench's logo and quadrilateral.
+    let (logo, quad) = camgeom_host::bench::warp_case();
     let cfg = WarpConfig {
         alpha: 255,
         arithmetic,

@@ -130,3 +130,25 @@ pub fn points_json<T: Real>(p: &[Point2<T>]) -> Value {
             .collect::<Vec<_>>(),
     )
 }
+
+/// The warp case of the features bench, the peer table and `examples/warp_count.rs`: a
+/// 128x128 checker logo (16-pixel cells of 230 and 30) and the quadrilateral of a 320x240
+/// frame it goes to (`warp_checker` in `data/features/opencv_orb_figures.json`).
+pub fn warp_case() -> (crate::images::GrayImage, [Point2<f32>; 4]) {
+    let mut logo = crate::images::GrayImage::filled(128, 128, 0);
+    for (i, p) in logo.data.iter_mut().enumerate() {
+        *p = if ((i % 128) / 16 + (i / 128) / 16) % 2 == 0 {
+            230
+        } else {
+            30
+        };
+    }
+    let quad = [
+        (60.3f32, 40.7f32),
+        (250.2, 62.9),
+        (231.6, 205.1),
+        (41.8, 180.4),
+    ]
+    .map(|(x, y)| Point2::new(x, y));
+    (logo, quad)
+}
