@@ -6,15 +6,9 @@ use camgeom::nalgebra::{Matrix3, Point2};
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
 use camgeom_host::images::{GrayImage, load_gray};
 
-/// The script's `checker_logo()`: 128x128, 16-px cells of 230 and 30.
+/// The script's `checker_logo()`: 128x128, 16-px cells of 230 and 30 (the features bench's).
 fn checker() -> GrayImage {
-    let mut img = GrayImage::filled(128, 128, 0);
-    for y in 0..128 {
-        for x in 0..128 {
-            img.data[y * 128 + x] = if (x / 16 + y / 16) % 2 == 0 { 230 } else { 30 };
-        }
-    }
-    img
+    camgeom_host::bench::warp_case().0
 }
 
 fn figures() -> serde_json::Value {
