@@ -349,8 +349,9 @@ impl<'a> Source<'a> {
     }
 
     /// The cells of the source points `(sx, sy)` (lanes), each clamped into
-    /// `[0, w-1] x [0, h-1]` first (NaN to 0): `c = min(⌊s⌋, w - 2)` and `f = s - c` in
-    /// `[0, 1]` (on the last column or row the cell before it with `f = 1`).
+    /// `[0, w-1] x [0, h-1]` first (NaN to a point inside: only pixels with `W = 0`, which are
+    /// not written, have one): `c = min(⌊s⌋, w - 2)` and `f = s - c` in `[0, 1]` (on the last
+    /// column or row the cell before it with `f = 1`).
     #[inline(always)]
     fn cells_f32(&self, s: [(f32x4, f32x4); VECS]) -> Cells<f32x4> {
         let (end, cell) = (
@@ -360,8 +361,8 @@ impl<'a> Source<'a> {
                 f32x4::splat(self.cell.1 as f32),
             ),
         );
-        // `fast_max(s, 0)` is 0 for NaN on SSE2; elsewhere the truncation's NaN rule (0 on
-        // NEON, `as` in the fallback) does the same.
+        // NaN: `fast_max(s, 0)` is 0 on SSE2; NEON's truncation gives 0; the arrays' `fast_min`
+        // gives the far end. Any of them is a cell inside the source.
         let s = s.map(|(x, y)| {
             (
                 x.fast_max(f32x4::ZERO).fast_min(end.0),
