@@ -137,7 +137,8 @@ fn triple(row: &[u8], x: usize, w: usize) -> [u8; 3] {
 
 /// The Sobel products of image row `r` into `out = [dx² | dx dy | dy²]` (`3 width`; `dx dy`
 /// stored two's complement).
-fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
+#[inline(never)]
+fn sobel_products<const V: bool>(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
     let (w, h) = (img.width(), img.height());
     let ri = r as isize;
     let r0 = img.row_clamped(reflect101(ri - 1, h) as isize);
@@ -175,21 +176,46 @@ fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
             triple(r2, last, w),
         ),
     );
-    // Interior: straight 3-wide windows, no reflection.
-    let rows = r0.windows(3).zip(r1.windows(3)).zip(r2.windows(3));
+    // Interior: no reflection.
     let outs = sxx
         .iter_mut()
         .skip(1)
         .zip(sxy.iter_mut().skip(1))
         .zip(syy.iter_mut().skip(1));
-    for (((a, b), c), ((t, m), d)) in outs.zip(rows).take(w - 2) {
-        let (&[t0, t1, t2], &[m0, _, m2], &[d0, d1, d2]) = (t, m, d) else {
-            continue;
-        };
-        let (dx, dy) = sobel([t0, t1, t2], [m0, 0, m2], [d0, d1, d2]);
-        *a = (dx * dx) as u32;
-        *b = (dx * dy) as u32;
-        *c = (dy * dy) as u32;
+    if V {
+        // The three rows' pixels at columns x - 1, x, x + 1 as shifted slices, derivatives in
+        // `i16` (|dx|, |dy| <= 1020), products widened to `i32`: a straight loop that
+        // vectorises (`pmullw`/`pmulhw` on SSE2).
+        let n = w - 2;
+        fn at(r: &[u8], k: usize, n: usize) -> &[u8] {
+            r.get(k..k + n).unwrap_or(&[])
+        }
+        let top = at(r0, 0, n).iter().zip(at(r0, 1, n)).zip(at(r0, 2, n));
+        let mid = at(r1, 0, n).iter().zip(at(r1, 2, n));
+        let bot = at(r2, 0, n).iter().zip(at(r2, 1, n)).zip(at(r2, 2, n));
+        for (((a, b), c), ((((&t0, &t1), &t2), (&m0, &m2)), ((&d0, &d1), &d2))) in
+            outs.zip(top.zip(mid).zip(bot))
+        {
+            let p = i16::from;
+            let dx = (p(t2) - p(t0)) + 2 * (p(m2) - p(m0)) + (p(d2) - p(d0));
+            let dy = (p(d0) + 2 * p(d1) + p(d2)) - (p(t0) + 2 * p(t1) + p(t2));
+            let (dx, dy) = (i32::from(dx), i32::from(dy));
+            *a = (dx * dx) as u32;
+            *b = (dx * dy) as u32;
+            *c = (dy * dy) as u32;
+        }
+    } else {
+        // Straight 3-wide windows in `i32` (cheaper than `i16` lanes on a 32-bit core).
+        let rows = r0.windows(3).zip(r1.windows(3)).zip(r2.windows(3));
+        for (((a, b), c), ((t, m), d)) in outs.zip(rows).take(w - 2) {
+            let (&[t0, t1, t2], &[m0, _, m2], &[d0, d1, d2]) = (t, m, d) else {
+                continue;
+            };
+            let (dx, dy) = sobel([t0, t1, t2], [m0, 0, m2], [d0, d1, d2]);
+            *a = (dx * dx) as u32;
+            *b = (dx * dy) as u32;
+            *c = (dy * dy) as u32;
+        }
     }
 }
 
@@ -200,7 +226,15 @@ fn sobel_products(img: &ImageView<'_, u8>, r: usize, out: &mut [u32]) {
 ///
 /// `S > floor ⟺ ⌊√disc⌋ < A + C - floor ⟺ disc < (A + C - floor)²`: the integer root (a
 /// 64-bit routine of a few hundred instructions on a Cortex-M) only for scores that count.
-fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &mut [u32]) -> u32 {
+#[inline(never)]
+fn score_row<const V: bool>(
+    up: &[u32],
+    mid: &[u32],
+    down: &[u32],
+    w: usize,
+    floor: u32,
+    out: &mut [u32],
+) -> u32 {
     let floor = u64::from(floor);
     let score = |[a, b, c]: [u32; 3]| -> u32 {
         let (a, b, c) = (u64::from(a), i64::from(b as i32), u64::from(c));
@@ -215,7 +249,8 @@ fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &
         if disc >= lim * lim {
             return 0;
         }
-        tr.saturating_sub(disc.isqrt()).min(u64::from(u32::MAX)) as u32
+        tr.saturating_sub(crate::fixed::isqrt(disc))
+            .min(u64::from(u32::MAX)) as u32
     };
     // Vertical sums of the three channels at column `x` (any column: for the reflected ends).
     let col = |x: usize| -> [u32; 3] {
@@ -251,33 +286,86 @@ fn score_row(up: &[u32], mid: &[u32], down: &[u32], w: usize, floor: u32, out: &
             best = best.max(*o);
         }
     }
-    // Interior columns 1 .. w - 1: the vertical sums slide along the row, three loads a
-    // channel a column (the 3x3 block read nine, with its index arithmetic).
     fn plane(s: &[u32], k: usize, w: usize) -> &[u32] {
         s.get(k * w..(k + 1) * w).unwrap_or(&[])
     }
-    let sums = |k: usize| {
-        plane(up, k, w)
-            .iter()
-            .zip(plane(mid, k, w))
-            .zip(plane(down, k, w))
-            .map(|((a, b), c)| a.wrapping_add(*b).wrapping_add(*c))
-    };
-    let mut cols = sums(0)
-        .zip(sums(1))
-        .zip(sums(2))
-        .map(|((a, b), c)| [a, b, c]);
-    let (Some(mut prev), Some(mut cur)) = (cols.next(), cols.next()) else {
+    if !V {
+        // Interior columns 1 .. w - 1: the vertical sums slide along the row, three loads a
+        // channel a column (the 3x3 block read nine, with its index arithmetic).
+        let sums = |k: usize| {
+            plane(up, k, w)
+                .iter()
+                .zip(plane(mid, k, w))
+                .zip(plane(down, k, w))
+                .map(|((a, b), c)| a.wrapping_add(*b).wrapping_add(*c))
+        };
+        let mut cols = sums(0)
+            .zip(sums(1))
+            .zip(sums(2))
+            .map(|((a, b), c)| [a, b, c]);
+        let (Some(mut prev), Some(mut cur)) = (cols.next(), cols.next()) else {
+            return best;
+        };
+        let inner = out.get_mut(1..w - 1).unwrap_or(&mut []);
+        for (o, next) in inner.iter_mut().zip(cols) {
+            *o = score(add3(prev, cur, next));
+            best = best.max(*o);
+            (prev, cur) = (cur, next);
+        }
         return best;
-    };
-    let inner = out.get_mut(1..w - 1).unwrap_or(&mut []);
-    for (o, next) in inner.iter_mut().zip(cols) {
-        *o = score(add3(prev, cur, next));
-        best = best.max(*o);
-        (prev, cur) = (cur, next);
+    }
+    // With SIMD: interior columns 1 .. w - 1, `SPAN` at a time: the three channels' vertical
+    // sums of the span's columns and their neighbours, then the horizontal sums, each a
+    // straight loop over slices (vectorised), then the scores, where most pixels stop at the
+    // floor test.
+    let mut x0 = 1;
+    while x0 + 1 < w {
+        let n = (w - 1 - x0).min(SPAN);
+        let mut h = [[0u32; SPAN]; 3];
+        for (k, hk) in h.iter_mut().enumerate() {
+            let cols = x0 - 1..x0 + n + 1;
+            let part = |s| plane(s, k, w).get(cols.clone()).unwrap_or(&[]);
+            let mut v = [0u32; SPAN + 2];
+            for (o, ((a, b), c)) in v
+                .iter_mut()
+                .zip(part(up).iter().zip(part(mid)).zip(part(down)))
+            {
+                *o = a.wrapping_add(*b).wrapping_add(*c);
+            }
+            let (centre, right) = (v.get(1..).unwrap_or(&[]), v.get(2..).unwrap_or(&[]));
+            for (o, ((a, b), c)) in hk.iter_mut().zip(v.iter().zip(centre).zip(right)).take(n) {
+                *o = a.wrapping_add(*b).wrapping_add(*c);
+            }
+        }
+        let [ha, hb, hc] = &h;
+        let span = out.get_mut(x0..x0 + n).unwrap_or(&mut []);
+        for (o, ((&a, &b), &c)) in span.iter_mut().zip(ha.iter().zip(hb).zip(hc)) {
+            // The floor test inline (most pixels end here), the rest of the score a call.
+            *o = if u64::from(a) + u64::from(c) <= floor {
+                0
+            } else {
+                score([a, b, c])
+            };
+            best = best.max(*o);
+        }
+        x0 += n;
     }
     best
 }
+
+/// Whether this target has 128-bit SIMD, where the row kernels take their vectorised forms
+/// (the same integers; without SIMD the sliding forms cost less). A constant: the other form
+/// is compiled out; the tests run both.
+const LANES: bool = cfg!(any(
+    target_arch = "x86_64",
+    all(target_arch = "x86", target_feature = "sse2"),
+    target_arch = "aarch64",
+    all(target_arch = "arm", target_feature = "neon"),
+    all(target_arch = "wasm32", target_feature = "simd128"),
+));
+
+/// Columns of a row [`score_row`] sums and scores in one pass.
+const SPAN: usize = 64;
 
 /// Orders candidates strongest first; ties: later in raster order first (as OpenCV).
 fn stronger(a: &Corner, b: &Corner) -> core::cmp::Ordering {
@@ -372,13 +460,13 @@ pub fn good_features<const K: usize>(
         if y == 0 {
             for r in 0..h.min(2) {
                 if let Some(p) = prods.get_mut(pslot(r)) {
-                    sobel_products(img, r, p);
+                    sobel_products::<LANES>(img, r, p);
                 }
             }
         } else if y + 1 < h
             && let Some(p) = prods.get_mut(pslot(y + 1))
         {
-            sobel_products(img, y + 1, p);
+            sobel_products::<LANES>(img, y + 1, p);
         }
         let yi = y as isize;
         let (ru, rd) = (reflect101(yi - 1, h), reflect101(yi + 1, h));
@@ -393,7 +481,7 @@ pub fn good_features<const K: usize>(
             break;
         };
         // Border pixels count for the maximum (as OpenCV's minMaxLoc), not as candidates.
-        let row_max = score_row(up, mid, down, w, floor, row);
+        let row_max = score_row::<LANES>(up, mid, down, w, floor, row);
         if row_max > max {
             max = row_max;
             floor = floor.max(quality_of(max));
@@ -559,12 +647,42 @@ mod tests {
         );
     }
 
-    /// The sliding row scores against the 3x3 definition (reflected ends), every width from
-    /// 1 to 9 and one wide row, random products, with and without a floor.
+    /// The Sobel products of every row against the formula at each pixel with reflected
+    /// neighbours ([`triple`], [`sobel`]), random images of widths 1 to 9 and 40, strided.
+    #[test]
+    fn sobel_products_match_the_formula() {
+        let mut g = crate::rng::Pcg32::new(9);
+        for (w, h) in (1..=9).map(|w| (w, 4)).chain([(40, 5)]) {
+            let stride = w + 3;
+            let px: std::vec::Vec<u8> = (0..stride * h)
+                .map(|_| g.uniform(0.0, 256.0) as u8)
+                .collect();
+            let img = ImageView::new(&px, w, h, stride).unwrap();
+            for r in 0..h {
+                let mut out = std::vec![0u32; 3 * w];
+                sobel_products::<true>(&img, r, &mut out);
+                let mut board = std::vec![0u32; 3 * w];
+                sobel_products::<false>(&img, r, &mut board);
+                assert_eq!(out, board, "w {w} row {r}: the two forms");
+                let row = |y: isize| img.row(reflect101(y, h)).unwrap();
+                let (r0, r1, r2) = (row(r as isize - 1), row(r as isize), row(r as isize + 1));
+                for x in 0..w {
+                    let (dx, dy) = sobel(triple(r0, x, w), triple(r1, x, w), triple(r2, x, w));
+                    let want = [(dx * dx) as u32, (dx * dy) as u32, (dy * dy) as u32];
+                    let got = [out[x], out[w + x], out[2 * w + x]];
+                    assert_eq!(got, want, "w {w} row {r} x {x}");
+                }
+            }
+        }
+    }
+
+    /// The row scores against the 3x3 definition (reflected ends), every width from
+    /// 1 to 9 and wide rows (one span of `SPAN` columns, two, two and a part), random
+    /// products, with and without a floor.
     #[test]
     fn row_scores_match_the_definition() {
         let mut g = crate::rng::Pcg32::new(5);
-        for w in (1..=9).chain([64]) {
+        for w in (1..=9).chain([64, 66, 67, 130, 200]) {
             let rows: std::vec::Vec<std::vec::Vec<u32>> = (0..3)
                 .map(|_| {
                     (0..3 * w)
@@ -582,7 +700,11 @@ mod tests {
                 .collect();
             for floor in [0u32, 20_000_000] {
                 let mut out = std::vec![7u32; w];
-                let best = score_row(&rows[0], &rows[1], &rows[2], w, floor, &mut out);
+                let best = score_row::<true>(&rows[0], &rows[1], &rows[2], w, floor, &mut out);
+                let mut board = std::vec![0u32; w];
+                let best_board =
+                    score_row::<false>(&rows[0], &rows[1], &rows[2], w, floor, &mut board);
+                assert_eq!((best, &out), (best_board, &board), "w {w}: the two forms");
                 let mut want_best = 0;
                 for (x, &got) in out.iter().enumerate() {
                     let mut s = [0i64; 3];

@@ -267,7 +267,7 @@ impl FlowArith for Fixed {
         let diff = (a11 - a22).unsigned_abs();
         let disc = diff * diff + 4 * a12.unsigned_abs() * a12.unsigned_abs();
         let lmin2 = (a11 + a22).max(0) as u64; // 2 λ_min = a11 + a22 - √disc
-        let lmin2 = lmin2.saturating_sub(disc.isqrt());
+        let lmin2 = lmin2.saturating_sub(crate::fixed::isqrt(disc));
         // λ_min · 2^shift < min_eig  ⇔  2 λ_min · 2^shift < 2 min_eig.
         if lmin2.saturating_mul(1u64 << shift.clamp(0, 62)) < p.min_eig.saturating_mul(2) {
             return Err(FlowStatus::SmallEigenvalue);
