@@ -353,17 +353,6 @@ fn score_row<const V: bool>(
     best
 }
 
-/// Whether this target has 128-bit SIMD, where the row kernels take their vectorised forms
-/// (the same integers; without SIMD the sliding forms cost less). A constant: the other form
-/// is compiled out; the tests run both.
-const LANES: bool = cfg!(any(
-    target_arch = "x86_64",
-    all(target_arch = "x86", target_feature = "sse2"),
-    target_arch = "aarch64",
-    all(target_arch = "arm", target_feature = "neon"),
-    all(target_arch = "wasm32", target_feature = "simd128"),
-));
-
 /// Columns of a row [`score_row`] sums and scores in one pass.
 const SPAN: usize = 64;
 
@@ -460,13 +449,13 @@ pub fn good_features<const K: usize>(
         if y == 0 {
             for r in 0..h.min(2) {
                 if let Some(p) = prods.get_mut(pslot(r)) {
-                    sobel_products::<LANES>(img, r, p);
+                    sobel_products::<{ crate::SIMD }>(img, r, p);
                 }
             }
         } else if y + 1 < h
             && let Some(p) = prods.get_mut(pslot(y + 1))
         {
-            sobel_products::<LANES>(img, y + 1, p);
+            sobel_products::<{ crate::SIMD }>(img, y + 1, p);
         }
         let yi = y as isize;
         let (ru, rd) = (reflect101(yi - 1, h), reflect101(yi + 1, h));
@@ -481,7 +470,7 @@ pub fn good_features<const K: usize>(
             break;
         };
         // Border pixels count for the maximum (as OpenCV's minMaxLoc), not as candidates.
-        let row_max = score_row::<LANES>(up, mid, down, w, floor, row);
+        let row_max = score_row::<{ crate::SIMD }>(up, mid, down, w, floor, row);
         if row_max > max {
             max = row_max;
             floor = floor.max(quality_of(max));

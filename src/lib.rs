@@ -52,6 +52,18 @@
 #[cfg(any(feature = "std", test))]
 extern crate std;
 
+/// Whether this target has 128-bit SIMD (SSE2, NEON, wasm `simd128`): `wide`'s vectors are
+/// registers there, arrays elsewhere. Kernels with a vector form and a scalar form (KLT
+/// windows, Shi-Tomasi rows, the warp) choose by this constant; the other form is compiled
+/// out of every optimised build.
+pub(crate) const SIMD: bool = cfg!(any(
+    target_arch = "x86_64",
+    all(target_arch = "x86", target_feature = "sse2"),
+    target_arch = "aarch64",
+    all(target_arch = "arm", target_feature = "neon"),
+    all(target_arch = "wasm32", target_feature = "simd128"),
+));
+
 pub mod apriltag;
 pub mod calib;
 pub mod camera;

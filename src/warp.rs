@@ -69,7 +69,7 @@ use nalgebra::{Matrix3, Point2, Vector3};
 
 use crate::homography::Homography;
 use crate::image::{ImageMut, ImageView};
-use crate::{Error, Result};
+use crate::{Error, Result, SIMD};
 use wide::{f32x4, i16x8, i32x4, u8x16};
 
 /// Arithmetic of the per-pixel work of [`warp_perspective_into`].
@@ -286,17 +286,6 @@ fn clip_f32(lo: &mut f32, hi: &mut f32, a: f32, b: f32) {
 /// Lanes of the warp's vectors: four `f32` or `i32` (128 bits: SSE2 on x86-64, NEON on
 /// aarch64, an array of four on the boards).
 const LANES: usize = 4;
-
-/// Whether `wide`'s vectors are SIMD registers on this target (else arrays, where the
-/// few steps that are cheaper a lane at a time take that form). The kernels take it as their
-/// `V` parameter, so that the host tests run both forms.
-const SIMD: bool = cfg!(any(
-    target_arch = "x86_64",
-    all(target_arch = "x86", target_feature = "sse2"),
-    target_arch = "aarch64",
-    all(target_arch = "arm", target_feature = "neon"),
-    all(target_arch = "wasm32", target_feature = "simd128"),
-));
 
 /// Pixels of a scanline the warp handles in one pass: the source points and cells of
 /// [`VECS`] vectors, then the loads of their pixels, then the samples.

@@ -22,13 +22,7 @@ pub(super) use super::packed::Packed;
 
 /// Whether this target runs [`Lanes`] (128-bit SIMD) rather than [`Packed`]. A constant: the
 /// other kernel is compiled out of every optimised build.
-pub(super) const LANES: bool = cfg!(any(
-    target_arch = "x86_64",
-    all(target_arch = "x86", target_feature = "sse2"),
-    target_arch = "aarch64",
-    all(target_arch = "arm", target_feature = "neon"),
-    all(target_arch = "wasm32", target_feature = "simd128"),
-));
+pub(super) const LANES: bool = crate::SIMD;
 
 /// `i16` elements of scratch the target's kernel needs for `win x win` windows.
 pub(super) const fn native_scratch_len(win: usize) -> usize {
