@@ -22,7 +22,7 @@ pub const PACKAGE: &str = "camgeom-fw-emulated";
 /// The projection checks (run by `cargo xtask run` before the main job).
 const PROJECTION_BIN: &str = "camgeom-fw-projection";
 /// The homography benchmark binary (`cargo xtask bench-fw`).
-const BENCH_BIN: &str = "camgeom-fw-bench";
+pub const BENCH_BIN: &str = "camgeom-fw-bench";
 /// The line the firmware logs when it has done all its work; the run fails without it.
 const SUMMARY: &str = "projected ";
 const SUMMARY_REST: &str = " points, cost ";
