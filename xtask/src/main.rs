@@ -5,7 +5,7 @@
 //! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
 //! | `cargo xtask run [--board NAME]` | the main job: the firmware over the recorded sequence on every emulated board (or one), checked against the host replay |
 //! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
-//! | `cargo xtask profile-fw [BIN]` | the bench firmware (or BIN of the emulated-board crate) on QEMU's Cortex-M7 with its block logs: instructions by function |
+//! | `cargo xtask profile-fw [BIN [DIR]]` | the bench firmware (or BIN of the emulated-board crate, started in DIR) on QEMU's Cortex-M7 with its block logs: instructions by function |
 //! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
 //! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
 //! | `cargo xtask stack` | the stack-painting firmware on QEMU (thumbv7em on the Cortex-M7, thumbv6m on the Cortex-M3): stack high-water mark per entry point |
@@ -40,8 +40,9 @@ commands:
           virt RV32IMAC; or only NAME), 320x240 and 160x120, per-stage cost, overlays, each
           checked against the host replay
   bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
-  profile-fw [BIN]  run the bench firmware (or BIN of camgeom-fw-emulated) on the emulated
-          Cortex-M7 with QEMU's block logs and list its instructions by function
+  profile-fw [BIN [DIR]]  run the bench firmware (or BIN of camgeom-fw-emulated, in DIR: the
+          main job's is target/camgeom-run/320x240 after `run`) on the emulated Cortex-M7 with
+          QEMU's block logs and list its instructions by function
   build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
   stack   build and run the stack-painting firmware on QEMU (thumbv7em, thumbv6m): stack per entry point
   panic-check  link one firmware binary per area, scalar type and target with a panic handler that cannot link
@@ -76,7 +77,8 @@ fn main() -> ExitCode {
             },
             Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
             Some("profile-fw") => setup::setup().and_then(|()| {
-                profile::profile(args.get(1).map_or(firmware::BENCH_BIN, String::as_str))
+                let bin = args.get(1).map_or(firmware::BENCH_BIN, String::as_str);
+                profile::profile(bin, args.get(2).map(String::as_str))
             }),
             Some("build-openmv") => openmv::build_and_check(),
             Some("size") => setup::setup()

@@ -1,5 +1,8 @@
-//! `cargo xtask profile-fw [BIN]`: where a firmware's instructions go on the emulated
-//! Cortex-M7, function by function: the board's counterpart of callgrind on the host.
+//! `cargo xtask profile-fw [BIN [DIR]]`: where a firmware's instructions go on the emulated
+//! Cortex-M7, function by function: the board's counterpart of callgrind on the host. `DIR`
+//! is where QEMU starts (the firmware's semihosting files): the main job's
+//! `target/camgeom-run/320x240` after a `cargo xtask run`, for `camgeom-fw-emulated`. Each
+//! instruction's count goes to `target/profile-fw.txt`, to read beside `llvm-objdump -d`.
 //!
 //! QEMU logs each translated block's instructions once (`-d in_asm`) and each run of a block
 //! (`-d exec`, with `nochain` so that chained blocks are logged too); the count of an
@@ -20,9 +23,10 @@ use crate::util::{root, show};
 /// Functions listed.
 const TOP: usize = 30;
 
-/// Builds `bin` of the emulated-board crate, runs it on the Cortex-M7 with QEMU's block logs
-/// and prints the functions that ran the most instructions.
-pub fn profile(bin: &str) -> Result<()> {
+/// Builds `bin` of the emulated-board crate, runs it on the Cortex-M7 in `dir` (default the
+/// repository root) with QEMU's block logs and prints the functions that ran the most
+/// instructions.
+pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
     let elf = build_bin(bin, &[])?;
     let image = std::fs::read(&elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let mut cmd = Command::new(M7.qemu);
@@ -33,7 +37,7 @@ pub fn profile(bin: &str) -> Result<()> {
         .args(["-d", "in_asm,exec,nochain"])
         .arg("-kernel")
         .arg(&elf)
-        .current_dir(root())
+        .current_dir(dir.map_or_else(root, |d| root().join(d)))
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
@@ -92,12 +96,14 @@ pub fn profile(bin: &str) -> Result<()> {
         .collect();
     funcs.sort_by_key(|f| f.0);
     let mut per_fn: HashMap<usize, u64> = HashMap::new();
+    let mut per_insn: HashMap<u32, u64> = HashMap::new();
     let (mut total, mut unknown) = (0u64, 0u64);
     for (pc, n) in &runs {
         let fallback = [*pc];
         let insns = blocks.get(pc).map_or(&fallback[..], |b| &b[..]);
         for &a in insns {
             total += n;
+            *per_insn.entry(a).or_default() += n;
             let i = funcs.partition_point(|f| f.0 <= a);
             match i.checked_sub(1).and_then(|i| funcs.get(i).map(|f| (i, f))) {
                 Some((i, f)) if a < f.0 + f.1 => *per_fn.entry(i).or_default() += n,
@@ -122,6 +128,19 @@ pub fn profile(bin: &str) -> Result<()> {
     if unknown > 0 {
         println!("| {unknown} | | (outside every sized symbol) |");
     }
+    // Each instruction's count, to read beside `llvm-objdump -d` of the ELF.
+    let mut lines: Vec<(u32, u64)> = per_insn.into_iter().collect();
+    lines.sort_unstable();
+    let text: String = lines
+        .iter()
+        .map(|(a, n)| format!("{a:08x} {n}\n"))
+        .collect();
+    let out = root().join("target").join("profile-fw.txt");
+    std::fs::write(&out, text).with_context(|| format!("cannot write {}", out.display()))?;
+    println!(
+        "instruction by instruction (address, count): {}",
+        out.display()
+    );
     Ok(())
 }
 
