@@ -88,6 +88,14 @@ pub const fn flow_scratch_len(win: usize) -> usize {
     crate::klt::scratch_len(win)
 }
 
+/// `i16` elements of a [`PlanarTarget`]'s flow scratch that also keeps the templates of each
+/// frame's forward-backward check for the next frame's forward pass
+/// ([`crate::klt::kept_scratch_len`]; `N` tracks, windows `win x win` up to level
+/// `max_level`). The same flows to the bit; with `lk.fb_threshold` off nothing is kept.
+pub const fn kept_flow_scratch_len(win: usize, max_level: usize, n: usize) -> usize {
+    crate::klt::kept_scratch_len(win, max_level, n)
+}
+
 /// `u32` elements of a [`PlanarTarget`]'s corner-detector scratch for frames up to `width`
 /// pixels wide (its `C`).
 pub const fn corner_scratch_len(width: usize) -> usize {

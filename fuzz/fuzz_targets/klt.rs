@@ -1,13 +1,16 @@
 //! Pyramidal Lucas-Kanade (`calc_flow`, fixed point and `f32`, per-window and per-level
 //! derivatives) on small arbitrary images, arbitrary points (NaN, inf, far outside) and
 //! arbitrary configurations. Contract: no panic; on `Ok`, every tracked point is finite and
-//! its error is finite and non-negative.
+//! its error is finite and non-negative. And `FlowBuffers` over three frames (there and back
+//! twice) with and without kept templates (`kept_scratch_len`, with slack either way): the
+//! same result, flow for flow, to the bit.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, level_gradient_len, scratch_len,
+    Fixed, Flow, FlowBuffers, FlowStatus, Gradients, LkConfig, Q16, calc_flow, kept_scratch_len,
+    level_gradient_len, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 use libfuzzer_sys::fuzz_target;
@@ -37,6 +40,8 @@ struct Input {
     /// `derivs / 3 % 4` times).
     derivs: u8,
     scratch_slack: i8,
+    /// Slack of the kept-template scratch of the `FlowBuffers` run.
+    kept_slack: i16,
     points: std::vec::Vec<(Num, Num)>,
     fixed_points: std::vec::Vec<(i32, i32)>,
 }
@@ -187,5 +192,44 @@ fuzz_target!(|inp: Input| {
     .is_ok()
     {
         check(&fflows, Q16::to_f32, "fixed");
+    }
+
+    // FlowBuffers, frames a -> b -> a -> b, without and with kept templates.
+    if w2 != w || h2 != h {
+        return;
+    }
+    let win = cfg.win.min(63);
+    let plain_len = scratch_len(win);
+    // At least the kernel's part (shorter is `BufferTooSmall`, as `calc_flow`); the slack
+    // makes the template slots short (then none are kept) or long.
+    let kept = kept_scratch_len(win, cfg.max_level, 16) as i64 + i64::from(inp.kept_slack);
+    let kept_len = kept.max(plain_len as i64) as usize;
+    let mut plain = std::vec![0i16; plain_len];
+    let mut kept = std::vec![0i16; kept_len];
+    let mut b1 = FlowBuffers::<f32, 16>::new();
+    let mut b2 = FlowBuffers::<f32, 16>::new();
+    let mut p1 = pts.clone();
+    let mut p2 = pts.clone();
+    for (prev, next) in [(&pa, &pb), (&pb, &pa), (&pa, &pb)] {
+        let n = p1.len();
+        let r1 = b1.run(prev, next, n, p1.iter().copied(), &params, &mut plain);
+        let r2 = b2.run(prev, next, n, p2.iter().copied(), &params, &mut kept);
+        match (r1, r2) {
+            (Ok(f1), Ok(f2)) => {
+                let bits = |f: &[Flow<f32>]| -> std::vec::Vec<_> {
+                    f.iter()
+                        .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
+                        .collect()
+                };
+                assert_eq!(bits(f1), bits(f2), "kept templates changed a flow");
+                p1 = f1.iter().map(|f| [f.x, f.y]).collect();
+                p2 = f2.iter().map(|f| [f.x, f.y]).collect();
+            }
+            (Err(e1), Err(e2)) => {
+                assert_eq!(e1, e2);
+                return;
+            }
+            (r1, r2) => panic!("{:?} against {:?}", r1.err(), r2.err()),
+        }
     }
 });

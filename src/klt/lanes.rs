@@ -33,6 +33,11 @@ pub(super) const fn scratch_len(win: usize) -> usize {
     3 * (win + 1) * (s + 1) + 3 * win * s
 }
 
+/// `i16` elements of the template planes, [`Window::state`].
+pub(super) const fn state_len(win: usize) -> usize {
+    3 * win * stride(win)
+}
+
 /// The scratch split into its parts.
 pub(super) struct Lanes<'s> {
     win: usize,
@@ -62,7 +67,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         let (gy, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
         let (patch, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
         let patch = bytemuck::cast_slice_mut::<i16, u8>(patch);
-        let tmpl = rest.get_mut(..3 * win * s).ok_or(short)?;
+        let tmpl = rest.get_mut(..state_len(win)).ok_or(short)?;
         Ok(Self {
             win,
             s,
@@ -125,6 +130,17 @@ impl<'s> Window<'s> for Lanes<'s> {
                 mismatch(block_of(patch, c, n), self.tmpl, self.win, self.s, w, abs)
             }
         }
+    }
+
+    fn state(&self) -> &[i16] {
+        self.tmpl
+    }
+
+    fn restore(&mut self, state: &[i16]) {
+        for (t, &s) in self.tmpl.iter_mut().zip(state) {
+            *t = s;
+        }
+        self.patch_at = None;
     }
 }
 

@@ -1,6 +1,7 @@
 //! The Lucas-Kanade iteration of one point on one level, and the pyramid driver.
 
 use super::arith::{Bilinear, Coordinate, FlowArith};
+use super::cache::TemplateCache;
 use super::window::{LANES, Lanes, Packed, Window};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::image::{ImageMut, ImageView};
@@ -28,12 +29,50 @@ struct Level<'a, 'g, A: FlowArith> {
     params: A::Params,
 }
 
-/// One point on one level (OpenCV's `LKTrackerInvoker` body).
+/// What a pass does with kept templates ([`TemplateCache`]).
+pub(super) enum Keep<'a, 'c> {
+    /// Nothing: every template computed.
+    Off,
+    /// Takes a point's template from the cache when it holds it (a forward pass).
+    Use(&'a TemplateCache<'c>),
+    /// Keeps every template it computes (a backward pass: the next frame's forward templates).
+    Fill(&'a mut TemplateCache<'c>),
+}
+
+/// The template of point `k` at `bi` on the level: computed by the kernel, or taken from (or
+/// kept in) the cache.
+fn template<'s, A: FlowArith, W: Window<'s>>(
+    lv: &Level<'_, '_, A>,
+    s: &mut W,
+    bi: &Bilinear,
+    k: usize,
+    keep: &mut Keep<'_, '_>,
+) -> (i64, i64, i64) {
+    let level = lv.level as usize;
+    match keep {
+        Keep::Off => s.template(&lv.i, lv.grad.as_ref(), bi),
+        Keep::Use(cache) => match cache.find(k, level, &lv.i, bi) {
+            Some((state, sums)) => {
+                s.restore(state);
+                sums
+            }
+            None => s.template(&lv.i, lv.grad.as_ref(), bi),
+        },
+        Keep::Fill(cache) => {
+            let sums = s.template(&lv.i, lv.grad.as_ref(), bi);
+            cache.keep(k, level, &lv.i, bi, (s.state(), sums));
+            sums
+        }
+    }
+}
+
+/// One point (number `k`) on one level (OpenCV's `LKTrackerInvoker` body).
 fn track_point<'s, A: FlowArith, W: Window<'s>>(
     lv: &Level<'_, '_, A>,
     s: &mut W,
-    prev_pt: [A::Coord; 2],
+    (k, prev_pt): (usize, [A::Coord; 2]),
     f: &mut Flow<A::Coord>,
+    keep: &mut Keep<'_, '_>,
 ) {
     let win = lv.win;
     let area = (win * win) as u32;
@@ -63,7 +102,7 @@ fn track_point<'s, A: FlowArith, W: Window<'s>>(
         }
         return;
     }
-    let (a11, a12, a22) = s.template(&lv.i, lv.grad.as_ref(), &bi);
+    let (a11, a12, a22) = template(lv, s, &bi, k, keep);
     let gram = match A::gram(a11, a12, a22, &lv.params) {
         Ok(g) => g,
         Err(status) => {
@@ -130,6 +169,7 @@ fn usable_levels(prev: &Pyramid<'_>, next: &Pyramid<'_>, cfg: &LkConfig) -> usiz
 }
 
 /// The driver: every level from the coarsest down, every point on each level.
+#[allow(clippy::too_many_arguments)]
 fn run<'s, A: FlowArith, W: Window<'s>>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
@@ -138,6 +178,7 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
     params: &LkParams,
     grads: &mut Gradients<'_>,
     scratch: &'s mut [i16],
+    keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
     let cfg = params.config();
     let mut s = W::new(scratch, cfg.win)?;
@@ -189,7 +230,7 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
         };
         for (k, f) in flows.iter_mut().enumerate() {
             match pts(k) {
-                Some(p) => track_point(&lv, &mut s, p, f),
+                Some(p) => track_point(&lv, &mut s, (k, p), f, keep),
                 None => f.status = FlowStatus::OutOfBounds,
             }
         }
@@ -198,7 +239,8 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
 }
 
 /// [`run`] with the kernel of this target ([`LANES`]).
-fn run_native<A: FlowArith>(
+#[allow(clippy::too_many_arguments)]
+pub(super) fn run_native<A: FlowArith>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     pts: impl Fn(usize) -> Option<[A::Coord; 2]>,
@@ -206,11 +248,12 @@ fn run_native<A: FlowArith>(
     params: &LkParams,
     grads: &mut Gradients<'_>,
     scratch: &mut [i16],
+    keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
     if LANES {
-        run::<A, Lanes<'_>>(prev, next, pts, flows, params, grads, scratch)
+        run::<A, Lanes<'_>>(prev, next, pts, flows, params, grads, scratch, keep)
     } else {
-        run::<A, Packed<'_>>(prev, next, pts, flows, params, grads, scratch)
+        run::<A, Packed<'_>>(prev, next, pts, flows, params, grads, scratch, keep)
     }
 }
 
@@ -244,6 +287,7 @@ pub fn calc_flow<A: FlowArith>(
         cfg,
         &mut grads,
         scratch,
+        &mut Keep::Off,
     )
 }
 
@@ -262,6 +306,22 @@ pub fn forward_backward<A: FlowArith>(
     mut grads: Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
+    let work = (scratch, &mut Keep::Off);
+    forward_backward_keeping::<A>(prev, next, prev_pts, flows, back, cfg, &mut grads, work)
+}
+
+/// [`forward_backward`], its backward templates kept (or not) by `keep`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn forward_backward_keeping<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    prev_pts: &[[A::Coord; 2]],
+    flows: &mut [Flow<A::Coord>],
+    back: &mut [Flow<A::Coord>],
+    cfg: &LkParams,
+    grads: &mut Gradients<'_>,
+    (scratch, keep): (&mut [i16], &mut Keep<'_, '_>),
+) -> Result<()> {
     if prev_pts.len() != flows.len() || back.len() != flows.len() {
         return Err(Error::LengthMismatch);
     }
@@ -271,15 +331,8 @@ pub fn forward_backward<A: FlowArith>(
     let bcfg = cfg.with_initial_flow(false);
     {
         let fw: &[Flow<A::Coord>] = flows;
-        run_native::<A>(
-            next,
-            prev,
-            |k| fw.get(k).map(|f| [f.x, f.y]),
-            back,
-            &bcfg,
-            &mut grads,
-            scratch,
-        )?;
+        let pts = |k: usize| fw.get(k).map(|f| [f.x, f.y]);
+        run_native::<A>(next, prev, pts, back, &bcfg, grads, scratch, keep)?;
     }
     let win = cfg.config().win;
     let params = A::params(cfg, (win * win) as u32);
@@ -483,9 +536,167 @@ mod tests {
         let pts = |k: usize| prev_pts.get(k).copied();
         let mut f1 = std::vec![Flow::<A::Coord>::default(); prev_pts.len()];
         let mut f2 = f1.clone();
-        run::<A, Packed<'_>>(pa, pb, pts, &mut f1, cfg, &mut grads(g, per_level), s).unwrap();
-        run::<A, Lanes<'_>>(pa, pb, pts, &mut f2, cfg, &mut grads(g, per_level), s).unwrap();
+        run::<A, Packed<'_>>(
+            pa,
+            pb,
+            pts,
+            &mut f1,
+            cfg,
+            &mut grads(g, per_level),
+            s,
+            &mut Keep::Off,
+        )
+        .unwrap();
+        run::<A, Lanes<'_>>(
+            pa,
+            pb,
+            pts,
+            &mut f2,
+            cfg,
+            &mut grads(g, per_level),
+            s,
+            &mut Keep::Off,
+        )
+        .unwrap();
         (f1, f2)
+    }
+
+    /// A forward-backward chain over frames with the backward templates kept
+    /// ([`TemplateCache`]) for the next forward pass: every flow, status and error the same to
+    /// the bit as without the cache, for both kernels and both arithmetics; the forward passes
+    /// did take kept templates, each equal to what the kernel computes; and a kept template is
+    /// refused once a pixel it depends on changes.
+    #[test]
+    fn kept_templates_change_nothing() {
+        /// Forward then backward over each pair of frames (the backward pass from the forward
+        /// results, as in a forward-backward check), with kernel `Packed` or `Lanes`; the
+        /// flows of every pass and the number of level-0 forward templates found kept.
+        fn chain<A: FlowArith>(
+            frames: &[Pyramid<'_>],
+            pts0: &[[A::Coord; 2]],
+            cfg: &LkParams,
+            lanes: bool,
+            cache: Option<&mut [i16]>,
+        ) -> (Vec<Vec<Flow<A::Coord>>>, usize) {
+            let c = cfg.config();
+            let n = pts0.len();
+            let mut cache = cache.and_then(|b| TemplateCache::new(b, c.win, c.max_level + 1, n));
+            let half = A::Coord::from_half_px(c.win as i32 - 1);
+            let len = super::super::packed::scratch_len(c.win)
+                .max(super::super::lanes::scratch_len(c.win));
+            let mut s = std::vec![0i16; len];
+            let g = &mut Gradients::PerWindow;
+            let (mut pts, mut out, mut hits) = (pts0.to_vec(), Vec::new(), 0);
+            let mut pass = |prev: &Pyramid<'_>,
+                            next: &Pyramid<'_>,
+                            from: &[[A::Coord; 2]],
+                            keep: &mut Keep<'_, '_>| {
+                let mut f = std::vec![Flow::<A::Coord>::default(); n];
+                let p = |k: usize| from.get(k).copied();
+                match lanes {
+                    true => run::<A, Lanes<'_>>(prev, next, p, &mut f, cfg, g, &mut s, keep),
+                    false => run::<A, Packed<'_>>(prev, next, p, &mut f, cfg, g, &mut s, keep),
+                }
+                .unwrap();
+                f
+            };
+            for pair in frames.windows(2) {
+                let [prev, next] = pair else { continue };
+                if let Some(c) = cache.as_ref() {
+                    for (k, q) in pts.iter().enumerate() {
+                        let b = A::bilinear(q[0] - half, q[1] - half).unwrap();
+                        hits += usize::from(c.find(k, 0, &prev.level(0).unwrap(), &b).is_some());
+                    }
+                }
+                let mut keep = cache.as_ref().map_or(Keep::Off, Keep::Use);
+                let fw = pass(prev, next, &pts, &mut keep);
+                pts = fw.iter().map(|f| [f.x, f.y]).collect();
+                let mut keep = cache.as_mut().map_or(Keep::Off, Keep::Fill);
+                let back = pass(next, prev, &pts, &mut keep);
+                out.push(fw);
+                out.push(back);
+            }
+            (out, hits)
+        }
+        let (w, h) = (97, 61);
+        let frames: Vec<Vec<u8>> = (0..4)
+            .map(|t| scene(w, h, 0.7 * t as f64, -0.45 * t as f64))
+            .collect();
+        let mut bufs: Vec<Vec<u8>> = (0..4)
+            .map(|_| std::vec![0u8; crate::pyramid::buffer_len(w, h, 3)])
+            .collect();
+        let pyrs: Vec<Pyramid<'_>> = frames
+            .iter()
+            .zip(bufs.iter_mut())
+            .map(|(f, b)| Pyramid::build(ImageView::packed(f, w, h).unwrap(), b, 3).unwrap())
+            .collect();
+        let pts: Vec<[f32; 2]> = (0..40)
+            .map(|k| [3.0 + (k % 8) as f32 * 12.3, 2.0 + (k / 8) as f32 * 13.1])
+            .collect();
+        let cfg = LkConfig {
+            win: 9,
+            max_level: 2,
+            fb_threshold: Some(0.5),
+            ..LkConfig::default()
+        }
+        .check()
+        .unwrap();
+        let len = |w: usize| {
+            super::super::packed::scratch_len(w).max(super::super::lanes::scratch_len(w))
+        };
+        let clen = super::super::cache::cache_len(9, 3, pts.len()) + 64;
+        let qpts: Vec<[Q16; 2]> = pts
+            .iter()
+            .map(|p| p.map(Q16::saturating_from_f32))
+            .collect();
+        for lanes in [false, true] {
+            let mut c = std::vec![0i16; clen];
+            let (want, _) = chain::<f32>(&pyrs, &pts, &cfg, lanes, None);
+            let (got, hits) = chain::<f32>(&pyrs, &pts, &cfg, lanes, Some(&mut c));
+            assert_eq!(got, want);
+            // Three forward passes after the first, 40 points each: the grid reaches the
+            // border on every side, where the windows' rings leave the image and nothing is
+            // kept; the inner half of the points must have found theirs.
+            assert!(hits >= 50, "{hits} kept templates found");
+            let mut c = std::vec![0i16; clen];
+            let (want, _) = chain::<Fixed>(&pyrs, &qpts, &cfg, lanes, None);
+            let (got, hits) = chain::<Fixed>(&pyrs, &qpts, &cfg, lanes, Some(&mut c));
+            assert_eq!(got, want);
+            assert!(hits >= 50, "{hits} kept templates found");
+        }
+
+        // Each kept template is the kernel's own; one changed pixel of its ring refuses it.
+        let mut cbuf = std::vec![0i16; clen];
+        let mut cache = TemplateCache::new(&mut cbuf, 9, 3, 1).unwrap();
+        let mut sa = std::vec![0i16; len(9)];
+        let mut k1 = Packed::new(&mut sa, 9).unwrap();
+        let img = pyrs[1].level(0).unwrap();
+        let b = Fixed::bilinear(
+            Q16::saturating_from_f32(30.3),
+            Q16::saturating_from_f32(20.6),
+        )
+        .unwrap();
+        let sums = k1.template(&img, None, &b);
+        let state = k1.state().to_vec();
+        cache.keep(0, 0, &img, &b, (&state, sums));
+        // (The slot holds the native kernel's state length; Packed's is its first part.)
+        let (kept, kept_sums) = cache.find(0, 0, &img, &b).unwrap();
+        assert_eq!((&kept[..state.len()], kept_sums), (&state[..], sums));
+        assert_eq!(cache.find(0, 1, &img, &b), None, "another level");
+        let mut changed = frames[1].clone();
+        // The ring's corner: one pixel up and left of the window's.
+        let at = (b.y as usize - 1) * w + (b.x as usize - 1);
+        changed[at] ^= 1;
+        let img2 = ImageView::packed(&changed, w, h).unwrap();
+        assert_eq!(
+            cache.find(0, 0, &img2, &b),
+            None,
+            "a pixel of its ring changed"
+        );
+        changed[at] ^= 1;
+        changed[at + 12] ^= 1; // just past the ring's right edge (side win + 3): still kept
+        let img3 = ImageView::packed(&changed, w, h).unwrap();
+        assert!(cache.find(0, 0, &img3, &b).is_some());
     }
 
     /// The two window kernels ([`super::super::window`]) compute the same integers: flows,

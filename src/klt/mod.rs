@@ -22,6 +22,15 @@
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
 //!
+//! With the forward-backward check, [`FlowBuffers`] (and so [`Tracker`] and
+//! [`crate::target::PlanarTarget`]) can keep the backward pass's templates for the next
+//! frame's forward pass, which needs the same ones again (the new frame at the tracked
+//! positions): give it [`kept_scratch_len`]`(win, max_level, N)` of scratch. A kept template is
+//! used only when the pixels it was made from are equal byte for byte, so the flows are the
+//! same to the bit; on the Cortex-M7 main job with the check on, the flow costs 12 % less
+//! (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level (15x15 windows, the
+//! boards' kernel).
+//!
 //! ```
 //! use camgeom::image::ImageView;
 //! use camgeom::klt::{Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
@@ -54,6 +63,7 @@
 use crate::{Error, Result};
 
 mod arith;
+mod cache;
 mod lanes;
 mod lk;
 mod packed;
@@ -65,7 +75,8 @@ pub use arith::{
 };
 pub use lk::{calc_flow, forward_backward};
 pub use tracker::{
-    FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram,
+    FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, kept_scratch_len,
+    pipeline_ram,
 };
 
 /// Largest window side accepted.

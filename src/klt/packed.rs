@@ -16,6 +16,11 @@ pub(super) const fn scratch_len(win: usize) -> usize {
     3 * (win + 1) * (win + 1) + 3 * win * win
 }
 
+/// `i16` elements of the template, [`Window::state`].
+pub(super) const fn state_len(win: usize) -> usize {
+    3 * win * win
+}
+
 /// The scratch split into its parts.
 pub(super) struct Packed<'s> {
     win: usize,
@@ -32,7 +37,6 @@ pub(super) struct Packed<'s> {
 impl<'s> Window<'s> for Packed<'s> {
     fn new(scratch: &'s mut [i16], win: usize) -> Result<Self> {
         let n2 = (win + 1) * (win + 1);
-        let w2 = win * win;
         let (g, rest) = scratch
             .split_at_mut_checked(2 * n2)
             .ok_or(Error::BufferTooSmall("scratch"))?;
@@ -40,7 +44,7 @@ impl<'s> Window<'s> for Packed<'s> {
             .split_at_mut_checked(n2)
             .ok_or(Error::BufferTooSmall("scratch"))?;
         let t = rest
-            .get_mut(..3 * w2)
+            .get_mut(..state_len(win))
             .ok_or(Error::BufferTooSmall("scratch"))?;
         let (gwin, _) = g.as_chunks_mut::<2>();
         let (tmpl, _) = t.as_chunks_mut::<3>();
@@ -86,6 +90,17 @@ impl<'s> Window<'s> for Packed<'s> {
                 mismatch(block_of(patch, n, n), self.tmpl, win, b.w, abs)
             }
         }
+    }
+
+    fn state(&self) -> &[i16] {
+        self.tmpl.as_flattened()
+    }
+
+    fn restore(&mut self, state: &[i16]) {
+        for (t, &s) in self.tmpl.as_flattened_mut().iter_mut().zip(state) {
+            *t = s;
+        }
+        self.patch_at = None;
     }
 }
 

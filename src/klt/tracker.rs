@@ -8,7 +8,10 @@
 use heapless::Vec;
 
 use super::arith::{Coordinate, FlowArith};
-use super::lk::{calc_flow, forward_backward};
+use super::cache::{TemplateCache, cache_len};
+#[cfg(doc)]
+use super::lk::calc_flow;
+use super::lk::{Keep, forward_backward_keeping, run_native};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::image::ImageView;
@@ -92,6 +95,16 @@ pub struct TrackerStats {
     pub added: usize,
 }
 
+/// `i16` elements of scratch for [`FlowBuffers`] of `points` points that keep the templates
+/// of each forward-backward check for the next frame's forward pass: the kernel's
+/// [`scratch_len`](super::scratch_len)`(win)` and one slot a point and level. With the check
+/// on and the points carried from frame to frame, the forward pass then interpolates only the
+/// templates of new points and of windows at the image border; the flows are the same to the
+/// bit (each kept template is checked against the pixels it was made from).
+pub const fn kept_scratch_len(win: usize, max_level: usize, points: usize) -> usize {
+    super::scratch_len(win) + cache_len(win, max_level + 1, points)
+}
+
 /// The per-point work arrays of one multi-point flow step, for up to `N` points: their start
 /// positions, the forward flows and, for the forward-backward check, the backward flows.
 #[derive(Debug, Clone)]
@@ -125,8 +138,11 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
 
     /// Tracks `points` (the first `n`) from `prev` to `next` with [`calc_flow`] (from the
     /// points themselves: `use_initial_flow` is ignored), then the forward-backward check when
-    /// `lk.fb_threshold` is set; returns one flow per point. Errors:
-    /// [`Error::LengthMismatch`] when `n > N`; as [`calc_flow`].
+    /// `lk.fb_threshold` is set; returns one flow per point. `scratch`: at least
+    /// [`scratch_len`](super::scratch_len)`(lk.win)`; from [`kept_scratch_len`]`(lk.win,
+    /// lk.max_level, N)` on, the backward pass's templates are kept for the next call's
+    /// forward pass (the same flows, to the bit). Errors: [`Error::LengthMismatch`] when
+    /// `n > N`; as [`calc_flow`].
     pub fn run(
         &mut self,
         prev: &Pyramid<'_>,
@@ -147,17 +163,17 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
             *p = q;
         }
         let lk = lk.with_initial_flow(false);
-        calc_flow::<A>(prev, next, pts, flows, &lk, Gradients::PerWindow, scratch)?;
-        forward_backward::<A>(
-            prev,
-            next,
-            pts,
-            flows,
-            back,
-            &lk,
-            Gradients::PerWindow,
-            scratch,
-        )?;
+        // Scratch beyond the kernel's keeps templates (`kept_scratch_len`).
+        let cfg = lk.config();
+        let at = super::scratch_len(cfg.win).min(scratch.len());
+        let (scratch, rest) = scratch.split_at_mut(at);
+        let mut cache = TemplateCache::new(rest, cfg.win, cfg.max_level + 1, N);
+        let (grads, p) = (&mut Gradients::PerWindow, |k: usize| pts.get(k).copied());
+        let mut keep = cache.as_ref().map_or(Keep::Off, Keep::Use);
+        run_native::<A>(prev, next, p, flows, &lk, grads, scratch, &mut keep)?;
+        let mut keep = cache.as_mut().map_or(Keep::Off, Keep::Fill);
+        let work = (scratch, &mut keep);
+        forward_backward_keeping::<A>(prev, next, pts, flows, back, &lk, grads, work)?;
         Ok(flows)
     }
 
@@ -228,7 +244,7 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     }
 
     /// Moves every track from `prev` to `next`; removes those not [`FlowStatus::Tracked`].
-    /// `scratch`: [`super::scratch_len`]`(lk.win)` `i16`. Errors as [`calc_flow`].
+    /// `scratch`: as [`FlowBuffers::run`]. Errors as [`calc_flow`].
     pub fn update(
         &mut self,
         prev: &Pyramid<'_>,

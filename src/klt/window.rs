@@ -49,6 +49,21 @@ pub(super) trait Window<'s>: Sized {
     /// `(Σ (J - I) Ix, Σ (J - I) Iy)` over the window of `j` at `b` against the template
     /// (`(Σ |J - I|, 0)` when `abs`); `J` reflected outside the image.
     fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64);
+    /// The template as [`Self::template`] left it: all that [`Self::mismatch`] reads of it,
+    /// [`native_state_len`]`(win)` elements for the target's kernel.
+    fn state(&self) -> &[i16];
+    /// Puts back a template [`Self::state`] returned for the same `win` (as if
+    /// [`Self::template`] had just computed it).
+    fn restore(&mut self, state: &[i16]);
+}
+
+/// `i16` elements of the target's kernel's [`Window::state`] for `win x win` windows.
+pub(super) const fn native_state_len(win: usize) -> usize {
+    if LANES {
+        super::lanes::state_len(win)
+    } else {
+        super::packed::state_len(win)
+    }
 }
 
 /// Shift from Q14-weighted pixels to the template's 1/32 grey levels.
