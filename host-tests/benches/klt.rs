@@ -132,12 +132,8 @@ fn bench(c: &mut Criterion) {
     let levels: Vec<String> = (1..p.len())
         .filter_map(|l| p.level(l))
         .map(|l| {
-            let h = (0..l.height())
-                .filter_map(|y| l.row(y))
-                .flatten()
-                .fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-                    (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-                });
+            let bytes = (0..l.height()).filter_map(|y| l.row(y)).flatten();
+            let h = camgeom_host::bench::fnv1a(bytes.map(|&b| u64::from(b)));
             format!("{h:016x}")
         })
         .collect();

@@ -27,9 +27,9 @@ fn main() {
     for _ in 0..n {
         found = corners(&a, &cfg, 400).unwrap();
     }
-    let sum = found.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, c| {
-        let h = (h ^ u64::from(c[0])).wrapping_mul(0x0100_0000_01b3);
-        (h ^ u64::from(c[1])).wrapping_mul(0x0100_0000_01b3)
-    });
+    let coords = found
+        .iter()
+        .flat_map(|c| [u64::from(c[0]), u64::from(c[1])]);
+    let sum = camgeom_host::bench::fnv1a(coords);
     println!("{} corners, checksum {sum}", found.len());
 }

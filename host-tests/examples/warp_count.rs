@@ -8,7 +8,7 @@
 //!     target/release/examples/warp_count 20 f32     # or `fixed`
 //! ```
 
-use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+use camgeom::warp::{Arithmetic, WarpConfig};
 use camgeom_host::images::GrayImage;
 
 fn main() {
@@ -27,18 +27,8 @@ fn main() {
     let mut frame = GrayImage::filled(320, 240, 100);
     let mut written = 0;
     for _ in 0..n {
-        let r = warp_into_quad(
-            &logo.view().unwrap(),
-            &mut frame.view_mut().unwrap(),
-            &quad,
-            &cfg,
-        )
-        .unwrap();
-        written = r.written;
+        written = camgeom_host::bench::warp_once(&logo, &mut frame, &quad, &cfg);
     }
-    // FNV-1a of the frame.
-    let sum = frame.data.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &b| {
-        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
-    });
+    let sum = camgeom_host::bench::fnv1a(frame.data.iter().map(|&b| u64::from(b)));
     println!("{arithmetic:?}: {written} pixels written, frame checksum {sum}");
 }

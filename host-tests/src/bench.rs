@@ -131,6 +131,27 @@ pub fn points_json<T: Real>(p: &[Point2<T>]) -> Value {
     )
 }
 
+/// FNV-1a (64-bit) over `values`, each taken whole (`h = (h ^ v) * 0x100000001b3`): the
+/// checksums the instruction-count drivers print and the peer table compares.
+pub fn fnv1a(values: impl IntoIterator<Item = u64>) -> u64 {
+    values.into_iter().fold(0xcbf2_9ce4_8422_2325, |h, v| {
+        (h ^ v).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+/// One warp of the [`warp_case`] logo into `frame`; the destination pixels written.
+pub fn warp_once(
+    logo: &crate::images::GrayImage,
+    frame: &mut crate::images::GrayImage,
+    quad: &[Point2<f32>; 4],
+    cfg: &camgeom::warp::WarpConfig,
+) -> u32 {
+    let (src, mut dst) = (logo.view().unwrap(), frame.view_mut().unwrap());
+    camgeom::warp::warp_into_quad(&src, &mut dst, quad, cfg)
+        .unwrap()
+        .written
+}
+
 /// The warp case of the features bench, the peer table and `examples/warp_count.rs`: a
 /// 128x128 checker logo (16-pixel cells of 230 and 30) and the quadrilateral of a 320x240
 /// frame it goes to (`warp_checker` in `data/features/opencv_orb_figures.json`).
