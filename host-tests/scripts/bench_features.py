@@ -9,6 +9,8 @@ import time
 import cv2
 import numpy as np
 
+import cvbench
+
 DATA = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "data")
 
 
@@ -42,12 +44,7 @@ def main():
     a = rng.integers(0, 256, (500, 32), dtype=np.uint8)
     t = rng.integers(0, 256, (500, 32), dtype=np.uint8)
     bf = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
-    y, x = np.mgrid[0:128, 0:128]
-    logo = np.where(((x // 16) + (y // 16)) % 2 == 0, 230, 30).astype(np.uint8)
-    src = np.array([[0, 0], [127, 0], [127, 127], [0, 127]], np.float32)
-    dst = np.array([[60.3, 40.7], [250.2, 62.9], [231.6, 205.1], [41.8, 180.4]], np.float32)
-    h = cv2.getPerspectiveTransform(src, dst)
-    frame = np.full((240, 320), 100, np.uint8)
+    logo, h, frame = cvbench.warp_case(cv2)
     cases = {
         "fast_t20_nonmax_graf1_800x640": lambda: fast.detect(g1),
         "orb_500_graf1_800x640": lambda: orb.detectAndCompute(g1, None),

@@ -91,3 +91,14 @@ def fmt_ns(ns):
         if ns >= scale:
             return f"{ns / scale:.3g} {unit}"
     return f"{ns:.3g} ns"
+
+
+def warp_case(cv2):
+    """The features bench's warp (`camgeom_host::bench::warp_case`): the 128x128 checker logo
+    (16-pixel cells of 230 and 30), the homography onto its quadrilateral of a 320x240 frame,
+    and the frame (grey 100) it goes into."""
+    y, x = np.mgrid[0:128, 0:128]
+    logo = np.where(((x // 16) + (y // 16)) % 2 == 0, 230, 30).astype(np.uint8)
+    src = np.array([[0, 0], [127, 0], [127, 127], [0, 127]], np.float32)
+    dst = np.array([[60.3, 40.7], [250.2, 62.9], [231.6, 205.1], [41.8, 180.4]], np.float32)
+    return logo, cv2.getPerspectiveTransform(src, dst), np.full((240, 320), 100, np.uint8)

@@ -530,12 +530,7 @@ def pixels(r):
           r.time(lambda: orb.detectAndCompute(g1, None)))
     yield c
 
-    y, x = np.mgrid[0:128, 0:128]
-    logo = np.where(((x // 16) + (y // 16)) % 2 == 0, 230, 30).astype(np.uint8)
-    src = np.array([[0, 0], [127, 0], [127, 127], [0, 127]], np.float32)
-    dst = np.array([[60.3, 40.7], [250.2, 62.9], [231.6, 205.1], [41.8, 180.4]], np.float32)
-    h = cv2.getPerspectiveTransform(src, dst)
-    frame = np.full((240, 320), 100, np.uint8)
+    logo, h, frame = cvbench.warp_case(cv2)
     cv_frame = cv2.warpPerspective(logo, h, (320, 240), dst=frame.copy(), flags=cv2.INTER_LINEAR,
                                    borderMode=cv2.BORDER_TRANSPARENT)
     # Pixels whose source point is at least 1 px inside the logo (on the outline OpenCV also
