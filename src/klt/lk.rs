@@ -306,8 +306,8 @@ pub fn forward_backward<A: FlowArith>(
     mut grads: Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
-    let work = (scratch, &mut Keep::Off);
-    forward_backward_keeping::<A>(prev, next, prev_pts, flows, back, cfg, &mut grads, work)
+    let (grads, keep) = (&mut grads, &mut Keep::Off);
+    forward_backward_keeping::<A>(prev, next, prev_pts, flows, back, cfg, grads, scratch, keep)
 }
 
 /// [`forward_backward`], its backward templates kept (or not) by `keep`.
@@ -320,7 +320,8 @@ pub(super) fn forward_backward_keeping<A: FlowArith>(
     back: &mut [Flow<A::Coord>],
     cfg: &LkParams,
     grads: &mut Gradients<'_>,
-    (scratch, keep): (&mut [i16], &mut Keep<'_, '_>),
+    scratch: &mut [i16],
+    keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
     if prev_pts.len() != flows.len() || back.len() != flows.len() {
         return Err(Error::LengthMismatch);

@@ -172,8 +172,9 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
         let mut keep = cache.as_ref().map_or(Keep::Off, Keep::Use);
         run_native::<A>(prev, next, p, flows, &lk, grads, scratch, &mut keep)?;
         let mut keep = cache.as_mut().map_or(Keep::Off, Keep::Fill);
-        let work = (scratch, &mut keep);
-        forward_backward_keeping::<A>(prev, next, pts, flows, back, &lk, grads, work)?;
+        forward_backward_keeping::<A>(
+            prev, next, pts, flows, back, &lk, grads, scratch, &mut keep,
+        )?;
         Ok(flows)
     }
 
