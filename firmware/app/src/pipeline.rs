@@ -34,7 +34,7 @@ use camgeom::target::{Acquire, PlanarTarget, Stage, StageProbe, TargetParams, Ta
 use crate::slot::Slot;
 use crate::source::FrameSource;
 
-pub use camgeom::target::{corner_scratch_len, flow_scratch_len};
+pub use camgeom::target::{corner_scratch_len, flow_scratch_len, kept_flow_scratch_len};
 
 /// Bytes of one `width x height` grayscale frame.
 pub const fn frame_len(width: usize, height: usize) -> usize {
@@ -47,14 +47,24 @@ pub const fn pyramid_len(width: usize, height: usize, levels: usize) -> usize {
 }
 
 /// The concrete [`Pipeline`] type of a geometry: `pipeline_type!(width, height, levels, win,
-/// candidates, tracks)`, every argument a constant expression.
+/// candidates, tracks)`, every argument a constant expression. With a last argument `kept`,
+/// the flow scratch also keeps the forward-backward check's templates for the next frame
+/// ([`kept_flow_scratch_len`]: the same results, less work with the check on, much more RAM).
 #[macro_export]
 macro_rules! pipeline_type {
     ($w:expr, $h:expr, $levels:expr, $win:expr, $candidates:expr, $n:expr) => {
+        $crate::pipeline_type!(@ $w, $h, $levels, $candidates, $n,
+            $crate::pipeline::flow_scratch_len($win))
+    };
+    ($w:expr, $h:expr, $levels:expr, $win:expr, $candidates:expr, $n:expr, kept) => {
+        $crate::pipeline_type!(@ $w, $h, $levels, $candidates, $n,
+            $crate::pipeline::kept_flow_scratch_len($win, $levels - 1, $n))
+    };
+    (@ $w:expr, $h:expr, $levels:expr, $candidates:expr, $n:expr, $flow:expr) => {
         $crate::pipeline::Pipeline<
             { $crate::pipeline::frame_len($w, $h) },
             { $crate::pipeline::pyramid_len($w, $h, $levels) },
-            { $crate::pipeline::flow_scratch_len($win) },
+            { $flow },
             { $crate::pipeline::corner_scratch_len($w) },
             $candidates,
             $n,

@@ -2,7 +2,7 @@
 //!
 //! `cargo xtask run` writes it (`run.bin`) next to the raw frames; the emulated board reads it
 //! over semihosting and the host replay reads the same bytes, so both build the same
-//! [`AppConfig`] from it. Layout: [`RUN_SPEC_LEN`] bytes, 30 little-endian 32-bit words:
+//! [`AppConfig`] from it. Layout: [`RUN_SPEC_LEN`] bytes, 31 little-endian 32-bit words:
 //!
 //! | words | what |
 //! |---|---|
@@ -12,6 +12,7 @@
 //! | 16, 17 | `f32`: the target's width and height (metres) |
 //! | 18..26 | `f32`: the target's corners in the start frame, `x y` of `(0, 0), (w, 0), (w, h), (0, h)` (given corners only) |
 //! | 26..30 | `u32`: how the target is acquired ([`Acquisition`]: 0 given corners, 1 an AprilTag), the tag's family ([`TAG_FAMILIES`] index), its id, and `reacquire_every` ([`TargetConfig::reacquire_every`]) |
+//! | 30 | `u32`: 1 for the forward-backward check ([`RunSpec::forward_backward`]), else 0 |
 
 use camgeom::Error;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
@@ -29,9 +30,9 @@ use crate::report::{ErrorCode, FrameRecord};
 /// `"CRUN"` as a little-endian word.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"CRUN");
 /// Layout version.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Bytes of a run description.
-pub const RUN_SPEC_LEN: usize = 30 * 4;
+pub const RUN_SPEC_LEN: usize = 31 * 4;
 /// The tag families a run can name, by index.
 pub const TAG_FAMILIES: [&camgeom::apriltag::Family; 4] = [
     &camgeom::apriltag::families::TAG36H11,
@@ -90,6 +91,9 @@ pub struct RunSpec {
     pub acquisition: Acquisition,
     /// Ask the acquisition again every this many frames while tracking (0: never).
     pub reacquire_every: u32,
+    /// Check each flow by tracking it back (`fb_threshold` 1 px): off by default on the board
+    /// (see [`Self::app_config`]); on for the forward-backward job.
+    pub forward_backward: bool,
 }
 
 impl RunSpec {
@@ -136,6 +140,11 @@ impl RunSpec {
                 _ => return Err(Error::InvalidParameter("run_spec.acquisition")),
             },
             reacquire_every: u(29),
+            forward_backward: match u(30) {
+                0 => false,
+                1 => true,
+                _ => return Err(Error::InvalidParameter("run_spec.forward_backward")),
+            },
         })
     }
 
@@ -162,7 +171,13 @@ impl RunSpec {
             Acquisition::Corners => (0, 0, 0),
             Acquisition::Tag { family, id } => (1, u32::from(family), u32::from(id)),
         };
-        let tail = [kind, family, id, self.reacquire_every];
+        let tail = [
+            kind,
+            family,
+            id,
+            self.reacquire_every,
+            u32::from(self.forward_backward),
+        ];
         for (w, v) in words.iter_mut().zip(
             ints.into_iter()
                 .chain(floats.into_iter().map(f32::to_bits))
@@ -197,12 +212,13 @@ impl RunSpec {
         // The defaults are for 320x240; a smaller frame shows the target smaller, so the
         // corner spacing and the border margin shrink with it (not below 3 and 2 px).
         let mut target = TargetConfig::default();
-        // No forward-backward check on the board: it tracks every feature twice (half of a
-        // frame's instructions) and on the recorded sequence it rejected nothing the
-        // homography's RANSAC did not (the host `camgeom ar --fb 0` run gives the same poses
-        // on all 150 frames). A caller who expects occlusions turns it back on
-        // (`fb_threshold: Some(1.0)`, about +5M instructions a frame at 320x240).
-        target.lk.fb_threshold = None;
+        // No forward-backward check on the board unless the run asks for it: it tracks every
+        // feature twice and on the recorded sequence it rejected nothing the homography's
+        // RANSAC did not (the host `camgeom ar --fb 0` run gives the same poses on all 150
+        // frames). A caller who expects occlusions turns it on (`fb_threshold: Some(1.0)`,
+        // about +2.8M instructions a frame at 320x240; +2.1M with kept templates, the
+        // forward-backward job of `cargo xtask run`).
+        target.lk.fb_threshold = self.forward_backward.then_some(1.0);
         target.reacquire_every = self.reacquire_every;
         if let Acquisition::Tag { .. } = self.acquisition {
             target = target.for_detector();

@@ -61,6 +61,7 @@ pub fn config() -> Result<AppConfig, camgeom::Error> {
         corners: FIRST_CORNERS,
         acquisition: Acquisition::Corners,
         reacquire_every: 0,
+        forward_backward: false,
     }
     .app_config()
 }

@@ -17,6 +17,9 @@
 //!    byte for byte, and both f32 poses within [`compare::POSE_TOLERANCE`].
 //! 5. [`table`]: the per-stage cost table of every board in Markdown (BENCHMARKS.md takes it
 //!    verbatim), each board's ratio to the reference.
+//! 6. On the reference board also: the fault job, the forward-backward job (the check on, its
+//!    templates computed and kept, both against the host replay), the tag job and the
+//!    calibration job.
 
 mod calibration;
 mod compare;
@@ -159,6 +162,52 @@ fn fault_job(stride: u32) -> Result<()> {
     Ok(())
 }
 
+/// The firmware of the forward-backward job that keeps the check's templates.
+const KEPT_BIN: &str = "camgeom-fw-kept";
+
+/// The forward-backward job on the reference board: the main job at 320x240 with the
+/// forward-backward check on, run by the main firmware (every template computed) and by
+/// [`KEPT_BIN`] (the backward pass's templates kept for the next frame's forward pass), each
+/// checked against the host replay (which computes every template); returns its table.
+fn forward_backward_job(stride: u32) -> Result<String> {
+    let size = FULL;
+    let dir = root().join("target/camgeom-run/forward-backward");
+    let mut spec = prepare::prepare(size, stride, &dir)?;
+    spec.forward_backward = true;
+    fs::write(dir.join("run.bin"), spec.to_bytes())?;
+    let raw = fs::read(dir.join("frames.raw"))?;
+    let host = replay::replay_size(size, &spec, &FaultPlan::none(), &raw)?;
+    let mut out = String::from(
+        "| firmware | templates | flow (mean / worst) | total (mean / worst) | static RAM |\n\
+         |---|---|---|---|---|\n",
+    );
+    for (bin, what) in [(size.bin, "computed"), (KEPT_BIN, "kept")] {
+        let elf = build_bin_for(M7, bin, &[])?;
+        let (flash, ram, _) = size_of(M7, &elf)?;
+        let t = Instant::now();
+        let run = emulate::run_board(M7, &elf, &dir, size, stride)?;
+        let verdict = compare::compare(&run.frames, &host.0, &run.overlays, &host.1)?;
+        let row = table::Row::new(M7, size, &run.frames, &run.summary, flash, ram);
+        let ((fm, fw), (tm, tw)) = (row.stage("flow"), row.stage("total"));
+        println!(
+            "forward-backward job {} {} ({bin}, templates {what}): {verdict}; {} instructions a \
+             frame, QEMU {:.1} s",
+            M7.name,
+            size.name(),
+            table::m(tm),
+            t.elapsed().as_secs_f64()
+        );
+        out += &format!(
+            "| `{bin}` | {what} | {} / {} | {} / {} | {ram} B |\n",
+            table::m(fm),
+            table::m(u64::from(fw)),
+            table::m(tm),
+            table::m(u64::from(tw))
+        );
+    }
+    Ok(out)
+}
+
 /// `cargo xtask run`.
 pub fn run(opts: &Options) -> Result<()> {
     if opts.boards.contains(&M7) {
@@ -191,7 +240,8 @@ pub fn run(opts: &Options) -> Result<()> {
     }
     let extra = if opts.boards.contains(&M7) {
         fault_job(opts.stride)?;
-        Some((tag::run(opts.stride)?, calibration::run()?))
+        let fb = forward_backward_job(opts.stride)?;
+        Some((fb, tag::run(opts.stride)?, calibration::run()?))
     } else {
         None
     };
@@ -200,7 +250,8 @@ pub fn run(opts: &Options) -> Result<()> {
          about one instruction per cycle: an estimate) ----\n{}",
         table::table(&rows, opts.stride)
     );
-    if let Some((t, c)) = extra {
+    if let Some((fb, t, c)) = extra {
+        println!("---- forward-backward job (instructions on the Cortex-M7, 320x240) ----\n{fb}");
         println!("---- tag job (instructions on the Cortex-M7) ----\n{t}");
         println!("---- calibration job (instructions on the Cortex-M7) ----\n{c}");
     }

@@ -100,6 +100,7 @@ pub fn prepare(size: Size, stride: u32, dir: &Path) -> Result<RunSpec> {
         corners: box_corners()?.map(|[x, y]| [x * scale, y * scale]),
         acquisition: Acquisition::Corners,
         reacquire_every: 0,
+        forward_backward: false,
     };
     fs::write(dir.join("run.bin"), spec.to_bytes())?;
     Ok(spec)

@@ -66,7 +66,7 @@ impl Row {
     }
 
     /// Mean and worst of one stage.
-    fn stage(&self, name: &str) -> (u64, u32) {
+    pub fn stage(&self, name: &str) -> (u64, u32) {
         let k = STAGES.iter().position(|s| *s == name).unwrap_or(0);
         (self.mean[k], self.worst[k])
     }
@@ -77,7 +77,7 @@ impl Row {
     }
 }
 
-fn m(v: u64) -> String {
+pub fn m(v: u64) -> String {
     format!("{:.2}M", v as f64 / 1e6)
 }
 

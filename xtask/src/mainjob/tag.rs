@@ -83,6 +83,7 @@ fn prepare(dir: &Path) -> Result<RunSpec> {
             id: TAG_ID,
         },
         reacquire_every: REACQUIRE_EVERY,
+        forward_backward: false,
     };
     fs::write(dir.join("run.bin"), spec.to_bytes())?;
     Ok(spec)
