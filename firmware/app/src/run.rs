@@ -305,3 +305,63 @@ pub fn drive<
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec(acquisition: Acquisition, forward_backward: bool) -> RunSpec {
+        RunSpec {
+            width: 320,
+            height: 240,
+            frames: 150,
+            stride: 1,
+            overlay_every: 15,
+            intrinsics: [300.0, 301.0, 159.5, 119.5],
+            distortion: [0.1, -0.2, 0.001, -0.002, 0.05],
+            target_size: [0.2, 0.15],
+            corners: [[70.0, 50.0], [250.0, 52.0], [249.0, 185.0], [71.0, 184.0]],
+            acquisition,
+            reacquire_every: 30,
+            forward_backward,
+        }
+    }
+
+    /// Every field survives the bytes, the forward-backward flag both ways; a wrong length,
+    /// version, acquisition or flag word is an error, not a guess.
+    #[test]
+    fn specs_round_trip_and_bad_bytes_are_errors() {
+        let tag = Acquisition::Tag { family: 1, id: 7 };
+        for s in [spec(Acquisition::Corners, false), spec(tag, true)] {
+            assert_eq!(RunSpec::parse(&s.to_bytes()), Ok(s));
+        }
+        let good = spec(Acquisition::Corners, true).to_bytes();
+        assert_eq!(
+            RunSpec::parse(&good[..RUN_SPEC_LEN - 4]),
+            Err(Error::InvalidParameter("run_spec.length"))
+        );
+        let word = |i: usize, v: u32| {
+            let mut b = good;
+            b[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+            RunSpec::parse(&b)
+        };
+        assert_eq!(
+            word(1, VERSION - 1),
+            Err(Error::InvalidParameter("run_spec.version"))
+        );
+        assert_eq!(
+            word(26, 2),
+            Err(Error::InvalidParameter("run_spec.acquisition"))
+        );
+        assert_eq!(
+            word(30, 2),
+            Err(Error::InvalidParameter("run_spec.forward_backward"))
+        );
+        assert_eq!(word(30, 0).map(|s| s.forward_backward), Ok(false));
+        // The flag reaches the tracking parameters.
+        let on = spec(Acquisition::Corners, true).app_config().unwrap();
+        let off = spec(Acquisition::Corners, false).app_config().unwrap();
+        assert!(on.target.config().lk.fb_threshold.is_some());
+        assert!(off.target.config().lk.fb_threshold.is_none());
+    }
+}
