@@ -96,14 +96,14 @@ impl<'c> TemplateCache<'c> {
         let holds = |slot: &&[u32]| {
             slot.get(..KEY) == Some(&key[..]) && same_pixels(slot, ring.clone(), self.win)
         };
-        let mut slots = self.words.chunks_exact(slot_words(self.win));
+        let mut slots = self.words.chunks_exact(slot_words(self.win).max(1));
         let own = slots.clone().nth(k * self.levels + level).filter(holds);
         let slot = own.or_else(|| slots.find(holds))?;
         let sum = |i: usize| {
             let w = |j: usize| u64::from(slot.get(KEY + 2 * i + j).copied().unwrap_or(0));
             (w(0) | w(1) << 32) as i64
         };
-        let state = bytemuck::cast_slice(slot.get(HEAD + ring_words(self.win)..)?);
+        let state = bytemuck::try_cast_slice(slot.get(HEAD + ring_words(self.win)..)?).ok()?;
         let state = state.get(..native_state_len(self.win))?;
         Some((state, (sum(0), sum(1), sum(2))))
     }
@@ -119,7 +119,7 @@ impl<'c> TemplateCache<'c> {
         (state, sums): Kept<'_>,
     ) {
         let (key, ring) = (self.key(level, b), self.ring(img, b));
-        let n = slot_words(self.win);
+        let n = slot_words(self.win).max(1);
         let Some(slot) = self.words.chunks_exact_mut(n).nth(k * self.levels + level) else {
             return;
         };
@@ -127,21 +127,27 @@ impl<'c> TemplateCache<'c> {
             // The slot's old template is still right for its old key: keep it.
             return;
         };
-        let (head, rest) = slot.split_at_mut(HEAD);
-        let (pixels, tmpl) = rest.split_at_mut(ring_words(self.win));
+        let Some((head, rest)) = slot.split_at_mut_checked(HEAD) else {
+            return;
+        };
+        let Some((pixels, tmpl)) = rest.split_at_mut_checked(ring_words(self.win)) else {
+            return;
+        };
         let (a11, a12, a22) = sums;
         let sums = [a11, a12, a22].map(|s| [s as u32, (s as u64 >> 32) as u32]);
         for (h, &v) in head.iter_mut().zip(key.iter().chain(sums.as_flattened())) {
             *h = v;
         }
-        let bytes = bytemuck::cast_slice_mut::<u32, u8>(pixels);
-        for (row, src) in bytes.chunks_exact_mut(side(self.win)).zip(ring) {
-            row.copy_from_slice(src);
+        // `try_` casts and element loops: `u32` to bytes or to `i16` never fails, and neither
+        // the casts nor `copy_from_slice` may leave a panic path in the core.
+        let bytes = bytemuck::try_cast_slice_mut::<u32, u8>(pixels).unwrap_or_default();
+        for (row, src) in bytes.chunks_exact_mut(side(self.win).max(1)).zip(ring) {
+            for (d, &s) in row.iter_mut().zip(src) {
+                *d = s;
+            }
         }
-        for (t, &s) in bytemuck::cast_slice_mut::<u32, i16>(tmpl)
-            .iter_mut()
-            .zip(state)
-        {
+        let kept = bytemuck::try_cast_slice_mut::<u32, i16>(tmpl).unwrap_or_default();
+        for (t, &s) in kept.iter_mut().zip(state) {
             *t = s;
         }
     }
@@ -150,7 +156,7 @@ impl<'c> TemplateCache<'c> {
 /// Whether the pixels kept in `slot` are the rows `ring`.
 fn same_pixels(slot: &[u32], ring: Rows<'_, u8>, win: usize) -> bool {
     let kept = slot.get(HEAD..HEAD + ring_words(win)).unwrap_or(&[]);
-    let kept = bytemuck::cast_slice::<u32, u8>(kept);
-    let mut rows = kept.chunks_exact(side(win));
+    let kept = bytemuck::try_cast_slice::<u32, u8>(kept).unwrap_or_default();
+    let mut rows = kept.chunks_exact(side(win).max(1));
     ring.zip(rows.by_ref()).all(|(a, b)| a == b) && rows.len() == 0
 }
