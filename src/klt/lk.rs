@@ -369,6 +369,11 @@ mod tests {
         v
     }
 
+    /// Scratch for either window kernel ([`Packed`], [`Lanes`]) with `win x win` windows.
+    fn both_len(win: usize) -> usize {
+        super::super::packed::scratch_len(win).max(super::super::lanes::scratch_len(win))
+    }
+
     fn run_both(dx: f64, dy: f64) -> (Vec<Flow<f32>>, Vec<Flow<Q16>>) {
         let (w, h) = (160, 120);
         let a = scene(w, h, 0.0, 0.0);
@@ -583,9 +588,7 @@ mod tests {
             let n = pts0.len();
             let mut cache = cache.and_then(|b| TemplateCache::new(b, c.win, c.max_level + 1, n));
             let half = A::Coord::from_half_px(c.win as i32 - 1);
-            let len = super::super::packed::scratch_len(c.win)
-                .max(super::super::lanes::scratch_len(c.win));
-            let mut s = std::vec![0i16; len];
+            let mut s = std::vec![0i16; both_len(c.win)];
             let g = &mut Gradients::PerWindow;
             let (mut pts, mut out, mut hits) = (pts0.to_vec(), Vec::new(), 0);
             let mut pass = |prev: &Pyramid<'_>,
@@ -642,9 +645,6 @@ mod tests {
         }
         .check()
         .unwrap();
-        let len = |w: usize| {
-            super::super::packed::scratch_len(w).max(super::super::lanes::scratch_len(w))
-        };
         let clen = super::super::cache::cache_len(9, 3, pts.len()) + 64;
         let qpts: Vec<[Q16; 2]> = pts
             .iter()
@@ -669,7 +669,7 @@ mod tests {
         // Each kept template is the kernel's own; one changed pixel of its ring refuses it.
         let mut cbuf = std::vec![0i16; clen];
         let mut cache = TemplateCache::new(&mut cbuf, 9, 3, 1).unwrap();
-        let mut sa = std::vec![0i16; len(9)];
+        let mut sa = std::vec![0i16; both_len(9)];
         let mut k1 = Packed::new(&mut sa, 9).unwrap();
         let img = pyrs[1].level(0).unwrap();
         let b = Fixed::bilinear(
@@ -761,9 +761,7 @@ mod tests {
             }
             .check()
             .unwrap();
-            let len =
-                super::super::packed::scratch_len(win).max(super::super::lanes::scratch_len(win));
-            let mut s = std::vec![0i16; len];
+            let mut s = std::vec![0i16; both_len(win)];
             let mut g = std::vec![[0i16; 2]; w * h];
             for per_level in [false, true] {
                 let (f1, f2) = both_kernels::<f32>(&pa, &pb, &pts, &cfg, per_level, &mut g, &mut s);
