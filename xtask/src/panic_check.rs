@@ -7,10 +7,16 @@
 //! back); the known ones are built too and reported, and the command says so when one of them
 //! starts linking (remove it from [`KNOWN_PANICS`]). README "Panic freedom" holds the table
 //! this prints.
+//!
+//! When a link fails in the CI step, [`locate`] links the same selection once more with the
+//! missing symbol defined and names the functions that call the panic machinery.
 
-use anyhow::{Result, bail};
+use std::collections::BTreeSet;
 
-use crate::firmware::firmware_cargo;
+use anyhow::{Context, Result, bail};
+use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
+
+use crate::firmware::{firmware_cargo, firmware_target_dir};
 use crate::util::{locked, run};
 
 const PACKAGE: &str = "camgeom-panic-check";
@@ -185,7 +191,12 @@ pub fn check_panic_free() -> Result<()> {
             }
         }
         for (scalars, areas) in sets {
-            link(&[areas, scalars].concat().join(","), &[target])?;
+            let features = [areas, scalars].concat().join(",");
+            if let Err(e) = link(&features, &[target]) {
+                let found = locate(&features, target)
+                    .unwrap_or_else(|l| format!("(could not locate it: {l:#})"));
+                return Err(e.context(format!("a panic path on {target}: {found}")));
+            }
             links += 1;
         }
     }
@@ -257,4 +268,94 @@ pub fn check() -> Result<()> {
         bail!("panic paths reachable from {}", failed.join(", "));
     }
     Ok(())
+}
+
+/// Links the panic-check binary with `features` for `target` with the handler's symbol
+/// defined (so it links), in its own target directory, and names the functions with a call
+/// (`BL`, or `B.W` as a tail call) to one of the panic entry points: `core::panicking::*`, the
+/// `*_fail` slice and `unwrap`/`expect` helpers.
+pub fn locate(features: &str, target: &str) -> Result<String> {
+    let dir = firmware_target_dir().join("panic-locate");
+    let var = format!(
+        "CARGO_TARGET_{}_RUSTFLAGS",
+        target.to_uppercase().replace(['-', '.'], "_")
+    );
+    // As `firmware_cargo`, but in a target directory of its own (other flags: the main
+    // directory's builds stay as they are).
+    let mut cmd = crate::util::cargo();
+    cmd.current_dir(crate::firmware::firmware_dir())
+        .args(["build", "--release", "-p", PACKAGE, "--features", features])
+        .args(["--target", target])
+        .arg("--target-dir")
+        .arg(&dir)
+        .env_remove("RUSTFLAGS")
+        .env_remove("CARGO_ENCODED_RUSTFLAGS")
+        .env_remove("CARGO_BUILD_TARGET")
+        .env(var, "-C link-arg=--defsym=camgeom_panic_is_reachable=0");
+    run(locked(&mut cmd))?;
+    let elf = dir.join(target).join("release").join(PACKAGE);
+    let data = std::fs::read(&elf).with_context(|| format!("cannot read {}", elf.display()))?;
+    let file = object::File::parse(&*data)?;
+    let mut funcs: Vec<(u64, u64, String)> = file
+        .symbols()
+        .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
+        .filter_map(|s| {
+            Some((
+                s.address() & !1,
+                s.size(),
+                crate::profile::demangle(s.name().ok()?),
+            ))
+        })
+        .collect();
+    funcs.sort();
+    let is_panic = |name: &str| {
+        name.contains("panicking") || name.ends_with("_fail") || name.contains("unwrap_failed")
+    };
+    let targets: BTreeSet<u64> = funcs
+        .iter()
+        .filter(|f| is_panic(&f.2))
+        .map(|f| f.0)
+        .collect();
+    let text = file.section_by_name(".text").context("no .text")?;
+    let (base, code) = (text.address(), text.data()?);
+    let half = |i: usize| {
+        code.get(i..i + 2)
+            .map(|b| u32::from(u16::from_le_bytes([b[0], b[1]])))
+    };
+    let mut callers = BTreeSet::new();
+    for i in (0..code.len().saturating_sub(3)).step_by(2) {
+        let (Some(h1), Some(h2)) = (half(i), half(i + 2)) else {
+            continue;
+        };
+        // Thumb-2 BL (T1) and B.W (T4): 11110 S imm10, 1 J1 x J2 imm11.
+        if h1 & 0xF800 != 0xF000 || h2 & 0xD000 != 0xD000 && h2 & 0xD000 != 0x9000 {
+            continue;
+        }
+        let s = (h1 >> 10) & 1;
+        let (j1, j2) = ((h2 >> 13) & 1, (h2 >> 11) & 1);
+        let (i1, i2) = (!(j1 ^ s) & 1, !(j2 ^ s) & 1);
+        let imm = (s << 24) | (i1 << 23) | (i2 << 22) | ((h1 & 0x3FF) << 12) | ((h2 & 0x7FF) << 1);
+        let offset = ((imm << 7) as i32 >> 7) as i64;
+        let pc = base + i as u64;
+        let to = (pc as i64 + 4 + offset) as u64;
+        if targets.contains(&to) {
+            let k = funcs.partition_point(|f| f.0 <= pc);
+            if let Some(f) = k.checked_sub(1).and_then(|k| funcs.get(k))
+                && pc < f.0 + f.1
+                && !is_panic(&f.2)
+            {
+                callers.insert(f.2.clone());
+            }
+        }
+    }
+    if callers.is_empty() {
+        return Ok("no direct caller found (read the ELF: ".to_string()
+            + &elf.display().to_string()
+            + ")");
+    }
+    Ok(format!(
+        "called from {} (ELF: {})",
+        callers.into_iter().collect::<Vec<_>>().join(", "),
+        elf.display()
+    ))
 }

@@ -145,7 +145,7 @@ pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
 }
 
 /// A legacy-mangled Rust symbol (`_ZN...E`) as a path without its hash; others as they are.
-fn demangle(name: &str) -> String {
+pub fn demangle(name: &str) -> String {
     let Some(mut rest) = name.strip_prefix("_ZN") else {
         return name.to_owned();
     };
