@@ -14,7 +14,7 @@
 use std::collections::BTreeSet;
 
 use anyhow::{Context, Result, bail};
-use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
+use object::{Object, ObjectSection};
 
 use crate::firmware::{firmware_cargo, firmware_target_dir};
 use crate::util::{locked, run};
@@ -296,25 +296,14 @@ pub fn locate(features: &str, target: &str) -> Result<String> {
     let elf = dir.join(target).join("release").join(PACKAGE);
     let data = std::fs::read(&elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let file = object::File::parse(&*data)?;
-    let mut funcs: Vec<(u64, u64, String)> = file
-        .symbols()
-        .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
-        .filter_map(|s| {
-            Some((
-                s.address() & !1,
-                s.size(),
-                crate::profile::demangle(s.name().ok()?),
-            ))
-        })
-        .collect();
-    funcs.sort();
+    let funcs = crate::profile::functions(&file);
     let is_panic = |name: &str| {
         name.contains("panicking") || name.ends_with("_fail") || name.contains("unwrap_failed")
     };
     let targets: BTreeSet<u64> = funcs
         .iter()
-        .filter(|f| is_panic(&f.2))
-        .map(|f| f.0)
+        .filter(|f| is_panic(&f.name))
+        .map(|f| f.start)
         .collect();
     let text = file.section_by_name(".text").context("no .text")?;
     let (base, code) = (text.address(), text.data()?);
@@ -338,14 +327,11 @@ pub fn locate(features: &str, target: &str) -> Result<String> {
         let offset = ((imm << 7) as i32 >> 7) as i64;
         let pc = base + i as u64;
         let to = (pc as i64 + 4 + offset) as u64;
-        if targets.contains(&to) {
-            let k = funcs.partition_point(|f| f.0 <= pc);
-            if let Some(f) = k.checked_sub(1).and_then(|k| funcs.get(k))
-                && pc < f.0 + f.1
-                && !is_panic(&f.2)
-            {
-                callers.insert(f.2.clone());
-            }
+        if targets.contains(&to)
+            && let Some(f) = crate::profile::holding(&funcs, pc).and_then(|k| funcs.get(k))
+            && !is_panic(&f.name)
+        {
+            callers.insert(f.name.clone());
         }
     }
     if callers.is_empty() {

@@ -86,15 +86,7 @@ pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
 
     // Functions by address, from the ELF's symbol table.
     let file = object::File::parse(&*image).context("cannot parse the ELF")?;
-    let mut funcs: Vec<(u32, u32, String)> = file
-        .symbols()
-        .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
-        .filter_map(|s| {
-            let name = s.name().ok()?;
-            Some((s.address() as u32 & !1, s.size() as u32, demangle(name)))
-        })
-        .collect();
-    funcs.sort_by_key(|f| f.0);
+    let funcs = functions(&file);
     let mut per_fn: HashMap<usize, u64> = HashMap::new();
     let mut per_insn: HashMap<u32, u64> = HashMap::new();
     let (mut total, mut unknown) = (0u64, 0u64);
@@ -104,16 +96,15 @@ pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
         for &a in insns {
             total += n;
             *per_insn.entry(a).or_default() += n;
-            let i = funcs.partition_point(|f| f.0 <= a);
-            match i.checked_sub(1).and_then(|i| funcs.get(i).map(|f| (i, f))) {
-                Some((i, f)) if a < f.0 + f.1 => *per_fn.entry(i).or_default() += n,
-                _ => unknown += n,
+            match holding(&funcs, u64::from(a)) {
+                Some(i) => *per_fn.entry(i).or_default() += n,
+                None => unknown += n,
             }
         }
     }
     let mut rows: Vec<(u64, &str)> = per_fn
         .iter()
-        .filter_map(|(&i, &n)| funcs.get(i).map(|f| (n, f.2.as_str())))
+        .filter_map(|(&i, &n)| funcs.get(i).map(|f| (n, f.name.as_str())))
         .collect();
     rows.sort_by_key(|r| std::cmp::Reverse(r.0));
     println!(
@@ -142,6 +133,37 @@ pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
         out.display()
     );
     Ok(())
+}
+
+/// A function of an ELF: its address (the Thumb bit cleared), size and demangled name.
+pub struct Function {
+    pub start: u64,
+    pub size: u64,
+    pub name: String,
+}
+
+/// The sized text symbols of `file`, by address.
+pub fn functions(file: &object::File<'_>) -> Vec<Function> {
+    let mut funcs: Vec<Function> = file
+        .symbols()
+        .filter(|s| s.kind() == SymbolKind::Text && s.size() > 0)
+        .filter_map(|s| {
+            Some(Function {
+                start: s.address() & !1,
+                size: s.size(),
+                name: demangle(s.name().ok()?),
+            })
+        })
+        .collect();
+    funcs.sort_by_key(|f| f.start);
+    funcs
+}
+
+/// The index in `funcs` ([`functions`]) of the function holding `addr`.
+pub fn holding(funcs: &[Function], addr: u64) -> Option<usize> {
+    let i = funcs.partition_point(|f| f.start <= addr).checked_sub(1)?;
+    let f = funcs.get(i)?;
+    (addr < f.start + f.size).then_some(i)
 }
 
 /// A legacy-mangled Rust symbol (`_ZN...E`) as a path without its hash; others as they are.
