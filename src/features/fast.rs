@@ -13,9 +13,10 @@
 //! (non-corners score 0), as in `cv::FAST(..., nonmaxSuppression = true)`.
 //!
 //! Work: the compass test (4 circle pixels) on 16 pixels of a row at once; on SIMD targets the
-//! segment test too (windowed AND/OR over 16 lanes), elsewhere one candidate at a time; the score
-//! only for corners. Memory: [`scratch_len`] bytes (three rows of scores), a few 16-byte
-//! arrays on the stack (about 400 bytes of them in the 16-lane segment test on x86-64).
+//! segment test too (one bit a lane and polarity in 16 words, windowed ANDs over the circle),
+//! elsewhere one candidate at a time; the score only for corners; the suppression 16 columns at
+//! a time. Memory: [`scratch_len`] bytes (three rows of scores) and a few 16-byte arrays on the
+//! stack.
 
 use core::ops::Range;
 
@@ -219,9 +220,9 @@ const LANE_SEGMENT_TEST: bool = cfg!(any(
 
 /// Scores of row `rows[3]` over the columns `xs` into `out` (0 where not a corner): the compass
 /// test ([`may_be_corner`]) for [`CHUNK`] pixels at once, then the segment test and the score
-/// for the pixels that pass (segment test per chunk with `lane_test`, per pixel without; see
+/// for the pixels that pass (segment test per chunk with `LANE_TEST`, per pixel without; see
 /// [`LANE_SEGMENT_TEST`]). `xs` must keep [`RADIUS`] columns from both image borders.
-fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_test: bool) {
+fn score_row<const LANE_TEST: bool>(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8]) {
     let (x0, x1) = (xs.start, xs.end);
     // The rows cut to one length: with the chunk tests inlined, LLVM then bounds-checks a
     // chunk's 7 row windows once rather than row by row.
@@ -251,7 +252,7 @@ fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_te
             }
             return;
         };
-        let cand = if lane_test {
+        let cand = if LANE_TEST {
             chunk_corners(rows, xc, t)
         } else {
             chunk_candidates(rows, xc, t)
@@ -263,7 +264,7 @@ fn score_row(rows: &[&[u8]; 7], xs: Range<usize>, t: u8, out: &mut [u8], lane_te
             bits &= bits - 1;
             let x = xc + i;
             let v = rows[3].get(x).copied().unwrap_or(0);
-            if lane_test {
+            if LANE_TEST {
                 score_corner(rows, x, v, t, out);
             } else {
                 score_pixel(rows, x, v, t, out);
@@ -331,17 +332,12 @@ fn at<'r>(w: &[&'r [u8; WIDE]; 7], dx: i8, dy: i8) -> &'r [u8; CHUNK] {
         .unwrap_or(&[0; CHUNK])
 }
 
-/// Lane `i` nonzero when two neighbouring lanes of the four are both nonzero (lane masks are
-/// "nonzero or zero" throughout: AND is `min`, OR is `max`, which LLVM keeps as `pminub` and
-/// `pmaxub` where 0/0xff selects became scalar byte compares).
+/// Whether two neighbouring compass pixels of the four (circle pixels 0, 4, 8, 12, cyclically)
+/// are both set, with `and` and `or` of the mask type: any 9-arc holds such a pair.
 #[inline(always)]
-fn pair(m0: &[u8; CHUNK], m1: &[u8; CHUNK], m2: &[u8; CHUNK], m3: &[u8; CHUNK]) -> [u8; CHUNK] {
-    let and = |a, b| map2(a, b, u8::min);
-    let or = |a, b| map2(a, b, u8::max);
-    or(
-        &or(&and(m0, m1), &and(m1, m2)),
-        &or(&and(m2, m3), &and(m3, m0)),
-    )
+fn pair<T: Copy>(m: [T; 4], and: impl Fn(T, T) -> T, or: impl Fn(T, T) -> T) -> T {
+    let [m0, m1, m2, m3] = m;
+    or(or(and(m0, m1), and(m1, m2)), or(and(m2, m3), and(m3, m0)))
 }
 
 /// Lane `i` nonzero when `q[i] > h[i]`.
@@ -364,98 +360,84 @@ fn lane_bits(m: &[u8; CHUNK]) -> u16 {
     !(u8x16::from(*m).simd_eq(u8x16::ZERO).to_bitmask() as u16)
 }
 
-/// The thresholds `(v + t, v - t)` (saturated) of the chunk whose wide rows are `w`, and the
-/// compass test: bit `i` set when pixel `x + i` passes [`may_be_corner`]'s test in its sharp
-/// form (two neighbouring compass pixels, which any 9-arc holds, both brighter or both darker).
-#[inline(always)]
-fn compass(w: &[&[u8; WIDE]; 7], t: u8) -> ([u8; CHUNK], [u8; CHUNK], u16) {
-    let v = at(w, 0, 0);
-    let hi = v.map(|p| p.saturating_add(t));
-    let lo = v.map(|p| p.saturating_sub(t));
-    let [(ax, ay), (bx, by), (cx, cy), (dx, dy)] = [CIRCLE[0], CIRCLE[4], CIRCLE[8], CIRCLE[12]];
-    let (c0, c1, c2, c3) = (at(w, ax, ay), at(w, bx, by), at(w, cx, cy), at(w, dx, dy));
-    let bright = pair(&gt(c0, &hi), &gt(c1, &hi), &gt(c2, &hi), &gt(c3, &hi));
-    let dark = pair(&lt(c0, &lo), &lt(c1, &lo), &lt(c2, &lo), &lt(c3, &lo));
-    let any = map2(&bright, &dark, u8::max);
-    (hi, lo, lane_bits(&any))
-}
-
-/// The compass candidates of the chunk at `x` (bit `i`: pixel `x + i`).
+/// The compass candidates of the chunk at `x` (bit `i`: pixel `x + i`) for cores without
+/// vector units: lane masks are "nonzero or zero" (AND is `min`, OR is `max`), the test in
+/// its sharp form (two neighbouring compass pixels both brighter or both darker).
 #[inline(always)]
 fn chunk_candidates(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
-    wide_rows(rows, x).map_or(0, |w| compass(&w, t).2)
-}
-
-/// `out[k] = f(a[k], b[(k + s) % 16])`, lane by lane.
-#[inline(always)]
-fn shifted(
-    a: &[[u8; CHUNK]; 16],
-    b: &[[u8; CHUNK]; 16],
-    s: usize,
-    f: impl Fn(u8, u8) -> u8 + Copy,
-) -> [[u8; CHUNK]; 16] {
-    let mut out = [[0u8; CHUNK]; 16];
-    for (k, (o, x)) in out.iter_mut().zip(a).enumerate() {
-        if let Some(y) = b.get((k + s) & 15) {
-            *o = map2(x, y, f);
-        }
-    }
-    out
-}
-
-/// Lane `i` nonzero when some 9 contiguous entries of `m` (the circle, cyclically) are nonzero
-/// in lane `i`: the AND of windows of 2, 4, 8 and 9 circle pixels, then the OR over the 16 arc
-/// starts as a tree. Straight-line lane code with no loop-carried state: LLVM split a run
-/// counter over 25 steps, and a running OR, into odd lane groups (~46 instructions a step).
-#[inline(always)]
-fn has_arc(m: &[[u8; CHUNK]; 16]) -> [u8; CHUNK] {
-    let w2 = shifted(m, m, 1, u8::min);
-    let w4 = shifted(&w2, &w2, 2, u8::min);
-    let w8 = shifted(&w4, &w4, 4, u8::min);
-    let w9 = shifted(&w8, m, 8, u8::min);
-    let o8 = shifted(&w9, &w9, 8, u8::max);
-    let o4 = shifted(&o8, &o8, 4, u8::max);
-    let o2 = shifted(&o4, &o4, 2, u8::max);
-    let o1 = shifted(&o2, &o2, 1, u8::max);
-    o1.first().copied().unwrap_or([0; CHUNK])
-}
-
-/// The corners of the chunk at `x` (bit `i`: pixel `x + i` passes the segment test): the
-/// compass test, then, if any lane passed it, whether some 9 contiguous circle pixels are all
-/// brighter or all darker in each lane ([`has_arc`]). Straight-line `u8` lane arithmetic (SSE2:
-/// `psubusb` for the comparisons, `pminub` and `pmaxub` for AND and OR).
-#[inline(always)]
-fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
     let Some(w) = wide_rows(rows, x) else {
         return 0;
     };
-    let (hi, lo, cand) = compass(&w, t);
-    if cand == 0 {
+    let v = at(&w, 0, 0);
+    let hi = v.map(|p| p.saturating_add(t));
+    let lo = v.map(|p| p.saturating_sub(t));
+    let c = [CIRCLE[0], CIRCLE[4], CIRCLE[8], CIRCLE[12]].map(|(dx, dy)| at(&w, dx, dy));
+    let and = |a: [u8; CHUNK], b: [u8; CHUNK]| map2(&a, &b, u8::min);
+    let or = |a: [u8; CHUNK], b: [u8; CHUNK]| map2(&a, &b, u8::max);
+    let bright = pair(c.map(|q| gt(q, &hi)), and, or);
+    let dark = pair(c.map(|q| lt(q, &lo)), and, or);
+    lane_bits(&or(bright, dark))
+}
+
+/// `out[k] = f(a[k], b[(k + s) % 16])`: one step of the windows over the circle.
+#[inline(always)]
+fn shifted(a: &[u32; 16], b: &[u32; 16], s: usize, f: impl Fn(u32, u32) -> u32) -> [u32; 16] {
+    core::array::from_fn(|k| {
+        let (x, y) = (a.get(k), b.get((k + s) & 15));
+        f(x.copied().unwrap_or(0), y.copied().unwrap_or(0))
+    })
+}
+
+/// The corners of the chunk at `x` (bit `i`: pixel `x + i` passes the segment test), on
+/// targets with 128-bit vectors.
+///
+/// Each circle pixel's comparisons for the 16 lanes go to one word (`pcmpgtb`, `pmovmskb` on
+/// SSE2): bit `i` for "lane `i` brighter than `v + t`", bit `16 + i` for "darker than
+/// `v - t`". The segment test is then scalar bit arithmetic on the 16 words, both polarities
+/// and all lanes at once: a lane passes when some 9 cyclically contiguous words all have its
+/// bit, the AND of windows of 2, 4, 8 and 9 words, ORed over the 16 starts (79 word
+/// operations). Filters first: the compass test (4 words), then "one of each opposite pair
+/// `(k, k + 8)`", which any 9-arc holds (OpenCV's scalar FAST uses the same). (With the
+/// windows on the 32 lane masks themselves, the 16 brighter and 16 darker vectors did not
+/// fit the 16 registers: a third of the instructions were spills.)
+#[inline(always)]
+fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
+    use wide::u8x16;
+    let Some(w) = wide_rows(rows, x) else {
+        return 0;
+    };
+    let lanes = |dx: i8, dy: i8| u8x16::from(*at(&w, dx, dy));
+    let v = lanes(0, 0);
+    let (hi, lo) = (
+        v.saturating_add(u8x16::splat(t)),
+        v.saturating_sub(u8x16::splat(t)),
+    );
+    let sides = |(dx, dy): (i8, i8)| {
+        let q = lanes(dx, dy);
+        q.simd_gt(hi).to_bitmask() | (q.simd_lt(lo).to_bitmask() << 16)
+    };
+    let compass = [CIRCLE[0], CIRCLE[4], CIRCLE[8], CIRCLE[12]].map(sides);
+    if pair(compass, |a, b| a & b, |a, b| a | b) == 0 {
         return 0;
     }
     // Spelled out so that every offset is a constant (a loop over CIRCLE was not unrolled).
     macro_rules! circle {
-        ($($k:literal)*) => { [$({ let (dx, dy) = CIRCLE[$k]; at(&w, dx, dy) }),*] };
+        ($($k:literal)*) => { [$( sides(CIRCLE[$k]) ),*] };
     }
-    let circle: [&[u8; CHUNK]; 16] = circle!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
-    let (mut bright, mut dark) = ([[0u8; CHUNK]; 16], [[0u8; CHUNK]; 16]);
-    for ((b, d), q) in bright.iter_mut().zip(dark.iter_mut()).zip(circle) {
-        *b = gt(q, &hi);
-        *d = lt(q, &lo);
-    }
-    // Any 9-arc holds one of each opposite pair (k, k + 8): a cheap filter (OpenCV's scalar
-    // FAST uses the same) that spares most chunks the full test.
-    let opposite = |m: &[[u8; CHUNK]; 16]| {
-        let o = shifted(m, m, 8, u8::max);
-        o.iter()
-            .take(8)
-            .fold([0xff; CHUNK], |a, x| map2(&a, x, u8::min))
-    };
-    if lane_bits(&map2(&opposite(&bright), &opposite(&dark), u8::max)) == 0 {
+    let m: [u32; 16] = circle!(0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+    let opposite = (0..8).fold(u32::MAX, |a, k| {
+        a & (m.get(k).copied().unwrap_or(0) | m.get(k + 8).copied().unwrap_or(0))
+    });
+    if opposite == 0 {
         return 0;
     }
-    let corner = map2(&has_arc(&bright), &has_arc(&dark), u8::max);
-    lane_bits(&corner)
+    let and = |a: u32, b: u32| a & b;
+    let w2 = shifted(&m, &m, 1, and);
+    let w4 = shifted(&w2, &w2, 2, and);
+    let w8 = shifted(&w4, &w4, 4, and);
+    let w9 = shifted(&w8, &m, 8, and);
+    let any = w9.iter().fold(0, |a, &b| a | b);
+    (any | (any >> 16)) as u16
 }
 
 /// FAST-9 corners of `img`, reported through `emit` in row-major order.
@@ -503,7 +485,7 @@ pub fn fast_detect(
                 .get_mut(y % 3)
                 .ok_or(Error::BufferTooSmall("scratch"))?;
             cur.fill(0);
-            score_row(&rows, x0..x1, t, cur, LANE_SEGMENT_TEST);
+            score_row::<LANE_SEGMENT_TEST>(&rows, x0..x1, t, cur);
         } else if let Some(cur) = bufs.get_mut(y % 3) {
             cur.fill(0);
         }
@@ -802,7 +784,11 @@ mod tests {
                         let rows: [&[u8]; 7] =
                             core::array::from_fn(|j| img.row(y + j - 3).unwrap());
                         let mut out = std::vec![0u8; w];
-                        score_row(&rows, 3..w - 3, t, &mut out, lane_test);
+                        if lane_test {
+                            score_row::<true>(&rows, 3..w - 3, t, &mut out);
+                        } else {
+                            score_row::<false>(&rows, 3..w - 3, t, &mut out);
+                        }
                         got.extend(
                             out.iter()
                                 .enumerate()
