@@ -85,13 +85,15 @@ impl<'s> Window<'s> for Packed<'s> {
                 let _ = scharr_window(i, b.x as isize, b.y as isize, n, n, gwin);
             }
         }
-        match block_rows(i, (b.x, b.y), n, n) {
-            Some(rows) => template(rows, gwin, self.tmpl, win, b.w),
+        let rows = match block_rows(i, (b.x, b.y), n, n) {
+            Some(rows) => rows,
             None => {
+                let patch = bytemuck::cast_slice_mut::<i16, u8>(patch);
                 fetch_patch(i, (b.x, b.y), n, n, patch);
-                template(block_of(patch, n, n), gwin, self.tmpl, win, b.w)
+                block_of(patch, n, n)
             }
-        }
+        };
+        template(rows, gwin, self.tmpl, win, b.w)
     }
 
     fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64) {

@@ -112,7 +112,9 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 /// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
 /// outside the image. Each row's columns inside the image are one straight copy (eight at a
 /// time); the columns left and right of it read through a column map made once a call (for
-/// those columns only).
+/// those columns only). Never inlined: a copy made once a template, or once a new integer
+/// corner, is not worth its register pressure inside the kernels' loops' functions.
+#[inline(never)]
 pub(super) fn fetch_patch<T: Copy + From<u8>>(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
