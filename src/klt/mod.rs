@@ -27,7 +27,7 @@
 //! frame's forward pass, which needs the same ones again (the new frame at the tracked
 //! positions): give it [`kept_scratch_len`]`(win, max_level, N)` of scratch. A kept template is
 //! used only when the pixels it was made from are equal byte for byte, so the flows are the
-//! same to the bit; on the Cortex-M7 main job with the check on, the flow costs 12 % less
+//! same to the bit; on the Cortex-M7 main job with the check on, the flow costs 6 % less
 //! (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level (15x15 windows, the
 //! boards' kernel).
 //!
