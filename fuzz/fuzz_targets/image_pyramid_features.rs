@@ -1,14 +1,22 @@
 //! Image views of arbitrary geometry over buffers of arbitrary length, Gaussian pyramids into
-//! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch, the
-//! view warped into a frame through an arbitrary quadrilateral and an arbitrary homography in
-//! both arithmetics.
+//! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch, FAST
+//! corners and ORB features with arbitrary parameters and scratch, their descriptors matched
+//! with an arbitrary configuration, the view warped into a frame through an arbitrary
+//! quadrilateral and an arbitrary homography in both arithmetics.
 //! Contract: no panic; a view exists only for a valid geometry; a pyramid's levels have the
-//! documented sizes; corners lie inside the image and respect the output capacity; a warp
-//! writes at most the frame's pixels.
+//! documented sizes; corners lie inside the image and respect the output capacity; FAST
+//! corners keep the border, score at least the threshold, come in row-major order and (with
+//! suppression) are never 8-neighbours; ORB keypoints lie inside the frame, within the caps;
+//! matches index both sides and carry the descriptors' Hamming distance; a warp writes at most
+//! the frame's pixels.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::corners::{Corner, CornerConfig, good_features};
+use camgeom::features::{
+    Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect, hamming,
+    match_descriptors, orb_detect,
+};
 use camgeom::heapless::Vec;
 use camgeom::homography::Homography;
 use camgeom::image::{ImageMut, ImageView, buffer_len};
@@ -37,6 +45,20 @@ struct Input {
     /// A homography for `warp_perspective_into` (any matrix `from_matrix` accepts).
     map: [f32; 9],
     alpha: u8,
+    fast_threshold: u8,
+    fast_nonmax: bool,
+    fast_border: u16,
+    fast_slack: i16,
+    orb_levels: u8,
+    orb_scale_q8: u16,
+    orb_threshold: u8,
+    orb_border: u16,
+    orb_max: u16,
+    orb_slack: i16,
+    ratio: f32,
+    cross_check: bool,
+    max_distance: u16,
+    match_slack: i16,
 }
 
 fn grow(len: usize, slack: i16) -> usize {
@@ -119,6 +141,8 @@ fuzz_target!(|inp: Input| {
         }
     }
 
+    fast_and_orb(&view, &inp);
+
     let quad = inp.quad.map(|(x, y)| Point2::new(x, y));
     for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
         let mut frame = [0u8; 64 * 48];
@@ -139,3 +163,102 @@ fuzz_target!(|inp: Input| {
         }
     }
 });
+
+/// FAST, ORB and matching on the view (see the contract above).
+fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
+    let (w, h) = (view.width(), view.height());
+    let fcfg = FastConfig {
+        threshold: inp.fast_threshold,
+        nonmax: inp.fast_nonmax,
+        border: inp.fast_border,
+    };
+    let mut fscratch =
+        std::vec![0u8; grow(camgeom::features::fast::scratch_len(w), inp.fast_slack)];
+    let mut corners = std::vec::Vec::new();
+    if fast_detect(view, &fcfg, &mut fscratch[..], |c| corners.push(c)).is_ok() {
+        let b = usize::from(inp.fast_border).max(3);
+        for c in &corners {
+            let (x, y) = (usize::from(c.x), usize::from(c.y));
+            assert!(
+                x >= b && x + b < w && y >= b && y + b < h,
+                "FAST corner in the border"
+            );
+            assert!(
+                c.score >= inp.fast_threshold,
+                "FAST score below the threshold"
+            );
+        }
+        for p in corners.windows(2) {
+            assert!(
+                (p[0].y, p[0].x) < (p[1].y, p[1].x),
+                "FAST corners out of order"
+            );
+        }
+        if inp.fast_nonmax {
+            for (i, a) in corners.iter().enumerate() {
+                for c in &corners[i + 1..] {
+                    let (dx, dy) = (a.x.abs_diff(c.x), a.y.abs_diff(c.y));
+                    assert!(
+                        dx > 1 || dy > 1,
+                        "two suppressed FAST corners are neighbours"
+                    );
+                }
+            }
+        }
+    }
+
+    let ocfg = OrbConfig {
+        max_features: inp.orb_max,
+        levels: inp.orb_levels,
+        scale_q8: inp.orb_scale_q8,
+        fast_threshold: inp.orb_threshold,
+        border: inp.orb_border,
+    };
+    let need = camgeom::features::orb::scratch_len(w, h, inp.orb_scale_q8.max(1));
+    let mut oscratch = std::vec![0u8; grow(need.min(1 << 18), inp.orb_slack)];
+    let mut features: Vec<Feature, 32> = Vec::new();
+    if orb_detect(view, &ocfg, &mut oscratch[..], &mut features).is_ok() {
+        assert!(
+            features.len() <= usize::from(inp.orb_max),
+            "ORB over max_features"
+        );
+        for f in &features {
+            let k = &f.keypoint;
+            assert!(
+                k.x >= 0.0 && k.y >= 0.0 && k.x < w as f32 && k.y < h as f32,
+                "ORB keypoint outside the frame"
+            );
+            assert!(
+                k.angle.is_finite() && k.scale.is_finite(),
+                "ORB keypoint not finite"
+            );
+        }
+    }
+
+    // The descriptors against themselves shifted by one (so not all distances are 0).
+    let query: std::vec::Vec<Descriptor> = features.iter().map(|f| f.descriptor).collect();
+    let train: std::vec::Vec<Descriptor> = query.iter().skip(1).copied().collect();
+    let mcfg = MatchConfig {
+        ratio: inp.ratio,
+        cross_check: inp.cross_check,
+        max_distance: inp.max_distance,
+    };
+    let mut mscratch = std::vec![0u32; grow(camgeom::features::matching::scratch_len(train.len()), inp.match_slack)];
+    let mut out = std::vec![Match::default(); grow(query.len(), inp.match_slack)];
+    if let Ok(n) = match_descriptors(&query, &train, &mcfg, &mut mscratch[..], &mut out[..]) {
+        assert!(n <= query.len(), "more matches than queries");
+        for m in &out[..n] {
+            let (q, t) = (usize::from(m.query), usize::from(m.train));
+            assert!(
+                q < query.len() && t < train.len(),
+                "match index out of range"
+            );
+            assert_eq!(
+                u32::from(m.distance),
+                hamming(&query[q], &train[t]),
+                "distance"
+            );
+            assert!(m.distance <= inp.max_distance, "match beyond max_distance");
+        }
+    }
+}
