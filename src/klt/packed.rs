@@ -270,7 +270,10 @@ fn template_inside(
     win: usize,
     w: [i32; 4],
 ) -> (i64, i64, i64) {
-    let m = win + 2;
+    // Checked, so the optimiser sees `m >= 2` (no zero-chunk panic below).
+    let Some(m) = win.checked_add(2) else {
+        return (0, 0, 0);
+    };
     let Some((p, rest)) = sums.split_at_mut_checked(m * m) else {
         return (0, 0, 0);
     };
@@ -278,7 +281,7 @@ fn template_inside(
     let vert = vert.get_mut(..m).unwrap_or(&mut []);
     bilinear_sums(rows, p, m, &w);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let prows = p.chunks_exact(m.max(1));
+    let prows = p.chunks_exact(m);
     let triples = prows.clone().zip(prows.clone().skip(1)).zip(prows.skip(2));
     for (((top, mid), bot), out) in triples.zip(tmpl.chunks_exact_mut(win.max(1))) {
         for (((&a, &b), &c), v) in top.iter().zip(mid).zip(bot).zip(vert.iter_mut()) {
