@@ -243,7 +243,11 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
         cross_check: inp.cross_check,
         max_distance: inp.max_distance,
     };
-    let mut mscratch = std::vec![0u32; grow(camgeom::features::matching::scratch_len(train.len()), inp.match_slack)];
+    let mlen = grow(
+        camgeom::features::matching::scratch_len(train.len()),
+        inp.match_slack,
+    );
+    let mut mscratch = std::vec![0u32; mlen];
     let mut out = std::vec![Match::default(); grow(query.len(), inp.match_slack)];
     if let Ok(n) = match_descriptors(&query, &train, &mcfg, &mut mscratch[..], &mut out[..]) {
         assert!(n <= query.len(), "more matches than queries");
