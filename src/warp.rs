@@ -402,8 +402,8 @@ impl<'a> Source<'a> {
     /// The 2x2 pixels of each cell of a chunk, per vector as `i16` pairs, the shape of a dot
     /// product with a pair of weights: the top rows' `(p₀₀, p₀₁)` of the four lanes, then
     /// the bottom rows' `(p₁₀, p₁₁)`. Each cell is one checked read of `stride + 2` pixels
-    /// (a lane out of the image, which callers never pass, reads 0); these loads are the
-    /// only scalar part of a sample.
+    /// (a lane out of the image reads 0: only the fixed path's SIMD lanes past a row's end,
+    /// which are not written, have one); these loads are the only scalar part of a sample.
     #[inline(always)]
     fn gather<const V: bool, F>(&self, cells: &Cells<F>) -> [(i16x8, i16x8); VECS] {
         let mut rows = [[0u16; 2 * LANES]; VECS];
@@ -423,7 +423,9 @@ impl<'a> Source<'a> {
             for ((t, b), i) in top.iter_mut().zip(bot.iter_mut()).zip(index.to_array()) {
                 let i = i as usize;
                 if self.wide {
-                    if let Some(c) = self.data.get(i..i + s + 2) {
+                    // A lane past a row's end may hold any index: a wrapped end is an empty
+                    // range.
+                    if let Some(c) = self.data.get(i..i.wrapping_add(s + 2)) {
                         let pair = |k: usize| match c.get(k..k + 2) {
                             Some(&[a, b]) => u16::from_le_bytes([a, b]),
                             _ => 0,
@@ -433,7 +435,7 @@ impl<'a> Source<'a> {
                 } else {
                     // A source one pixel wide: each row's pixel twice.
                     let p = |i: usize| u16::from(self.data.get(i).copied().unwrap_or(0)) * 0x101;
-                    (*t, *b) = (p(i), p(i + s));
+                    (*t, *b) = (p(i), p(i.wrapping_add(s)));
                 }
             }
         }

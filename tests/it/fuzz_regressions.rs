@@ -333,3 +333,50 @@ fn a_ransac_threshold_whose_square_overflows_is_a_parameter_error() {
         assert!(est.rms_px.is_finite(), "{est:?}");
     }
 }
+
+/// The fixed-point warp's SIMD lanes past a row's end carry unclamped guesses (they are not
+/// written); the cell gather formed `index + stride + 2` for them, which overflowed `usize`
+/// for a negative index (a panic with overflow checks on). A 7-pixel-wide source through a
+/// map that shrinks it to a few thousandths of a pixel. (fuzz target `image_pyramid_features`)
+#[test]
+fn warp_lanes_past_a_row_end_read_nothing() {
+    use camgeom::homography::Homography;
+    use camgeom::image::{ImageMut, ImageView};
+    use camgeom::nalgebra::Matrix3;
+    use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
+    let buf = std::vec![55u8; 55 * 511 + 7];
+    let view = ImageView::new(&buf, 7, 512, 55).unwrap();
+    let quad = [
+        (-0.0014246323, -0.0014246323),
+        (-0.0014246323, -0.0014203705),
+        (1.0920506e-5, 3.3651406e-38),
+        (1.0920456e-5, 1.09205075e-5),
+    ]
+    .map(|(x, y)| Point2::new(x, y));
+    let map = [
+        -0.0014246162f32,
+        1.83932e-40,
+        0.0,
+        0.0,
+        -0.0014246323,
+        1.5882e-40,
+        0.0,
+        1.0490883e-5,
+        1.09206285e-5,
+    ];
+    for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+        let cfg = WarpConfig {
+            alpha: 55,
+            arithmetic,
+        };
+        let mut frame = [0u8; 64 * 48];
+        let mut dst = ImageMut::packed(&mut frame[..], 64, 48).unwrap();
+        if let Ok(r) = warp_into_quad(&view, &mut dst, &quad, &cfg) {
+            assert!(r.written <= 64 * 48);
+        }
+        let h = Homography::from_matrix(&Matrix3::from_row_slice(&map)).unwrap();
+        if let Ok(r) = warp_perspective_into(&view, &mut dst, &h, &cfg) {
+            assert!(r.written <= 64 * 48);
+        }
+    }
+}
