@@ -126,8 +126,8 @@ impl<'s> Window<'s> for Lanes<'s> {
             Some(rows) => mismatch(rows, self.tmpl, self.win, self.s, w, abs),
             None => {
                 let at = (b.x, b.y);
-                let patch = cached_patch(j, at, (c, n), self.patch, &mut self.patch_at);
-                mismatch(block_of(patch, c, n), self.tmpl, self.win, self.s, w, abs)
+                let rows = cached_patch(j, at, (c, n), self.patch, &mut self.patch_at);
+                mismatch(rows, self.tmpl, self.win, self.s, w, abs)
             }
         }
     }

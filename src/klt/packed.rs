@@ -108,8 +108,8 @@ impl<'s> Window<'s> for Packed<'s> {
             None => {
                 // The template is made: the derivatives' part of the scratch is free.
                 let at = (b.x, b.y);
-                let patch = cached_patch(j, at, (n, n), self.low, &mut self.patch_at);
-                mismatch(block_of(patch, n, n), self.tmpl, win, b.w, abs)
+                let rows = cached_patch(j, at, (n, n), self.low, &mut self.patch_at);
+                mismatch(rows, self.tmpl, win, b.w, abs)
             }
         }
     }

@@ -135,12 +135,22 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
             *m = reflect101(x0 + i as isize, img.width()) as u16;
         }
     }
+    // The map's columns left and right of the inside span, split once.
+    let (mh, mt) = match map.split_at_checked(lo) {
+        Some((mh, rest)) if cols <= MAP => (mh, rest.get(hi - lo..cols - lo).unwrap_or(&[])),
+        _ => (&[][..], &[][..]),
+    };
+    let (width, height) = (img.width(), img.height());
     for (j, row) in out.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
-        let y = y0 as isize + j as isize;
-        let src = img.row_clamped(reflect101(y, img.height()) as isize);
-        let (head, rest) = row.split_at_mut(lo.min(row.len()));
-        let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
+        let src = img.row_clamped(reflect101(y0 as isize + j as isize, height) as isize);
+        // An empty span (a patch wholly left or right of the image) may start past the row.
         let seg = src.get(span.clone()).unwrap_or(&[]);
+        let Some((head, rest)) = row.split_at_mut_checked(lo) else {
+            continue;
+        };
+        let Some((mid, tail)) = rest.split_at_mut_checked(hi - lo) else {
+            continue;
+        };
         let (m8, mr) = mid.as_chunks_mut::<8>();
         let (s8, sr) = seg.as_chunks::<8>();
         for (o, p) in m8.iter_mut().zip(s8) {
@@ -151,8 +161,6 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
         }
         if cols <= MAP {
             // The reflected columns through the map: two straight loops.
-            let (mh, rest) = map.split_at_checked(lo).unwrap_or((&map, &[]));
-            let mt = rest.get(hi - lo..cols - lo).unwrap_or(&[]);
             for (o, &m) in head.iter_mut().zip(mh).chain(tail.iter_mut().zip(mt)) {
                 *o = T::from(src.get(usize::from(m)).copied().unwrap_or(0));
             }
@@ -162,7 +170,7 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
                 .enumerate()
                 .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
             for (i, o) in outside {
-                let x = reflect101(x0 + i as isize, img.width());
+                let x = reflect101(x0 + i as isize, width);
                 *o = T::from(src.get(x).copied().unwrap_or(0));
             }
         }
@@ -256,22 +264,44 @@ pub(super) fn block_rows<'a>(
     })
 }
 
-/// The `cols x rows` block of `j` at the integer corner `at`, reflected into `patch`
-/// ([`fetch_patch`]) unless `patch_at` says it already holds that corner: the iterations of
-/// a point near the border move less than a pixel once they settle, and reuse the copy. A
-/// kernel clears `patch_at` whenever `patch` gets anything else (a template's `I`).
+/// Pixels [`cached_patch`] fetches beyond the block on every side.
+pub(super) const PATCH_MARGIN: usize = 1;
+
+/// The `cols x rows` block of `j` at the integer corner `at`, reflected, as rows of `patch`:
+/// the patch holds the block of a corner `c` widened by [`PATCH_MARGIN`] on every side
+/// (`(cols + 2) x (rows + 2)`, [`fetch_patch`]), and serves every corner within the margin
+/// of `c` without a copy. A point near the border that settles across a pixel boundary
+/// (its corner moving back and forth by one, as on a weakly textured coarse level) reuses
+/// the copy. Reflection is per pixel, so a sub-block is the block fetched at its own corner.
+/// A kernel clears `patch_at` (`c`) whenever `patch` gets anything else (a template's `I`);
+/// `patch` must hold `(cols + 2) (rows + 2)` elements (shorter: fewer rows come back).
 pub(super) fn cached_patch<'p, T: Copy + From<u8>>(
     j: &ImageView<'_, u8>,
     at: (i32, i32),
     (cols, rows): (usize, usize),
     patch: &'p mut [T],
     patch_at: &mut Option<(i32, i32)>,
-) -> &'p [T] {
-    if *patch_at != Some(at) {
-        fetch_patch(j, at, cols, rows, patch);
-        *patch_at = Some(at);
+) -> Rows<'p, T> {
+    let m = PATCH_MARGIN as i32;
+    let stride = cols + 2 * PATCH_MARGIN;
+    let near = |c: (i32, i32)| (at.0 - c.0).abs() <= m && (at.1 - c.1).abs() <= m;
+    let c = match *patch_at {
+        Some(c) if near(c) => c,
+        _ => {
+            let corner = (at.0 - m, at.1 - m);
+            fetch_patch(j, corner, stride, rows + 2 * PATCH_MARGIN, patch);
+            *patch_at = Some(at);
+            at
+        }
+    };
+    // In `0 ..= 2 m` on both axes.
+    let (dx, dy) = ((at.0 - c.0 + m) as usize, (at.1 - c.1 + m) as usize);
+    Rows {
+        rest: patch.get(dy * stride + dx..).unwrap_or(&[]),
+        stride,
+        cols,
+        left: rows,
     }
-    patch
 }
 
 /// The `rows` rows, `cols` wide, of a row-major scratch block.
@@ -311,5 +341,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A walk of corners, by steps of one and two pixels and jumps, inside, across each
+    /// border and outside: every block [`cached_patch`] serves is the block fetched at its
+    /// own corner, whether it came from the copy (a corner within the margin of the
+    /// fetched one) or from a new fetch; and a step within the margin fetches nothing.
+    #[test]
+    fn cached_blocks_are_the_blocks_at_their_corners() {
+        let (w, h) = (13usize, 9usize);
+        let img: std::vec::Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
+        let view = ImageView::packed(&img, w, h).unwrap();
+        let (cols, rows) = (6usize, 5usize);
+        let mut patch = std::vec![0i16; (cols + 2 * PATCH_MARGIN) * (rows + 2 * PATCH_MARGIN)];
+        let mut patch_at = None;
+        let (mut at, mut fetched) = ((-9i32, -8i32), 0);
+        let steps = [
+            (1, 0),
+            (0, 1),
+            (-1, -1),
+            (2, 0),
+            (1, 1),
+            (0, -2),
+            (5, 3),
+            (-1, 1),
+        ];
+        for k in 0..120 {
+            let (dx, dy) = steps[k % steps.len()];
+            at = (
+                (at.0 + dx + 15).rem_euclid(30) - 15,
+                (at.1 + dy + 12).rem_euclid(24) - 12,
+            );
+            let before = patch_at;
+            let got: std::vec::Vec<i16> =
+                cached_patch(&view, at, (cols, rows), &mut patch, &mut patch_at)
+                    .flat_map(|r| r.iter().copied())
+                    .collect();
+            let mut want = std::vec![0i16; cols * rows];
+            fetch_patch(&view, at, cols, rows, &mut want);
+            assert_eq!(got, want, "corner {at:?}");
+            let near = before.is_some_and(|c: (i32, i32)| {
+                (at.0 - c.0).abs() <= PATCH_MARGIN as i32
+                    && (at.1 - c.1).abs() <= PATCH_MARGIN as i32
+            });
+            assert_eq!(patch_at == before, near, "corner {at:?} after {before:?}");
+            fetched += usize::from(!near);
+        }
+        assert!(fetched < 120, "every corner fetched");
     }
 }
