@@ -80,18 +80,17 @@ pub fn scharr_row(img: &ImageView<'_, u8>, y: usize, x0: usize, out: &mut [[i16;
     let valid = w.saturating_sub(x0).min(out.len());
     let (vals, beyond) = out.split_at_mut(valid.min(out.len()));
     beyond.fill([0, 0]);
-    // Any column, reflecting at the ends: the first and last image columns.
+    // The first and last image columns, whose two neighbours reflect to one column `n`
+    // (`x ± 1` to column 1 at `x = 0`, to `w - 2` at `x = w - 1`; the column itself when
+    // `w = 1`): `Ix = 0` and `Iy = 6 d(n) + 10 d(x)`, `d = r2 - r0`.
     let edge = |x: usize| -> [i16; 2] {
-        let xi = x as isize;
-        let (xm, xp) = (reflect101(xi - 1, w), reflect101(xi + 1, w));
-        let p = |r: &[u8], c: usize| i32::from(r.get(c).copied().unwrap_or(0));
-        let dx = 3 * (p(r0, xp) - p(r0, xm))
-            + 10 * (p(r1, xp) - p(r1, xm))
-            + 3 * (p(r2, xp) - p(r2, xm));
-        let dy =
-            3 * (p(r2, xm) - p(r0, xm)) + 10 * (p(r2, x) - p(r0, x)) + 3 * (p(r2, xp) - p(r0, xp));
-        // |dx| <= 16 * 255 and |dy| <= 16 * 255: both fit i16.
-        [dx as i16, dy as i16]
+        let n = reflect101(x as isize + 1, w);
+        let d = |c: usize| {
+            let p = |r: &[u8]| i32::from(r.get(c).copied().unwrap_or(0));
+            p(r2) - p(r0)
+        };
+        // |Iy| <= 16 * 255: fits i16.
+        [0, (6 * d(n) + 10 * d(x)) as i16]
     };
     // Interior columns `lo .. hi` (within 1 .. w - 1) by the sliding loop; at most the first
     // and the last image column reflect.
@@ -115,6 +114,12 @@ pub fn scharr_row(img: &ImageView<'_, u8>, y: usize, x0: usize, out: &mut [[i16;
 /// `s(x) = 3 r0 + 10 r1 + 3 r2` and difference `d(x) = r2 - r0`; then
 /// `Ix(x) = s(x + 1) - s(x - 1)` and `Iy(x) = 3 d(x - 1) + 10 d(x) + 3 d(x + 1)`. The sliding
 /// loop carries two columns, so a pixel costs three loads (the 3x3 form read eight).
+///
+/// A column is one word, `v = 2¹⁶ s + d` (`0 <= s <= 16 · 255`, `|d| <= 255`), so the loop
+/// carries two values instead of four: `v(x + 1) - v(x - 1) + 2¹⁵` is
+/// `2¹⁶ Ix + (d(x + 1) - d(x - 1) + 2¹⁵)` with the second term in `0 .. 2¹⁶`, so its
+/// arithmetic shift by 16 is `Ix`; `3 (v(x - 1) + v(x + 1)) + 10 v(x)` is `Iy` plus a multiple
+/// of `2¹⁶` (wrapping), and `|Iy| <= 16 · 255` is its low half.
 fn scharr_interior(r0: &[u8], r1: &[u8], r2: &[u8], start: usize, out: &mut [[i16; 2]]) {
     // Column x + 1 of every output x: the loop's one new column a step.
     let ahead = start + 2..start + 2 + out.len();
@@ -123,20 +128,22 @@ fn scharr_interior(r0: &[u8], r1: &[u8], r2: &[u8], start: usize, out: &mut [[i1
     else {
         return;
     };
-    let reduce = |a: u8, b: u8, c: u8| {
+    let column = |a: u8, b: u8, c: u8| {
         let (a, b, c) = (i32::from(a), i32::from(b), i32::from(c));
-        (3 * (a + c) + 10 * b, c - a)
+        ((3 * (a + c) + 10 * b) << 16) + (c - a)
     };
     let at = |k: usize| {
         let [a, b, c] = [r0, r1, r2].map(|r| r.get(start + k).copied().unwrap_or(0));
-        reduce(a, b, c)
+        column(a, b, c)
     };
-    let ((mut s0, mut d0), (mut s1, mut d1)) = (at(0), at(1));
+    let (mut v0, mut v1) = (at(0), at(1));
     for (o, ((&a, &b), &c)) in out.iter_mut().zip(a2.iter().zip(b2).zip(c2)) {
-        let (s2, d2) = reduce(a, b, c);
-        // |Ix| <= 16 · 255 and |Iy| <= 16 · 255: both fit i16.
-        *o = [(s2 - s0) as i16, (3 * (d0 + d2) + 10 * d1) as i16];
-        (s0, d0, s1, d1) = (s1, d1, s2, d2);
+        let v2 = column(a, b, c);
+        let ix = (v2 - v0 + (1 << 15)) >> 16;
+        let iy = (3 * (v0 + v2)).wrapping_add(v1.wrapping_mul(10));
+        // |Ix| <= 16 · 255 and |Iy| <= 16 · 255: both fit i16 (`Iy` is the low half).
+        *o = [ix as i16, iy as i16];
+        (v0, v1) = (v1, v2);
     }
 }
 
@@ -298,6 +305,27 @@ mod tests {
             scharr_window(&v, 0, 0, 8, 7, &mut win),
             Err(Error::BufferTooSmall("out"))
         );
+    }
+
+    /// Images one to three pixels wide and high (the first and last columns reflect onto
+    /// one neighbour, or onto themselves): the level against the 3x3 definition.
+    #[test]
+    fn tiny_images_agree_with_the_definition() {
+        for (w, h) in (1..=3usize).flat_map(|w| (1..=3usize).map(move |h| (w, h))) {
+            let img: std::vec::Vec<u8> = (0..w * h).map(|i| (i * 97 % 251) as u8).collect();
+            let v = ImageView::packed(&img, w, h).unwrap();
+            let mut lvl = std::vec![[0i16; 2]; w * h];
+            scharr_level(&v, &mut ImageMut::packed(&mut lvl, w, h).unwrap()).unwrap();
+            for y in 0..h {
+                for x in 0..w {
+                    assert_eq!(
+                        lvl[y * w + x],
+                        direct(&img, w, h, x, y),
+                        "{w}x{h} at {x},{y}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
