@@ -688,8 +688,8 @@ fn corrected(q: i64, n: i64, d: i64) -> i64 {
 /// `t_j = t₀ + j A / (1 + j B) - ε_j` with `A = 2⁸ (m₁₁ - m₃₁ X₀ / W₀) / W₀`,
 /// `B = m₃₁ / W₀` (the integers `X₀`, `W₀`, `m`: exact; likewise `Y`). `t₀`, `A`, `B` come
 /// in `f64` once a chunk; the offsets `j A / (1 + j B)` (at most `D` in size) in `f32`
-/// lanes, added to `t₀ - ⌊t₀⌋ + K` (`K >= ⌈D⌉ + 1` keeps the sum positive, so truncation
-/// is the floor).
+/// lanes, added to `t₀ - n + K` (`n` the integer nearest `t₀`; `K >= ⌈D⌉ + 1` keeps the sum
+/// positive, so truncation is the floor).
 ///
 /// With `u = 2⁻²⁴`, the lanes' sum is off by at most `11.2 u D + 2 u (K + 1)` (the
 /// conversions of `A` and `B`, a product, the sum `1 + j B` (at least 1/2), the reciprocal
