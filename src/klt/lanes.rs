@@ -47,8 +47,10 @@ pub(super) struct Lanes<'s> {
     gx: &'s mut [i16],
     /// `Iy` at integer positions, `(win + 1) x (s + 1)`.
     gy: &'s mut [i16],
-    /// Pixels of a block that leaves the image (reflected), `(win + 1) x (s + 1)` bytes (in
-    /// the first half of its `i16` part of the scratch).
+    /// Pixels of a block that leaves the image (reflected): the template's,
+    /// `(win + 1) x (s + 1)` bytes, or the mismatch's with its margin ([`cached_patch`]),
+    /// `(win + 3) x (s + 3)`; both fit the `2 (win + 1)(s + 1)` bytes of its `i16` part of
+    /// the scratch (tested for every window size).
     patch: &'s mut [u8],
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
     /// `win x s` each; `Ix` and `Iy` are zero beyond column `win`.
@@ -514,6 +516,21 @@ fn mismatch(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// For every window size the patch part of the scratch holds the mismatch's block with
+    /// [`PATCH_MARGIN`](super::super::window::PATCH_MARGIN) on every side (and the
+    /// template's block, which is smaller).
+    #[test]
+    fn scratch_holds_the_margin_patch() {
+        use super::super::window::PATCH_MARGIN;
+        for win in 3..=super::super::MAX_WIN {
+            let mut scratch = std::vec![0i16; scratch_len(win)];
+            let k = Lanes::new(&mut scratch, win).unwrap();
+            let (c, n) = (stride(win) + 1, win + 1);
+            let need = (c + 2 * PATCH_MARGIN) * (n + 2 * PATCH_MARGIN);
+            assert!(k.patch.len() >= need.max(c * n), "win {win}");
+        }
+    }
 
     /// The vector Scharr equals the scalar one on every block it accepts, and accepts the
     /// blocks whose one-pixel ring lies inside the image.

@@ -37,7 +37,8 @@ pub(super) struct Packed<'s> {
     /// integer positions (`(win + 1)²` `[Ix, Iy]` pairs) and the pixels of a block that leaves
     /// the image (reflected, `(win + 1)²`), or, when the block lies inside the image,
     /// [`template_inside`]'s `i32` sums; after it, the reflected window of `J` for the
-    /// mismatch ([`cached_patch`]; each template clears `patch_at`).
+    /// mismatch with its margin, `(win + 3)²` ([`cached_patch`]; each template clears
+    /// `patch_at`).
     low: &'s mut [i16],
     /// The interpolated template: `[I, Ix, Iy]` a pixel, together so that the mismatch loop
     /// reads one run of memory (and keeps one pointer live).
@@ -332,4 +333,22 @@ fn inside_row(vert: &[[i32; 2]], mid: &[i32], out: &mut [[i16; 3]]) -> [i32; 3] 
         s22 = s22.wrapping_add(iy * iy);
     }
     [s11, s12, s22]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// For every window size the work space holds the mismatch's block with
+    /// [`PATCH_MARGIN`](super::super::window::PATCH_MARGIN) on every side.
+    #[test]
+    fn scratch_holds_the_margin_patch() {
+        use super::super::window::PATCH_MARGIN;
+        for win in 3..=super::super::MAX_WIN {
+            let mut scratch = std::vec![0i16; scratch_len(win)];
+            let k = Packed::new(&mut scratch, win).unwrap();
+            let n = win + 1 + 2 * PATCH_MARGIN;
+            assert!(k.low.len() >= n * n, "win {win}");
+        }
+    }
 }
