@@ -268,13 +268,13 @@ pub(super) fn block_rows<'a>(
 pub(super) const PATCH_MARGIN: usize = 1;
 
 /// The `cols x rows` block of `j` at the integer corner `at`, reflected, as rows of `patch`:
-/// the patch holds the block of a corner `c` widened by [`PATCH_MARGIN`] on every side
-/// (`(cols + 2) x (rows + 2)`, [`fetch_patch`]), and serves every corner within the margin
+/// the patch holds the block of a corner `c` widened by [`PATCH_MARGIN`] (`m`) on every side
+/// (`(cols + 2m) x (rows + 2m)`, [`fetch_patch`]), and serves every corner within the margin
 /// of `c` without a copy. A point near the border that settles across a pixel boundary
 /// (its corner moving back and forth by one, as on a weakly textured coarse level) reuses
 /// the copy. Reflection is per pixel, so a sub-block is the block fetched at its own corner.
 /// A kernel clears `patch_at` (`c`) whenever `patch` gets anything else (a template's `I`);
-/// `patch` must hold `(cols + 2) (rows + 2)` elements (shorter: fewer rows come back).
+/// `patch` must hold `(cols + 2m) (rows + 2m)` elements (shorter: fewer rows come back).
 pub(super) fn cached_patch<'p, T: Copy + From<u8>>(
     j: &ImageView<'_, u8>,
     at: (i32, i32),
