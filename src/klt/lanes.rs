@@ -18,7 +18,7 @@ use crate::{Error, Result};
 use wide::{i16x8, i32x4, i32x8, u8x16};
 
 /// Lanes of one vector of `i16` (128 bits).
-const L: usize = 8;
+pub(super) const L: usize = 8;
 
 /// Row stride of the template planes: `win` rounded up to whole vectors.
 const fn stride(win: usize) -> usize {
@@ -58,6 +58,9 @@ pub(super) struct Lanes<'s> {
     /// The integer corner of the window of `J` in `patch`, if it holds one
     /// ([`cached_patch`]); cleared by [`Window::template`].
     patch_at: Option<(i32, i32)>,
+    /// AVX2, when this CPU has it ([`super::avx2`]).
+    #[cfg(target_arch = "x86_64")]
+    v3: Option<pulp::x86::V3>,
 }
 
 impl<'s> Window<'s> for Lanes<'s> {
@@ -78,6 +81,8 @@ impl<'s> Window<'s> for Lanes<'s> {
             patch,
             tmpl,
             patch_at: None,
+            #[cfg(target_arch = "x86_64")]
+            v3: pulp::x86::V3::try_new(),
         })
     }
 
@@ -124,14 +129,17 @@ impl<'s> Window<'s> for Lanes<'s> {
     fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64) {
         let (n, c) = (self.win + 1, self.s + 1);
         let w = weights(b);
-        match block_rows(j, (b.x, b.y), c, n) {
-            Some(rows) => mismatch(rows, self.tmpl, self.win, self.s, w, abs),
-            None => {
-                let at = (b.x, b.y);
-                let rows = cached_patch(j, at, (c, n), self.patch, &mut self.patch_at);
-                mismatch(rows, self.tmpl, self.win, self.s, w, abs)
-            }
+        let rows = match block_rows(j, (b.x, b.y), c, n) {
+            Some(rows) => rows,
+            None => cached_patch(j, (b.x, b.y), (c, n), self.patch, &mut self.patch_at),
+        };
+        let (tmpl, win, s) = (&*self.tmpl, self.win, self.s);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(v3) = self.v3 {
+            let k = super::avx2::Avx2::new(v3, &w);
+            return v3.vectorize(move || mismatch(k, rows, tmpl, win, s, abs));
         }
+        mismatch(PairWeights::new(&w), rows, tmpl, win, s, abs)
     }
 
     fn state(&self) -> &[i16] {
@@ -250,15 +258,25 @@ fn taps_of<P: Copy>(row: &[P], k: usize) -> Option<&[P; L + 1]> {
     row.get(k * L..k * L + L + 1)?.try_into().ok()
 }
 
+/// A bilinear sampler of eight pixels at a window's weights: [`PairWeights`] (128-bit, every
+/// SIMD target) or [`super::avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same
+/// integers: `⌊(p₀₀ w₀₀ + p₀₁ w₀₁ + p₁₀ w₁₀ + p₁₁ w₁₁) / 2⁹⌉`, exact in `i32`, packed to `i16`.
+pub(super) trait Sampler: Copy {
+    /// The pixels of lanes `x = 0 .. 8` between rows `r0` and `r1` (each `p[x], p[x + 1]`),
+    /// in 1/32 grey levels.
+    fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8;
+}
+
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
 /// for the upper row, `[w10, w11, ...]` for the lower.
-struct PairWeights {
-    upper: i16x8,
-    lower: i16x8,
+#[derive(Clone, Copy)]
+pub(super) struct PairWeights {
+    pub(super) upper: i16x8,
+    pub(super) lower: i16x8,
 }
 
 impl PairWeights {
-    fn new(w: &[i16; 4]) -> Self {
+    pub(super) fn new(w: &[i16; 4]) -> Self {
         let [w00, w01, w10, w11] = *w;
         let pair = |a: i16, b: i16| i16x8::new([a, b, a, b, a, b, a, b]);
         Self {
@@ -270,7 +288,7 @@ impl PairWeights {
 
 /// Eight bytes in the low half of a vector (one 8-byte load), the high half zero.
 #[inline(always)]
-fn low(h: &[u8; L]) -> u8x16 {
+pub(super) fn low(h: &[u8; L]) -> u8x16 {
     let mut v = [0u8; 16];
     if let Some(lo) = v.first_chunk_mut::<L>() {
         *lo = *h;
@@ -348,10 +366,12 @@ fn interpolate<P: Tap>(r0: &[P; L + 1], r1: &[P; L + 1], w: &PairWeights, shift:
     i16x8::from_i32x8_saturate(bytemuck::cast::<[i32x4; 2], i32x8>([lo, hi]))
 }
 
-/// [`interpolate`] of pixels, in 1/32 grey levels.
-#[inline(always)]
-fn pixels(r0: &[u8; L + 1], r1: &[u8; L + 1], w: &PairWeights) -> i16x8 {
-    interpolate(r0, r1, w, PIX_SHIFT as i32)
+impl Sampler for PairWeights {
+    /// [`interpolate`] of pixels.
+    #[inline(always)]
+    fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8 {
+        interpolate(r0, r1, &self, PIX_SHIFT as i32)
+    }
 }
 
 /// One plane row of the template (`r0`, `r1` at least `out.len() + 1` long).
@@ -432,21 +452,21 @@ fn sum(v: i32x4) -> i64 {
 /// lanes of `acc`. `J - I` fits `i16` (both in `0 ..= 255 · 32`); a lane gains two products of
 /// at most `8160 · 4080` a vector ([`ROW_BOUND`] a row of `s / 8` vectors).
 #[inline(always)]
-fn mismatch_row(
+fn mismatch_row<K: Sampler>(
     (r0, r1): (&[u8], &[u8]),
     (ti, tx, ty): (&[i16], &[i16], &[i16]),
-    w: &PairWeights,
+    k: K,
     acc: &mut [i32x4; 2],
 ) {
     let (ti, _) = ti.as_chunks::<L>();
     let (tx, _) = tx.as_chunks::<L>();
     let (ty, _) = ty.as_chunks::<L>();
     let [s1, s2] = acc;
-    for (k, ((&i, &x), &y)) in ti.iter().zip(tx).zip(ty).enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
+    for (v, ((&i, &x), &y)) in ti.iter().zip(tx).zip(ty).enumerate() {
+        let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
             break;
         };
-        let diff = pixels(a, b, w) - i16x8::new(i);
+        let diff = k.pixels(a, b) - i16x8::new(i);
         *s1 += diff.dot(i16x8::new(x));
         *s2 += diff.dot(i16x8::new(y));
     }
@@ -458,30 +478,32 @@ const ROW_BOUND: i64 = 2 * 8160 * 4080;
 /// One row of [`mismatch`]'s `Σ |J - I|` over the `win` real columns of `ti` (the padding lanes
 /// masked off; at most `63 · 8160 < 2³¹`).
 #[inline(always)]
-fn abs_row(r0: &[u8], r1: &[u8], ti: &[i16], win: usize, w: &PairWeights) -> i64 {
+fn abs_row<K: Sampler>(r0: &[u8], r1: &[u8], ti: &[i16], win: usize, k: K) -> i64 {
     let (ti, _) = ti.as_chunks::<L>();
     let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
     let mut s = i32x4::ZERO;
-    for (k, &i) in ti.iter().enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
+    for (v, &i) in ti.iter().enumerate() {
+        let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
             break;
         };
-        let left = win.saturating_sub(k * L).min(L) as i16;
+        let left = win.saturating_sub(v * L).min(L) as i16;
         let real = lane.simd_lt(i16x8::splat(left));
-        s += ((pixels(a, b, w) - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
+        s += ((k.pixels(a, b) - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
     }
     sum(s)
 }
 
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
 /// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide). The products are
-/// summed in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
-fn mismatch(
+/// summed in `i32` lanes over as many rows as cannot overflow them, then in `i64`. Inlined
+/// into each caller, so that the AVX2 sampler's instructions are compiled where AVX2 is on.
+#[inline(always)]
+fn mismatch<K: Sampler>(
+    k: K,
     rows: Rows<'_, u8>,
     tmpl: &[i16],
     win: usize,
     s: usize,
-    w: [i16; 4],
     abs: bool,
 ) -> (i64, i64) {
     let (ti, rest) = tmpl.split_at(win * s);
@@ -489,10 +511,9 @@ fn mismatch(
     let planes = ti
         .chunks_exact(s.max(L))
         .zip(tx.chunks_exact(s.max(L)).zip(ty.chunks_exact(s.max(L))));
-    let pw = PairWeights::new(&w);
     let pairs = rows.pairs().zip(planes);
     if abs {
-        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, win, &pw));
+        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, win, k));
         return (sum_abs.sum(), 0);
     }
     // Rows whose sums a lane of `i32` holds (at least one: `s <= 64`, 8 vectors).
@@ -501,7 +522,7 @@ fn mismatch(
     let mut acc = [i32x4::ZERO; 2];
     let mut room = batch;
     for ((r0, r1), (i, (x, y))) in pairs {
-        mismatch_row((r0, r1), (i, x, y), &pw, &mut acc);
+        mismatch_row((r0, r1), (i, x, y), k, &mut acc);
         room -= 1;
         if room == 0 {
             b1 += sum(acc[0]);

@@ -63,6 +63,8 @@
 use crate::{Error, Result};
 
 mod arith;
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 mod cache;
 mod lanes;
 mod lk;

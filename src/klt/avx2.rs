@@ -1,0 +1,114 @@
+//! The AVX2 sampler of the vector window kernel ([`super::lanes`]), for x86-64 CPUs that have
+//! AVX2 (found at run time with the `std` feature, at compile time without it).
+//!
+//! The same integers as [`PairWeights`]: each row's eight tap pairs `(p[x], p[x + 1])`
+//! widened into one 256-bit vector (`vpmovzxbw`) and weighed by one dot product
+//! (`vpmaddwd`) instead of two, the two rows' sums added and descaled in one vector of eight
+//! `i32`, packed to `i16` with saturation (`packssdw`, as [`PairWeights`]). The AVX2
+//! instructions are reached through [`pulp`]'s `V3` token, which proves the CPU has them, so
+//! the crate stays free of `unsafe`; the kernel that uses the sampler is inlined into
+//! [`pulp::x86::V3::vectorize`], where AVX2 is enabled.
+
+use super::lanes::{L, PairWeights, Sampler, low};
+use super::window::PIX_SHIFT;
+use core::arch::x86_64::{__m128i, __m256i};
+use pulp::x86::V3;
+use wide::{i16x8, u8x16};
+
+/// The AVX2 sampler: the weights of each row's tap pairs in 256-bit vectors.
+#[derive(Clone, Copy)]
+pub(super) struct Avx2 {
+    v3: V3,
+    /// `[w00, w01]` in every pair of lanes: the upper row's.
+    upper: __m256i,
+    /// `[w10, w11]`: the lower row's.
+    lower: __m256i,
+}
+
+impl Avx2 {
+    /// The sampler for the Q14 weights `w = [w00, w01, w10, w11]`.
+    #[inline(always)]
+    pub(super) fn new(v3: V3, w: &[i16; 4]) -> Self {
+        let pw = PairWeights::new(w);
+        let wide = |h: i16x8| -> __m256i { bytemuck::cast([h, h]) };
+        Self {
+            v3,
+            upper: wide(pw.upper),
+            lower: wide(pw.lower),
+        }
+    }
+
+    /// The eight tap pairs of row `r` as sixteen `i16`: one byte interleave, one widening.
+    #[inline(always)]
+    fn taps(self, r: &[u8; L + 1]) -> __m256i {
+        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
+            return bytemuck::Zeroable::zeroed();
+        };
+        let p: __m128i = bytemuck::cast(u8x16::unpack_low(low(left), low(right)));
+        self.v3.avx2._mm256_cvtepu8_epi16(p)
+    }
+}
+
+impl Sampler for Avx2 {
+    #[inline(always)]
+    fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8 {
+        let (avx, avx2, sse2) = (self.v3.avx, self.v3.avx2, self.v3.sse2);
+        let a = avx2._mm256_madd_epi16(self.taps(r0), self.upper);
+        let b = avx2._mm256_madd_epi16(self.taps(r1), self.lower);
+        let half = avx._mm256_set1_epi32(1 << (PIX_SHIFT - 1));
+        let s = avx2._mm256_add_epi32(avx2._mm256_add_epi32(a, b), half);
+        let s = avx2._mm256_srai_epi32::<{ PIX_SHIFT as i32 }>(s);
+        let (lo, hi) = (
+            avx._mm256_castsi256_si128(s),
+            avx2._mm256_extracti128_si256::<1>(s),
+        );
+        bytemuck::cast(sse2._mm_packs_epi32(lo, hi))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The AVX2 sampler gives the 128-bit one's integers for every weight set a window can
+    /// have (each weight within one unit of `0 ..= 2¹⁴`, the four summing to `2¹⁴`) on taps
+    /// that reach both ends of the byte range. Without AVX2 on this CPU there is nothing to
+    /// compare, and the test says so.
+    #[test]
+    fn avx2_samples_as_the_128_bit_sampler() {
+        let Some(v3) = V3::try_new() else {
+            std::eprintln!("no AVX2 on this CPU: the AVX2 sampler is not run");
+            return;
+        };
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for case in 0..20_000 {
+            let a = (next() % (1 << 14)) as i16;
+            let b = (next() % (1 << 14)) as i16;
+            let (fx, fy) = (i32::from(a), i32::from(b));
+            let one = 1 << 14;
+            let q = |v: i32| ((v + (1 << 13)) >> 14) as i16;
+            let w00 = q((one - fx) * (one - fy));
+            let w01 = q(fx * (one - fy));
+            let w10 = q((one - fx) * fy);
+            let w11 = (one - i32::from(w00) - i32::from(w01) - i32::from(w10)) as i16;
+            let w = [w00, w01, w10, w11];
+            let tap = |next: &mut dyn FnMut() -> u64| -> [u8; L + 1] {
+                core::array::from_fn(|_| match next() % 4 {
+                    0 => 0,
+                    1 => 255,
+                    _ => next() as u8,
+                })
+            };
+            let (r0, r1) = (tap(&mut next), tap(&mut next));
+            let want = PairWeights::new(&w).pixels(&r0, &r1);
+            let got = v3.vectorize(|| Avx2::new(v3, &w).pixels(&r0, &r1));
+            assert_eq!(got, want, "case {case}: weights {w:?}, rows {r0:?} {r1:?}");
+        }
+    }
+}
