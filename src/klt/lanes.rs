@@ -238,15 +238,39 @@ fn fetch_grad(
         .chunks_exact_mut(cols.max(1))
         .zip(gy.chunks_exact_mut(cols.max(1)));
     for (j, (rx, ry)) in planes.take(rows).enumerate() {
-        rx.fill(0);
-        ry.fill(0);
-        let Some(seg) = grad_row(g, y0, j, span.clone()) else {
+        let seg = grad_row(g, y0, j, span.clone()).unwrap_or(&[]);
+        // Zero left of the span, the span split into the planes, zero right of it (the
+        // fills only where there is something to zero: each is a `memset` call).
+        let (lo, hi) = (inner.start, inner.start + seg.len());
+        for r in [&mut *rx, &mut *ry] {
+            let (head, tail) = r.split_at_mut(lo.min(r.len()));
+            let tail = tail.get_mut(hi - lo..).unwrap_or(&mut []);
+            for part in [head, tail] {
+                if !part.is_empty() {
+                    part.fill(0);
+                }
+            }
+        }
+        let (Some(x), Some(y)) = (rx.get_mut(lo..hi), ry.get_mut(lo..hi)) else {
             continue;
         };
-        let (Some(x), Some(y)) = (rx.get_mut(inner.clone()), ry.get_mut(inner.clone())) else {
-            continue;
-        };
-        for ((x, y), &[dx, dy]) in x.iter_mut().zip(y.iter_mut()).zip(seg) {
+        // Eight pairs a step: as `i32` lanes, `Ix` is the low half and `Iy` the high half
+        // (on a little-endian target), each sign-extended by shifts and packed back to `i16`.
+        let (sc, sr) = seg.as_chunks::<8>();
+        let (xc, xr) = x.as_chunks_mut::<8>();
+        let (yc, yr) = y.as_chunks_mut::<8>();
+        for ((x, y), p) in xc.iter_mut().zip(yc.iter_mut()).zip(sc) {
+            let v: i32x8 = bytemuck::cast(*p);
+            let (low, high) = ((v << 16) >> 16, v >> 16);
+            let (dx, dy) = if cfg!(target_endian = "little") {
+                (low, high)
+            } else {
+                (high, low)
+            };
+            *x = i16x8::from_i32x8_saturate(dx).to_array();
+            *y = i16x8::from_i32x8_saturate(dy).to_array();
+        }
+        for ((x, y), &[dx, dy]) in xr.iter_mut().zip(yr.iter_mut()).zip(sr) {
             (*x, *y) = (dx, dy);
         }
     }
