@@ -117,13 +117,20 @@ impl<'s> Window<'s> for Lanes<'s> {
         self.patch_at = None;
         let w = weights(b);
         let (grads, tmpl) = ((&*self.gx, &*self.gy), &mut *self.tmpl);
-        match block_rows(i, (b.x, b.y), c, n) {
-            Some(rows) => template(rows, grads, tmpl, self.win, self.s, w),
+        let rows = match block_rows(i, (b.x, b.y), c, n) {
+            Some(rows) => rows,
             None => {
                 fetch_patch(i, (b.x, b.y), c, n, self.patch);
-                template(block_of(self.patch, c, n), grads, tmpl, self.win, self.s, w)
+                block_of(self.patch, c, n)
             }
+        };
+        let (win, s) = (self.win, self.s);
+        #[cfg(target_arch = "x86_64")]
+        if let Some(v3) = self.v3 {
+            let k = super::avx2::Avx2::new(v3, &w);
+            return v3.vectorize(move || template(k, rows, grads, tmpl, win, s));
         }
+        template(PairWeights::new(&w), rows, grads, tmpl, win, s)
     }
 
     fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64) {
@@ -289,6 +296,9 @@ pub(super) trait Sampler: Copy {
     /// The pixels of lanes `x = 0 .. 8` between rows `r0` and `r1` (each `p[x], p[x + 1]`),
     /// in 1/32 grey levels.
     fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8;
+    /// The derivatives (`Ix` or `Iy`) of lanes `x = 0 .. 8` between rows `r0` and `r1`:
+    /// `⌊Σ / 2¹⁴⌉`, in the units of the Scharr planes.
+    fn derivatives(self, r0: &[i16; L + 1], r1: &[i16; L + 1]) -> i16x8;
 }
 
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
@@ -396,30 +406,25 @@ impl Sampler for PairWeights {
     fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8 {
         interpolate(r0, r1, &self, PIX_SHIFT as i32)
     }
-}
 
-/// One plane row of the template (`r0`, `r1` at least `out.len() + 1` long).
-#[inline(always)]
-fn interpolate_row<P: Tap>(r0: &[P], r1: &[P], out: &mut [i16], w: &PairWeights, shift: i32) {
-    let (out, _) = out.as_chunks_mut::<L>();
-    for (k, o) in out.iter_mut().enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, k), taps_of(r1, k)) else {
-            return;
-        };
-        *o = interpolate(a, b, w, shift).to_array();
+    /// [`interpolate`] of derivatives.
+    #[inline(always)]
+    fn derivatives(self, r0: &[i16; L + 1], r1: &[i16; L + 1]) -> i16x8 {
+        interpolate(r0, r1, &self, W_BITS as i32)
     }
 }
 
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
 /// `gx`, `gy`) at weights `w`; returns `G`'s sums. Row sums in `i32` are exact: at most
-/// `64 · (16 · 255)² < 2³¹`.
-fn template(
+/// `64 · (16 · 255)² < 2³¹`. Inlined into each caller, as [`mismatch`].
+#[inline(always)]
+fn template<K: Sampler>(
+    k: K,
     rows: Rows<'_, u8>,
     (gx, gy): (&[i16], &[i16]),
     tmpl: &mut [i16],
     win: usize,
     s: usize,
-    w: [i16; 4],
 ) -> (i64, i64, i64) {
     let (c, n) = (s + 1, win + 1);
     let (ti, rest) = tmpl.split_at_mut(win * s);
@@ -430,29 +435,34 @@ fn template(
     );
     let pairs = |b| block_of(b, c, n).pairs();
     let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
-    let pw = PairWeights::new(&w);
     let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
-        interpolate_row(r0, r1, oi, &pw, PIX_SHIFT as i32);
+        let (oi, _) = oi.as_chunks_mut::<L>();
+        for (v, o) in oi.iter_mut().enumerate() {
+            let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
+                break;
+            };
+            *o = k.pixels(a, b).to_array();
+        }
         // The derivatives, zero beyond column `win` (the padding), and `G`'s sums of the row
         // from the same vectors.
         let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
         let (vx, _) = ox.as_chunks_mut::<L>();
         let (vy, _) = oy.as_chunks_mut::<L>();
-        for (k, (vx, vy)) in vx.iter_mut().zip(vy).enumerate() {
+        for (v, (vx, vy)) in vx.iter_mut().zip(vy).enumerate() {
             let taps = (
-                taps_of(x.0, k),
-                taps_of(x.1, k),
-                taps_of(y.0, k),
-                taps_of(y.1, k),
+                taps_of(x.0, v),
+                taps_of(x.1, v),
+                taps_of(y.0, v),
+                taps_of(y.1, v),
             );
             let (Some(x0), Some(x1), Some(y0), Some(y1)) = taps else {
                 break;
             };
-            let real = lane.simd_lt(i16x8::splat(win.saturating_sub(k * L).min(L) as i16));
-            let ix = interpolate(x0, x1, &pw, W_BITS as i32) & real;
-            let iy = interpolate(y0, y1, &pw, W_BITS as i32) & real;
+            let real = lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16));
+            let ix = k.derivatives(x0, x1) & real;
+            let iy = k.derivatives(y0, y1) & real;
             (*vx, *vy) = (ix.to_array(), iy.to_array());
             s11 += ix.dot(ix);
             s12 += ix.dot(iy);
