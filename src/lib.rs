@@ -87,6 +87,7 @@ pub mod resize;
 pub mod rng;
 mod scalar;
 pub mod sfm;
+mod simd;
 pub mod target;
 pub mod transform;
 pub mod twoview;

@@ -10,8 +10,9 @@
 //! the crate stays free of `unsafe`; the kernel that uses the sampler is inlined into
 //! [`pulp::x86::V3::vectorize`], where AVX2 is enabled.
 
-use super::lanes::{L, PairWeights, Sampler, low};
+use super::lanes::{L, PairWeights, Sampler};
 use super::window::PIX_SHIFT;
+use crate::simd::low;
 use core::arch::x86_64::{__m128i, __m256i};
 use pulp::x86::V3;
 use wide::{i16x8, u8x16};

@@ -12,8 +12,9 @@ use super::arith::{Bilinear, W_BITS};
 use super::window::{
     PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, inside_span,
 };
-use crate::gradient::scharr_window;
+use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
+use crate::simd::{interleave, low};
 use crate::{Error, Result};
 use wide::{i16x8, i32x4, i32x8, u8x16};
 
@@ -162,12 +163,10 @@ impl<'s> Window<'s> for Lanes<'s> {
 }
 
 /// The derivatives of the `n x n` pixels at `(x0, y0)` of `img` into the planes `gx`, `gy`
-/// (rows `c` apart), eight columns a step, when the block and its one-pixel ring lie inside
-/// the image (then no pixel reflects; `false` and nothing written otherwise). The same
-/// integers as [`scharr_window`]: `Ix = 3 (a₊ - a₋) + 10 (b₊ - b₋) + 3 (c₊ - c₋)` over the
-/// rows above (`a`), at (`b`) and below (`c`), `Iy` likewise down the columns; at most
-/// `16 · 255` in magnitude, so `i16` lanes hold every step. Columns from `n` to the end of a
-/// whole vector are written too; only the masked padding lanes read them.
+/// (rows `c` apart), eight columns a step ([`scharr8`]), when the block and its one-pixel
+/// ring lie inside the image (then no pixel reflects; `false` and nothing written
+/// otherwise): the same integers as [`scharr_window`]. Columns from `n` to the end of a whole
+/// vector are written too; only the masked padding lanes read them.
 fn scharr_planes(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
@@ -188,19 +187,6 @@ fn scharr_planes(
     if c < L * vectors {
         return false;
     }
-    // Columns `at - 1`, `at`, `at + 1` of eight outputs from their ten bytes.
-    let widen = |h: Option<&[u8; L]>| h.map_or(i16x8::ZERO, |h| i16x8::from_u8x16_low(low(h)));
-    let three_taps = |t: &[u8; L + 2]| {
-        let mid = t
-            .first_chunk::<{ L + 1 }>()
-            .and_then(|m| m.last_chunk::<L>());
-        [
-            widen(t.first_chunk::<L>()),
-            widen(mid),
-            widen(t.last_chunk::<L>()),
-        ]
-    };
-    let (three, ten) = (i16x8::splat(3), i16x8::splat(10));
     let planes = gx.chunks_exact_mut(c).zip(gy.chunks_exact_mut(c));
     for ((rx, ry), cc) in planes.take(n).zip(rows) {
         let (vx, _) = rx.as_chunks_mut::<L>();
@@ -212,10 +198,7 @@ fn scharr_planes(
             else {
                 break;
             };
-            let ([a0, a1, a2], [b0, _, b2], [c0, c1, c2]) =
-                (three_taps(a), three_taps(b), three_taps(cc));
-            let ix = three * (a2 - a0 + c2 - c0) + ten * (b2 - b0);
-            let iy = three * (c0 - a0 + c2 - a2) + ten * (c1 - a1);
+            let (ix, iy) = scharr8(a, b, cc);
             (*ox, *oy) = (ix.to_array(), iy.to_array());
         }
         (a, b) = (b, cc);
@@ -320,16 +303,6 @@ impl PairWeights {
     }
 }
 
-/// Eight bytes in the low half of a vector (one 8-byte load), the high half zero.
-#[inline(always)]
-pub(super) fn low(h: &[u8; L]) -> u8x16 {
-    let mut v = [0u8; 16];
-    if let Some(lo) = v.first_chunk_mut::<L>() {
-        *lo = *h;
-    }
-    u8x16::new(v)
-}
-
 /// Pixels (`u8`) or derivatives (`i16`) along a row of a block.
 trait Tap: Copy {
     /// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r`, interleaved as `i16`:
@@ -358,32 +331,6 @@ impl Tap for i16 {
         };
         interleave(i16x8::new(*left), i16x8::new(*right))
     }
-}
-
-/// `(a0, b0, a1, b1, a2, b2, a3, b3)` and `(a4, b4, ..., a7, b7)`: SSE2's `punpcklwd` and
-/// `punpckhwd` (`wide` has no 16-bit interleave; LLVM did not find it in the lane-by-lane
-/// form below, which the other targets use).
-#[cfg(target_arch = "x86_64")]
-#[inline(always)]
-fn interleave(a: i16x8, b: i16x8) -> (i16x8, i16x8) {
-    use safe_arch::{m128i, unpack_high_i16_m128i, unpack_low_i16_m128i};
-    let (a, b): (m128i, m128i) = (bytemuck::cast(a), bytemuck::cast(b));
-    (
-        bytemuck::cast(unpack_low_i16_m128i(a, b)),
-        bytemuck::cast(unpack_high_i16_m128i(a, b)),
-    )
-}
-
-/// `(a0, b0, a1, b1, a2, b2, a3, b3)` and `(a4, b4, ..., a7, b7)`.
-#[cfg(not(target_arch = "x86_64"))]
-#[inline(always)]
-fn interleave(a: i16x8, b: i16x8) -> (i16x8, i16x8) {
-    let [a0, a1, a2, a3, a4, a5, a6, a7] = a.to_array();
-    let [b0, b1, b2, b3, b4, b5, b6, b7] = b.to_array();
-    (
-        i16x8::new([a0, b0, a1, b1, a2, b2, a3, b3]),
-        i16x8::new([a4, b4, a5, b5, a6, b6, a7, b7]),
-    )
 }
 
 /// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of rows `r0`, `r1`: each row's tap pairs weighed
