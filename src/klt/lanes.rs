@@ -362,8 +362,8 @@ impl Sampler for PairWeights {
 }
 
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
-/// `gx`, `gy`) at weights `w`; returns `G`'s sums. Row sums in `i32` are exact: at most
-/// `64 · (16 · 255)² < 2³¹`. Inlined into each caller, as [`mismatch`].
+/// `gx`, `gy`) with sampler `k`; returns `G`'s sums, exact (in `i32` lanes over as many rows
+/// as [`G_ROW_BOUND`] allows, then in `i64`). Inlined into each caller, as [`mismatch`].
 #[inline(always)]
 fn template<K: Sampler>(
     k: K,
@@ -382,8 +382,16 @@ fn template<K: Sampler>(
     );
     let pairs = |b| block_of(b, c, n).pairs();
     let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
+    // The lanes of each vector of a row that are real columns (the rest is padding).
     let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
+    let real: [i16x8; MAX_VECTORS] = core::array::from_fn(|v| {
+        lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16))
+    });
+    // `G`'s sums in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
+    let batch = (i64::from(i32::MAX) / (G_ROW_BOUND * (s / L).max(1) as i64)).max(1) as usize;
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
+    let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
+    let mut room = batch;
     for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
         let (oi, _) = oi.as_chunks_mut::<L>();
         for (v, o) in oi.iter_mut().enumerate() {
@@ -394,10 +402,9 @@ fn template<K: Sampler>(
         }
         // The derivatives, zero beyond column `win` (the padding), and `G`'s sums of the row
         // from the same vectors.
-        let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
         let (vx, _) = ox.as_chunks_mut::<L>();
         let (vy, _) = oy.as_chunks_mut::<L>();
-        for (v, (vx, vy)) in vx.iter_mut().zip(vy).enumerate() {
+        for (v, ((vx, vy), &real)) in vx.iter_mut().zip(vy).zip(&real).enumerate() {
             let taps = (
                 taps_of(x.0, v),
                 taps_of(x.1, v),
@@ -407,7 +414,6 @@ fn template<K: Sampler>(
             let (Some(x0), Some(x1), Some(y0), Some(y1)) = taps else {
                 break;
             };
-            let real = lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16));
             let ix = k.derivatives(x0, x1) & real;
             let iy = k.derivatives(y0, y1) & real;
             (*vx, *vy) = (ix.to_array(), iy.to_array());
@@ -415,12 +421,23 @@ fn template<K: Sampler>(
             s12 += ix.dot(iy);
             s22 += iy.dot(iy);
         }
-        a11 += sum(s11);
-        a12 += sum(s12);
-        a22 += sum(s22);
+        room -= 1;
+        if room == 0 {
+            a11 += sum(s11);
+            a12 += sum(s12);
+            a22 += sum(s22);
+            (s11, s12, s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
+            room = batch;
+        }
     }
-    (a11, a12, a22)
+    (a11 + sum(s11), a12 + sum(s12), a22 + sum(s22))
 }
+
+/// Vectors of the widest template row: [`stride`]`(MAX_WIN)` / [`L`].
+const MAX_VECTORS: usize = stride(super::MAX_WIN) / L;
+
+/// The most one vector adds to a lane of `G`'s sums: two products of at most `(16 · 255)²`.
+const G_ROW_BOUND: i64 = 2 * 4080 * 4080;
 
 /// The lanes of `v` added (exact in `i64`).
 #[inline(always)]

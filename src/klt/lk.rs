@@ -700,6 +700,56 @@ mod tests {
         assert!(cache.find(0, 0, &img3, &b).is_some());
     }
 
+    /// The widest windows on blocks of 0 and 255 (the largest derivatives along every block
+    /// edge, so the `i32` lane sums run closest to their bounds): both kernels agree to the
+    /// bit, per window and per level.
+    #[test]
+    fn widest_windows_on_hard_edges_agree_bit_for_bit() {
+        let (w, h) = (160, 120);
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let blocks: Vec<u8> = (0..(w / 4) * (h / 4))
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 7;
+                state ^= state << 17;
+                if state & 1 == 0 { 0 } else { 255 }
+            })
+            .collect();
+        let img = |dx: usize| -> Vec<u8> {
+            (0..w * h)
+                .map(|i| blocks[((i / w) / 4) * (w / 4) + ((i % w + dx) / 4).min(w / 4 - 1)])
+                .collect()
+        };
+        let (a, b) = (img(0), img(1));
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut [], 1).unwrap();
+        let pts: Vec<[f32; 2]> = (0..24)
+            .map(|k| [20.25 + 5.5 * k as f32, 30.5 + 2.75 * k as f32])
+            .collect();
+        for win in [47, 56, 63] {
+            let cfg = LkConfig {
+                win,
+                max_level: 0,
+                ..LkConfig::default()
+            }
+            .check()
+            .unwrap();
+            let mut s = std::vec![0i16; both_len(win)];
+            let mut g = std::vec![[0i16; 2]; w * h];
+            for per_level in [false, true] {
+                let (f1, f2) = both_kernels::<f32>(&pa, &pb, &pts, &cfg, per_level, &mut g, &mut s);
+                let bits = |v: &[Flow<f32>]| -> Vec<_> {
+                    v.iter()
+                        .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
+                        .collect()
+                };
+                assert_eq!(bits(&f1), bits(&f2), "win {win}, per level {per_level}");
+                let tracked = f1.iter().filter(|f| f.status == FlowStatus::Tracked);
+                assert!(tracked.count() >= 12, "win {win}: most points track");
+            }
+        }
+    }
+
     /// The two window kernels ([`super::super::window`]) compute the same integers: flows,
     /// statuses and errors equal to the bit, for both arithmetics, both gradient sources, odd
     /// and whole-vector windows, on a noisy texture with points inside, near and past every
