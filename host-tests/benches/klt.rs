@@ -7,7 +7,8 @@
 //! For accuracy and speed on one input, `klt_known` tracks the 278 Shi-Tomasi corners of
 //! basketball1 (`fixtures/klt/basketball_corners.csv`) into basketball1 warped by the known
 //! homography of the KLT tests ([`camgeom_host::known_motion`]; OpenCV's side builds the same
-//! image bit for bit): camgeom's and optical-flow-lk's end points are left in
+//! image bit for bit), and again the 100 of them whose windows stay inside the image at every
+//! level ([`INTERIOR`]): camgeom's and optical-flow-lk's end points are left in
 //! `target/tmp/peers/klt.json`, which `scripts/peers.py` scores against the exact motion.
 //!
 //! `cargo bench -p camgeom-host --bench klt`
