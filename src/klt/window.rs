@@ -10,7 +10,9 @@
 //! - [`Lanes`] (targets with 128-bit SIMD: SSE2, NEON, wasm `simd128`): the template and the
 //!   window derivatives in separate planes, rows padded to a multiple of eight lanes (`Ix`,
 //!   `Iy` zero in the padding, so it adds nothing to any sum), so every loop runs on whole
-//!   vectors of eight `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64).
+//!   vectors of eight `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64). On x86-64
+//!   CPUs with AVX2 (found at run time with the `std` feature) its bilinear pixel samples take
+//!   256-bit vectors ([`super::avx2`]); the integers are the same.
 
 use super::arith::{Bilinear, W_BITS};
 use crate::Result;
