@@ -762,7 +762,7 @@ impl<const K: usize> ChessboardDetector<K> {
 }
 
 /// [`corner_subpix`] of each corner with its window shrunk to its squares (see
-/// [`DetectConfig::adaptive_window`]).
+/// [`Refinement::AdaptiveCornerSubPix`]).
 fn refine_adaptive(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],

@@ -6,10 +6,10 @@
 //! - [`Normalization`]: Hartley's isotropic point normalisation;
 //! - [`Homography::from_four_points`]: the exact map of a minimal sample, with the sample checks
 //!   (no three points collinear, no fold) that make it safe inside RANSAC;
-//! - [`dlt`], [`dlt_masked`], [`dlt_weighted`]: the normalised direct linear transform for any
+//! - [`dlt()`], [`dlt_masked`], [`dlt_weighted`]: the normalised direct linear transform for any
 //!   number of correspondences, streamed through [`crate::linalg::StreamingQr`] in constant
 //!   memory;
-//! - [`refine`], [`refine_masked`]: Levenberg-Marquardt on the symmetric transfer error;
+//! - [`refine()`], [`refine_masked`]: Levenberg-Marquardt on the symmetric transfer error;
 //! - [`find_homography`]: RANSAC (MSAC, local optimisation, final refinement) on the generic
 //!   [`crate::ransac`] loop, with [`HomographyEstimator`] as its [`crate::ransac::Estimator`].
 //!

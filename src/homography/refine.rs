@@ -35,7 +35,7 @@ pub struct Refinement<T: Real = f32> {
 /// `D = diag|J columns|`; a step is accepted if it lowers `C`, else `λ` grows tenfold (at most
 /// 8 times per step). Stops when the relative decrease of `C` is below `√ε`.
 ///
-/// Errors: as [`super::dlt`] for the point sets; [`Error::AtInfinity`] when the starting `h`
+/// Errors: as [`super::dlt()`] for the point sets; [`Error::AtInfinity`] when the starting `h`
 /// sends a pair to infinity (it is not a plausible start); [`Error::Degenerate`] when
 /// `h₃₃ ≈ 0` in normalised coordinates (the origin of the normalised frame, the centroid of
 /// `src`, maps to infinity).

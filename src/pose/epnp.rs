@@ -18,7 +18,7 @@
 //! absolute orientation (Procrustes) between `Xᵢ` and `X'ᵢ = Σⱼ αᵢⱼ c'ⱼ`.
 //!
 //! With exactly four points (a 4-dimensional null space the linearised cases do not solve)
-//! the P3P poses of the first three points are candidates too ([`super::p3p`]).
+//! the P3P poses of the first three points are candidates too ([`super::p3p()`]).
 //!
 //! Planar point sets (`σ₃ ≤ √ε σ₁`) are rejected: use [`super::solve_planar`] (IPPE) for them.
 

@@ -448,7 +448,7 @@ pub fn refine_planar_integer(
 /// soft-float core. The refinement makes up the difference.
 ///
 /// Errors: as [`refine_planar_integer`]; as [`Homography::from_four_points`] and
-/// [`super::ippe`] for a hint that maps the box to a degenerate quadrilateral; as
+/// [`super::ippe()`] for a hint that maps the box to a degenerate quadrilateral; as
 /// [`Camera::undistort_to_normalized`].
 pub fn solve_planar_integer(
     camera: &Camera<f32>,

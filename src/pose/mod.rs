@@ -5,10 +5,10 @@
 //!
 //! - [`pose_from_homography`]: the textbook decomposition `H ~ K [r₁ r₂ t]`, projected onto
 //!   the closest rotation;
-//! - [`ippe`], [`solve_planar`]: IPPE (Collins & Bartoli 2014), both solutions of the planar
+//! - [`ippe()`], [`solve_planar`]: IPPE (Collins & Bartoli 2014), both solutions of the planar
 //!   ambiguity, sorted by reprojection error, refined;
-//! - [`p3p`]: Lambda Twist (Persson & Nordberg 2018), the up to four poses from three points;
-//! - [`epnp`]: EPnP (Lepetit et al. 2009) for `N ≥ 4` non-coplanar points;
+//! - [`p3p()`]: Lambda Twist (Persson & Nordberg 2018), the up to four poses from three points;
+//! - [`epnp()`]: EPnP (Lepetit et al. 2009) for `N ≥ 4` non-coplanar points;
 //! - [`solve_pnp`], [`solve_pnp_ransac`]: EPnP + refinement, and RANSAC over P3P samples
 //!   ([`PnpEstimator`]) with EPnP local optimisation (OpenCV's `solvePnP`, `solvePnPRansac`);
 //! - [`solve_planar_integer`], [`refine_planar_integer`]: the planar pose with integer

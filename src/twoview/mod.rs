@@ -11,7 +11,7 @@
 //!   solutions), [`find_fundamental`] (RANSAC) and [`refine_fundamental`] (LM on the Sampson
 //!   error);
 //! - [`Essential`]: `E` on the essential manifold (singular values `(1, 1, 0)`), from `F` and
-//!   the intrinsics or from a pose; [`five_point`] (Nistér), [`find_essential`] (RANSAC) and
+//!   the intrinsics or from a pose; [`five_point()`] (Nistér), [`find_essential`] (RANSAC) and
 //!   [`refine_essential`];
 //! - [`Essential::decompose`] and [`recover_pose`]: the four `(R, t)` candidates and the
 //!   cheirality test that picks one, with its number of supporting points;
