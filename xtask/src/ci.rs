@@ -121,9 +121,17 @@ fn steps() -> Vec<Step> {
         }),
     );
     add(
-        "doc",
+        "doc (public, then with the private items: their links are checked too)",
         Box::new(|| {
             let mut cmd = root_cargo(&["doc", "-p", "camgeom", "--no-deps"]);
+            run(locked(&mut cmd).env("RUSTDOCFLAGS", "-D warnings"))?;
+            let mut cmd = root_cargo(&[
+                "doc",
+                "-p",
+                "camgeom",
+                "--no-deps",
+                "--document-private-items",
+            ]);
             run(locked(&mut cmd).env("RUSTDOCFLAGS", "-D warnings"))
         }),
     );
