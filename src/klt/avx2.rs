@@ -94,13 +94,8 @@ mod tests {
             std::eprintln!("no AVX2 on this CPU: the AVX2 sampler is not run");
             return;
         };
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::rng::Pcg32::new(7);
+        let mut next = move || u64::from(rng.next_u32());
         for case in 0..20_000 {
             let a = (next() % (1 << 14)) as i16;
             let b = (next() % (1 << 14)) as i16;

@@ -382,12 +382,7 @@ mod tests {
         let mut bb = std::vec![0u8; crate::pyramid::buffer_len(w, h, 3)];
         let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut ba, 3).unwrap();
         let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), &mut bb, 3).unwrap();
-        let cfg = LkConfig {
-            max_level: 2,
-            ..LkConfig::default()
-        }
-        .check()
-        .unwrap();
+        let cfg = lk_params(LkConfig::default().win, 2);
         let pts: Vec<[f32; 2]> = (0..5)
             .flat_map(|j| (0..5).map(move |i| [25.0 + 22.0 * i as f32, 20.0 + 20.0 * j as f32]))
             .collect();
@@ -522,6 +517,24 @@ mod tests {
     /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,
     /// and skips only the final range check: a point whose last step leaves the image stays
     /// `Tracked` without it.
+    /// Validated parameters for `win x win` windows over `max_level + 1` levels.
+    fn lk_params(win: usize, max_level: usize) -> LkParams {
+        LkConfig {
+            win,
+            max_level,
+            ..LkConfig::default()
+        }
+        .check()
+        .unwrap()
+    }
+
+    /// Each flow's position, status and error as bits, for comparisons to the bit.
+    fn flow_bits(v: &[Flow<f32>]) -> Vec<(u32, u32, FlowStatus, u32)> {
+        v.iter()
+            .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
+            .collect()
+    }
+
     /// `prev_pts` tracked by [`Packed`] and by [`Lanes`] (per-window or per-level gradients).
     #[allow(clippy::type_complexity)]
     fn both_kernels<A: FlowArith>(
@@ -727,23 +740,13 @@ mod tests {
             .map(|k| [20.25 + 5.5 * k as f32, 30.5 + 2.75 * k as f32])
             .collect();
         for win in [47, 56, 63] {
-            let cfg = LkConfig {
-                win,
-                max_level: 0,
-                ..LkConfig::default()
-            }
-            .check()
-            .unwrap();
+            let cfg = lk_params(win, 0);
             let mut s = std::vec![0i16; both_len(win)];
             let mut g = std::vec![[0i16; 2]; w * h];
             for per_level in [false, true] {
                 let (f1, f2) = both_kernels::<f32>(&pa, &pb, &pts, &cfg, per_level, &mut g, &mut s);
-                let bits = |v: &[Flow<f32>]| -> Vec<_> {
-                    v.iter()
-                        .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
-                        .collect()
-                };
-                assert_eq!(bits(&f1), bits(&f2), "win {win}, per level {per_level}");
+                let (b1, b2) = (flow_bits(&f1), flow_bits(&f2));
+                assert_eq!(b1, b2, "win {win}, per level {per_level}");
                 let tracked = f1.iter().filter(|f| f.status == FlowStatus::Tracked);
                 assert!(tracked.count() >= 12, "win {win}: most points track");
             }
@@ -804,25 +807,14 @@ mod tests {
             .map(|p| p.map(Q16::saturating_from_f32))
             .collect();
         for win in [3, 8, 9, 16, 21] {
-            let cfg = LkConfig {
-                win,
-                max_level: 2,
-                ..LkConfig::default()
-            }
-            .check()
-            .unwrap();
+            let cfg = lk_params(win, 2);
             let mut s = std::vec![0i16; both_len(win)];
             let mut g = std::vec![[0i16; 2]; w * h];
             for per_level in [false, true] {
                 let (f1, f2) = both_kernels::<f32>(&pa, &pb, &pts, &cfg, per_level, &mut g, &mut s);
-                let bits = |v: &[Flow<f32>]| -> Vec<_> {
-                    v.iter()
-                        .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
-                        .collect()
-                };
                 assert_eq!(
-                    bits(&f1),
-                    bits(&f2),
+                    flow_bits(&f1),
+                    flow_bits(&f2),
                     "f32, win {win}, per level {per_level}"
                 );
                 let tracked = f1
@@ -880,13 +872,7 @@ mod tests {
         let (w, h) = (64, 48);
         let a = scene(w, h, 0.0, 0.0);
         let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), &mut [], 1).unwrap();
-        let cfg = LkConfig {
-            win: 7,
-            max_level: 0,
-            ..LkConfig::default()
-        }
-        .check()
-        .unwrap();
+        let cfg = lk_params(7, 0);
         let pts = [[-50.0f32, 3.0], [f32::NAN, 1.0], [10.0, 1e30]];
         let mut f = [Flow::<f32>::default(); 3];
         let mut s = std::vec![0i16; scratch_len(7)];
