@@ -5,17 +5,16 @@
 //! widened into one 256-bit vector (`vpmovzxbw`) and weighed by one dot product
 //! (`vpmaddwd`) instead of two, the two rows' sums added and descaled in one vector of eight
 //! `i32`, packed to `i16` with saturation (`packssdw`, as [`PairWeights`]): 25 instructions
-//! for eight pixels of the mismatch against 37. The AVX2
-//! instructions are reached through [`pulp`]'s `V3` token, which proves the CPU has them, so
-//! the crate stays free of `unsafe`; the kernel that uses the sampler is inlined into
-//! [`pulp::x86::V3::vectorize`], where AVX2 is enabled.
+//! for eight pixels of the mismatch against 37. The AVX2 instructions are reached through
+//! [`pulp`]'s `V3` token, which proves the CPU has them, so the crate stays free of `unsafe`;
+//! the kernel that uses the sampler is inlined into [`pulp::x86::V3::vectorize`], where AVX2
+//! is enabled.
 
-use super::lanes::{L, PairWeights, Sampler};
+use super::lanes::{L, PairWeights, Sampler, byte_pairs};
 use super::window::PIX_SHIFT;
-use crate::simd::low;
 use core::arch::x86_64::{__m128i, __m256i};
 use pulp::x86::V3;
-use wide::{i16x8, u8x16};
+use wide::i16x8;
 
 /// The AVX2 sampler: the weights of each row's tap pairs in 256-bit vectors (and in 128-bit
 /// ones for the derivatives).
@@ -44,13 +43,10 @@ impl Avx2 {
         }
     }
 
-    /// The eight tap pairs of row `r` as sixteen `i16`: one byte interleave, one widening.
+    /// The eight tap pairs of row `r` ([`byte_pairs`]) widened into sixteen `i16` at once.
     #[inline(always)]
     fn taps(self, r: &[u8; L + 1]) -> __m256i {
-        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
-            return bytemuck::Zeroable::zeroed();
-        };
-        let p: __m128i = bytemuck::cast(u8x16::unpack_low(low(left), low(right)));
+        let p: __m128i = bytemuck::cast(byte_pairs(r));
         self.v3.avx2._mm256_cvtepu8_epi16(p)
     }
 }

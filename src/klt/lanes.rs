@@ -311,14 +311,21 @@ trait Tap: Copy {
 }
 
 impl Tap for u8 {
-    /// Two 8-byte loads, one byte interleave, widened.
+    /// [`byte_pairs`], widened.
     #[inline(always)]
     fn pairs(r: &[u8; L + 1]) -> (i16x8, i16x8) {
-        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
-            return (i16x8::ZERO, i16x8::ZERO);
-        };
-        let p = u8x16::unpack_low(low(left), low(right));
+        let p = byte_pairs(r);
         (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
+    }
+}
+
+/// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r` as sixteen interleaved bytes: two
+/// 8-byte loads, one byte interleave (`punpcklbw`).
+#[inline(always)]
+pub(super) fn byte_pairs(r: &[u8; L + 1]) -> u8x16 {
+    match (r.first_chunk::<L>(), r.last_chunk::<L>()) {
+        (Some(left), Some(right)) => u8x16::unpack_low(low(left), low(right)),
+        _ => u8x16::ZERO,
     }
 }
 
