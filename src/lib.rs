@@ -31,6 +31,13 @@
 //! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
 //! | [`features`] | FAST corners, ORB (oriented FAST + steered BRIEF) descriptors, Hamming matching |
 //! | [`apriltag`] | AprilTag detection (tag36h11, tag25h9, tag16h5, tagStandard41h12) in fixed memory, tag pose |
+//!
+//! Cargo features (none by default):
+//!
+//! - `std`: CPU features found at run time. On x86-64 the KLT's window kernel then samples with
+//!   AVX2 where the CPU has it (the same integers as its SSE2 form; without `std`, only when
+//!   the build itself enables AVX2). Nothing allocates either way.
+//! - `defmt`: `defmt::Format` on the public types, for logging on the boards.
 #![no_std]
 #![cfg_attr(docsrs, feature(doc_cfg))]
 #![warn(missing_docs)]
