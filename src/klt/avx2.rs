@@ -80,29 +80,37 @@ impl Sampler for Avx2 {
 mod tests {
     use super::*;
 
-    /// The AVX2 sampler gives the 128-bit one's pixels for weight sets as windows have them
-    /// (each weight within one unit of `0 ..= 2¹⁴`, the four summing to `2¹⁴`) on taps that
-    /// reach both ends of the byte range. Without AVX2 on this CPU there is nothing to
-    /// compare, and the test says so.
+    /// The AVX2 sampler gives the 128-bit one's pixels for the weights the tracker makes
+    /// ([`Fixed::bilinear`](super::super::arith::FlowArith::bilinear) of random Q16 fractions,
+    /// through the kernel's `weights`, so `w11 = -1` at tiny fractions too) on taps that reach
+    /// both ends of the byte range. Without AVX2 on this CPU there is nothing to compare, and
+    /// the test says so.
     #[test]
     fn avx2_samples_as_the_128_bit_sampler() {
+        use super::super::arith::{Fixed, FlowArith, Q16};
+        use super::super::lanes::weights;
         let Some(v3) = V3::try_new() else {
             std::eprintln!("no AVX2 on this CPU: the AVX2 sampler is not run");
             return;
         };
         let mut rng = crate::rng::Pcg32::new(7);
         let mut next = move || u64::from(rng.next_u32());
+        let mut negative = 0;
         for case in 0..20_000 {
-            let a = (next() % (1 << 14)) as i16;
-            let b = (next() % (1 << 14)) as i16;
-            let (fx, fy) = (i32::from(a), i32::from(b));
-            let one = 1 << 14;
-            let q = |v: i32| ((v + (1 << 13)) >> 14) as i16;
-            let w00 = q((one - fx) * (one - fy));
-            let w01 = q(fx * (one - fy));
-            let w10 = q((one - fx) * fy);
-            let w11 = (one - i32::from(w00) - i32::from(w01) - i32::from(w10)) as i16;
-            let w = [w00, w01, w10, w11];
+            // Every fifth case fractions below 400 units, where `w11` can round to -1.
+            let frac = |v: u64| {
+                if case % 5 == 0 {
+                    (v % 400) as i32
+                } else {
+                    (v & 0xFFFF) as i32
+                }
+            };
+            let (x, y) = (Q16::from_bits(frac(next())), Q16::from_bits(frac(next())));
+            let Some(b) = Fixed::bilinear(x, y) else {
+                panic!("case {case}: no weights at ({x:?}, {y:?})");
+            };
+            let w = weights(&b);
+            negative += usize::from(w[3] < 0);
             let tap = |next: &mut dyn FnMut() -> u64| -> [u8; L + 1] {
                 core::array::from_fn(|_| match next() % 4 {
                     0 => 0,
@@ -115,5 +123,6 @@ mod tests {
             let got = v3.vectorize(|| Avx2::new(v3, &w).pixels(&r0, &r1));
             assert_eq!(got, want, "case {case}: weights {w:?}, rows {r0:?} {r1:?}");
         }
+        assert!(negative > 0, "no weight set with w11 = -1 was drawn");
     }
 }

@@ -209,7 +209,7 @@ fn scharr_planes(
 /// The Q14 weights as `i16`, so that every product is `i16 x i16`: each within one unit of
 /// `0 ..= 2¹⁴` (`w11 = 2¹⁴ - w00 - w01 - w10` is `-1` where the other three round up at a
 /// tiny `a b`; the packed kernel uses that `-1` too).
-fn weights(b: &Bilinear) -> [i16; 4] {
+pub(super) fn weights(b: &Bilinear) -> [i16; 4] {
     b.w.map(|v| v.clamp(-1, (1 << W_BITS) + 1) as i16)
 }
 
