@@ -389,13 +389,9 @@ fn template<K: Sampler>(
     );
     let pairs = |b| block_of(b, c, n).pairs();
     let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
-    // The lanes of each vector of a row that are real columns (the rest is padding).
-    let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
-    let real: [i16x8; MAX_VECTORS] = core::array::from_fn(|v| {
-        lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16))
-    });
+    let real = real_lanes(win);
     // `G`'s sums in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
-    let batch = (i64::from(i32::MAX) / (G_ROW_BOUND * (s / L).max(1) as i64)).max(1) as usize;
+    let batch = rows_per_batch(G_ROW_BOUND, s);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
     let mut room = batch;
@@ -443,6 +439,21 @@ fn template<K: Sampler>(
 /// Vectors of the widest template row: [`stride`]`(MAX_WIN)` / [`L`].
 const MAX_VECTORS: usize = stride(super::MAX_WIN) / L;
 
+/// For each vector of a `win`-wide row, the lanes that are real columns (all ones; the
+/// padding beyond `win` zero).
+#[inline(always)]
+fn real_lanes(win: usize) -> [i16x8; MAX_VECTORS] {
+    let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
+    core::array::from_fn(|v| lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16)))
+}
+
+/// Rows of `s / 8` vectors whose sums an `i32` lane holds when one vector adds at most
+/// `bound` to it (at least one: `s <= 64`, 8 vectors).
+#[inline(always)]
+fn rows_per_batch(bound: i64, s: usize) -> usize {
+    (i64::from(i32::MAX) / (bound * (s / L).max(1) as i64)).max(1) as usize
+}
+
 /// The most one vector adds to a lane of `G`'s sums: two products of at most `(16 · 255)²`.
 const G_ROW_BOUND: i64 = 2 * 4080 * 4080;
 
@@ -480,19 +491,16 @@ fn mismatch_row<K: Sampler>(
 /// The most one vector adds to a lane of [`mismatch_row`]'s sums: `2 · 8160 · 4080`.
 const ROW_BOUND: i64 = 2 * 8160 * 4080;
 
-/// One row of [`mismatch`]'s `Σ |J - I|` over the `win` real columns of `ti` (the padding lanes
-/// masked off; at most `63 · 8160 < 2³¹`).
+/// One row of [`mismatch`]'s `Σ |J - I|` over the real columns of `ti` (the padding lanes
+/// masked off by `real`, [`real_lanes`]; at most `63 · 8160 < 2³¹`).
 #[inline(always)]
-fn abs_row<K: Sampler>(r0: &[u8], r1: &[u8], ti: &[i16], win: usize, k: K) -> i64 {
+fn abs_row<K: Sampler>(r0: &[u8], r1: &[u8], ti: &[i16], real: &[i16x8], k: K) -> i64 {
     let (ti, _) = ti.as_chunks::<L>();
-    let lane = i16x8::new([0, 1, 2, 3, 4, 5, 6, 7]);
     let mut s = i32x4::ZERO;
-    for (v, &i) in ti.iter().enumerate() {
+    for (v, (&i, &real)) in ti.iter().zip(real).enumerate() {
         let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
             break;
         };
-        let left = win.saturating_sub(v * L).min(L) as i16;
-        let real = lane.simd_lt(i16x8::splat(left));
         s += ((k.pixels(a, b) - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
     }
     sum(s)
@@ -518,11 +526,11 @@ fn mismatch<K: Sampler>(
         .zip(tx.chunks_exact(s.max(L)).zip(ty.chunks_exact(s.max(L))));
     let pairs = rows.pairs().zip(planes);
     if abs {
-        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, win, k));
+        let real = real_lanes(win);
+        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, &real, k));
         return (sum_abs.sum(), 0);
     }
-    // Rows whose sums a lane of `i32` holds (at least one: `s <= 64`, 8 vectors).
-    let batch = (i64::from(i32::MAX) / (ROW_BOUND * (s / L).max(1) as i64)).max(1) as usize;
+    let batch = rows_per_batch(ROW_BOUND, s);
     let (mut b1, mut b2) = (0i64, 0i64);
     let mut acc = [i32x4::ZERO; 2];
     let mut room = batch;
