@@ -1,16 +1,18 @@
 //! The window kernel for targets with 128-bit SIMD ([`super::window`]): the template and the
 //! window derivatives in planes, rows padded to whole vectors of [`L`] `i16`.
 //!
-//! Every loop is over whole vectors of eight lanes. A bilinear sample interleaves each row's
-//! taps `(p[x], p[x + 1])` and weighs a pair with one `i16` dot product (`pmaddwd` on SSE2,
-//! OpenCV's shape); the mismatch's products are dot products too, summed in `i32` lanes over
-//! as many rows as cannot overflow them. Row sums are the same integers as
+//! Every loop is over whole vectors of eight lanes, down a column of vectors of the window
+//! (so that each row's taps are prepared once, for the samples above and below it). A
+//! bilinear sample interleaves each row's taps `(p[x], p[x + 1])` and weighs a pair with one
+//! `i16` dot product (`pmaddwd` on SSE2, OpenCV's shape); the mismatch's products are dot
+//! products too, summed in `i32` lanes over as many vectors as cannot overflow them. Row sums are the same integers as
 //! [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the `Σ |J - I|` pass masks
 //! them off.
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row, inside_span,
+    Column, PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row,
+    inside_span,
 };
 use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
@@ -54,7 +56,8 @@ pub(super) struct Lanes<'s> {
     /// the scratch (tested for every window size).
     patch: &'s mut [u8],
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
-    /// `win x s` each; `Ix` and `Iy` are zero beyond column `win`.
+    /// `win x s` each, a column of vectors after another ([`columns`]); `Ix` and `Iy` are
+    /// zero beyond column `win`.
     tmpl: &'s mut [i16],
     /// The integer corner of the window of `J` in `patch`, if it holds one
     /// ([`cached_patch`]); cleared by [`Window::template`].
@@ -266,22 +269,28 @@ fn fetch_grad(
     }
 }
 
-/// The `L + 1` taps of vector `k` along a row (`None` past its end).
-#[inline(always)]
-fn taps_of<P: Copy>(row: &[P], k: usize) -> Option<&[P; L + 1]> {
-    row.get(k * L..k * L + L + 1)?.try_into().ok()
-}
-
 /// A bilinear sampler of eight pixels at a window's weights: [`PairWeights`] (128-bit, every
 /// SIMD target) or [`super::avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same
 /// integers: `⌊(p₀₀ w₀₀ + p₀₁ w₀₁ + p₁₀ w₁₀ + p₁₁ w₁₁) / 2⁹⌉`, exact in `i32`, packed to `i16`.
-pub(super) trait Sampler: Copy {
-    /// The pixels of lanes `x = 0 .. 8` between rows `r0` and `r1` (each `p[x], p[x + 1]`),
-    /// in 1/32 grey levels.
-    fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8;
-    /// The derivatives (`Ix` or `Iy`) of lanes `x = 0 .. 8` between rows `r0` and `r1`:
-    /// `⌊Σ / 2¹⁴⌉`, in the units of the Scharr planes.
-    fn derivatives(self, r0: &[i16; L + 1], r1: &[i16; L + 1]) -> i16x8;
+///
+/// A sample takes its taps from two rows; the kernels walk a window a column of vectors at a
+/// time, so each row's taps are prepared once ([`Sampler::pixel_taps`]) and serve as the lower
+/// row of one sample and the upper row of the next.
+pub(super) trait Sampler: Copy + 'static {
+    /// A row's pixel taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8`, ready for weighing.
+    type Pixels: Copy + 'static;
+    /// A row's derivative taps, the same way.
+    type Derivatives: Copy + 'static;
+    /// The pixel taps of row `r`.
+    fn pixel_taps(self, r: &[u8; L + 1]) -> Self::Pixels;
+    /// The pixels of lanes `x = 0 .. 8` between the rows of taps `r0` (upper) and `r1`, in
+    /// 1/32 grey levels.
+    fn pixels(self, r0: Self::Pixels, r1: Self::Pixels) -> i16x8;
+    /// The derivative taps of row `r`.
+    fn derivative_taps(self, r: &[i16; L + 1]) -> Self::Derivatives;
+    /// The derivatives (`Ix` or `Iy`) of lanes `x = 0 .. 8` between the rows of taps `r0` and
+    /// `r1`: `⌊Σ / 2¹⁴⌉`, in the units of the Scharr planes.
+    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> i16x8;
 }
 
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
@@ -340,37 +349,99 @@ impl Tap for i16 {
     }
 }
 
-/// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of rows `r0`, `r1`: each row's tap pairs weighed
-/// by one `i16` dot product, exact in `i32` (at most `255 · 2¹⁴` for pixels, `16 · 255 · 2¹⁴`
-/// for derivatives), then packed back to `i16`, where every result fits (pixels at most
-/// `255 · 32` in 1/32 grey levels, derivatives `16 · 255`).
+/// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of the rows of tap pairs `a` (upper) and `b`
+/// ([`Tap::pairs`]): each row's tap pairs weighed by one `i16` dot product, exact in `i32` (at
+/// most `255 · 2¹⁴` for pixels, `16 · 255 · 2¹⁴` for derivatives), then packed back to `i16`,
+/// where every result fits (pixels at most `255 · 32` in 1/32 grey levels, derivatives
+/// `16 · 255`).
 #[inline(always)]
-fn interpolate<P: Tap>(r0: &[P; L + 1], r1: &[P; L + 1], w: &PairWeights, shift: i32) -> i16x8 {
-    let (a0, a1) = P::pairs(r0);
-    let (b0, b1) = P::pairs(r1);
+fn interpolate(a: (i16x8, i16x8), b: (i16x8, i16x8), w: &PairWeights, shift: i32) -> i16x8 {
     let half = i32x4::splat(1 << (shift - 1));
-    let lo = (a0.dot(w.upper) + b0.dot(w.lower) + half) >> shift;
-    let hi = (a1.dot(w.upper) + b1.dot(w.lower) + half) >> shift;
+    let lo = (a.0.dot(w.upper) + b.0.dot(w.lower) + half) >> shift;
+    let hi = (a.1.dot(w.upper) + b.1.dot(w.lower) + half) >> shift;
     i16x8::from_i32x8_saturate(bytemuck::cast::<[i32x4; 2], i32x8>([lo, hi]))
 }
 
 impl Sampler for PairWeights {
+    type Pixels = (i16x8, i16x8);
+    type Derivatives = (i16x8, i16x8);
+
+    #[inline(always)]
+    fn pixel_taps(self, r: &[u8; L + 1]) -> Self::Pixels {
+        u8::pairs(r)
+    }
+
     /// [`interpolate`] of pixels.
     #[inline(always)]
-    fn pixels(self, r0: &[u8; L + 1], r1: &[u8; L + 1]) -> i16x8 {
+    fn pixels(self, r0: Self::Pixels, r1: Self::Pixels) -> i16x8 {
         interpolate(r0, r1, &self, PIX_SHIFT as i32)
+    }
+
+    #[inline(always)]
+    fn derivative_taps(self, r: &[i16; L + 1]) -> Self::Derivatives {
+        i16::pairs(r)
     }
 
     /// [`interpolate`] of derivatives.
     #[inline(always)]
-    fn derivatives(self, r0: &[i16; L + 1], r1: &[i16; L + 1]) -> i16x8 {
+    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> i16x8 {
         interpolate(r0, r1, &self, W_BITS as i32)
     }
 }
 
+/// Column `v` of vectors of each of the template planes, one vector a row: the planes are
+/// kept a column of vectors after another (`win` vectors each), the order the kernels walk
+/// them in.
+#[inline(always)]
+fn columns(plane: &[i16], win: usize) -> impl Iterator<Item = &[[i16; L]]> {
+    plane
+        .chunks_exact((win * L).max(L))
+        .map(|c| c.as_chunks::<L>().0)
+}
+
+/// [`columns`], to write.
+#[inline(always)]
+fn columns_mut(plane: &mut [i16], win: usize) -> impl Iterator<Item = &mut [[i16; L]]> {
+    plane
+        .chunks_exact_mut((win * L).max(L))
+        .map(|c| c.as_chunks_mut::<L>().0)
+}
+
+/// The samples of vector `v` of a block's pixels down the block: one between each pair of
+/// consecutive rows, each row's taps prepared once. A hand-written iterator, not adapters
+/// over closures: everything inside [`pulp::x86::V3::vectorize`] must inline, or the AVX2
+/// intrinsics become calls.
+struct Samples<'a, K: Sampler> {
+    k: K,
+    taps: Column<'a, u8, { L + 1 }>,
+    upper: K::Pixels,
+}
+
+impl<'a, K: Sampler> Samples<'a, K> {
+    /// `None` when the block has no row.
+    #[inline(always)]
+    fn new(k: K, rows: Rows<'a, u8>, v: usize) -> Option<Self> {
+        let mut taps = rows.column(v * L);
+        let upper = k.pixel_taps(taps.next()?);
+        Some(Self { k, taps, upper })
+    }
+}
+
+impl<K: Sampler> Iterator for Samples<'_, K> {
+    type Item = i16x8;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<i16x8> {
+        let lower = self.k.pixel_taps(self.taps.next()?);
+        let upper = core::mem::replace(&mut self.upper, lower);
+        Some(self.k.pixels(upper, lower))
+    }
+}
+
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
-/// `gx`, `gy`) with sampler `k`; returns `G`'s sums, exact (in `i32` lanes over as many rows
-/// as [`G_ROW_BOUND`] allows, then in `i64`). Inlined into each caller, as [`mismatch`].
+/// `gx`, `gy`) with sampler `k`, a column of vectors at a time ([`columns`]); returns `G`'s
+/// sums, exact (in `i32` lanes over a column, at most 63 vectors of [`G_VECTOR_BOUND`], then
+/// in `i64`). Inlined into each caller, as [`mismatch`].
 #[inline(always)]
 fn template<K: Sampler>(
     k: K,
@@ -380,60 +451,47 @@ fn template<K: Sampler>(
     win: usize,
     s: usize,
 ) -> (i64, i64, i64) {
+    const _: () = assert!(super::MAX_WIN as i64 * G_VECTOR_BOUND <= i32::MAX as i64);
     let (c, n) = (s + 1, win + 1);
     let (ti, rest) = tmpl.split_at_mut(win * s);
     let (tx, ty) = rest.split_at_mut(win * s);
-    let planes = ti.chunks_exact_mut(s.max(L)).zip(
-        tx.chunks_exact_mut(s.max(L))
-            .zip(ty.chunks_exact_mut(s.max(L))),
-    );
-    let pairs = |b| block_of(b, c, n).pairs();
-    let taps = rows.pairs().zip(pairs(gx).zip(pairs(gy)));
-    let real = real_lanes(win);
-    // `G`'s sums in `i32` lanes over as many rows as cannot overflow them, then in `i64`.
-    let batch = rows_per_batch(G_ROW_BOUND, s);
-    let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
-    let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
-    let mut room = batch;
-    for (((r0, r1), (x, y)), (oi, (ox, oy))) in taps.zip(planes) {
-        let (oi, _) = oi.as_chunks_mut::<L>();
-        for (v, o) in oi.iter_mut().enumerate() {
-            let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
-                break;
-            };
-            *o = k.pixels(a, b).to_array();
+    for (v, oi) in columns_mut(ti, win).enumerate() {
+        let Some(samples) = Samples::new(k, rows.clone(), v) else {
+            break;
+        };
+        for (o, p) in oi.iter_mut().zip(samples) {
+            *o = p.to_array();
         }
-        // The derivatives, zero beyond column `win` (the padding), and `G`'s sums of the row
-        // from the same vectors.
-        let (vx, _) = ox.as_chunks_mut::<L>();
-        let (vy, _) = oy.as_chunks_mut::<L>();
-        for (v, ((vx, vy), &real)) in vx.iter_mut().zip(vy).zip(&real).enumerate() {
-            let taps = (
-                taps_of(x.0, v),
-                taps_of(x.1, v),
-                taps_of(y.0, v),
-                taps_of(y.1, v),
-            );
-            let (Some(x0), Some(x1), Some(y0), Some(y1)) = taps else {
-                break;
-            };
-            let ix = k.derivatives(x0, x1) & real;
-            let iy = k.derivatives(y0, y1) & real;
-            (*vx, *vy) = (ix.to_array(), iy.to_array());
+    }
+    let planes = columns_mut(tx, win).zip(columns_mut(ty, win));
+    let real = real_lanes(win);
+    let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
+    for (v, ((ox, oy), &real)) in planes.zip(&real).enumerate() {
+        // The derivatives' taps of column `v`, each row's prepared once.
+        let taps = |g| block_of(g, c, n).column::<{ L + 1 }>(v * L);
+        let mut grads = taps(gx).zip(taps(gy));
+        let Some((x, y)) = grads.next() else {
+            break;
+        };
+        let mut upper = (k.derivative_taps(x), k.derivative_taps(y));
+        let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
+        for ((x, y), (ox, oy)) in grads.zip(ox.iter_mut().zip(oy)) {
+            let lower = (k.derivative_taps(x), k.derivative_taps(y));
+            // The derivatives, zero beyond column `win` (the padding), and `G`'s sums from
+            // the same vectors.
+            let ix = k.derivatives(upper.0, lower.0) & real;
+            let iy = k.derivatives(upper.1, lower.1) & real;
+            upper = lower;
+            (*ox, *oy) = (ix.to_array(), iy.to_array());
             s11 += ix.dot(ix);
             s12 += ix.dot(iy);
             s22 += iy.dot(iy);
         }
-        room -= 1;
-        if room == 0 {
-            a11 += sum(s11);
-            a12 += sum(s12);
-            a22 += sum(s22);
-            (s11, s12, s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
-            room = batch;
-        }
+        a11 += sum(s11);
+        a12 += sum(s12);
+        a22 += sum(s22);
     }
-    (a11 + sum(s11), a12 + sum(s12), a22 + sum(s22))
+    (a11, a12, a22)
 }
 
 /// Vectors of the widest template row: [`stride`]`(MAX_WIN)` / [`L`].
@@ -447,15 +505,8 @@ fn real_lanes(win: usize) -> [i16x8; MAX_VECTORS] {
     core::array::from_fn(|v| lane.simd_lt(i16x8::splat(win.saturating_sub(v * L).min(L) as i16)))
 }
 
-/// Rows of `s / 8` vectors whose sums an `i32` lane holds when one vector adds at most
-/// `bound` to it (at least one: `s <= 64`, 8 vectors).
-#[inline(always)]
-fn rows_per_batch(bound: i64, s: usize) -> usize {
-    (i64::from(i32::MAX) / (bound * (s / L).max(1) as i64)).max(1) as usize
-}
-
 /// The most one vector adds to a lane of `G`'s sums: two products of at most `(16 · 255)²`.
-const G_ROW_BOUND: i64 = 2 * 4080 * 4080;
+const G_VECTOR_BOUND: i64 = 2 * 4080 * 4080;
 
 /// The lanes of `v` added (exact in `i64`).
 #[inline(always)]
@@ -463,53 +514,19 @@ fn sum(v: i32x4) -> i64 {
     v.to_array().iter().map(|&x| i64::from(x)).sum()
 }
 
-/// One row of [`mismatch`]: `Σ (J - I) Ix`, `Σ (J - I) Iy` over the template rows `ti`, `tx`,
-/// `ty` (`s` long), `J` bilinear in rows `r0`, `r1` (at least `s + 1` long), added to the
-/// lanes of `acc`. `J - I` fits `i16` (both in `0 ..= 255 · 32`); a lane gains two products of
-/// at most `8160 · 4080` a vector ([`ROW_BOUND`] a row of `s / 8` vectors).
-#[inline(always)]
-fn mismatch_row<K: Sampler>(
-    (r0, r1): (&[u8], &[u8]),
-    (ti, tx, ty): (&[i16], &[i16], &[i16]),
-    k: K,
-    acc: &mut [i32x4; 2],
-) {
-    let (ti, _) = ti.as_chunks::<L>();
-    let (tx, _) = tx.as_chunks::<L>();
-    let (ty, _) = ty.as_chunks::<L>();
-    let [s1, s2] = acc;
-    for (v, ((&i, &x), &y)) in ti.iter().zip(tx).zip(ty).enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
-            break;
-        };
-        let diff = k.pixels(a, b) - i16x8::new(i);
-        *s1 += diff.dot(i16x8::new(x));
-        *s2 += diff.dot(i16x8::new(y));
-    }
-}
+/// The most one vector adds to a lane of [`mismatch`]'s sums: two products of `J - I` (it fits
+/// `i16`: both in `0 ..= 255 · 32`) and a derivative, at most `2 · 8160 · 4080`.
+const VECTOR_BOUND: i64 = 2 * 8160 * 4080;
 
-/// The most one vector adds to a lane of [`mismatch_row`]'s sums: `2 · 8160 · 4080`.
-const ROW_BOUND: i64 = 2 * 8160 * 4080;
-
-/// One row of [`mismatch`]'s `Σ |J - I|` over the real columns of `ti` (the padding lanes
-/// masked off by `real`, [`real_lanes`]; at most `63 · 8160 < 2³¹`).
-#[inline(always)]
-fn abs_row<K: Sampler>(r0: &[u8], r1: &[u8], ti: &[i16], real: &[i16x8], k: K) -> i64 {
-    let (ti, _) = ti.as_chunks::<L>();
-    let mut s = i32x4::ZERO;
-    for (v, (&i, &real)) in ti.iter().zip(real).enumerate() {
-        let (Some(a), Some(b)) = (taps_of(r0, v), taps_of(r1, v)) else {
-            break;
-        };
-        s += ((k.pixels(a, b) - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
-    }
-    sum(s)
-}
+/// Vectors of [`mismatch`] whose sums an `i32` lane holds (32).
+const BATCH: usize = (i32::MAX as i64 / VECTOR_BOUND) as usize;
+const _: () = assert!(BATCH > 0);
 
 /// `Σ (J - I) [Ix Iy]` over the window (or `Σ |J - I|` when `abs`), `J` bilinear in the
-/// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide). The products are
-/// summed in `i32` lanes over as many rows as cannot overflow them, then in `i64`. Inlined
-/// into each caller, so that the AVX2 sampler's instructions are compiled where AVX2 is on.
+/// `win + 1` rows `rows` (image rows or the scratch patch, `s + 1` wide), a column of vectors
+/// at a time ([`columns`]). The products are summed in `i32` lanes over as many vectors as
+/// cannot overflow them, then in `i64`. Inlined into each caller, so that the AVX2 sampler's
+/// instructions are compiled where AVX2 is on.
 #[inline(always)]
 fn mismatch<K: Sampler>(
     k: K,
@@ -521,30 +538,41 @@ fn mismatch<K: Sampler>(
 ) -> (i64, i64) {
     let (ti, rest) = tmpl.split_at(win * s);
     let (tx, ty) = rest.split_at(win * s);
-    let planes = ti
-        .chunks_exact(s.max(L))
-        .zip(tx.chunks_exact(s.max(L)).zip(ty.chunks_exact(s.max(L))));
-    let pairs = rows.pairs().zip(planes);
     if abs {
+        // The padding lanes masked off; a lane gains at most `2 · 8160` a vector, at most
+        // `63 · 8 · 2 · 8160 < 2³¹` in all.
         let real = real_lanes(win);
-        let sum_abs = pairs.map(|((r0, r1), (i, _))| abs_row(r0, r1, i, &real, k));
-        return (sum_abs.sum(), 0);
+        let mut acc = i32x4::ZERO;
+        for (v, (ti, &real)) in columns(ti, win).zip(&real).enumerate() {
+            let Some(samples) = Samples::new(k, rows.clone(), v) else {
+                break;
+            };
+            for (j, &i) in samples.zip(ti) {
+                acc += ((j - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
+            }
+        }
+        return (sum(acc), 0);
     }
-    let batch = rows_per_batch(ROW_BOUND, s);
     let (mut b1, mut b2) = (0i64, 0i64);
-    let mut acc = [i32x4::ZERO; 2];
-    let mut room = batch;
-    for ((r0, r1), (i, (x, y))) in pairs {
-        mismatch_row((r0, r1), (i, x, y), k, &mut acc);
-        room -= 1;
-        if room == 0 {
-            b1 += sum(acc[0]);
-            b2 += sum(acc[1]);
-            acc = [i32x4::ZERO; 2];
-            room = batch;
+    let planes = columns(ti, win).zip(columns(tx, win).zip(columns(ty, win)));
+    for (v, (ti, (tx, ty))) in planes.enumerate() {
+        let Some(mut samples) = Samples::new(k, rows.clone(), v) else {
+            break;
+        };
+        // The column in batches of vectors, each summed in `i32` lanes.
+        let parts = ti.chunks(BATCH).zip(tx.chunks(BATCH).zip(ty.chunks(BATCH)));
+        for (ti, (tx, ty)) in parts {
+            let (mut s1, mut s2) = (i32x4::ZERO, i32x4::ZERO);
+            for ((&i, (&x, &y)), j) in ti.iter().zip(tx.iter().zip(ty)).zip(&mut samples) {
+                let diff = j - i16x8::new(i);
+                s1 += diff.dot(i16x8::new(x));
+                s2 += diff.dot(i16x8::new(y));
+            }
+            b1 += sum(s1);
+            b2 += sum(s2);
         }
     }
-    (b1 + sum(acc[0]), b2 + sum(acc[1]))
+    (b1, b2)
 }
 
 #[cfg(test)]

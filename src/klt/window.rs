@@ -233,6 +233,28 @@ impl<'a, P> Iterator for Rows<'a, P> {
 }
 
 impl<'a, P> Rows<'a, P> {
+    /// The `N` elements from column `at` of each row, down the block (none when they reach
+    /// past its columns).
+    #[inline(always)]
+    pub(super) fn column<const N: usize>(self, at: usize) -> Column<'a, P, N> {
+        // The block's elements, up to the end of its last row: each row's taps then cost one
+        // bounds test.
+        let end = self
+            .left
+            .checked_sub(1)
+            .map(|l| l * self.stride + self.cols);
+        let fits = at + N <= self.cols;
+        let block = match end {
+            Some(end) if fits => self.rest.get(..end).unwrap_or(&[]),
+            _ => &[],
+        };
+        Column {
+            block,
+            at,
+            stride: self.stride,
+        }
+    }
+
     /// Consecutive rows `(r, r + 1)`: `left - 1` pairs.
     #[inline(always)]
     pub(super) fn pairs(mut self) -> impl Iterator<Item = (&'a [P], &'a [P])> {
@@ -242,6 +264,27 @@ impl<'a, P> Rows<'a, P> {
             let r0 = prev.replace(r1)?;
             Some((r0, r1))
         })
+    }
+}
+
+/// [`Rows::column`]: `N` elements of each row, from one column down the block. Hand-written,
+/// as [`Rows`], so that it inlines into the kernels (inside `V3::vectorize` a call left out of
+/// line would take the AVX2 intrinsics with it).
+pub(super) struct Column<'a, P, const N: usize> {
+    block: &'a [P],
+    /// The next row's first element in `block`.
+    at: usize,
+    stride: usize,
+}
+
+impl<'a, P, const N: usize> Iterator for Column<'a, P, N> {
+    type Item = &'a [P; N];
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<&'a [P; N]> {
+        let t = self.block.get(self.at..)?.first_chunk::<N>()?;
+        self.at += self.stride;
+        Some(t)
     }
 }
 
