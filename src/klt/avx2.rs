@@ -4,20 +4,20 @@
 //! The same integers as [`PairWeights`]: each row's eight pixel tap pairs `(p[x], p[x + 1])`
 //! widened into one 256-bit vector (`vpmovzxbw`) and weighed by one dot product
 //! (`vpmaddwd`) instead of two, the two rows' sums added and descaled in one vector of eight
-//! `i32`, packed to `i16` with saturation (`packssdw`, as [`PairWeights`]): 25 instructions
-//! for eight pixels of the mismatch against 37. The AVX2 instructions are reached through
+//! `i32`, packed to `i16` with saturation (`packssdw`, as [`PairWeights`]). The derivatives'
+//! eight tap pairs come from two 256-bit loads of `[Ix, Iy]` pairs, split by masks and shifts. The AVX2 instructions are reached through
 //! [`pulp`]'s `V3` token, which proves the CPU has them, so the crate stays free of `unsafe`;
 //! the kernel that uses the sampler is inlined into [`pulp::x86::V3::vectorize`], where AVX2
 //! is enabled.
 
+use super::arith::W_BITS;
 use super::lanes::{L, PairWeights, Sampler, byte_pairs};
 use super::window::PIX_SHIFT;
 use core::arch::x86_64::{__m128i, __m256i};
 use pulp::x86::V3;
 use wide::i16x8;
 
-/// The AVX2 sampler: the weights of each row's tap pairs in 256-bit vectors (and in 128-bit
-/// ones for the derivatives).
+/// The AVX2 sampler: the weights of each row's tap pairs in 256-bit vectors.
 #[derive(Clone, Copy)]
 pub(super) struct Avx2 {
     v3: V3,
@@ -25,8 +25,6 @@ pub(super) struct Avx2 {
     upper: __m256i,
     /// `[w10, w11]`: the lower row's.
     lower: __m256i,
-    /// The same weights in 128 bits.
-    narrow: PairWeights,
 }
 
 impl Avx2 {
@@ -39,7 +37,6 @@ impl Avx2 {
             v3,
             upper: wide(narrow.upper),
             lower: wide(narrow.lower),
-            narrow,
         }
     }
 }
@@ -47,10 +44,8 @@ impl Avx2 {
 impl Sampler for Avx2 {
     /// The eight tap pairs of a row ([`byte_pairs`]) widened into sixteen `i16` at once.
     type Pixels = __m256i;
-    /// The 128-bit sampler's: derivative taps are `i16` already, and joining their
-    /// interleaved halves into one 256-bit vector costs what the one dot product saves
-    /// (measured: the template 3 % slower that way).
-    type Derivatives = <PairWeights as Sampler>::Derivatives;
+    /// `Ix`'s tap pairs and `Iy`'s of all eight lanes, each in one 256-bit vector.
+    type Derivatives = (__m256i, __m256i);
 
     #[inline(always)]
     fn pixel_taps(self, r: &[u8; L + 1]) -> __m256i {
@@ -73,14 +68,48 @@ impl Sampler for Avx2 {
         bytemuck::cast(sse2._mm_packs_epi32(lo, hi))
     }
 
+    /// Eight `[Ix, Iy]` pairs at `x` and eight at `x + 1`, one load each, split as
+    /// [`split_pairs`](super::lanes::split_pairs) does (x86-64 is little-endian).
     #[inline(always)]
-    fn derivative_taps(self, r: &[i16; L + 1]) -> Self::Derivatives {
-        self.narrow.derivative_taps(r)
+    fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> (__m256i, __m256i) {
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let load = |p: Option<&[[i16; 2]; L]>| -> __m256i {
+            p.map_or(avx._mm256_setzero_si256(), |p| bytemuck::cast(*p))
+        };
+        let (a, b) = (load(r.first_chunk()), load(r.last_chunk()));
+        let (low, high) = (
+            avx._mm256_set1_epi32(0xFFFF),
+            avx._mm256_set1_epi32(-0x1_0000),
+        );
+        let ix = avx2._mm256_or_si256(
+            avx2._mm256_and_si256(a, low),
+            avx2._mm256_slli_epi32::<16>(b),
+        );
+        let iy = avx2._mm256_or_si256(
+            avx2._mm256_srli_epi32::<16>(a),
+            avx2._mm256_and_si256(b, high),
+        );
+        (ix, iy)
     }
 
+    /// Each derivative's two dot products, added and descaled in `i32`, both packed to `i16`
+    /// in one `vpackssdw` and put in order by one `vpermq`.
     #[inline(always)]
-    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> i16x8 {
-        self.narrow.derivatives(r0, r1)
+    fn derivatives(self, r0: (__m256i, __m256i), r1: (__m256i, __m256i)) -> (i16x8, i16x8) {
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let half = avx._mm256_set1_epi32(1 << (W_BITS - 1));
+        let weigh = |a: __m256i, b: __m256i| {
+            let a = avx2._mm256_madd_epi16(a, self.upper);
+            let b = avx2._mm256_madd_epi16(b, self.lower);
+            let s = avx2._mm256_add_epi32(avx2._mm256_add_epi32(a, b), half);
+            avx2._mm256_srai_epi32::<{ W_BITS as i32 }>(s)
+        };
+        let (ix, iy) = (weigh(r0.0, r1.0), weigh(r0.1, r1.1));
+        // Lanes `[ix 0-3, iy 0-3 | ix 4-7, iy 4-7]`, then `[ix 0-7 | iy 0-7]`.
+        let p = avx2._mm256_packs_epi32(ix, iy);
+        let p = avx2._mm256_permute4x64_epi64::<0b11_01_10_00>(p);
+        let [ix, iy]: [i16x8; 2] = bytemuck::cast(p);
+        (ix, iy)
     }
 }
 
@@ -88,11 +117,11 @@ impl Sampler for Avx2 {
 mod tests {
     use super::*;
 
-    /// The AVX2 sampler gives the 128-bit one's pixels for the weights the tracker makes
-    /// ([`Fixed::bilinear`](super::super::arith::FlowArith::bilinear) of random Q16 fractions,
-    /// through the kernel's `weights`, so `w11 = -1` at tiny fractions too) on taps that reach
-    /// both ends of the byte range. Without AVX2 on this CPU there is nothing to compare, and
-    /// the test says so.
+    /// The AVX2 sampler gives the 128-bit one's pixels and derivatives for the weights the
+    /// tracker makes ([`Fixed::bilinear`](super::super::arith::FlowArith::bilinear) of random
+    /// Q16 fractions, through the kernel's `weights`, so `w11 = -1` at tiny fractions too) on
+    /// taps that reach both ends of their ranges (bytes; derivatives `±16 · 255`). Without AVX2
+    /// on this CPU there is nothing to compare, and the test says so.
     #[test]
     fn avx2_samples_as_the_128_bit_sampler() {
         use super::super::arith::{Fixed, FlowArith, Q16};
@@ -131,6 +160,21 @@ mod tests {
             let want = p.pixels(p.pixel_taps(&r0), p.pixel_taps(&r1));
             let got = v3.vectorize(|| k.pixels(k.pixel_taps(&r0), k.pixel_taps(&r1)));
             assert_eq!(got, want, "case {case}: weights {w:?}, rows {r0:?} {r1:?}");
+            // Derivatives in `-16 · 255 ..= 16 · 255`, the ends as often as the rest.
+            let grad = |next: &mut dyn FnMut() -> u64| -> [[i16; 2]; L + 1] {
+                core::array::from_fn(|_| {
+                    core::array::from_fn(|_| match next() % 4 {
+                        0 => -4080,
+                        1 => 4080,
+                        _ => (next() % 8161) as i16 - 4080,
+                    })
+                })
+            };
+            let (g0, g1) = (grad(&mut next), grad(&mut next));
+            let want = p.derivatives(p.derivative_taps(&g0), p.derivative_taps(&g1));
+            let got =
+                v3.vectorize(|| k.derivatives(k.derivative_taps(&g0), k.derivative_taps(&g1)));
+            assert_eq!(got, want, "case {case}: weights {w:?}, rows {g0:?} {g1:?}");
         }
         assert!(negative > 0, "no weight set with w11 = -1 was drawn");
     }

@@ -1,13 +1,15 @@
-//! The window kernel for targets with 128-bit SIMD ([`super::window`]): the template and the
-//! window derivatives in planes, rows padded to whole vectors of [`L`] `i16`.
+//! The window kernel for targets with 128-bit SIMD ([`super::window`]): the template in
+//! planes, rows padded to whole vectors of [`L`] `i16`; the window's derivatives as `[Ix, Iy]`
+//! pairs, the level's own rows when the window lies inside it.
 //!
 //! Every loop is over whole vectors of eight lanes, down a column of vectors of the window
 //! (so that each row's taps are prepared once, for the samples above and below it). A
 //! bilinear sample interleaves each row's taps `(p[x], p[x + 1])` and weighs a pair with one
-//! `i16` dot product (`pmaddwd` on SSE2, OpenCV's shape); the mismatch's products are dot
-//! products too, summed in `i32` lanes over as many vectors as cannot overflow them. Row sums are the same integers as
-//! [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the `Σ |J - I|` pass masks
-//! them off.
+//! `i16` dot product (`pmaddwd` on SSE2, OpenCV's shape); the derivatives' tap pairs are split
+//! from the `[Ix, Iy]` pairs by masks and shifts. The mismatch's products are dot products
+//! too, summed in `i32` lanes over as many vectors as cannot overflow them. Row sums are the
+//! same integers as [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the
+//! `Σ |J - I|` pass masks them off.
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
@@ -18,7 +20,7 @@ use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
 use crate::simd::{interleave, low};
 use crate::{Error, Result};
-use wide::{i16x8, i32x4, i32x8, u8x16};
+use wide::{i16x8, i32x4, i32x8, u8x16, u32x4};
 
 /// Lanes of one vector of `i16` (128 bits).
 pub(super) const L: usize = 8;
@@ -29,7 +31,7 @@ const fn stride(win: usize) -> usize {
 }
 
 /// `i16` elements of scratch for `win x win` windows, `s = stride(win)`:
-/// `3 (win + 1)(s + 1)` (`Ix`, `Iy` and reflected pixels at integer positions, `s + 1`
+/// `3 (win + 1)(s + 1)` (`[Ix, Iy]` pairs and reflected pixels at integer positions, `s + 1`
 /// columns for the right-hand taps of the last lane) and `3 win s` (the template planes).
 pub(super) const fn scratch_len(win: usize) -> usize {
     let s = stride(win);
@@ -46,10 +48,9 @@ pub(super) struct Lanes<'s> {
     win: usize,
     /// [`stride`]`(win)`.
     s: usize,
-    /// `Ix` at integer positions, `(win + 1) x (s + 1)`.
-    gx: &'s mut [i16],
-    /// `Iy` at integer positions, `(win + 1) x (s + 1)`.
-    gy: &'s mut [i16],
+    /// `[Ix, Iy]` at integer positions, `(win + 1) x (s + 1)`, for a window whose
+    /// derivatives are not read straight from a level's ([`Window::template`]).
+    grad: &'s mut [[i16; 2]],
     /// Pixels of a block that leaves the image (reflected): the template's,
     /// `(win + 1) x (s + 1)` bytes, or the mismatch's with its margin ([`cached_patch`]),
     /// `(win + 3) x (s + 3)`; both fit the `2 (win + 1)(s + 1)` bytes of its `i16` part of
@@ -72,16 +73,15 @@ impl<'s> Window<'s> for Lanes<'s> {
         let s = stride(win);
         let block = (win + 1) * (s + 1);
         let short = Error::BufferTooSmall("scratch");
-        let (gx, rest) = scratch.split_at_mut_checked(block).ok_or(short)?;
-        let (gy, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
+        let (grad, rest) = scratch.split_at_mut_checked(2 * block).ok_or(short)?;
+        let grad = bytemuck::cast_slice_mut::<i16, [i16; 2]>(grad);
         let (patch, rest) = rest.split_at_mut_checked(block).ok_or(short)?;
         let patch = bytemuck::cast_slice_mut::<i16, u8>(patch);
         let tmpl = rest.get_mut(..state_len(win)).ok_or(short)?;
         Ok(Self {
             win,
             s,
-            gx,
-            gy,
+            grad,
             patch,
             tmpl,
             patch_at: None,
@@ -97,30 +97,26 @@ impl<'s> Window<'s> for Lanes<'s> {
         b: &Bilinear,
     ) -> (i64, i64, i64) {
         let (n, c) = (self.win + 1, self.s + 1);
-        match grad {
-            Some(g) => fetch_grad(g, (b.x, b.y), c, n, self.gx, self.gy),
-            None if scharr_planes(i, (b.x, b.y), n, c, self.gx, self.gy) => {}
-            None => {
-                // Scharr writes `[Ix, Iy]` pairs, `win + 1` a row (the padding columns only
-                // reach lanes that are zeroed after the interpolation): into the template
-                // planes, free until the interpolation below (`2 (win + 1)² <= 3 win s` for
-                // `win >= 3`), then split into the two planes.
-                let (pairs, _) = self.tmpl.as_chunks_mut::<2>();
-                if let Some(pairs) = pairs.get_mut(..n * n) {
-                    let _ = scharr_window(i, b.x as isize, b.y as isize, n, n, pairs);
-                    let rows = pairs.chunks_exact(n);
-                    let planes = self.gx.chunks_exact_mut(c).zip(self.gy.chunks_exact_mut(c));
-                    for (row, (rx, ry)) in rows.zip(planes) {
-                        for (&[dx, dy], (x, y)) in row.iter().zip(rx.iter_mut().zip(ry)) {
-                            (*x, *y) = (dx, dy);
-                        }
-                    }
-                }
+        // The derivatives: straight from the level's when the block lies inside it, else
+        // copied (zero outside) or computed into `grad`.
+        let grads = match grad.map(|g| (g, block_rows(g, (b.x, b.y), c, n))) {
+            Some((_, Some(rows))) => rows,
+            Some((g, None)) => {
+                fetch_grad(g, (b.x, b.y), c, n, self.grad);
+                block_of(self.grad, c, n)
             }
-        }
+            None => {
+                if !scharr_pairs(i, (b.x, b.y), n, c, self.grad) {
+                    // Reflected, by the scalar Scharr (`c` columns a row: the padding
+                    // columns only reach lanes that are zeroed after the interpolation).
+                    let _ = scharr_window(i, b.x as isize, b.y as isize, c, n, self.grad);
+                }
+                block_of(self.grad, c, n)
+            }
+        };
         self.patch_at = None;
         let w = weights(b);
-        let (grads, tmpl) = ((&*self.gx, &*self.gy), &mut *self.tmpl);
+        let tmpl = &mut *self.tmpl;
         let rows = match block_rows(i, (b.x, b.y), c, n) {
             Some(rows) => rows,
             None => {
@@ -165,18 +161,17 @@ impl<'s> Window<'s> for Lanes<'s> {
     }
 }
 
-/// The derivatives of the `n x n` pixels at `(x0, y0)` of `img` into the planes `gx`, `gy`
-/// (rows `c` apart), eight columns a step ([`scharr8`]), when the block and its one-pixel
-/// ring lie inside the image (then no pixel reflects; `false` and nothing written
+/// The derivatives of the `n x n` pixels at `(x0, y0)` of `img` into `grad` as `[Ix, Iy]`
+/// pairs (rows `c` apart), eight columns a step ([`scharr8`]), when the block and its
+/// one-pixel ring lie inside the image (then no pixel reflects; `false` and nothing written
 /// otherwise): the same integers as [`scharr_window`]. Columns from `n` to the end of a whole
 /// vector are written too; only the masked padding lanes read them.
-fn scharr_planes(
+fn scharr_pairs(
     img: &ImageView<'_, u8>,
     (x0, y0): (i32, i32),
     n: usize,
     c: usize,
-    gx: &mut [i16],
-    gy: &mut [i16],
+    grad: &mut [[i16; 2]],
 ) -> bool {
     let vectors = n.div_ceil(L);
     // Columns x0 - 1 .. x0 + 8 vectors + 1 of rows y0 - 1 .. y0 + n + 1.
@@ -190,19 +185,17 @@ fn scharr_planes(
     if c < L * vectors {
         return false;
     }
-    let planes = gx.chunks_exact_mut(c).zip(gy.chunks_exact_mut(c));
-    for ((rx, ry), cc) in planes.take(n).zip(rows) {
-        let (vx, _) = rx.as_chunks_mut::<L>();
-        let (vy, _) = ry.as_chunks_mut::<L>();
+    for (out, cc) in grad.chunks_exact_mut(c).take(n).zip(rows) {
+        let (out, _) = out.as_chunks_mut::<L>();
         let [ta, tb, tc] = [a, b, cc].map(|p| p.windows(L + 2).step_by(L));
-        let vecs = ta.zip(tb).zip(tc);
-        for ((ox, oy), ((a, b), cc)) in vx.iter_mut().zip(vy).zip(vecs) {
+        for (o, ((a, b), cc)) in out.iter_mut().zip(ta.zip(tb).zip(tc)) {
             let [Some(a), Some(b), Some(cc)] = [a, b, cc].map(|t| t.first_chunk::<{ L + 2 }>())
             else {
                 break;
             };
             let (ix, iy) = scharr8(a, b, cc);
-            (*ox, *oy) = (ix.to_array(), iy.to_array());
+            let (lo, hi) = interleave(ix, iy);
+            *o = bytemuck::cast([lo.to_array(), hi.to_array()]);
         }
         (a, b) = (b, cc);
     }
@@ -216,55 +209,30 @@ pub(super) fn weights(b: &Bilinear) -> [i16; 4] {
     b.w.map(|v| v.clamp(-1, (1 << W_BITS) + 1) as i16)
 }
 
-/// Copies the `cols x rows` derivatives at `(x0, y0)` of a precomputed level into the planes
-/// `gx`, `gy`, zero outside: each row's span inside the level in one pass.
+/// Copies the `cols x rows` derivatives at `(x0, y0)` of a precomputed level into `grad`,
+/// zero outside: each row's span inside the level in one copy.
 fn fetch_grad(
     g: &ImageView<'_, [i16; 2]>,
     (x0, y0): (i32, i32),
     cols: usize,
     rows: usize,
-    gx: &mut [i16],
-    gy: &mut [i16],
+    grad: &mut [[i16; 2]],
 ) {
     let (inner, span) = inside_span(g, x0, cols);
-    let planes = gx
-        .chunks_exact_mut(cols.max(1))
-        .zip(gy.chunks_exact_mut(cols.max(1)));
-    for (j, (rx, ry)) in planes.take(rows).enumerate() {
+    for (j, row) in grad.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
         let seg = grad_row(g, y0, j, span.clone()).unwrap_or(&[]);
-        // Zero left of the span, the span split into the planes, zero right of it (the
-        // fills only where there is something to zero: each is a `memset` call).
+        // Zero left of the span, the span, zero right of it (the fills only where there is
+        // something to zero: each is a `memset` call).
         let (lo, hi) = (inner.start, inner.start + seg.len());
-        for r in [&mut *rx, &mut *ry] {
-            let (head, tail) = r.split_at_mut(lo.min(r.len()));
-            let tail = tail.get_mut(hi - lo..).unwrap_or(&mut []);
-            for part in [head, tail] {
-                if !part.is_empty() {
-                    part.fill(0);
-                }
+        let (head, rest) = row.split_at_mut(lo.min(row.len()));
+        let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
+        for (m, &d) in mid.iter_mut().zip(seg) {
+            *m = d;
+        }
+        for part in [head, tail] {
+            if !part.is_empty() {
+                part.fill([0; 2]);
             }
-        }
-        let (Some(x), Some(y)) = (rx.get_mut(lo..hi), ry.get_mut(lo..hi)) else {
-            continue;
-        };
-        // Eight pairs a step: as `i32` lanes, `Ix` is the low half and `Iy` the high half
-        // (on a little-endian target), each sign-extended by shifts and packed back to `i16`.
-        let (sc, sr) = seg.as_chunks::<8>();
-        let (xc, xr) = x.as_chunks_mut::<8>();
-        let (yc, yr) = y.as_chunks_mut::<8>();
-        for ((x, y), p) in xc.iter_mut().zip(yc.iter_mut()).zip(sc) {
-            let v: i32x8 = bytemuck::cast(*p);
-            let (low, high) = ((v << 16) >> 16, v >> 16);
-            let (dx, dy) = if cfg!(target_endian = "little") {
-                (low, high)
-            } else {
-                (high, low)
-            };
-            *x = i16x8::from_i32x8_saturate(dx).to_array();
-            *y = i16x8::from_i32x8_saturate(dy).to_array();
-        }
-        for ((x, y), &[dx, dy]) in xr.iter_mut().zip(yr.iter_mut()).zip(sr) {
-            (*x, *y) = (dx, dy);
         }
     }
 }
@@ -279,18 +247,18 @@ fn fetch_grad(
 pub(super) trait Sampler: Copy + 'static {
     /// A row's pixel taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8`, ready for weighing.
     type Pixels: Copy + 'static;
-    /// A row's derivative taps, the same way.
+    /// A row's derivative taps, `Ix`'s and `Iy`'s, the same way.
     type Derivatives: Copy + 'static;
     /// The pixel taps of row `r`.
     fn pixel_taps(self, r: &[u8; L + 1]) -> Self::Pixels;
     /// The pixels of lanes `x = 0 .. 8` between the rows of taps `r0` (upper) and `r1`, in
     /// 1/32 grey levels.
     fn pixels(self, r0: Self::Pixels, r1: Self::Pixels) -> i16x8;
-    /// The derivative taps of row `r`.
-    fn derivative_taps(self, r: &[i16; L + 1]) -> Self::Derivatives;
-    /// The derivatives (`Ix` or `Iy`) of lanes `x = 0 .. 8` between the rows of taps `r0` and
-    /// `r1`: `⌊Σ / 2¹⁴⌉`, in the units of the Scharr planes.
-    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> i16x8;
+    /// The derivative taps of row `r` of `[Ix, Iy]` pairs.
+    fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> Self::Derivatives;
+    /// `Ix` and `Iy` of lanes `x = 0 .. 8` between the rows of taps `r0` and `r1`:
+    /// `⌊Σ / 2¹⁴⌉`, in the units of the Scharr derivatives.
+    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> (i16x8, i16x8);
 }
 
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
@@ -312,22 +280,6 @@ impl PairWeights {
     }
 }
 
-/// Pixels (`u8`) or derivatives (`i16`) along a row of a block.
-trait Tap: Copy {
-    /// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r`, interleaved as `i16`:
-    /// lanes 0-3 and 4-7, each as four pairs, for one `i16` dot product (`pmaddwd`) a pair.
-    fn pairs(r: &[Self; L + 1]) -> (i16x8, i16x8);
-}
-
-impl Tap for u8 {
-    /// [`byte_pairs`], widened.
-    #[inline(always)]
-    fn pairs(r: &[u8; L + 1]) -> (i16x8, i16x8) {
-        let p = byte_pairs(r);
-        (i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p))
-    }
-}
-
 /// The taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8` of `r` as sixteen interleaved bytes: two
 /// 8-byte loads, one byte interleave (`punpcklbw`).
 #[inline(always)]
@@ -338,54 +290,81 @@ pub(super) fn byte_pairs(r: &[u8; L + 1]) -> u8x16 {
     }
 }
 
-impl Tap for i16 {
-    /// Two loads and the 16-bit interleaves (`punpcklwd`, `punpckhwd`).
-    #[inline(always)]
-    fn pairs(r: &[i16; L + 1]) -> (i16x8, i16x8) {
-        let (Some(left), Some(right)) = (r.first_chunk::<L>(), r.last_chunk::<L>()) else {
-            return (i16x8::ZERO, i16x8::ZERO);
-        };
-        interleave(i16x8::new(*left), i16x8::new(*right))
+/// The tap pairs of `Ix` and of `Iy` of four lanes from their `[Ix, Iy]` pairs at `x` (`a`)
+/// and `x + 1` (`b`), each pair as a 32-bit lane: `Ix`'s are the first halves in memory of
+/// `a`'s and `b`'s lanes, `Iy`'s the second halves, joined by masks and shifts (no shuffle).
+#[inline(always)]
+pub(super) fn split_pairs(a: u32x4, b: u32x4) -> (u32x4, u32x4) {
+    let low = u32x4::splat(0xFFFF);
+    if cfg!(target_endian = "little") {
+        ((a & low) | (b << 16), (a >> 16) | (b & !low))
+    } else {
+        ((a & !low) | (b >> 16), (a << 16) | (b & low))
     }
 }
 
-/// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of the rows of tap pairs `a` (upper) and `b`
-/// ([`Tap::pairs`]): each row's tap pairs weighed by one `i16` dot product, exact in `i32` (at
-/// most `255 · 2¹⁴` for pixels, `16 · 255 · 2¹⁴` for derivatives), then packed back to `i16`,
-/// where every result fits (pixels at most `255 · 32` in 1/32 grey levels, derivatives
-/// `16 · 255`).
+/// The taps of row `r`'s `[Ix, Iy]` pairs: `Ix`'s pairs of lanes 0-3 and 4-7, then `Iy`'s.
 #[inline(always)]
-fn interpolate(a: (i16x8, i16x8), b: (i16x8, i16x8), w: &PairWeights, shift: i32) -> i16x8 {
+fn derivative_pairs(r: &[[i16; 2]; L + 1]) -> [i16x8; 4] {
+    let words = |p: Option<&[[i16; 2]; 4]>| p.map_or(u32x4::ZERO, |p| bytemuck::cast(*p));
+    let half = |r: &[[i16; 2]]| {
+        (
+            words(r.first_chunk()),
+            words(r.get(1..).and_then(|r| r.first_chunk())),
+        )
+    };
+    let ((a0, b0), (a1, b1)) = (half(r), half(r.get(L / 2..).unwrap_or(&[])));
+    let (x0, y0) = split_pairs(a0, b0);
+    let (x1, y1) = split_pairs(a1, b1);
+    [x0, x1, y0, y1].map(bytemuck::cast)
+}
+
+/// `⌊Σ taps · w / 2^shift⌉` for the 8 lanes of the rows of tap pairs `a` (upper) and `b`
+/// (lanes 0-3, then 4-7): each row's tap pairs weighed by one `i16` dot product, exact in
+/// `i32` (at most `255 · 2¹⁴` for pixels, `16 · 255 · 2¹⁴` for derivatives), then packed back
+/// to `i16`, where every result fits (pixels at most `255 · 32` in 1/32 grey levels,
+/// derivatives `16 · 255`).
+#[inline(always)]
+fn interpolate(a: [i16x8; 2], b: [i16x8; 2], w: &PairWeights, shift: i32) -> i16x8 {
     let half = i32x4::splat(1 << (shift - 1));
-    let lo = (a.0.dot(w.upper) + b.0.dot(w.lower) + half) >> shift;
-    let hi = (a.1.dot(w.upper) + b.1.dot(w.lower) + half) >> shift;
+    let lo = (a[0].dot(w.upper) + b[0].dot(w.lower) + half) >> shift;
+    let hi = (a[1].dot(w.upper) + b[1].dot(w.lower) + half) >> shift;
     i16x8::from_i32x8_saturate(bytemuck::cast::<[i32x4; 2], i32x8>([lo, hi]))
 }
 
 impl Sampler for PairWeights {
-    type Pixels = (i16x8, i16x8);
-    type Derivatives = (i16x8, i16x8);
+    type Pixels = [i16x8; 2];
+    type Derivatives = [i16x8; 4];
 
+    /// [`byte_pairs`], widened.
     #[inline(always)]
-    fn pixel_taps(self, r: &[u8; L + 1]) -> Self::Pixels {
-        u8::pairs(r)
+    fn pixel_taps(self, r: &[u8; L + 1]) -> [i16x8; 2] {
+        let p = byte_pairs(r);
+        [i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p)]
     }
 
     /// [`interpolate`] of pixels.
     #[inline(always)]
-    fn pixels(self, r0: Self::Pixels, r1: Self::Pixels) -> i16x8 {
+    fn pixels(self, r0: [i16x8; 2], r1: [i16x8; 2]) -> i16x8 {
         interpolate(r0, r1, &self, PIX_SHIFT as i32)
     }
 
+    /// [`derivative_pairs`].
     #[inline(always)]
-    fn derivative_taps(self, r: &[i16; L + 1]) -> Self::Derivatives {
-        i16::pairs(r)
+    fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> [i16x8; 4] {
+        derivative_pairs(r)
     }
 
-    /// [`interpolate`] of derivatives.
+    /// [`interpolate`] of each derivative.
     #[inline(always)]
-    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> i16x8 {
-        interpolate(r0, r1, &self, W_BITS as i32)
+    fn derivatives(self, r0: [i16x8; 4], r1: [i16x8; 4]) -> (i16x8, i16x8) {
+        let [x0, x1, y0, y1] = r0;
+        let [u0, u1, v0, v1] = r1;
+        let shift = W_BITS as i32;
+        (
+            interpolate([x0, x1], [u0, u1], &self, shift),
+            interpolate([y0, y1], [v0, v1], &self, shift),
+        )
     }
 }
 
@@ -446,13 +425,12 @@ impl<K: Sampler> Iterator for Samples<'_, K> {
 fn template<K: Sampler>(
     k: K,
     rows: Rows<'_, u8>,
-    (gx, gy): (&[i16], &[i16]),
+    grads: Rows<'_, [i16; 2]>,
     tmpl: &mut [i16],
     win: usize,
     s: usize,
 ) -> (i64, i64, i64) {
     const _: () = assert!(super::MAX_WIN as i64 * G_VECTOR_BOUND <= i32::MAX as i64);
-    let (c, n) = (s + 1, win + 1);
     let (ti, rest) = tmpl.split_at_mut(win * s);
     let (tx, ty) = rest.split_at_mut(win * s);
     for (v, oi) in columns_mut(ti, win).enumerate() {
@@ -468,19 +446,18 @@ fn template<K: Sampler>(
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (v, ((ox, oy), &real)) in planes.zip(&real).enumerate() {
         // The derivatives' taps of column `v`, each row's prepared once.
-        let taps = |g| block_of(g, c, n).column::<{ L + 1 }>(v * L);
-        let mut grads = taps(gx).zip(taps(gy));
-        let Some((x, y)) = grads.next() else {
+        let mut taps = grads.clone().column::<{ L + 1 }>(v * L);
+        let Some(t) = taps.next() else {
             break;
         };
-        let mut upper = (k.derivative_taps(x), k.derivative_taps(y));
+        let mut upper = k.derivative_taps(t);
         let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
-        for ((x, y), (ox, oy)) in grads.zip(ox.iter_mut().zip(oy)) {
-            let lower = (k.derivative_taps(x), k.derivative_taps(y));
+        for (t, (ox, oy)) in taps.zip(ox.iter_mut().zip(oy)) {
+            let lower = k.derivative_taps(t);
             // The derivatives, zero beyond column `win` (the padding), and `G`'s sums from
             // the same vectors.
-            let ix = k.derivatives(upper.0, lower.0) & real;
-            let iy = k.derivatives(upper.1, lower.1) & real;
+            let (ix, iy) = k.derivatives(upper, lower);
+            let (ix, iy) = (ix & real, iy & real);
             upper = lower;
             (*ox, *oy) = (ix.to_array(), iy.to_array());
             s11 += ix.dot(ix);
@@ -605,11 +582,11 @@ mod tests {
         let view = ImageView::packed(&img, w, h).unwrap();
         for n in [4usize, 10, 22] {
             let c = stride(n - 1) + 1;
-            let (mut gx, mut gy) = (std::vec![0i16; c * n], std::vec![0i16; c * n]);
+            let mut got = std::vec![[0i16; 2]; c * n];
             let mut want = std::vec![[0i16; 2]; n * n];
             for y0 in -2..h as i32 {
                 for x0 in -2..w as i32 {
-                    let took = scharr_planes(&view, (x0, y0), n, c, &mut gx, &mut gy);
+                    let took = scharr_pairs(&view, (x0, y0), n, c, &mut got);
                     let inside = x0 >= 1
                         && y0 >= 1
                         && x0 as usize + n.div_ceil(L) * L < w
@@ -619,28 +596,35 @@ mod tests {
                         continue;
                     }
                     scharr_window(&view, x0 as isize, y0 as isize, n, n, &mut want).unwrap();
-                    for (k, &[dx, dy]) in want.iter().enumerate() {
+                    for (k, &d) in want.iter().enumerate() {
                         let at = (k / n) * c + k % n;
-                        assert_eq!([gx[at], gy[at]], [dx, dy], "n {n} at ({x0}, {y0}), {k}");
+                        assert_eq!(got[at], d, "n {n} at ({x0}, {y0}), {k}");
                     }
                 }
             }
         }
     }
 
-    /// The tap pairs of both element types and the interleave against their definitions.
+    /// The tap pairs `(t[x], t[x + 1])` of lanes `0 .. 8`, in two vectors of four pairs.
+    fn want_pairs(t: &dyn Fn(usize) -> i16) -> [i16x8; 2] {
+        let pairs: [i16; 16] = core::array::from_fn(|l| t(l / 2 + l % 2));
+        [
+            i16x8::new(pairs.first_chunk::<8>().copied().unwrap()),
+            i16x8::new(pairs.last_chunk::<8>().copied().unwrap()),
+        ]
+    }
+
+    /// The pixel tap pairs and the derivatives' (split from `[Ix, Iy]` pairs by masks and
+    /// shifts) against their definitions, on values at both ends of their ranges.
     #[test]
     fn tap_pairs_interleave() {
         let px: [u8; L + 1] = core::array::from_fn(|k| (k * 37 + 200) as u8);
-        let dv: [i16; L + 1] = core::array::from_fn(|k| (k as i16 - 4) * 1019);
-        let want = |f: &dyn Fn(usize) -> i16| {
-            let pairs: [i16; 16] = core::array::from_fn(|l| f(l / 2 + l % 2));
-            (
-                i16x8::new(pairs.first_chunk::<8>().copied().unwrap()),
-                i16x8::new(pairs.last_chunk::<8>().copied().unwrap()),
-            )
-        };
-        assert_eq!(u8::pairs(&px), want(&|k| i16::from(px[k])));
-        assert_eq!(i16::pairs(&dv), want(&|k| dv[k]));
+        let k = PairWeights::new(&[0; 4]);
+        assert_eq!(k.pixel_taps(&px), want_pairs(&|x| i16::from(px[x])));
+        let d = |x: usize, m: i16| [-4080, 4080, -1, 0, 1, 2039, -2040, 7, 4080][x] * m;
+        let dv: [[i16; 2]; L + 1] = core::array::from_fn(|x| [d(x, 1), d(x, -1)]);
+        let [x0, x1, y0, y1] = derivative_pairs(&dv);
+        assert_eq!([x0, x1], want_pairs(&|x| d(x, 1)));
+        assert_eq!([y0, y1], want_pairs(&|x| d(x, -1)));
     }
 }

@@ -7,12 +7,13 @@
 //! - [`Packed`] (Cortex-M, RISC-V without vectors): the template interleaved `[I, Ix, Iy]` a
 //!   pixel, rows exactly `win` wide, so the mismatch loop keeps one template pointer, two image
 //!   rows, four weights and both sums in the thirteen registers of an M-class core.
-//! - [`Lanes`] (targets with 128-bit SIMD: SSE2, NEON, wasm `simd128`): the template and the
-//!   window derivatives in separate planes, rows padded to a multiple of eight lanes (`Ix`,
-//!   `Iy` zero in the padding, so it adds nothing to any sum), so every loop runs on whole
-//!   vectors of eight `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64). On x86-64
-//!   CPUs with AVX2 (found at run time with the `std` feature) its bilinear pixel samples take
-//!   256-bit vectors ([`super::avx2`]); the integers are the same.
+//! - [`Lanes`] (targets with 128-bit SIMD: SSE2, NEON, wasm `simd128`): the template in
+//!   separate planes, rows padded to a multiple of eight lanes (`Ix`, `Iy` zero in the
+//!   padding, so it adds nothing to any sum), so every loop runs on whole vectors of eight
+//!   `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64); the window's derivatives
+//!   as the level's `[Ix, Iy]` pairs (read in place when the window lies inside the level).
+//!   On x86-64 CPUs with AVX2 (found at run time with the `std` feature) its bilinear samples
+//!   take 256-bit vectors ([`super::avx2`]); the integers are the same.
 
 use super::arith::{Bilinear, W_BITS};
 use crate::Result;
@@ -290,12 +291,12 @@ impl<'a, P, const N: usize> Iterator for Column<'a, P, N> {
 
 /// The `rows` rows, `cols` wide, of the block at `(x0, y0)` of `img`, straight from the image,
 /// when the block lies inside it (then no copy into a scratch patch is needed).
-pub(super) fn block_rows<'a>(
-    img: &ImageView<'a, u8>,
+pub(super) fn block_rows<'a, P: Copy>(
+    img: &ImageView<'a, P>,
     (x0, y0): (i32, i32),
     cols: usize,
     rows: usize,
-) -> Option<Rows<'a, u8>> {
+) -> Option<Rows<'a, P>> {
     let (x0, y0) = (usize::try_from(x0).ok()?, usize::try_from(y0).ok()?);
     if x0 + cols > img.width() || y0 + rows > img.height() {
         return None;
