@@ -113,10 +113,12 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 }
 
 /// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
-/// outside the image. Each row's columns inside the image are one straight copy (eight at a
-/// time); the columns left and right of it read through a column map made once a call (for
-/// those columns only). Never inlined: a copy made once a template, or once a new integer
-/// corner, is not worth its register pressure inside the kernels' loops' functions.
+/// outside the image. When no column reaches past the first reflection (the block is less
+/// than an image width beyond either edge), each row is three straight copies: the columns
+/// left of the image (backwards from column `-x0`), those inside, and those right of it
+/// (backwards from column `2w - 2 - x0 - hi`); otherwise every pixel is reflected on its own. Never inlined: a copy
+/// made once a template, or once a new integer corner, is not worth its register pressure
+/// inside the kernels' loops' functions.
 #[inline(never)]
 pub(super) fn fetch_patch<T: Copy + From<u8>>(
     img: &ImageView<'_, u8>,
@@ -125,56 +127,64 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
     rows: usize,
     out: &mut [T],
 ) {
-    /// Columns the map covers: a patch is at most `MAX_WIN + 9` wide (the padded rows of the
-    /// vector kernel); wider ones reflect column by column.
-    const MAP: usize = 80;
+    let (width, height) = (img.width(), img.height());
     // Columns `lo .. hi` of the patch lie inside the image: its columns `span`.
     let (inner, span) = inside_span(img, x0, cols);
     let (lo, hi) = (inner.start, inner.end);
-    let x0 = x0 as isize;
-    let mut map = [0u16; MAP];
-    for i in (0..lo).chain(hi..cols) {
-        if let Some(m) = map.get_mut(i) {
-            *m = reflect101(x0 + i as isize, img.width()) as u16;
-        }
-    }
-    // The map's columns left and right of the inside span, split once.
-    let (mh, mt) = match map.split_at_checked(lo) {
-        Some((mh, rest)) if cols <= MAP => (mh, rest.get(hi - lo..cols - lo).unwrap_or(&[])),
-        _ => (&[][..], &[][..]),
-    };
-    let (width, height) = (img.width(), img.height());
-    for (j, row) in out.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
-        let src = img.row_clamped(reflect101(y0 as isize + j as isize, height) as isize);
-        // An empty span (a patch wholly left or right of the image) may start past the row.
-        let seg = src.get(span.clone()).unwrap_or(&[]);
-        let Some((head, rest)) = row.split_at_mut_checked(lo) else {
-            continue;
-        };
-        let Some((mid, tail)) = rest.split_at_mut_checked(hi - lo) else {
-            continue;
-        };
-        let (m8, mr) = mid.as_chunks_mut::<8>();
-        let (s8, sr) = seg.as_chunks::<8>();
-        for (o, p) in m8.iter_mut().zip(s8) {
-            *o = p.map(T::from);
-        }
-        for (o, &p) in mr.iter_mut().zip(sr) {
-            *o = T::from(p);
-        }
-        if cols <= MAP {
-            // The reflected columns through the map: two straight loops.
-            for (o, &m) in head.iter_mut().zip(mh).chain(tail.iter_mut().zip(mt)) {
-                *o = T::from(src.get(usize::from(m)).copied().unwrap_or(0));
-            }
+    // The reflected columns' sources, when each is within the first reflection: column
+    // `x < 0` is `-x`, column `x >= w` is `2w - 2 - x`, so the head (`x0 .. x0 + lo`) reads
+    // `-x0 - lo + 1 ..= -x0` backwards and the tail (`x0 + hi .. x0 + cols`) reads
+    // `2w - 1 - x0 - cols ..= 2w - 2 - x0 - hi` backwards.
+    let (w, x, n, l, h) = (
+        width as i64,
+        i64::from(x0),
+        cols as i64,
+        lo as i64,
+        hi as i64,
+    );
+    let range = |a: i64, b: i64| (a >= 0 && b < w).then(|| a as usize..(b + 1) as usize);
+    let empty = Some(0..0);
+    let folds = match (
+        if lo > 0 {
+            range(-x - l + 1, -x)
         } else {
-            let outside = head
-                .iter_mut()
-                .enumerate()
-                .chain(tail.iter_mut().enumerate().map(|(i, o)| (i + hi, o)));
-            for (i, o) in outside {
-                let x = reflect101(x0 + i as isize, width);
-                *o = T::from(src.get(x).copied().unwrap_or(0));
+            empty.clone()
+        },
+        if hi < cols {
+            range(2 * w - 1 - x - n, 2 * w - 2 - x - h)
+        } else {
+            empty
+        },
+    ) {
+        (Some(left), Some(right)) => Some((left, right)),
+        _ => None,
+    };
+    let rows_out = out.chunks_exact_mut(cols.max(1)).take(rows);
+    for (j, row) in rows_out.enumerate() {
+        let src = img.row_clamped(reflect101(y0 as isize + j as isize, height) as isize);
+        let sides = folds.as_ref().and_then(|(left, right)| {
+            let mid = src.get(span.clone())?;
+            Some((src.get(left.clone())?, mid, src.get(right.clone())?))
+        });
+        match sides {
+            Some((left, mid, right)) => {
+                let (o_head, rest) = row.split_at_mut(lo.min(row.len()));
+                let (o_mid, o_tail) = rest.split_at_mut((hi - lo).min(rest.len()));
+                for (o, &p) in o_head.iter_mut().zip(left.iter().rev()) {
+                    *o = T::from(p);
+                }
+                for (o, &p) in o_mid.iter_mut().zip(mid) {
+                    *o = T::from(p);
+                }
+                for (o, &p) in o_tail.iter_mut().zip(right.iter().rev()) {
+                    *o = T::from(p);
+                }
+            }
+            None => {
+                for (i, o) in row.iter_mut().enumerate() {
+                    let x = reflect101(x0 as isize + i as isize, width);
+                    *o = T::from(src.get(x).copied().unwrap_or(0));
+                }
             }
         }
     }
