@@ -116,9 +116,9 @@ pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
 /// outside the image. When no column reaches past the first reflection (the block is less
 /// than an image width beyond either edge), each row is three straight copies: the columns
 /// left of the image (backwards from column `-x0`), those inside, and those right of it
-/// (backwards from column `2w - 2 - x0 - hi`); otherwise every pixel is reflected on its own. Never inlined: a copy
-/// made once a template, or once a new integer corner, is not worth its register pressure
-/// inside the kernels' loops' functions.
+/// (backwards from column `2w - 2 - x0 - hi`); otherwise every pixel is reflected on its own.
+/// Never inlined: a copy made once a template, or once a new integer corner, is not worth its
+/// register pressure inside the kernels' loops' functions.
 #[inline(never)]
 pub(super) fn fetch_patch<T: Copy + From<u8>>(
     img: &ImageView<'_, u8>,
@@ -143,22 +143,17 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
         hi as i64,
     );
     let range = |a: i64, b: i64| (a >= 0 && b < w).then(|| a as usize..(b + 1) as usize);
-    let empty = Some(0..0);
-    let folds = match (
-        if lo > 0 {
-            range(-x - l + 1, -x)
-        } else {
-            empty.clone()
-        },
-        if hi < cols {
-            range(2 * w - 1 - x - n, 2 * w - 2 - x - h)
-        } else {
-            empty
-        },
-    ) {
-        (Some(left), Some(right)) => Some((left, right)),
-        _ => None,
+    let left = if lo > 0 {
+        range(-x - l + 1, -x)
+    } else {
+        Some(0..0)
     };
+    let right = if hi < cols {
+        range(2 * w - 1 - x - n, 2 * w - 2 - x - h)
+    } else {
+        Some(0..0)
+    };
+    let folds = left.zip(right);
     let rows_out = out.chunks_exact_mut(cols.max(1)).take(rows);
     for (j, row) in rows_out.enumerate() {
         let src = img.row_clamped(reflect101(y0 as isize + j as isize, height) as isize);
