@@ -177,9 +177,7 @@ fn scharr_interior_lanes(
         let [Some(a), Some(b), Some(c)] = taps else {
             break;
         };
-        let (ix, iy) = scharr8(a, b, c);
-        let (lo, hi) = interleave(ix, iy);
-        *o = bytemuck::cast([lo.to_array(), hi.to_array()]);
+        *o = scharr8(a, b, c);
         done += 8;
     }
     done
@@ -188,9 +186,10 @@ fn scharr_interior_lanes(
 /// The Scharr derivatives of eight columns from ten bytes of each of the rows above (`a`),
 /// at (`b`) and below (`c`), the columns and one either side: `Ix = 3 (a₊ - a₋) +
 /// 10 (b₊ - b₋) + 3 (c₊ - c₋)`, `Iy = 3 (c₋ - a₋) + 10 (c - a) + 3 (c₊ - a₊)`; at most
-/// `16 · 255` in magnitude, so `i16` lanes hold every step.
+/// `16 · 255` in magnitude, so `i16` lanes hold every step. As `[Ix, Iy]` pairs (the two
+/// vectors interleaved).
 #[inline(always)]
-pub(crate) fn scharr8(a: &[u8; 10], b: &[u8; 10], c: &[u8; 10]) -> (i16x8, i16x8) {
+pub(crate) fn scharr8(a: &[u8; 10], b: &[u8; 10], c: &[u8; 10]) -> [[i16; 2]; 8] {
     let widen = |h: Option<&[u8; 8]>| h.map_or(i16x8::ZERO, |h| i16x8::from_u8x16_low(low(h)));
     // Columns `x - 1`, `x`, `x + 1` of the eight outputs.
     let three = |t: &[u8; 10]| {
@@ -205,7 +204,8 @@ pub(crate) fn scharr8(a: &[u8; 10], b: &[u8; 10], c: &[u8; 10]) -> (i16x8, i16x8
     let (k3, k10) = (i16x8::splat(3), i16x8::splat(10));
     let ix = k3 * (a2 - a0 + c2 - c0) + k10 * (b2 - b0);
     let iy = k3 * (c0 - a0 + c2 - a2) + k10 * (c1 - a1);
-    (ix, iy)
+    let (lo, hi) = interleave(ix, iy);
+    bytemuck::cast([lo.to_array(), hi.to_array()])
 }
 
 /// Derivatives of a whole level into `dst` (interleaved `[Ix, Iy]`, same size as `img`, else

@@ -39,6 +39,17 @@ impl Avx2 {
             lower: wide(narrow.lower),
         }
     }
+
+    /// `⌊(a · upper + b · lower) / 2^S⌉` in eight `i32` lanes: the rows' tap pairs `a`
+    /// (upper) and `b` weighed by one dot product each.
+    #[inline(always)]
+    fn weigh<const S: i32>(self, a: __m256i, b: __m256i) -> __m256i {
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let a = avx2._mm256_madd_epi16(a, self.upper);
+        let b = avx2._mm256_madd_epi16(b, self.lower);
+        let half = avx._mm256_set1_epi32(1 << (S - 1));
+        avx2._mm256_srai_epi32::<S>(avx2._mm256_add_epi32(avx2._mm256_add_epi32(a, b), half))
+    }
 }
 
 impl Sampler for Avx2 {
@@ -56,11 +67,7 @@ impl Sampler for Avx2 {
     #[inline(always)]
     fn pixels(self, r0: __m256i, r1: __m256i) -> i16x8 {
         let (avx, avx2, sse2) = (self.v3.avx, self.v3.avx2, self.v3.sse2);
-        let a = avx2._mm256_madd_epi16(r0, self.upper);
-        let b = avx2._mm256_madd_epi16(r1, self.lower);
-        let half = avx._mm256_set1_epi32(1 << (PIX_SHIFT - 1));
-        let s = avx2._mm256_add_epi32(avx2._mm256_add_epi32(a, b), half);
-        let s = avx2._mm256_srai_epi32::<{ PIX_SHIFT as i32 }>(s);
+        let s = self.weigh::<{ PIX_SHIFT as i32 }>(r0, r1);
         let (lo, hi) = (
             avx._mm256_castsi256_si128(s),
             avx2._mm256_extracti128_si256::<1>(s),
@@ -96,15 +103,9 @@ impl Sampler for Avx2 {
     /// in one `vpackssdw` and put in order by one `vpermq`.
     #[inline(always)]
     fn derivatives(self, r0: (__m256i, __m256i), r1: (__m256i, __m256i)) -> (i16x8, i16x8) {
-        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
-        let half = avx._mm256_set1_epi32(1 << (W_BITS - 1));
-        let weigh = |a: __m256i, b: __m256i| {
-            let a = avx2._mm256_madd_epi16(a, self.upper);
-            let b = avx2._mm256_madd_epi16(b, self.lower);
-            let s = avx2._mm256_add_epi32(avx2._mm256_add_epi32(a, b), half);
-            avx2._mm256_srai_epi32::<{ W_BITS as i32 }>(s)
-        };
-        let (ix, iy) = (weigh(r0.0, r1.0), weigh(r0.1, r1.1));
+        const S: i32 = W_BITS as i32;
+        let (ix, iy) = (self.weigh::<S>(r0.0, r1.0), self.weigh::<S>(r0.1, r1.1));
+        let avx2 = self.v3.avx2;
         // Lanes `[ix 0-3, iy 0-3 | ix 4-7, iy 4-7]`, then `[ix 0-7 | iy 0-7]`.
         let p = avx2._mm256_packs_epi32(ix, iy);
         let p = avx2._mm256_permute4x64_epi64::<0b11_01_10_00>(p);

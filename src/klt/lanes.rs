@@ -18,7 +18,7 @@ use super::window::{
 };
 use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
-use crate::simd::{interleave, low};
+use crate::simd::low;
 use crate::{Error, Result};
 use wide::{i16x8, i32x4, i32x8, u8x16, u32x4};
 
@@ -99,12 +99,14 @@ impl<'s> Window<'s> for Lanes<'s> {
         let (n, c) = (self.win + 1, self.s + 1);
         // The derivatives: straight from the level's when the block lies inside it, else
         // copied (zero outside) or computed into `grad`.
-        let grads = match grad.map(|g| (g, block_rows(g, (b.x, b.y), c, n))) {
-            Some((_, Some(rows))) => rows,
-            Some((g, None)) => {
-                fetch_grad(g, (b.x, b.y), c, n, self.grad);
-                block_of(self.grad, c, n)
-            }
+        let grads = match grad {
+            Some(g) => match block_rows(g, (b.x, b.y), c, n) {
+                Some(rows) => rows,
+                None => {
+                    fetch_grad(g, (b.x, b.y), c, n, self.grad);
+                    block_of(self.grad, c, n)
+                }
+            },
             None => {
                 if !scharr_pairs(i, (b.x, b.y), n, c, self.grad) {
                     // Reflected, by the scalar Scharr (`c` columns a row: the padding
@@ -193,9 +195,7 @@ fn scharr_pairs(
             else {
                 break;
             };
-            let (ix, iy) = scharr8(a, b, cc);
-            let (lo, hi) = interleave(ix, iy);
-            *o = bytemuck::cast([lo.to_array(), hi.to_array()]);
+            *o = scharr8(a, b, cc);
         }
         (a, b) = (b, cc);
     }
