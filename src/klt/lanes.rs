@@ -418,7 +418,7 @@ impl<K: Sampler> Iterator for Samples<'_, K> {
 }
 
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
-/// `gx`, `gy`) with sampler `k`, a column of vectors at a time ([`columns`]); returns `G`'s
+/// the `win + 1` rows of `[Ix, Iy]` pairs `grads`) with sampler `k`, a column of vectors at a time ([`columns`]); returns `G`'s
 /// sums, exact (in `i32` lanes over a column, at most 63 vectors of [`G_VECTOR_BOUND`], then
 /// in `i64`). Inlined into each caller, as [`mismatch`].
 #[inline(always)]
