@@ -13,8 +13,7 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    Column, PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_patch, grad_row,
-    inside_span,
+    Column, PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_grad, fetch_patch,
 };
 use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
@@ -207,34 +206,6 @@ fn scharr_pairs(
 /// tiny `a b`; the packed kernel uses that `-1` too).
 pub(super) fn weights(b: &Bilinear) -> [i16; 4] {
     b.w.map(|v| v.clamp(-1, (1 << W_BITS) + 1) as i16)
-}
-
-/// Copies the `cols x rows` derivatives at `(x0, y0)` of a precomputed level into `grad`,
-/// zero outside: each row's span inside the level in one copy.
-fn fetch_grad(
-    g: &ImageView<'_, [i16; 2]>,
-    (x0, y0): (i32, i32),
-    cols: usize,
-    rows: usize,
-    grad: &mut [[i16; 2]],
-) {
-    let (inner, span) = inside_span(g, x0, cols);
-    for (j, row) in grad.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
-        let seg = grad_row(g, y0, j, span.clone()).unwrap_or(&[]);
-        // Zero left of the span, the span, zero right of it (the fills only where there is
-        // something to zero: each is a `memset` call).
-        let (lo, hi) = (inner.start, inner.start + seg.len());
-        let (head, rest) = row.split_at_mut(lo.min(row.len()));
-        let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
-        for (m, &d) in mid.iter_mut().zip(seg) {
-            *m = d;
-        }
-        for part in [head, tail] {
-            if !part.is_empty() {
-                part.fill([0; 2]);
-            }
-        }
-    }
 }
 
 /// A bilinear sampler of eight pixels at a window's weights: [`PairWeights`] (128-bit, every

@@ -3,8 +3,8 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, descale, fetch_patch, grad_row,
-    inside_span, lerp, taps,
+    PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, descale, fetch_grad, fetch_patch,
+    lerp, taps,
 };
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
@@ -86,7 +86,7 @@ impl<'s> Window<'s> for Packed<'s> {
         let (gwin, patch) = self.low.split_at_mut((2 * n * n).min(self.low.len()));
         let (gwin, _) = gwin.as_chunks_mut::<2>();
         match grad {
-            Some(g) => fetch_grad(g, b.x, b.y, n, gwin),
+            Some(g) => fetch_grad(g, (b.x, b.y), n, n, gwin),
             None => {
                 let _ = scharr_window(i, b.x as isize, b.y as isize, n, n, gwin);
             }
@@ -124,21 +124,6 @@ impl<'s> Window<'s> for Packed<'s> {
             *t = s;
         }
         self.patch_at = None;
-    }
-}
-
-/// Copies the `n x n` derivatives at `(x0, y0)` of a precomputed level, zero outside: each
-/// row's span inside the level in one copy.
-fn fetch_grad(g: &ImageView<'_, [i16; 2]>, x0: i32, y0: i32, n: usize, out: &mut [[i16; 2]]) {
-    let (inner, span) = inside_span(g, x0, n);
-    for (j, row) in out.chunks_exact_mut(n.max(1)).take(n).enumerate() {
-        row.fill([0, 0]);
-        let seg = grad_row(g, y0, j, span.clone());
-        if let (Some(seg), Some(o)) = (seg, row.get_mut(inner.clone())) {
-            for (o, &d) in o.iter_mut().zip(seg) {
-                *o = d;
-            }
-        }
     }
 }
 

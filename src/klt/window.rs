@@ -185,9 +185,37 @@ pub(super) fn fetch_patch<T: Copy + From<u8>>(
     }
 }
 
+/// Copies the `cols x rows` derivatives at `(x0, y0)` of a precomputed level into `grad`,
+/// zero outside: each row's span inside the level in one copy. Both kernels' copy.
+pub(super) fn fetch_grad(
+    g: &ImageView<'_, [i16; 2]>,
+    (x0, y0): (i32, i32),
+    cols: usize,
+    rows: usize,
+    grad: &mut [[i16; 2]],
+) {
+    let (inner, span) = inside_span(g, x0, cols);
+    for (j, row) in grad.chunks_exact_mut(cols.max(1)).take(rows).enumerate() {
+        let seg = grad_row(g, y0, j, span.clone()).unwrap_or(&[]);
+        // Zero left of the span, the span, zero right of it (the fills only where there is
+        // something to zero: each is a `memset` call).
+        let (lo, hi) = (inner.start, inner.start + seg.len());
+        let (head, rest) = row.split_at_mut(lo.min(row.len()));
+        let (mid, tail) = rest.split_at_mut((hi - lo).min(rest.len()));
+        for (m, &d) in mid.iter_mut().zip(seg) {
+            *m = d;
+        }
+        for part in [head, tail] {
+            if !part.is_empty() {
+                part.fill([0; 2]);
+            }
+        }
+    }
+}
+
 /// The columns of a `cols`-wide block at column `x0` of `g` that lie inside it: as columns of
 /// the block, and as columns of `g` (equally long; empty when none).
-pub(super) fn inside_span<P: Copy>(
+fn inside_span<P: Copy>(
     g: &ImageView<'_, P>,
     x0: i32,
     cols: usize,
@@ -204,7 +232,7 @@ pub(super) fn inside_span<P: Copy>(
 
 /// The columns `span` of row `y0 + j` of `g`, if that row is inside it.
 #[inline(always)]
-pub(super) fn grad_row<'a, P: Copy>(
+fn grad_row<'a, P: Copy>(
     g: &ImageView<'a, P>,
     y0: i32,
     j: usize,
