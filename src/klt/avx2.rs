@@ -4,14 +4,18 @@
 //! The same integers as [`PairWeights`]: each row's eight pixel tap pairs `(p[x], p[x + 1])`
 //! widened into one 256-bit vector (`vpmovzxbw`) and weighed by one dot product
 //! (`vpmaddwd`) instead of two, the two rows' sums added and descaled in one vector of eight
-//! `i32`, packed to `i16` with saturation (`packssdw`, as [`PairWeights`]). The derivatives'
-//! eight tap pairs come from two 256-bit loads of `[Ix, Iy]` pairs, split by masks and shifts. The AVX2 instructions are reached through
+//! `i32`. Two consecutive samples of a column are packed to `i16` with saturation by one
+//! `vpackssdw` into one vector of sixteen lanes, in its own order ([`pair_lanes`]); the
+//! template planes keep that order, so the kernels' differences and dot products work on
+//! 256 bits with no reordering. The derivatives' eight tap pairs come from two 256-bit loads
+//! of `[Ix, Iy]` pairs, split by masks and shifts. The AVX2 instructions are reached through
 //! [`pulp`]'s `V3` token, which proves the CPU has them, so the crate stays free of `unsafe`;
 //! the kernel that uses the sampler is inlined into [`pulp::x86::V3::vectorize`], where AVX2
 //! is enabled.
 
 use super::arith::W_BITS;
 use super::lanes::{L, PairWeights, Sampler, byte_pairs};
+use super::window::Column;
 use super::window::PIX_SHIFT;
 use core::arch::x86_64::{__m128i, __m256i};
 use pulp::x86::V3;
@@ -52,27 +56,34 @@ impl Avx2 {
     }
 }
 
+/// The order of the sixteen lanes of an AVX2 vector of two rows' samples, `vpackssdw`'s: lanes
+/// 0-3 of the upper row, 0-3 of the lower, 4-7 of the upper, 4-7 of the lower.
+pub(super) fn pair_lanes<T: Copy + Default>(upper: [T; L], lower: [T; L]) -> [T; 2 * L] {
+    let mut out = [T::default(); 2 * L];
+    let halves = upper.chunks(L / 2).zip(lower.chunks(L / 2));
+    for (o, (u, l)) in out.chunks_mut(L).zip(halves) {
+        let (a, b) = o.split_at_mut(L / 2);
+        for (o, &v) in a.iter_mut().zip(u).chain(b.iter_mut().zip(l)) {
+            *o = v;
+        }
+    }
+    out
+}
+
 impl Sampler for Avx2 {
     /// The eight tap pairs of a row ([`byte_pairs`]) widened into sixteen `i16` at once.
     type Pixels = __m256i;
     /// `Ix`'s tap pairs and `Iy`'s of all eight lanes, each in one 256-bit vector.
     type Derivatives = (__m256i, __m256i);
+    /// Two rows, in the order of [`pair_lanes`].
+    type Vector = __m256i;
+    type Sums = __m256i;
+    type Stored = [i16; 2 * L];
 
     #[inline(always)]
     fn pixel_taps(self, r: &[u8; L + 1]) -> __m256i {
         let p: __m128i = bytemuck::cast(byte_pairs(r));
         self.v3.avx2._mm256_cvtepu8_epi16(p)
-    }
-
-    #[inline(always)]
-    fn pixels(self, r0: __m256i, r1: __m256i) -> i16x8 {
-        let (avx, avx2, sse2) = (self.v3.avx, self.v3.avx2, self.v3.sse2);
-        let s = self.weigh::<{ PIX_SHIFT as i32 }>(r0, r1);
-        let (lo, hi) = (
-            avx._mm256_castsi256_si128(s),
-            avx2._mm256_extracti128_si256::<1>(s),
-        );
-        bytemuck::cast(sse2._mm_packs_epi32(lo, hi))
     }
 
     /// Eight `[Ix, Iy]` pairs at `x` and eight at `x + 1`, one load each, split as
@@ -99,30 +110,149 @@ impl Sampler for Avx2 {
         (ix, iy)
     }
 
-    /// Each derivative's two dot products, added and descaled in `i32`, both packed to `i16`
-    /// in one `vpackssdw` and put in order by one `vpermq`.
+    /// Two rows' samples, each row's two dot products added and descaled in eight `i32`,
+    /// both rows packed to `i16` by one `vpackssdw` (no reordering: the planes keep its
+    /// order). Below the last row of `taps`, zero.
     #[inline(always)]
-    fn derivatives(self, r0: (__m256i, __m256i), r1: (__m256i, __m256i)) -> (i16x8, i16x8) {
+    fn next_pixels(
+        self,
+        upper: &mut __m256i,
+        taps: &mut Column<'_, u8, { L + 1 }>,
+    ) -> Option<__m256i> {
+        const S: i32 = PIX_SHIFT as i32;
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let mid = self.pixel_taps(taps.next()?);
+        let (first, second) = match taps.next() {
+            Some(t) => {
+                let lower = self.pixel_taps(t);
+                let top = core::mem::replace(upper, lower);
+                (self.weigh::<S>(top, mid), self.weigh::<S>(mid, lower))
+            }
+            None => (self.weigh::<S>(*upper, mid), avx._mm256_setzero_si256()),
+        };
+        Some(avx2._mm256_packs_epi32(first, second))
+    }
+
+    /// [`Self::next_pixels`] for each derivative.
+    #[inline(always)]
+    fn next_derivatives(
+        self,
+        upper: &mut (__m256i, __m256i),
+        taps: &mut Column<'_, [i16; 2], { L + 1 }>,
+    ) -> Option<(__m256i, __m256i)> {
         const S: i32 = W_BITS as i32;
-        let (ix, iy) = (self.weigh::<S>(r0.0, r1.0), self.weigh::<S>(r0.1, r1.1));
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let mid = self.derivative_taps(taps.next()?);
+        let zero = avx._mm256_setzero_si256();
+        let (ix, iy) = match taps.next() {
+            Some(t) => {
+                let lower = self.derivative_taps(t);
+                let top = core::mem::replace(upper, lower);
+                (
+                    (
+                        self.weigh::<S>(top.0, mid.0),
+                        self.weigh::<S>(mid.0, lower.0),
+                    ),
+                    (
+                        self.weigh::<S>(top.1, mid.1),
+                        self.weigh::<S>(mid.1, lower.1),
+                    ),
+                )
+            }
+            None => (
+                (self.weigh::<S>(upper.0, mid.0), zero),
+                (self.weigh::<S>(upper.1, mid.1), zero),
+            ),
+        };
+        Some((
+            avx2._mm256_packs_epi32(ix.0, ix.1),
+            avx2._mm256_packs_epi32(iy.0, iy.1),
+        ))
+    }
+
+    #[inline(always)]
+    fn lanes(self, row: i16x8) -> __m256i {
+        let row = row.to_array();
+        bytemuck::cast(pair_lanes(row, row))
+    }
+    #[inline(always)]
+    fn load(self, v: &[i16; 2 * L]) -> __m256i {
+        bytemuck::cast(*v)
+    }
+    #[inline(always)]
+    fn store(self, v: __m256i) -> [i16; 2 * L] {
+        bytemuck::cast(v)
+    }
+    #[inline(always)]
+    fn and(self, a: __m256i, b: __m256i) -> __m256i {
+        self.v3.avx2._mm256_and_si256(a, b)
+    }
+    #[inline(always)]
+    fn sub(self, a: __m256i, b: __m256i) -> __m256i {
+        self.v3.avx2._mm256_sub_epi16(a, b)
+    }
+    #[inline(always)]
+    fn zero(self) -> __m256i {
+        self.v3.avx._mm256_setzero_si256()
+    }
+    #[inline(always)]
+    fn dot(self, acc: __m256i, a: __m256i, b: __m256i) -> __m256i {
         let avx2 = self.v3.avx2;
-        // Lanes `[ix 0-3, iy 0-3 | ix 4-7, iy 4-7]`, then `[ix 0-7 | iy 0-7]`.
-        let p = avx2._mm256_packs_epi32(ix, iy);
-        let p = avx2._mm256_permute4x64_epi64::<0b11_01_10_00>(p);
-        let [ix, iy]: [i16x8; 2] = bytemuck::cast(p);
-        (ix, iy)
+        avx2._mm256_add_epi32(acc, avx2._mm256_madd_epi16(a, b))
+    }
+    #[inline(always)]
+    fn abs(self, acc: __m256i, a: __m256i) -> __m256i {
+        let (avx, avx2) = (self.v3.avx, self.v3.avx2);
+        let ones = avx._mm256_set1_epi16(1);
+        avx2._mm256_add_epi32(acc, avx2._mm256_madd_epi16(avx2._mm256_abs_epi16(a), ones))
+    }
+    #[inline(always)]
+    fn sum(self, acc: __m256i) -> i64 {
+        let lanes: [i32; 8] = bytemuck::cast(acc);
+        lanes.iter().map(|&x| i64::from(x)).sum()
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::klt::window::block_of;
 
-    /// The AVX2 sampler gives the 128-bit one's pixels and derivatives for the weights the
+    /// The vectors a sampler gives down the column of `rows` rows (`L + 1` wide) of `buf`:
+    /// pixels, or `Ix` and `Iy` when `buf` holds `[Ix, Iy]` pairs; all of them, as arrays.
+    fn pixels<K: Sampler>(k: K, buf: &[u8], rows: usize) -> std::vec::Vec<K::Stored> {
+        let mut col = block_of(buf, L + 1, rows).column::<{ L + 1 }>(0);
+        let mut upper = k.pixel_taps(col.next().unwrap());
+        core::iter::from_fn(|| k.next_pixels(&mut upper, &mut col).map(|v| k.store(v))).collect()
+    }
+    fn derivatives<K: Sampler>(
+        k: K,
+        buf: &[[i16; 2]],
+        rows: usize,
+    ) -> std::vec::Vec<(K::Stored, K::Stored)> {
+        let mut col = block_of(buf, L + 1, rows).column::<{ L + 1 }>(0);
+        let mut upper = k.derivative_taps(col.next().unwrap());
+        core::iter::from_fn(|| {
+            let (x, y) = k.next_derivatives(&mut upper, &mut col)?;
+            Some((k.store(x), k.store(y)))
+        })
+        .collect()
+    }
+    /// The 128-bit sampler's rows as the AVX2 sampler's vectors: two rows each in the order
+    /// of [`pair_lanes`], a missing last row zero.
+    fn paired(rows: &[[i16; L]]) -> std::vec::Vec<[i16; 2 * L]> {
+        rows.chunks(2)
+            .map(|p| pair_lanes(p[0], p.get(1).copied().unwrap_or([0; L])))
+            .collect()
+    }
+
+    /// The AVX2 sampler gives the 128-bit one's pixels and derivatives, two rows a vector
+    /// in the order of [`pair_lanes`] and a missing last row zero, for the weights the
     /// tracker makes ([`Fixed::bilinear`](super::super::arith::FlowArith::bilinear) of random
     /// Q16 fractions, through the kernel's `weights`, so `w11 = -1` at tiny fractions too) on
-    /// taps that reach both ends of their ranges (bytes; derivatives `±16 · 255`). Without AVX2
-    /// on this CPU there is nothing to compare, and the test says so.
+    /// taps that reach both ends of their ranges (bytes; derivatives `±16 · 255`), down
+    /// columns of two and three samples. Without AVX2 on this CPU there is nothing to
+    /// compare, and the test says so.
     #[test]
     fn avx2_samples_as_the_128_bit_sampler() {
         use super::super::arith::{Fixed, FlowArith, Q16};
@@ -149,33 +279,34 @@ mod tests {
             };
             let w = weights(&b);
             negative += usize::from(w[3] < 0);
-            let tap = |next: &mut dyn FnMut() -> u64| -> [u8; L + 1] {
-                core::array::from_fn(|_| match next() % 4 {
+            let (p, k) = (PairWeights::new(&w), Avx2::new(v3, &w));
+            // Three or four rows of taps: two or three samples.
+            let rows = 3 + case % 2;
+            let px: std::vec::Vec<u8> = (0..rows * (L + 1))
+                .map(|_| match next() % 4 {
                     0 => 0,
                     1 => 255,
                     _ => next() as u8,
                 })
-            };
-            let (r0, r1) = (tap(&mut next), tap(&mut next));
-            let (p, k) = (PairWeights::new(&w), Avx2::new(v3, &w));
-            let want = p.pixels(p.pixel_taps(&r0), p.pixel_taps(&r1));
-            let got = v3.vectorize(|| k.pixels(k.pixel_taps(&r0), k.pixel_taps(&r1)));
-            assert_eq!(got, want, "case {case}: weights {w:?}, rows {r0:?} {r1:?}");
+                .collect();
+            let want = paired(&pixels(p, &px, rows));
+            let got = v3.vectorize(|| pixels(k, &px, rows));
+            assert_eq!(got, want, "case {case}: weights {w:?}, rows {px:?}");
             // Derivatives in `-16 · 255 ..= 16 · 255`, the ends as often as the rest.
-            let grad = |next: &mut dyn FnMut() -> u64| -> [[i16; 2]; L + 1] {
-                core::array::from_fn(|_| {
+            let grad: std::vec::Vec<[i16; 2]> = (0..rows * (L + 1))
+                .map(|_| {
                     core::array::from_fn(|_| match next() % 4 {
                         0 => -4080,
                         1 => 4080,
                         _ => (next() % 8161) as i16 - 4080,
                     })
                 })
-            };
-            let (g0, g1) = (grad(&mut next), grad(&mut next));
-            let want = p.derivatives(p.derivative_taps(&g0), p.derivative_taps(&g1));
-            let got =
-                v3.vectorize(|| k.derivatives(k.derivative_taps(&g0), k.derivative_taps(&g1)));
-            assert_eq!(got, want, "case {case}: weights {w:?}, rows {g0:?} {g1:?}");
+                .collect();
+            let (wx, wy): (std::vec::Vec<_>, std::vec::Vec<_>) =
+                derivatives(p, &grad, rows).into_iter().unzip();
+            let want: std::vec::Vec<_> = paired(&wx).into_iter().zip(paired(&wy)).collect();
+            let got = v3.vectorize(|| derivatives(k, &grad, rows));
+            assert_eq!(got, want, "case {case}: weights {w:?}, rows {grad:?}");
         }
         assert!(negative > 0, "no weight set with w11 = -1 was drawn");
     }

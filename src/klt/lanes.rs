@@ -9,7 +9,8 @@
 //! from the `[Ix, Iy]` pairs by masks and shifts. The mismatch's products are dot products
 //! too, summed in `i32` lanes over as many vectors as cannot overflow them. Row sums are the
 //! same integers as [`super::packed`]'s: the padding lanes carry `Ix = Iy = 0`, and the
-//! `Σ |J - I|` pass masks them off.
+//! `Σ |J - I|` pass masks them off. With AVX2 a vector holds two rows' samples
+//! ([`Sampler::Vector`]; a window of odd height ends with one padding row, zero).
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
@@ -29,17 +30,30 @@ const fn stride(win: usize) -> usize {
     win.div_ceil(L) * L
 }
 
-/// `i16` elements of scratch for `win x win` windows, `s = stride(win)`:
-/// `3 (win + 1)(s + 1)` (`[Ix, Iy]` pairs and reflected pixels at integer positions, `s + 1`
-/// columns for the right-hand taps of the last lane) and `3 win s` (the template planes).
-pub(super) const fn scratch_len(win: usize) -> usize {
-    let s = stride(win);
-    3 * (win + 1) * (s + 1) + 3 * win * s
+/// Rows of a column of the template planes: `win` rounded up to whole pairs (the AVX2
+/// sampler's vectors hold two rows; the padding row is zero).
+const fn plane_rows(win: usize) -> usize {
+    win.next_multiple_of(2)
 }
 
-/// `i16` elements of the template planes, [`Window::state`].
+/// `i16` elements of one template plane.
+const fn plane_len(win: usize) -> usize {
+    plane_rows(win) * stride(win)
+}
+
+/// `i16` elements of scratch for `win x win` windows, `s = stride(win)`:
+/// `3 (win + 1)(s + 1)` (`[Ix, Iy]` pairs and reflected pixels at integer positions, `s + 1`
+/// columns for the right-hand taps of the last lane) and the three template planes
+/// ([`state_len`]).
+pub(super) const fn scratch_len(win: usize) -> usize {
+    let s = stride(win);
+    3 * (win + 1) * (s + 1) + state_len(win)
+}
+
+/// `i16` elements of the template planes, [`Window::state`]: three of `win` rounded up to
+/// even rows by `stride(win)` columns.
 pub(super) const fn state_len(win: usize) -> usize {
-    3 * win * stride(win)
+    3 * plane_len(win)
 }
 
 /// The scratch split into its parts.
@@ -56,8 +70,9 @@ pub(super) struct Lanes<'s> {
     /// the scratch (tested for every window size).
     patch: &'s mut [u8],
     /// The template planes `I` (1/32 grey levels), `Ix`, `Iy` at the window's weights,
-    /// `win x s` each, a column of vectors after another ([`columns`]); `Ix` and `Iy` are
-    /// zero beyond column `win`.
+    /// [`plane_len`] each, a column of vectors after another in the sampler's order
+    /// ([`columns`]); `Ix` and `Iy` are zero beyond column `win`, and all three in the padding
+    /// row of an odd `win` as the AVX2 sampler keeps it (the 128-bit sampler never reads it).
     tmpl: &'s mut [i16],
     /// The integer corner of the window of `J` in `patch`, if it holds one
     /// ([`cached_patch`]); cleared by [`Window::template`].
@@ -125,13 +140,13 @@ impl<'s> Window<'s> for Lanes<'s> {
                 block_of(self.patch, c, n)
             }
         };
-        let (win, s) = (self.win, self.s);
+        let win = self.win;
         #[cfg(target_arch = "x86_64")]
         if let Some(v3) = self.v3 {
             let k = super::avx2::Avx2::new(v3, &w);
-            return v3.vectorize(move || template(k, rows, grads, tmpl, win, s));
+            return v3.vectorize(move || template(k, rows, grads, tmpl, win));
         }
-        template(PairWeights::new(&w), rows, grads, tmpl, win, s)
+        template(PairWeights::new(&w), rows, grads, tmpl, win)
     }
 
     fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64) {
@@ -141,13 +156,13 @@ impl<'s> Window<'s> for Lanes<'s> {
             Some(rows) => rows,
             None => cached_patch(j, (b.x, b.y), (c, n), self.patch, &mut self.patch_at),
         };
-        let (tmpl, win, s) = (&*self.tmpl, self.win, self.s);
+        let (tmpl, win) = (&*self.tmpl, self.win);
         #[cfg(target_arch = "x86_64")]
         if let Some(v3) = self.v3 {
             let k = super::avx2::Avx2::new(v3, &w);
-            return v3.vectorize(move || mismatch(k, rows, tmpl, win, s, abs));
+            return v3.vectorize(move || mismatch(k, rows, tmpl, win, abs));
         }
-        mismatch(PairWeights::new(&w), rows, tmpl, win, s, abs)
+        mismatch(PairWeights::new(&w), rows, tmpl, win, abs)
     }
 
     fn state(&self) -> &[i16] {
@@ -208,28 +223,67 @@ pub(super) fn weights(b: &Bilinear) -> [i16; 4] {
     b.w.map(|v| v.clamp(-1, (1 << W_BITS) + 1) as i16)
 }
 
-/// A bilinear sampler of eight pixels at a window's weights: [`PairWeights`] (128-bit, every
-/// SIMD target) or [`super::avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same
-/// integers: `⌊(p₀₀ w₀₀ + p₀₁ w₀₁ + p₁₀ w₁₀ + p₁₁ w₁₁) / 2⁹⌉`, exact in `i32`, packed to `i16`.
+/// A bilinear sampler of eight pixels at a window's weights, and the vector arithmetic of the
+/// kernels on its samples: [`PairWeights`] (128-bit, every SIMD target) or
+/// [`super::avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same integers:
+/// `⌊(p₀₀ w₀₀ + p₀₁ w₀₁ + p₁₀ w₁₀ + p₁₁ w₁₁) / 2⁹⌉`, exact in `i32`, packed to `i16`.
 ///
 /// A sample takes its taps from two rows; the kernels walk a window a column of vectors at a
 /// time, so each row's taps are prepared once ([`Sampler::pixel_taps`]) and serve as the lower
-/// row of one sample and the upper row of the next.
+/// row of one sample and the upper row of the next. A [`Sampler::Vector`] holds the samples of
+/// one row (eight lanes) or of two consecutive rows, in an order of the sampler's own
+/// ([`Sampler::lanes`]); the template planes are stored in that order, so the kernels never
+/// reorder lanes. When `win` is not a whole number of vectors, the last vector's missing rows
+/// are zero (pixels and derivatives both), so they add nothing to any sum.
 pub(super) trait Sampler: Copy + 'static {
     /// A row's pixel taps `(p[x], p[x + 1])` of lanes `x = 0 .. 8`, ready for weighing.
     type Pixels: Copy + 'static;
     /// A row's derivative taps, `Ix`'s and `Iy`'s, the same way.
     type Derivatives: Copy + 'static;
+    /// `i16` samples of one or two rows of eight lanes.
+    type Vector: Copy + 'static;
+    /// `i32` sums of products of [`Self::Vector`]s.
+    type Sums: Copy + 'static;
+    /// A [`Self::Vector`] in memory, as the template planes keep it.
+    type Stored: bytemuck::Pod;
+
     /// The pixel taps of row `r`.
     fn pixel_taps(self, r: &[u8; L + 1]) -> Self::Pixels;
-    /// The pixels of lanes `x = 0 .. 8` between the rows of taps `r0` (upper) and `r1`, in
-    /// 1/32 grey levels.
-    fn pixels(self, r0: Self::Pixels, r1: Self::Pixels) -> i16x8;
     /// The derivative taps of row `r` of `[Ix, Iy]` pairs.
     fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> Self::Derivatives;
-    /// `Ix` and `Iy` of lanes `x = 0 .. 8` between the rows of taps `r0` and `r1`:
-    /// `⌊Σ / 2¹⁴⌉`, in the units of the Scharr derivatives.
-    fn derivatives(self, r0: Self::Derivatives, r1: Self::Derivatives) -> (i16x8, i16x8);
+    /// The next vector of pixels (1/32 grey levels) down a column whose previous row's taps
+    /// are `upper`, the rows below from `taps`; `upper` becomes the last row's. `None` when
+    /// `taps` has no row left.
+    fn next_pixels(
+        self,
+        upper: &mut Self::Pixels,
+        taps: &mut Column<'_, u8, { L + 1 }>,
+    ) -> Option<Self::Vector>;
+    /// [`Self::next_pixels`] for `Ix` and `Iy` (`⌊Σ / 2¹⁴⌉`, in the units of the Scharr
+    /// derivatives).
+    fn next_derivatives(
+        self,
+        upper: &mut Self::Derivatives,
+        taps: &mut Column<'_, [i16; 2], { L + 1 }>,
+    ) -> Option<(Self::Vector, Self::Vector)>;
+    /// The vector whose every row is `row`, in the sampler's lane order.
+    fn lanes(self, row: i16x8) -> Self::Vector;
+    /// A vector read from the template planes.
+    fn load(self, v: &Self::Stored) -> Self::Vector;
+    /// A vector to keep in the template planes.
+    fn store(self, v: Self::Vector) -> Self::Stored;
+    /// `a & b`.
+    fn and(self, a: Self::Vector, b: Self::Vector) -> Self::Vector;
+    /// `a - b`, wrapping (the kernels' differences fit `i16`).
+    fn sub(self, a: Self::Vector, b: Self::Vector) -> Self::Vector;
+    /// Sums of nothing.
+    fn zero(self) -> Self::Sums;
+    /// `acc` plus the products `a · b`, each pair of adjacent lanes' into one `i32` lane.
+    fn dot(self, acc: Self::Sums, a: Self::Vector, b: Self::Vector) -> Self::Sums;
+    /// `acc` plus `|a|`, each pair of adjacent lanes' into one `i32` lane.
+    fn abs(self, acc: Self::Sums, a: Self::Vector) -> Self::Sums;
+    /// The lanes of `acc` added (exact in `i64`).
+    fn sum(self, acc: Self::Sums) -> i64;
 }
 
 /// The weights of each row's pair of taps, alternating across the lanes: `[w00, w01, ...]`
@@ -306,6 +360,10 @@ fn interpolate(a: [i16x8; 2], b: [i16x8; 2], w: &PairWeights, shift: i32) -> i16
 impl Sampler for PairWeights {
     type Pixels = [i16x8; 2];
     type Derivatives = [i16x8; 4];
+    /// One row.
+    type Vector = i16x8;
+    type Sums = i32x4;
+    type Stored = [i16; L];
 
     /// [`byte_pairs`], widened.
     #[inline(always)]
@@ -314,53 +372,103 @@ impl Sampler for PairWeights {
         [i16x8::from_u8x16_low(p), i16x8::from_u8x16_high(p)]
     }
 
-    /// [`interpolate`] of pixels.
-    #[inline(always)]
-    fn pixels(self, r0: [i16x8; 2], r1: [i16x8; 2]) -> i16x8 {
-        interpolate(r0, r1, &self, PIX_SHIFT as i32)
-    }
-
     /// [`derivative_pairs`].
     #[inline(always)]
     fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> [i16x8; 4] {
         derivative_pairs(r)
     }
 
+    /// [`interpolate`] of pixels.
+    #[inline(always)]
+    fn next_pixels(
+        self,
+        upper: &mut [i16x8; 2],
+        taps: &mut Column<'_, u8, { L + 1 }>,
+    ) -> Option<i16x8> {
+        let lower = self.pixel_taps(taps.next()?);
+        let upper = core::mem::replace(upper, lower);
+        Some(interpolate(upper, lower, &self, PIX_SHIFT as i32))
+    }
+
     /// [`interpolate`] of each derivative.
     #[inline(always)]
-    fn derivatives(self, r0: [i16x8; 4], r1: [i16x8; 4]) -> (i16x8, i16x8) {
-        let [x0, x1, y0, y1] = r0;
-        let [u0, u1, v0, v1] = r1;
+    fn next_derivatives(
+        self,
+        upper: &mut [i16x8; 4],
+        taps: &mut Column<'_, [i16; 2], { L + 1 }>,
+    ) -> Option<(i16x8, i16x8)> {
+        let lower = self.derivative_taps(taps.next()?);
+        let [x0, x1, y0, y1] = core::mem::replace(upper, lower);
+        let [u0, u1, v0, v1] = lower;
         let shift = W_BITS as i32;
-        (
+        Some((
             interpolate([x0, x1], [u0, u1], &self, shift),
             interpolate([y0, y1], [v0, v1], &self, shift),
-        )
+        ))
+    }
+
+    #[inline(always)]
+    fn lanes(self, row: i16x8) -> i16x8 {
+        row
+    }
+    #[inline(always)]
+    fn load(self, v: &[i16; L]) -> i16x8 {
+        i16x8::new(*v)
+    }
+    #[inline(always)]
+    fn store(self, v: i16x8) -> [i16; L] {
+        v.to_array()
+    }
+    #[inline(always)]
+    fn and(self, a: i16x8, b: i16x8) -> i16x8 {
+        a & b
+    }
+    #[inline(always)]
+    fn sub(self, a: i16x8, b: i16x8) -> i16x8 {
+        a - b
+    }
+    #[inline(always)]
+    fn zero(self) -> i32x4 {
+        i32x4::ZERO
+    }
+    #[inline(always)]
+    fn dot(self, acc: i32x4, a: i16x8, b: i16x8) -> i32x4 {
+        acc + a.dot(b)
+    }
+    #[inline(always)]
+    fn abs(self, acc: i32x4, a: i16x8) -> i32x4 {
+        acc + a.abs().dot(i16x8::ONE)
+    }
+    #[inline(always)]
+    fn sum(self, acc: i32x4) -> i64 {
+        acc.to_array().iter().map(|&x| i64::from(x)).sum()
     }
 }
 
-/// Column `v` of vectors of each of the template planes, one vector a row: the planes are
-/// kept a column of vectors after another (`win` vectors each), the order the kernels walk
-/// them in.
+/// Column `v` of vectors of each of the template planes, as the sampler's vectors: the planes are kept a column of vectors after another
+/// ([`plane_rows`] rows each), the order the kernels walk them in.
 #[inline(always)]
-fn columns(plane: &[i16], win: usize) -> impl Iterator<Item = &[[i16; L]]> {
+fn columns<K: Sampler>(plane: &[i16], win: usize) -> impl Iterator<Item = &[K::Stored]> {
     plane
-        .chunks_exact((win * L).max(L))
-        .map(|c| c.as_chunks::<L>().0)
+        .chunks_exact((plane_rows(win) * L).max(L))
+        .map(|c| bytemuck::try_cast_slice(c).unwrap_or(&[]))
 }
 
 /// [`columns`], to write.
 #[inline(always)]
-fn columns_mut(plane: &mut [i16], win: usize) -> impl Iterator<Item = &mut [[i16; L]]> {
+fn columns_mut<K: Sampler>(
+    plane: &mut [i16],
+    win: usize,
+) -> impl Iterator<Item = &mut [K::Stored]> {
     plane
-        .chunks_exact_mut((win * L).max(L))
-        .map(|c| c.as_chunks_mut::<L>().0)
+        .chunks_exact_mut((plane_rows(win) * L).max(L))
+        .map(|c| bytemuck::try_cast_slice_mut(c).unwrap_or(&mut []))
 }
 
-/// The samples of vector `v` of a block's pixels down the block: one between each pair of
-/// consecutive rows, each row's taps prepared once. A hand-written iterator, not adapters
-/// over closures: everything inside [`pulp::x86::V3::vectorize`] must inline, or the AVX2
-/// intrinsics become calls.
+/// The samples of vector `v` of a block's pixels down the block ([`Sampler::next_pixels`]),
+/// each row's taps prepared once. A hand-written iterator, not adapters over closures:
+/// everything inside [`pulp::x86::V3::vectorize`] must inline, or the AVX2 intrinsics become
+/// calls.
 struct Samples<'a, K: Sampler> {
     k: K,
     taps: Column<'a, u8, { L + 1 }>,
@@ -378,20 +486,18 @@ impl<'a, K: Sampler> Samples<'a, K> {
 }
 
 impl<K: Sampler> Iterator for Samples<'_, K> {
-    type Item = i16x8;
+    type Item = K::Vector;
 
     #[inline(always)]
-    fn next(&mut self) -> Option<i16x8> {
-        let lower = self.k.pixel_taps(self.taps.next()?);
-        let upper = core::mem::replace(&mut self.upper, lower);
-        Some(self.k.pixels(upper, lower))
+    fn next(&mut self) -> Option<K::Vector> {
+        self.k.next_pixels(&mut self.upper, &mut self.taps)
     }
 }
 
 /// Interpolates the template planes (pixels from the `win + 1` rows `rows`, derivatives from
-/// the `win + 1` rows of `[Ix, Iy]` pairs `grads`) with sampler `k`, a column of vectors at a time ([`columns`]); returns `G`'s
-/// sums, exact (in `i32` lanes over a column, at most 63 vectors of [`G_VECTOR_BOUND`], then
-/// in `i64`). Inlined into each caller, as [`mismatch`].
+/// the `win + 1` rows of `[Ix, Iy]` pairs `grads`) with sampler `k`, a column of vectors at a
+/// time ([`columns`]); returns `G`'s sums, exact (in `i32` lanes over a column, at most 63
+/// vectors of [`G_VECTOR_BOUND`], then in `i64`). Inlined into each caller, as [`mismatch`].
 #[inline(always)]
 fn template<K: Sampler>(
     k: K,
@@ -399,20 +505,19 @@ fn template<K: Sampler>(
     grads: Rows<'_, [i16; 2]>,
     tmpl: &mut [i16],
     win: usize,
-    s: usize,
 ) -> (i64, i64, i64) {
     const _: () = assert!(super::MAX_WIN as i64 * G_VECTOR_BOUND <= i32::MAX as i64);
-    let (ti, rest) = tmpl.split_at_mut(win * s);
-    let (tx, ty) = rest.split_at_mut(win * s);
-    for (v, oi) in columns_mut(ti, win).enumerate() {
+    let (ti, rest) = tmpl.split_at_mut(plane_len(win).min(tmpl.len()));
+    let (tx, ty) = rest.split_at_mut(plane_len(win).min(rest.len()));
+    for (v, oi) in columns_mut::<K>(ti, win).enumerate() {
         let Some(samples) = Samples::new(k, rows.clone(), v) else {
             break;
         };
         for (o, p) in oi.iter_mut().zip(samples) {
-            *o = p.to_array();
+            *o = k.store(p);
         }
     }
-    let planes = columns_mut(tx, win).zip(columns_mut(ty, win));
+    let planes = columns_mut::<K>(tx, win).zip(columns_mut::<K>(ty, win));
     let real = real_lanes(win);
     let (mut a11, mut a12, mut a22) = (0i64, 0i64, 0i64);
     for (v, ((ox, oy), &real)) in planes.zip(&real).enumerate() {
@@ -422,22 +527,23 @@ fn template<K: Sampler>(
             break;
         };
         let mut upper = k.derivative_taps(t);
-        let (mut s11, mut s12, mut s22) = (i32x4::ZERO, i32x4::ZERO, i32x4::ZERO);
-        for (t, (ox, oy)) in taps.zip(ox.iter_mut().zip(oy)) {
-            let lower = k.derivative_taps(t);
+        let real = k.lanes(real);
+        let (mut s11, mut s12, mut s22) = (k.zero(), k.zero(), k.zero());
+        for (ox, oy) in ox.iter_mut().zip(oy) {
+            let Some((ix, iy)) = k.next_derivatives(&mut upper, &mut taps) else {
+                break;
+            };
             // The derivatives, zero beyond column `win` (the padding), and `G`'s sums from
             // the same vectors.
-            let (ix, iy) = k.derivatives(upper, lower);
-            let (ix, iy) = (ix & real, iy & real);
-            upper = lower;
-            (*ox, *oy) = (ix.to_array(), iy.to_array());
-            s11 += ix.dot(ix);
-            s12 += ix.dot(iy);
-            s22 += iy.dot(iy);
+            let (ix, iy) = (k.and(ix, real), k.and(iy, real));
+            (*ox, *oy) = (k.store(ix), k.store(iy));
+            s11 = k.dot(s11, ix, ix);
+            s12 = k.dot(s12, ix, iy);
+            s22 = k.dot(s22, iy, iy);
         }
-        a11 += sum(s11);
-        a12 += sum(s12);
-        a22 += sum(s22);
+        a11 += k.sum(s11);
+        a12 += k.sum(s12);
+        a22 += k.sum(s22);
     }
     (a11, a12, a22)
 }
@@ -455,12 +561,6 @@ fn real_lanes(win: usize) -> [i16x8; MAX_VECTORS] {
 
 /// The most one vector adds to a lane of `G`'s sums: two products of at most `(16 · 255)²`.
 const G_VECTOR_BOUND: i64 = 2 * 4080 * 4080;
-
-/// The lanes of `v` added (exact in `i64`).
-#[inline(always)]
-fn sum(v: i32x4) -> i64 {
-    v.to_array().iter().map(|&x| i64::from(x)).sum()
-}
 
 /// The most one vector adds to a lane of [`mismatch`]'s sums: two products of `J - I` (it fits
 /// `i16`: both in `0 ..= 255 · 32`) and a derivative, at most `2 · 8160 · 4080`.
@@ -481,28 +581,28 @@ fn mismatch<K: Sampler>(
     rows: Rows<'_, u8>,
     tmpl: &[i16],
     win: usize,
-    s: usize,
     abs: bool,
 ) -> (i64, i64) {
-    let (ti, rest) = tmpl.split_at(win * s);
-    let (tx, ty) = rest.split_at(win * s);
+    let (ti, rest) = tmpl.split_at(plane_len(win).min(tmpl.len()));
+    let (tx, ty) = rest.split_at(plane_len(win).min(rest.len()));
     if abs {
-        // The padding lanes masked off; a lane gains at most `2 · 8160` a vector, at most
-        // `63 · 8 · 2 · 8160 < 2³¹` in all.
+        // The padding lanes masked off (the padding rows are zero in `J` and `I`); a lane
+        // gains at most `2 · 8160` a vector, at most `63 · 8 · 2 · 8160 < 2³¹` in all.
         let real = real_lanes(win);
-        let mut acc = i32x4::ZERO;
-        for (v, (ti, &real)) in columns(ti, win).zip(&real).enumerate() {
+        let mut acc = k.zero();
+        for (v, (ti, &real)) in columns::<K>(ti, win).zip(&real).enumerate() {
             let Some(samples) = Samples::new(k, rows.clone(), v) else {
                 break;
             };
-            for (j, &i) in samples.zip(ti) {
-                acc += ((j - i16x8::new(i)).abs() & real).dot(i16x8::ONE);
+            let real = k.lanes(real);
+            for (j, i) in samples.zip(ti) {
+                acc = k.abs(acc, k.and(k.sub(j, k.load(i)), real));
             }
         }
-        return (sum(acc), 0);
+        return (k.sum(acc), 0);
     }
     let (mut b1, mut b2) = (0i64, 0i64);
-    let planes = columns(ti, win).zip(columns(tx, win).zip(columns(ty, win)));
+    let planes = columns::<K>(ti, win).zip(columns::<K>(tx, win).zip(columns::<K>(ty, win)));
     for (v, (ti, (tx, ty))) in planes.enumerate() {
         let Some(mut samples) = Samples::new(k, rows.clone(), v) else {
             break;
@@ -510,14 +610,14 @@ fn mismatch<K: Sampler>(
         // The column in batches of vectors, each summed in `i32` lanes.
         let parts = ti.chunks(BATCH).zip(tx.chunks(BATCH).zip(ty.chunks(BATCH)));
         for (ti, (tx, ty)) in parts {
-            let (mut s1, mut s2) = (i32x4::ZERO, i32x4::ZERO);
-            for ((&i, (&x, &y)), j) in ti.iter().zip(tx.iter().zip(ty)).zip(&mut samples) {
-                let diff = j - i16x8::new(i);
-                s1 += diff.dot(i16x8::new(x));
-                s2 += diff.dot(i16x8::new(y));
+            let (mut s1, mut s2) = (k.zero(), k.zero());
+            for ((i, (x, y)), j) in ti.iter().zip(tx.iter().zip(ty)).zip(&mut samples) {
+                let diff = k.sub(j, k.load(i));
+                s1 = k.dot(s1, diff, k.load(x));
+                s2 = k.dot(s2, diff, k.load(y));
             }
-            b1 += sum(s1);
-            b2 += sum(s2);
+            b1 += k.sum(s1);
+            b2 += k.sum(s2);
         }
     }
     (b1, b2)

@@ -88,7 +88,8 @@ pub const MAX_WIN: usize = 63;
 /// derivatives and pixels at integer positions, the interpolated template and its
 /// derivatives. On cores without vector units `3 (win + 1)² + 3 win²`, 2 775 (5.4 KB) for
 /// 21x21; on targets with 128-bit SIMD (x86-64, aarch64, ...) the rows are padded to a
-/// multiple of 8 lanes, `s = 8 ⌈win / 8⌉`: `3 (win + 1)(s + 1) + 3 win s`, 3 162 for 21x21.
+/// multiple of 8 lanes, `s = 8 ⌈win / 8⌉`, and the template's to an even count, `r = 2 ⌈win / 2⌉`
+/// (AVX2 holds two rows a vector): `3 (win + 1)(s + 1) + 3 r s`, 3 234 for 21x21.
 pub const fn scratch_len(win: usize) -> usize {
     window::native_scratch_len(win)
 }
