@@ -3,14 +3,15 @@
 //! arbitrary configurations. Contract: no panic; on `Ok`, every tracked point is finite and
 //! its error is finite and non-negative. And `FlowBuffers` over three frames (there and back
 //! twice) with and without kept templates (`kept_scratch_len`, with slack either way): the
-//! same result, flow for flow, to the bit.
+//! same result, flow for flow, to the bit. And `calc_flow_bordered` with a border buffer of
+//! arbitrary length: the same result as `calc_flow`, to the bit.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Fixed, Flow, FlowBuffers, FlowStatus, Gradients, LkConfig, Q16, calc_flow, kept_scratch_len,
-    level_gradient_len, scratch_len,
+    Fixed, Flow, FlowBuffers, FlowStatus, Gradients, LkConfig, Q16, bordered_len, calc_flow,
+    calc_flow_bordered, kept_scratch_len, level_gradient_len, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 use libfuzzer_sys::fuzz_target;
@@ -40,6 +41,9 @@ struct Input {
     /// `derivs / 3 % 4` times).
     derivs: u8,
     scratch_slack: i8,
+    /// Length of the border buffer of `calc_flow_bordered`: the level-0 copies' halved
+    /// `borders % 4` times, less `borders / 4 % 3` bytes.
+    borders: u8,
     /// Slack of the kept-template scratch of the `FlowBuffers` run.
     kept_slack: i16,
     points: std::vec::Vec<(Num, Num)>,
@@ -153,7 +157,11 @@ fuzz_target!(|inp: Input| {
             f.y = p[1];
         }
     }
-    if calc_flow::<f32>(
+    let blen = (bordered_len(w, h, cfg.win.min(63)) >> (inp.borders % 4))
+        .saturating_sub(usize::from(inp.borders / 4 % 3));
+    let mut borders = std::vec![0u8; blen];
+    let initial = flows.clone();
+    let plain = calc_flow::<f32>(
         &pa,
         &pb,
         &pts,
@@ -161,10 +169,37 @@ fuzz_target!(|inp: Input| {
         &params,
         grads(inp.derivs, &mut grad),
         &mut scratch,
-    )
-    .is_ok()
-    {
+    );
+    if plain.is_ok() {
         check(&flows, |c| c, "f32");
+    }
+    let mut bordered = initial;
+    let with = calc_flow_bordered::<f32>(
+        &pa,
+        &pb,
+        &pts,
+        &mut bordered,
+        &params,
+        grads(inp.derivs, &mut grad),
+        &mut borders,
+        &mut scratch,
+    );
+    assert_eq!(
+        plain.is_ok(),
+        with.is_ok(),
+        "bordered: {with:?} against {plain:?}"
+    );
+    if plain.is_ok() {
+        let bits = |f: &[Flow<f32>]| -> std::vec::Vec<_> {
+            f.iter()
+                .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
+                .collect()
+        };
+        assert_eq!(
+            bits(&bordered),
+            bits(&flows),
+            "bordered copies changed a flow"
+        );
     }
 
     let fpts: std::vec::Vec<[Q16; 2]> = inp
@@ -180,7 +215,8 @@ fuzz_target!(|inp: Input| {
             f.y = p[1];
         }
     }
-    if calc_flow::<Fixed>(
+    let initial = fflows.clone();
+    let plain = calc_flow::<Fixed>(
         &pa,
         &pb,
         &fpts,
@@ -188,10 +224,28 @@ fuzz_target!(|inp: Input| {
         &params,
         grads(inp.derivs, &mut grad),
         &mut scratch,
-    )
-    .is_ok()
-    {
+    );
+    if plain.is_ok() {
         check(&fflows, Q16::to_f32, "fixed");
+    }
+    let mut bordered = initial;
+    let with = calc_flow_bordered::<Fixed>(
+        &pa,
+        &pb,
+        &fpts,
+        &mut bordered,
+        &params,
+        grads(inp.derivs, &mut grad),
+        &mut borders,
+        &mut scratch,
+    );
+    assert_eq!(
+        plain.is_ok(),
+        with.is_ok(),
+        "bordered: {with:?} against {plain:?}"
+    );
+    if plain.is_ok() {
+        assert_eq!(bordered, fflows, "bordered copies changed a flow");
     }
 
     // FlowBuffers, frames a -> b -> a -> b, without and with kept templates.

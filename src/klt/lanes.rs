@@ -14,7 +14,8 @@
 
 use super::arith::{Bilinear, W_BITS};
 use super::window::{
-    Column, PIX_SHIFT, Rows, Window, block_of, block_rows, cached_patch, fetch_grad, fetch_patch,
+    Column, PIX_SHIFT, Pixels, Rows, Window, block_of, block_rows, cached_patch, fetch_grad,
+    fetch_patch,
 };
 use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
@@ -83,6 +84,8 @@ pub(super) struct Lanes<'s> {
 }
 
 impl<'s> Window<'s> for Lanes<'s> {
+    const BORDERED: bool = true;
+
     fn new(scratch: &'s mut [i16], win: usize) -> Result<Self> {
         let s = stride(win);
         let block = (win + 1) * (s + 1);
@@ -106,11 +109,12 @@ impl<'s> Window<'s> for Lanes<'s> {
 
     fn template(
         &mut self,
-        i: &ImageView<'_, u8>,
+        pixels: &Pixels<'_>,
         grad: Option<&ImageView<'_, [i16; 2]>>,
         b: &Bilinear,
     ) -> (i64, i64, i64) {
         let (n, c) = (self.win + 1, self.s + 1);
+        let i = &pixels.img;
         // The derivatives: straight from the level's when the block lies inside it, else
         // copied (zero outside) or computed into `grad`.
         let grads = match grad {
@@ -133,7 +137,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         self.patch_at = None;
         let w = weights(b);
         let tmpl = &mut *self.tmpl;
-        let rows = match block_rows(i, (b.x, b.y), c, n) {
+        let rows = match pixels.block((b.x, b.y), c, n) {
             Some(rows) => rows,
             None => {
                 fetch_patch(i, (b.x, b.y), c, n, self.patch);
@@ -149,12 +153,12 @@ impl<'s> Window<'s> for Lanes<'s> {
         template(PairWeights::new(&w), rows, grads, tmpl, win)
     }
 
-    fn mismatch(&mut self, j: &ImageView<'_, u8>, b: &Bilinear, abs: bool) -> (i64, i64) {
+    fn mismatch(&mut self, j: &Pixels<'_>, b: &Bilinear, abs: bool) -> (i64, i64) {
         let (n, c) = (self.win + 1, self.s + 1);
         let w = weights(b);
-        let rows = match block_rows(j, (b.x, b.y), c, n) {
+        let rows = match j.block((b.x, b.y), c, n) {
             Some(rows) => rows,
-            None => cached_patch(j, (b.x, b.y), (c, n), self.patch, &mut self.patch_at),
+            None => cached_patch(&j.img, (b.x, b.y), (c, n), self.patch, &mut self.patch_at),
         };
         let (tmpl, win) = (&*self.tmpl, self.win);
         #[cfg(target_arch = "x86_64")]

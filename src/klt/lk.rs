@@ -2,7 +2,7 @@
 
 use super::arith::{Bilinear, Coordinate, FlowArith};
 use super::cache::TemplateCache;
-use super::window::{LANES, Lanes, Packed, Window};
+use super::window::{LANES, Lanes, Packed, Pixels, Window, border, bordered_len, pad};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::image::{ImageMut, ImageView};
 use crate::pyramid::Pyramid;
@@ -17,8 +17,8 @@ fn in_range(b: &Bilinear, win: usize, w: usize, h: usize) -> bool {
 
 /// The per-call state shared by every point of a level.
 struct Level<'a, 'g, A: FlowArith> {
-    i: ImageView<'a, u8>,
-    j: ImageView<'a, u8>,
+    i: Pixels<'a>,
+    j: Pixels<'a>,
     grad: Option<ImageView<'g, [i16; 2]>>,
     level: u32,
     top: bool,
@@ -51,7 +51,7 @@ fn template<'s, A: FlowArith, W: Window<'s>>(
     let level = lv.level as usize;
     match keep {
         Keep::Off => s.template(&lv.i, lv.grad.as_ref(), bi),
-        Keep::Use(cache) => match cache.find(k, level, &lv.i, bi) {
+        Keep::Use(cache) => match cache.find(k, level, &lv.i.img, bi) {
             Some((state, sums)) => {
                 s.restore(state);
                 sums
@@ -60,7 +60,7 @@ fn template<'s, A: FlowArith, W: Window<'s>>(
         },
         Keep::Fill(cache) => {
             let sums = s.template(&lv.i, lv.grad.as_ref(), bi);
-            cache.keep(k, level, &lv.i, bi, (s.state(), sums));
+            cache.keep(k, level, &lv.i.img, bi, (s.state(), sums));
             sums
         }
     }
@@ -90,7 +90,7 @@ fn track_point<'s, A: FlowArith, W: Window<'s>>(
     };
     f.x = next[0];
     f.y = next[1];
-    let (iw, ih) = (lv.i.width(), lv.i.height());
+    let (iw, ih) = (lv.i.img.width(), lv.i.img.height());
     let Some(bi) = A::bilinear(p[0] - half, p[1] - half) else {
         f.status = FlowStatus::OutOfBounds;
         return;
@@ -177,6 +177,7 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
     flows: &mut [Flow<A::Coord>],
     params: &LkParams,
     grads: &mut Gradients<'_>,
+    borders: &mut [u8],
     scratch: &'s mut [i16],
     keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
@@ -196,15 +197,16 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
             return Err(Error::InvalidImage);
         }
         let len = i.width() * i.height();
+        // Both rules weigh a pass over the level (`w h` pixels) against the windows' work
+        // (`n (win + 1)²` for `n` points).
+        let windows_outweigh = len <= flows.len().saturating_mul((cfg.win + 1) * (cfg.win + 1));
         let buf = match grads {
             Gradients::PerWindow => None,
             Gradients::PerLevel(buf) => Some(
                 buf.get_mut(..len)
                     .ok_or(Error::BufferTooSmall("gradients"))?,
             ),
-            Gradients::Auto(buf) => buf
-                .get_mut(..len)
-                .filter(|_| len <= flows.len().saturating_mul((cfg.win + 1) * (cfg.win + 1))),
+            Gradients::Auto(buf) => buf.get_mut(..len).filter(|_| windows_outweigh),
         };
         let grad = match buf {
             Some(b) => {
@@ -215,6 +217,22 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
                 Some(ImageView::packed(&*b, i.width(), i.height())?)
             }
             None => None,
+        };
+        // The level's copies with a reflected border, where they fit and pay.
+        let (bl, bd) = (
+            bordered_len(i.width(), i.height(), cfg.win),
+            border(cfg.win),
+        );
+        let copies = match borders.get_mut(..bl) {
+            Some(b) if W::BORDERED && windows_outweigh => {
+                let (bi, bj) = b.split_at_mut(bl / 2);
+                pad(&i, bd, bi).zip(pad(&j, bd, bj))
+            }
+            _ => None,
+        };
+        let (i, j) = match copies {
+            Some((pi, pj)) => (Pixels::bordered(i, pi, bd), Pixels::bordered(j, pj, bd)),
+            None => (Pixels::new(i), Pixels::new(j)),
         };
         let lv = Level::<A> {
             i,
@@ -247,13 +265,18 @@ pub(super) fn run_native<A: FlowArith>(
     flows: &mut [Flow<A::Coord>],
     params: &LkParams,
     grads: &mut Gradients<'_>,
+    borders: &mut [u8],
     scratch: &mut [i16],
     keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
     if LANES {
-        run::<A, Lanes<'_>>(prev, next, pts, flows, params, grads, scratch, keep)
+        run::<A, Lanes<'_>>(
+            prev, next, pts, flows, params, grads, borders, scratch, keep,
+        )
     } else {
-        run::<A, Packed<'_>>(prev, next, pts, flows, params, grads, scratch, keep)
+        run::<A, Packed<'_>>(
+            prev, next, pts, flows, params, grads, borders, scratch, keep,
+        )
     }
 }
 
@@ -286,6 +309,46 @@ pub fn calc_flow<A: FlowArith>(
         flows,
         cfg,
         &mut grads,
+        &mut [],
+        scratch,
+        &mut Keep::Off,
+    )
+}
+
+/// [`calc_flow`] that first copies each level of both pyramids, with a reflected border, into
+/// `borders`, where the copies fit and the level is small against the windows' work (the rule
+/// of [`Gradients::Auto`]: `w h <= n (win + 1)²` for `n` points). A window that leaves the
+/// image but not the border then reads the copy's rows where it would otherwise copy out its
+/// own block at its template and at every mismatch that moves it; the copy is made once a
+/// level, as OpenCV keeps its pyramids with a border. The flows are the same to the bit.
+///
+/// A buffer of [`bordered_len`](super::bordered_len)`(w, h, win)` bytes for the level-1 size
+/// `w x h` serves levels 1 and up (with 278 points and 21x21 windows on a 640x480 frame,
+/// 191 KB); an empty one is [`calc_flow`]. The copies serve the vector kernel (targets with
+/// 128-bit SIMD); where the boards' kernel runs, none is made and this is [`calc_flow`].
+/// Errors: those of [`calc_flow`].
+#[allow(clippy::too_many_arguments)]
+pub fn calc_flow_bordered<A: FlowArith>(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    prev_pts: &[[A::Coord; 2]],
+    flows: &mut [Flow<A::Coord>],
+    cfg: &LkParams,
+    mut grads: Gradients<'_>,
+    borders: &mut [u8],
+    scratch: &mut [i16],
+) -> Result<()> {
+    if prev_pts.len() != flows.len() {
+        return Err(Error::LengthMismatch);
+    }
+    run_native::<A>(
+        prev,
+        next,
+        |k| prev_pts.get(k).copied(),
+        flows,
+        cfg,
+        &mut grads,
+        borders,
         scratch,
         &mut Keep::Off,
     )
@@ -333,7 +396,7 @@ pub(super) fn forward_backward_keeping<A: FlowArith>(
     {
         let fw: &[Flow<A::Coord>] = flows;
         let pts = |k: usize| fw.get(k).map(|f| [f.x, f.y]);
-        run_native::<A>(next, prev, pts, back, &bcfg, grads, scratch, keep)?;
+        run_native::<A>(next, prev, pts, back, &bcfg, grads, &mut [], scratch, keep)?;
     }
     let win = cfg.config().win;
     let params = A::params(cfg, (win * win) as u32);
@@ -349,7 +412,7 @@ pub(super) fn forward_backward_keeping<A: FlowArith>(
 
 #[cfg(test)]
 mod tests {
-    use super::super::{Fixed, Q16, scratch_len};
+    use super::super::{Fixed, Q16, bordered_len, scratch_len};
     use super::*;
     use std::vec::Vec;
 
@@ -514,6 +577,70 @@ mod tests {
         }
     }
 
+    /// The bordered copies ([`calc_flow_bordered`]) change no flow, status or error, for both
+    /// kernels and both arithmetics, with every level copied, some, or none (a buffer one byte
+    /// short of a level's copies, or empty); the points include windows across every edge and
+    /// one centred outside the image.
+    #[test]
+    fn bordered_copies_change_nothing() {
+        let (w, h) = (64, 48);
+        let (a, b, cfg) = small_pair(-0.8, 1.3);
+        let mut bufs = [0u8, 0].map(|_| std::vec![0u8; crate::pyramid::buffer_len(w, h, 3)]);
+        let [ba, bb] = &mut bufs;
+        let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), ba, 3).unwrap();
+        let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), bb, 3).unwrap();
+        let cfg = LkConfig {
+            max_level: 2,
+            ..*cfg.config()
+        }
+        .check()
+        .unwrap();
+        let pts: Vec<[Q16; 2]> = (0..40)
+            .map(|k| {
+                [(k % 8) * 8 + 2, (k / 8) * 10 - 1].map(|c| Q16::from_bits((c << 16) + 777 * k))
+            })
+            .collect();
+        let pf: Vec<[f32; 2]> = pts.iter().map(|p| p.map(Q16::to_f32)).collect();
+        let full = bordered_len(w, h, 9);
+        let mut s = std::vec![0i16; both_len(9)];
+        fn go<'s, A: FlowArith, W: Window<'s>>(
+            (pa, pb): (&Pyramid<'_>, &Pyramid<'_>),
+            pts: &[[A::Coord; 2]],
+            cfg: &LkParams,
+            borders: &mut [u8],
+            s: &'s mut [i16],
+        ) -> Vec<Flow<A::Coord>> {
+            let mut f = std::vec![Flow::<A::Coord>::default(); pts.len()];
+            let p = |k: usize| pts.get(k).copied();
+            let g = &mut Gradients::PerWindow;
+            run::<A, W>(pa, pb, p, &mut f, cfg, g, borders, s, &mut Keep::Off).unwrap();
+            f
+        }
+        let py = (&pa, &pb);
+        let want_q = go::<Fixed, Packed<'_>>(py, &pts, &cfg, &mut [], &mut s);
+        let want_f = go::<f32, Packed<'_>>(py, &pf, &cfg, &mut [], &mut s);
+        assert!(want_q.iter().any(|f| f.status == FlowStatus::Tracked));
+        for len in [full, full - 1, bordered_len(w / 2, h / 2, 9), 0] {
+            let mut borders = std::vec![0u8; len];
+            let bd = &mut borders;
+            assert_eq!(
+                go::<Fixed, Packed<'_>>(py, &pts, &cfg, bd, &mut s),
+                want_q,
+                "{len}"
+            );
+            assert_eq!(
+                go::<Fixed, Lanes<'_>>(py, &pts, &cfg, bd, &mut s),
+                want_q,
+                "{len}"
+            );
+            let bits = flow_bits(&want_f);
+            let got = go::<f32, Packed<'_>>(py, &pf, &cfg, bd, &mut s);
+            assert_eq!(flow_bits(&got), bits, "{len}");
+            let got = go::<f32, Lanes<'_>>(py, &pf, &cfg, bd, &mut s);
+            assert_eq!(flow_bits(&got), bits, "{len}");
+        }
+    }
+
     /// `compute_error: false` moves no point (same positions bit for bit), leaves `err` 0,
     /// and skips only the final range check: a point whose last step leaves the image stays
     /// `Tracked` without it.
@@ -562,6 +689,7 @@ mod tests {
             &mut f1,
             cfg,
             &mut grads(g, per_level),
+            &mut [],
             s,
             &mut Keep::Off,
         )
@@ -573,6 +701,7 @@ mod tests {
             &mut f2,
             cfg,
             &mut grads(g, per_level),
+            &mut [],
             s,
             &mut Keep::Off,
         )
@@ -611,8 +740,12 @@ mod tests {
                 let mut f = std::vec![Flow::<A::Coord>::default(); n];
                 let p = |k: usize| from.get(k).copied();
                 match lanes {
-                    true => run::<A, Lanes<'_>>(prev, next, p, &mut f, cfg, g, &mut s, keep),
-                    false => run::<A, Packed<'_>>(prev, next, p, &mut f, cfg, g, &mut s, keep),
+                    true => {
+                        run::<A, Lanes<'_>>(prev, next, p, &mut f, cfg, g, &mut [], &mut s, keep)
+                    }
+                    false => {
+                        run::<A, Packed<'_>>(prev, next, p, &mut f, cfg, g, &mut [], &mut s, keep)
+                    }
                 }
                 .unwrap();
                 f
@@ -690,7 +823,7 @@ mod tests {
             Q16::saturating_from_f32(20.6),
         )
         .unwrap();
-        let sums = k1.template(&img, None, &b);
+        let sums = k1.template(&Pixels::new(img), None, &b);
         let state = k1.state().to_vec();
         cache.keep(0, 0, &img, &b, (&state, sums));
         // (The slot holds the native kernel's state length; Packed's is its first part.)

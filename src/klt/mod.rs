@@ -22,6 +22,14 @@
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
 //!
+//! Where RAM allows, [`calc_flow_bordered`] first copies each coarse level of both pyramids
+//! with a reflected border ([`bordered_len`] bytes for the level-1 size), as OpenCV keeps its
+//! pyramids: a window that crosses a level's edge then reads the copy instead of copying out
+//! its own reflected block at its template and at each mismatch that moves it. The flows are
+//! the same to the bit; on the host the copies cost less than the blocks they save once many
+//! points sit near the edges of the coarse levels (BENCHMARKS.md, "KLT / Host speed per
+//! tracked feature").
+//!
 //! With the forward-backward check, [`FlowBuffers`] (and so [`Tracker`] and
 //! [`crate::target::PlanarTarget`]) can keep the backward pass's templates for the next
 //! frame's forward pass, which needs the same ones again (the new frame at the tracked
@@ -75,7 +83,7 @@ mod window;
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
-pub use lk::{calc_flow, forward_backward};
+pub use lk::{calc_flow, calc_flow_bordered, forward_backward};
 pub use tracker::{
     FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, kept_scratch_len,
     pipeline_ram,
@@ -83,6 +91,13 @@ pub use tracker::{
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;
+
+/// Bytes of the bordered copies [`calc_flow_bordered`] makes of a `w x h` level of both
+/// pyramids for `win x win` windows: `2 (w + 2b)(h + 2b)` with the border
+/// `b = ⌊win / 2⌋ + 8` (every block a window centred in the level reads lies inside it).
+pub const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
+    window::bordered_len(w, h, win)
+}
 
 /// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows: the window's
 /// derivatives and pixels at integer positions, the interpolated template and its

@@ -170,7 +170,17 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
         let mut cache = TemplateCache::new(rest, cfg.win, cfg.max_level + 1, N);
         let (grads, p) = (&mut Gradients::PerWindow, |k: usize| pts.get(k).copied());
         let mut keep = cache.as_ref().map_or(Keep::Off, Keep::Use);
-        run_native::<A>(prev, next, p, flows, &lk, grads, scratch, &mut keep)?;
+        run_native::<A>(
+            prev,
+            next,
+            p,
+            flows,
+            &lk,
+            grads,
+            &mut [],
+            scratch,
+            &mut keep,
+        )?;
         let mut keep = cache.as_mut().map_or(Keep::Off, Keep::Fill);
         forward_backward_keeping::<A>(
             prev, next, pts, flows, back, &lk, grads, scratch, &mut keep,
