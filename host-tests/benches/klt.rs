@@ -3,6 +3,9 @@
 //! side does the same with `buildOpticalFlowPyramid`, see `scripts/bench_klt_opencv.py`).
 //! Paths: fixed and f32, derivatives per window and per level; the Rust crate
 //! `optical-flow-lk` on the same points; plus the pyramid build and the Shi-Tomasi detection.
+//! camgeom's buffers (scratch, level derivatives, bordered copies: [`FlowScratch`]) are made
+//! once outside the timed call, as its callers keep them (the library never allocates);
+//! optical-flow-lk allocates inside its call, as its API does.
 //!
 //! For accuracy and speed on one input, `klt_known` tracks the 278 Shi-Tomasi corners of
 //! basketball1 (`fixtures/klt/basketball_corners.csv`) into basketball1 warped by the known
@@ -21,7 +24,9 @@ use camgeom::klt::LkConfig;
 use camgeom_host::bench::{Answers, load_rows};
 use camgeom_host::data_dir;
 use camgeom_host::images::load_gray;
-use camgeom_host::klt::{Derivatives, Path, corners, flow_pyramids, levels, pyramid};
+use camgeom_host::klt::{
+    Derivatives, FlowScratch, Path, corners, flow_pyramids, flow_pyramids_in, levels, pyramid,
+};
 use camgeom_host::known_motion::{warp, warps};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use serde_json::json;
@@ -76,8 +81,11 @@ fn bench(c: &mut Criterion) {
             ("fixed_auto", Path::Fixed, Derivatives::Auto),
             ("f32_auto", Path::F32, Derivatives::Auto),
         ] {
+            // The caller's buffers made once, as a caller of the allocation-free library
+            // keeps them from frame to frame.
+            let mut fs = FlowScratch::new(&pa, &cfg, derivs);
             g.bench_with_input(BenchmarkId::new(name, n), &p, |bn, p| {
-                bn.iter(|| flow_pyramids(&pa, &pb, black_box(p), &cfg, path, derivs).unwrap())
+                bn.iter(|| flow_pyramids_in(&mut fs, &pa, &pb, black_box(p), &cfg, path).unwrap())
             });
         }
         // The peer crate optical-flow-lk on the same points, pyramids and window (its pyramid
@@ -123,10 +131,9 @@ fn bench(c: &mut Criterion) {
                 .map(|f| (f.status == FlowStatus::Tracked).then_some([f.x, f.y]))
                 .collect();
             answers.record(&format!("{set}/{name}"), json!({ "points": end }));
+            let mut fs = FlowScratch::new(&pa, &cfg, Derivatives::Auto);
             g.bench_function(BenchmarkId::new(name, set), |bn| {
-                bn.iter(|| {
-                    flow_pyramids(&pa, &pw, black_box(pts), &cfg, path, Derivatives::Auto).unwrap()
-                })
+                bn.iter(|| flow_pyramids_in(&mut fs, &pa, &pw, black_box(pts), &cfg, path).unwrap())
             });
         }
         let op = to_peer(pts);

@@ -8,13 +8,16 @@
 //! valgrind --tool=callgrind --toggle-collect='*flow_pyramids*' target/release/examples/klt_count
 //! target/release/examples/klt_count 1 auto 278         # Gradients::Auto, the first 278 points
 //! target/release/examples/klt_count 1 auto 278 known   # the peer table's KLT case
+//! target/release/examples/klt_count 1 auto 278 known once  # its buffers made once
 //! ```
 
 use camgeom::klt::LkConfig;
 use camgeom_host::bench::load_rows;
 use camgeom_host::data_dir;
 use camgeom_host::images::load_gray;
-use camgeom_host::klt::{Derivatives, Path, flow_pyramids, levels, pyramid};
+use camgeom_host::klt::{
+    Derivatives, FlowScratch, Path, flow_pyramids, flow_pyramids_in, levels, pyramid,
+};
 
 fn main() {
     let mb = data_dir().join("middlebury");
@@ -63,10 +66,18 @@ fn main() {
         Some(k) => &pts[..k.min(pts.len())],
         None => &pts[..],
     };
+    // `once` as the fifth argument: the buffers made once and reused, as the benches do (by
+    // default each call makes its own, as the count's history was measured).
+    let mut once = (std::env::args().nth(5).as_deref() == Some("once"))
+        .then(|| FlowScratch::new(&pa, &cfg, derivs));
     let mut sum = 0u64;
     let mut tracked = 0;
     for _ in 0..n {
-        let flows = flow_pyramids(&pa, &pb, pts, &cfg, Path::Fixed, derivs).unwrap();
+        let flows = match once.as_mut() {
+            Some(s) => flow_pyramids_in(s, &pa, &pb, pts, &cfg, Path::Fixed),
+            None => flow_pyramids(&pa, &pb, pts, &cfg, Path::Fixed, derivs),
+        }
+        .unwrap();
         tracked = 0;
         for f in &flows {
             let ok = f.status == camgeom::klt::FlowStatus::Tracked;

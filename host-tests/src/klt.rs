@@ -5,7 +5,7 @@ use camgeom::corners::{Corner, CornerConfig};
 use camgeom::image::ImageView;
 use camgeom::klt::{
     Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Tracker,
-    TrackerConfig, calc_flow, forward_backward, scratch_len,
+    TrackerConfig, bordered_len, calc_flow_bordered, forward_backward, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 
@@ -46,7 +46,8 @@ pub fn pyramid<'a>(img: &'a GrayImage, buf: &'a mut Vec<u8>, levels: usize) -> P
 }
 
 /// Where [`flow_pyramids`] takes the window derivatives from ([`Gradients`]; a level-0 sized
-/// buffer for `Level`, a level-1 sized one for `Auto`).
+/// buffer for `Level`, a level-1 sized one for `Auto`, which also gets the bordered copies of
+/// [`calc_flow_bordered`] for the level-1 size: the host's fastest configuration).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Derivatives {
     /// [`Gradients::PerWindow`].
@@ -57,8 +58,39 @@ pub enum Derivatives {
     Auto,
 }
 
+/// The caller's buffers of one [`flow_pyramids_in`] call, made once and reused from call to
+/// call as a board (or any caller of the allocation-free library) keeps them.
+#[derive(Debug, Clone)]
+pub struct FlowScratch {
+    scratch: Vec<i16>,
+    grad: Vec<[i16; 2]>,
+    borders: Vec<u8>,
+    derivs: Derivatives,
+}
+
+impl FlowScratch {
+    /// The buffers for `derivs` on pyramids whose levels 0 and 1 are `prev`'s.
+    pub fn new(prev: &Pyramid<'_>, cfg: &LkConfig, derivs: Derivatives) -> Self {
+        let size = |l: usize| prev.level(l).map_or((0, 0), |l| (l.width(), l.height()));
+        let ((w0, h0), (w1, h1)) = (size(0), size(1));
+        // `Auto` with the buffers its documentation suggests, the level-1 size: the coarse
+        // levels per level (and bordered), level 0 per window.
+        let (grad, borders) = match derivs {
+            Derivatives::Window => (0, 0),
+            Derivatives::Level => (w0 * h0, 0),
+            Derivatives::Auto => (w1 * h1, bordered_len(w1, h1, cfg.win)),
+        };
+        Self {
+            scratch: vec![0; scratch_len(cfg.win)],
+            grad: vec![[0; 2]; grad],
+            borders: vec![0; borders],
+            derivs,
+        }
+    }
+}
+
 /// Runs `calc_flow` (and the forward-backward check when `cfg.fb_threshold` is set) on
-/// pyramids already built.
+/// pyramids already built, with buffers made for the call ([`flow_pyramids_in`]).
 pub fn flow_pyramids(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
@@ -67,25 +99,28 @@ pub fn flow_pyramids(
     path: Path,
     derivs: Derivatives,
 ) -> camgeom::Result<Vec<FlowPoint>> {
+    let mut s = FlowScratch::new(prev, cfg, derivs);
+    flow_pyramids_in(&mut s, prev, next, pts, cfg, path)
+}
+
+/// [`flow_pyramids`] with buffers made beforehand (`s`, for the derivatives it was made for).
+pub fn flow_pyramids_in(
+    s: &mut FlowScratch,
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    pts: &[[f64; 2]],
+    cfg: &LkConfig,
+    path: Path,
+) -> camgeom::Result<Vec<FlowPoint>> {
     fn go<A: FlowArith>(
+        s: &mut FlowScratch,
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
         pts: Vec<[A::Coord; 2]>,
         cfg: &LkConfig,
-        derivs: Derivatives,
     ) -> camgeom::Result<Vec<FlowPoint>> {
         let params = cfg.check()?;
-        let mut scratch = vec![0i16; scratch_len(cfg.win)];
-        let l0 = prev.level(0).ok_or(camgeom::Error::InvalidImage)?;
-        // `Auto` with the buffer its documentation suggests, the level-1 size: the coarse
-        // levels per level, level 0 per window.
-        let l1 = prev.level(1).map_or(0, |l| l.width() * l.height());
-        let len = match derivs {
-            Derivatives::Window => 0,
-            Derivatives::Level => l0.width() * l0.height(),
-            Derivatives::Auto => l1,
-        };
-        let mut grad = vec![[0i16; 2]; len];
+        let derivs = s.derivs;
         let mut flows = vec![Flow::<A::Coord>::default(); pts.len()];
         fn g(grad: &mut [[i16; 2]], derivs: Derivatives) -> Gradients<'_> {
             match derivs {
@@ -94,14 +129,15 @@ pub fn flow_pyramids(
                 Derivatives::Auto => Gradients::Auto(grad),
             }
         }
-        calc_flow::<A>(
+        calc_flow_bordered::<A>(
             prev,
             next,
             &pts,
             &mut flows,
             &params,
-            g(&mut grad, derivs),
-            &mut scratch,
+            g(&mut s.grad, derivs),
+            &mut s.borders,
+            &mut s.scratch,
         )?;
         if cfg.fb_threshold.is_some() {
             let mut back = flows.clone();
@@ -112,8 +148,8 @@ pub fn flow_pyramids(
                 &mut flows,
                 &mut back,
                 &params,
-                g(&mut grad, derivs),
-                &mut scratch,
+                g(&mut s.grad, derivs),
+                &mut s.scratch,
             )?;
         }
         Ok(flows
@@ -128,6 +164,7 @@ pub fn flow_pyramids(
     }
     match path {
         Path::Fixed => go::<Fixed>(
+            s,
             prev,
             next,
             pts.iter()
@@ -139,14 +176,13 @@ pub fn flow_pyramids(
                 })
                 .collect(),
             cfg,
-            derivs,
         ),
         Path::F32 => go::<f32>(
+            s,
             prev,
             next,
             pts.iter().map(|p| [p[0] as f32, p[1] as f32]).collect(),
             cfg,
-            derivs,
         ),
     }
 }
