@@ -334,9 +334,33 @@ impl FixedProjection {
 /// (which it does once fewer functions call it) the M7 main job's flow costs 2.5 % more
 /// (2.81M -> 2.88M instructions a frame, measured), so each caller's code does not depend
 /// on the other's.
+///
+/// On x86-64 and aarch64 the root comes from the hardware's correctly rounded `f64` square
+/// root and one integer correction (a `v` of up to 64 bits rounds to 53 in `f64`, so the
+/// rounded root is within one of `⌊√v⌋`; checked against core's at every edge in the tests):
+/// a few instructions where core's is a few dozen dependent steps (a fifth of the host's
+/// Shi-Tomasi, measured). The boards keep core's integer root: most have no double-precision
+/// unit.
 #[inline(never)]
 pub(crate) fn isqrt(v: u64) -> u64 {
-    v.isqrt()
+    #[cfg(any(target_arch = "x86_64", target_arch = "aarch64"))]
+    {
+        // Saturating cast: at most 2^32 (√(2^64 - 1) rounds up to it).
+        let r = libm::sqrt(v as f64) as u64;
+        // `r <= 2^32 + 1`: its square cannot wrap in 128 bits.
+        let sq = |r: u64| u128::from(r).wrapping_mul(u128::from(r));
+        if sq(r) > u128::from(v) {
+            r.saturating_sub(1)
+        } else if sq(r.saturating_add(1)) <= u128::from(v) {
+            r.saturating_add(1)
+        } else {
+            r
+        }
+    }
+    #[cfg(not(any(target_arch = "x86_64", target_arch = "aarch64")))]
+    {
+        v.isqrt()
+    }
 }
 
 #[cfg(test)]
@@ -362,6 +386,42 @@ mod tests {
 
     fn q(v: f64) -> Q16 {
         Q16::from_float(v).unwrap()
+    }
+
+    /// The host's root through `f64` equals core's integer root at every square, one either
+    /// side of it (where a rounding to 53 bits could tip the floor), the ends of the range, and
+    /// random values at every bit length.
+    #[test]
+    fn isqrt_matches_core() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let check = |v: u64| assert_eq!(isqrt(v), v.isqrt(), "v = {v}");
+        for v in [
+            0,
+            1,
+            2,
+            3,
+            4,
+            u64::MAX,
+            u64::MAX - 1,
+            1 << 63,
+            (1 << 53) + 1,
+        ] {
+            check(v);
+        }
+        for bits in 1..=32u32 {
+            for _ in 0..2000 {
+                let r = (rng.next() * (1u64 << bits) as f64) as u64 | (1 << (bits - 1));
+                let s = r * r;
+                for v in [s - 1, s, s.saturating_add(1), s.saturating_add(2 * r)] {
+                    check(v);
+                }
+            }
+        }
+        for bits in 1..=64u32 {
+            for _ in 0..2000 {
+                check((rng.next() * 2f64.powi(bits as i32)) as u64);
+            }
+        }
     }
 
     #[test]
