@@ -10,8 +10,9 @@
 use arbitrary::Arbitrary;
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Fixed, Flow, FlowBuffers, FlowStatus, Gradients, LkConfig, Q16, bordered_len, calc_flow,
-    calc_flow_bordered, kept_scratch_len, level_gradient_len, scratch_len,
+    Coordinate, Fixed, Flow, FlowArith, FlowBuffers, FlowStatus, Gradients, LkConfig, LkParams,
+    Q16, bordered_len, calc_flow, calc_flow_bordered, kept_scratch_len, level_gradient_len,
+    scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 use libfuzzer_sys::fuzz_target;
@@ -86,6 +87,62 @@ fn grad_len(derivs: u8, w: usize, h: usize) -> usize {
     }
 }
 
+/// One arithmetic's flow on the fuzzed pyramids and buffers.
+struct Run<'a, 'p> {
+    pyramids: (&'a Pyramid<'p>, &'a Pyramid<'p>),
+    params: &'a LkParams,
+    /// The flows start at the points ([`LkConfig::use_initial_flow`]).
+    initial: bool,
+    derivs: u8,
+    grad: &'a mut [[i16; 2]],
+    borders: &'a mut [u8],
+    scratch: &'a mut [i16],
+    what: &'static str,
+}
+
+impl Run<'_, '_> {
+    /// `calc_flow` and `calc_flow_bordered` of `pts`: every tracked point of the first
+    /// finite ([`check`]), the same outcome from both, and on `Ok` the same flows to the bit
+    /// (each coordinate's `bits`).
+    fn both<A: FlowArith>(&mut self, pts: &[[A::Coord; 2]], bits: impl Fn(A::Coord) -> u32) {
+        let (pa, pb) = self.pyramids;
+        let mut initial = std::vec![Flow::<A::Coord>::default(); pts.len()];
+        if self.initial {
+            for (f, p) in initial.iter_mut().zip(pts) {
+                (f.x, f.y) = (p[0], p[1]);
+            }
+        }
+        let mut flows = initial.clone();
+        let g = grads(self.derivs, self.grad);
+        let plain = calc_flow::<A>(pa, pb, pts, &mut flows, self.params, g, self.scratch);
+        if plain.is_ok() {
+            check(&flows, A::Coord::to_f32, self.what);
+        }
+        let mut bordered = initial;
+        let g = grads(self.derivs, self.grad);
+        let (b, s) = (&mut *self.borders, &mut *self.scratch);
+        let with = calc_flow_bordered::<A>(pa, pb, pts, &mut bordered, self.params, g, b, s);
+        let what = self.what;
+        assert_eq!(
+            plain.is_ok(),
+            with.is_ok(),
+            "{what} bordered: {with:?} against {plain:?}"
+        );
+        if plain.is_ok() {
+            let key = |f: &[Flow<A::Coord>]| -> std::vec::Vec<_> {
+                f.iter()
+                    .map(|f| (bits(f.x), bits(f.y), f.status, bits(f.err)))
+                    .collect()
+            };
+            assert_eq!(
+                key(&bordered),
+                key(&flows),
+                "{what}: bordered copies changed a flow"
+            );
+        }
+    }
+}
+
 fn check<C: Copy>(flows: &[Flow<C>], to_f32: impl Fn(C) -> f32, what: &str) {
     for f in flows {
         if f.status == FlowStatus::Tracked {
@@ -150,102 +207,30 @@ fuzz_target!(|inp: Input| {
         .take(16)
         .map(|p| [p.0.get(), p.1.get()])
         .collect();
-    let mut flows = std::vec![Flow::<f32>::default(); pts.len()];
-    if inp.use_initial_flow {
-        for (f, p) in flows.iter_mut().zip(&pts) {
-            f.x = p[0];
-            f.y = p[1];
-        }
-    }
     let blen = (bordered_len(w, h, cfg.win.min(63)) >> (inp.borders % 4))
         .saturating_sub(usize::from(inp.borders / 4 % 3));
     let mut borders = std::vec![0u8; blen];
-    let initial = flows.clone();
-    let plain = calc_flow::<f32>(
-        &pa,
-        &pb,
-        &pts,
-        &mut flows,
-        &params,
-        grads(inp.derivs, &mut grad),
-        &mut scratch,
-    );
-    if plain.is_ok() {
-        check(&flows, |c| c, "f32");
-    }
-    let mut bordered = initial;
-    let with = calc_flow_bordered::<f32>(
-        &pa,
-        &pb,
-        &pts,
-        &mut bordered,
-        &params,
-        grads(inp.derivs, &mut grad),
-        &mut borders,
-        &mut scratch,
-    );
-    assert_eq!(
-        plain.is_ok(),
-        with.is_ok(),
-        "bordered: {with:?} against {plain:?}"
-    );
-    if plain.is_ok() {
-        let bits = |f: &[Flow<f32>]| -> std::vec::Vec<_> {
-            f.iter()
-                .map(|f| (f.x.to_bits(), f.y.to_bits(), f.status, f.err.to_bits()))
-                .collect()
-        };
-        assert_eq!(
-            bits(&bordered),
-            bits(&flows),
-            "bordered copies changed a flow"
-        );
-    }
-
     let fpts: std::vec::Vec<[Q16; 2]> = inp
         .fixed_points
         .iter()
         .take(16)
         .map(|p| [Q16::from_bits(p.0), Q16::from_bits(p.1)])
         .collect();
-    let mut fflows = std::vec![Flow::<Q16>::default(); fpts.len()];
-    if inp.use_initial_flow {
-        for (f, p) in fflows.iter_mut().zip(&fpts) {
-            f.x = p[0];
-            f.y = p[1];
+    for (what, fixed) in [("f32", false), ("fixed", true)] {
+        let mut run = Run {
+            pyramids: (&pa, &pb),
+            params: &params,
+            initial: inp.use_initial_flow,
+            derivs: inp.derivs,
+            grad: &mut grad,
+            borders: &mut borders,
+            scratch: &mut scratch,
+            what,
+        };
+        match fixed {
+            false => run.both::<f32>(&pts, f32::to_bits),
+            true => run.both::<Fixed>(&fpts, |q| q.to_bits() as u32),
         }
-    }
-    let initial = fflows.clone();
-    let plain = calc_flow::<Fixed>(
-        &pa,
-        &pb,
-        &fpts,
-        &mut fflows,
-        &params,
-        grads(inp.derivs, &mut grad),
-        &mut scratch,
-    );
-    if plain.is_ok() {
-        check(&fflows, Q16::to_f32, "fixed");
-    }
-    let mut bordered = initial;
-    let with = calc_flow_bordered::<Fixed>(
-        &pa,
-        &pb,
-        &fpts,
-        &mut bordered,
-        &params,
-        grads(inp.derivs, &mut grad),
-        &mut borders,
-        &mut scratch,
-    );
-    assert_eq!(
-        plain.is_ok(),
-        with.is_ok(),
-        "bordered: {with:?} against {plain:?}"
-    );
-    if plain.is_ok() {
-        assert_eq!(bordered, fflows, "bordered copies changed a flow");
     }
 
     // FlowBuffers, frames a -> b -> a -> b, without and with kept templates.

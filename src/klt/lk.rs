@@ -296,23 +296,10 @@ pub fn calc_flow<A: FlowArith>(
     prev_pts: &[[A::Coord; 2]],
     flows: &mut [Flow<A::Coord>],
     cfg: &LkParams,
-    mut grads: Gradients<'_>,
+    grads: Gradients<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
-    if prev_pts.len() != flows.len() {
-        return Err(Error::LengthMismatch);
-    }
-    run_native::<A>(
-        prev,
-        next,
-        |k| prev_pts.get(k).copied(),
-        flows,
-        cfg,
-        &mut grads,
-        &mut [],
-        scratch,
-        &mut Keep::Off,
-    )
+    calc_flow_bordered::<A>(prev, next, prev_pts, flows, cfg, grads, &mut [], scratch)
 }
 
 /// [`calc_flow`] that first copies each level of both pyramids, with a reflected border, into
