@@ -565,9 +565,10 @@ mod tests {
     }
 
     /// The bordered copies ([`calc_flow_bordered`]) change no flow, status or error, for both
-    /// kernels and both arithmetics, with every level copied, some, or none (a buffer one byte
-    /// short of a level's copies, or empty); the points include windows across every edge and
-    /// one centred outside the image.
+    /// arithmetics, with every level copied, some, or none (a buffer one byte short of a
+    /// level's copies, or empty); the points include windows across every edge and one centred
+    /// outside the image. The vector kernel reads the copies; the packed one, which makes none
+    /// ([`Window::BORDERED`]), is run with the same buffers and is the reference.
     #[test]
     fn bordered_copies_change_nothing() {
         let (w, h) = (64, 48);
