@@ -1,18 +1,7 @@
-//! camgeom's multi-step commands, run from anywhere in the repository:
-//!
-//! | command | what |
-//! |---|---|
-//! | `cargo xtask setup` | installs what the other commands need: rustup targets, components, QEMU |
-//! | `cargo xtask run [--board NAME]` | the main job: the firmware over the recorded sequence on every emulated board (or one), checked against the host replay |
-//! | `cargo xtask bench-fw` | the homography bench firmware on QEMU: instruction counts, flash size |
-//! | `cargo xtask profile-fw [BIN [DIR]]` | the bench firmware (or BIN of the emulated-board crate, started in DIR) on QEMU's Cortex-M7 with its block logs: instructions by function |
-//! | `cargo xtask build-openmv` | builds the OpenMV Cam H7 firmware, checks its memory map, prints its size |
-//! | `cargo xtask size [--update]` | main-job firmware flash and static RAM against `firmware/size-snapshot.txt` |
-//! | `cargo xtask stack` | the stack-painting firmware on QEMU (thumbv7em on the Cortex-M7, thumbv6m on the Cortex-M3): stack high-water mark per entry point |
-//! | `cargo xtask panic-check [--locate FEATURES TARGET]` | links one firmware binary per area of the core, scalar type and target (thumbv7em, thumbv6m) with a panic handler that cannot link; prints the coverage table (with `--locate`: names the functions that call the panic machinery in that selection) |
-//! | `cargo xtask fuzz [SECONDS] [TARGET]` | builds the cargo-fuzz targets in `fuzz/` and runs each (or TARGET) for SECONDS (default 5, the CI smoke run) from the committed corpus |
-//! | `cargo xtask fuzz-cmin [TARGET]` | merges the local run corpora into the committed `fuzz/corpus/` and minimises it |
-//! | `cargo xtask ci` | every check in order (fmt, clippy, tests, no_std builds, docs, `run`) |
+//! camgeom's multi-step commands, run from anywhere in the repository: `cargo xtask --help`
+//! lists them, `cargo xtask <command> --help` describes one (each is a variant of
+//! [`Command`], its doc comment the help text). `cargo xtask ci` runs every check in order and
+//! `cargo xtask run` is the main job.
 //!
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
 //! default 120) bounds the emulator run.
@@ -31,95 +20,226 @@ mod util;
 
 use std::process::ExitCode;
 
-const USAGE: &str = "usage: cargo xtask <command>
+use anyhow::{Context, Result};
+use clap::builder::PossibleValuesParser;
+use clap::{Parser, Subcommand};
 
-commands:
-  setup   install the rustup targets and components and qemu-system-arm the other commands need
-  run [--board NAME]  the main job: the firmware over the recorded box sequence on every
-          emulated board (mps2-an500 Cortex-M7, mps2-an385 Cortex-M3, mps2-an505 Cortex-M33,
-          virt RV32IMAC; or only NAME), 320x240 and 160x120, per-stage cost, overlays, each
-          checked against the host replay
-  bench-fw  build and run the homography bench firmware on QEMU: instruction counts, flash size
-  profile-fw [BIN [DIR]]  run the bench firmware (or BIN of camgeom-fw-emulated, in DIR: the
-          main job's is target/camgeom-run/320x240 after `run`) on the emulated Cortex-M7 with
-          QEMU's block logs and list its instructions by function
-  build-openmv  build the OpenMV Cam H7 firmware (release), check its memory map, print its size
-  stack   build and run the stack-painting firmware on QEMU (thumbv7em, thumbv6m): stack per entry point
-  panic-check [--locate FEATURES TARGET]  link one firmware binary per area, scalar type and
-          target with a panic handler that cannot link (--locate: which functions of that
-          selection call the panic machinery)
-  size [--update]  main-job firmware flash and static RAM against firmware/size-snapshot.txt
-  fuzz [SECONDS] [TARGET]  build the fuzz targets and run each (or only TARGET) for SECONDS
-          (default 5), from the committed corpus fuzz/corpus/<target>
-  fuzz-cmin [TARGET]  merge the run corpora (fuzz/target/corpus) into fuzz/corpus and minimise
-  ci      every check in order: fmt, clippy, test, no_std builds, doc, then `run`";
+#[derive(Parser, Debug)]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    about = "camgeom's multi-step commands: the main job on the emulated boards, the firmware \
+             benches, size and panic checks, fuzzing, and every CI check",
+    after_help = "Environment: CI=true adds --locked to cargo builds; XTASK_QEMU_TIMEOUT \
+                  (seconds, default 120) bounds the emulator run.",
+    arg_required_else_help = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+// One variant a command; its doc comment is its help (the first paragraph: the line in the
+// list).
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Install what the other commands need: rustup targets, components, qemu-system-arm.
+    ///
+    /// Installs QEMU with apt-get when root.
+    Setup,
+    /// The main job: the firmware over the recorded box sequence on the emulated boards,
+    /// checked against the host replay.
+    ///
+    /// Every emulated board (mps2-an500 Cortex-M7, mps2-an385 Cortex-M3, mps2-an505
+    /// Cortex-M33, virt RV32IMAC) or only --board, at 320x240 and 160x120: per-stage cost,
+    /// overlays and contact sheets (target/camgeom-run/), each frame checked against the host
+    /// replay; then the size check. With the Cortex-M7 also the projection checks and the
+    /// fault, forward-backward, tag and calibration jobs.
+    Run {
+        /// Only this board (its QEMU machine name).
+        #[arg(long, value_name = "NAME", value_parser = PossibleValuesParser::new(jobs::BOARDS.map(|b| b.name)))]
+        board: Option<String>,
+    },
+    /// Build and run the homography and two-view bench firmware on QEMU: instruction counts,
+    /// flash size.
+    BenchFw,
+    /// A firmware on the emulated Cortex-M7 with QEMU's block logs: its instructions by
+    /// function.
+    ///
+    /// The bench firmware by default; or BIN of camgeom-fw-emulated, started in DIR (the main
+    /// job's is target/camgeom-run/320x240 after `run`).
+    ProfileFw {
+        /// The binary of camgeom-fw-emulated to run.
+        #[arg(value_name = "BIN", default_value = firmware::BENCH_BIN)]
+        bin: String,
+        /// The directory to start it in, relative to the repository root.
+        #[arg(value_name = "DIR")]
+        dir: Option<String>,
+    },
+    /// Build the OpenMV Cam H7 firmware (release), check its memory map, print its size.
+    BuildOpenmv,
+    /// Main-job firmware flash and static RAM against firmware/size-snapshot.txt.
+    Size {
+        /// Rewrite the snapshot with the sizes measured (the stack bounds are kept).
+        #[arg(long)]
+        update: bool,
+    },
+    /// Build and run the stack-painting firmware on QEMU (thumbv7em on the Cortex-M7,
+    /// thumbv6m on the Cortex-M3): stack high-water mark per entry point.
+    Stack,
+    /// Link one firmware binary per area of the core, scalar type and target with a panic
+    /// handler that cannot link; print the coverage table.
+    ///
+    /// With --locate: link that one selection with the handler's symbol defined and name the
+    /// functions that call the panic machinery.
+    PanicCheck {
+        /// Features of camgeom-panic-check (areas and scalar types, comma-separated, e.g.
+        /// `klt,f32`) and the target to link them for (e.g. thumbv7em-none-eabihf).
+        #[arg(long, num_args = 2, value_names = ["FEATURES", "TARGET"])]
+        locate: Option<Vec<String>>,
+    },
+    /// Build the cargo-fuzz targets of fuzz/ and run each (or only TARGET) for SECONDS from
+    /// the committed corpus fuzz/corpus/TARGET.
+    ///
+    /// Without SECONDS: the CI smoke run. A crash fails the command.
+    Fuzz {
+        /// Seconds per target.
+        #[arg(value_name = "SECONDS", default_value_t = fuzz::SMOKE_SECONDS)]
+        seconds: u64,
+        /// Only this fuzz target.
+        #[arg(value_name = "TARGET")]
+        target: Option<String>,
+    },
+    /// Merge the run corpora (fuzz/target/corpus) into fuzz/corpus and minimise it.
+    FuzzCmin {
+        /// Only this fuzz target.
+        #[arg(value_name = "TARGET")]
+        target: Option<String>,
+    },
+    /// Every check in order: fmt, clippy, tests, no_std builds, docs, then `run`.
+    Ci,
+}
+
+/// Runs `command`.
+fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Setup => setup::setup(),
+        Command::Run { board: None } => {
+            setup::setup().and_then(|()| mainjob::run(&mainjob::Options::full()))
+        }
+        Command::Run { board: Some(name) } => {
+            // The parser took only a board's name.
+            let board = jobs::board(&name).with_context(|| format!("no board `{name}`"))?;
+            setup::setup().and_then(|()| mainjob::run(&mainjob::Options::boards(vec![board])))
+        }
+        Command::BenchFw => setup::setup().and_then(|()| firmware::bench()),
+        Command::ProfileFw { bin, dir } => {
+            setup::setup().and_then(|()| profile::profile(&bin, dir.as_deref()))
+        }
+        Command::BuildOpenmv => openmv::build_and_check(),
+        Command::Size { update } => setup::setup().and_then(|()| size::size(update)),
+        Command::Stack => setup::setup().and_then(|()| firmware::stack()),
+        Command::PanicCheck { locate: None } => panic_check::check(),
+        Command::PanicCheck {
+            locate: Some(selection),
+        } => {
+            // The parser took exactly two values.
+            let [features, target] = selection.as_slice() else {
+                anyhow::bail!("--locate takes FEATURES and TARGET");
+            };
+            panic_check::locate(features, target).map(|found| println!("{found}"))
+        }
+        Command::Fuzz { seconds, target } => fuzz::fuzz(seconds, target.as_deref()),
+        Command::FuzzCmin { target } => fuzz::cmin(target.as_deref()),
+        Command::Ci => ci::ci(),
+    }
+}
 
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let result = match args.first().map(String::as_str) {
-        Some("setup") => setup::setup(),
-        Some("run") => match args.get(1).map(String::as_str) {
-            None => setup::setup().and_then(|()| mainjob::run(&mainjob::Options::full())),
-            Some("--board") => match args.get(2).and_then(|n| jobs::board(n)) {
-                Some(b) => {
-                    setup::setup().and_then(|()| mainjob::run(&mainjob::Options::boards(vec![b])))
-                }
-                None => {
-                    eprintln!(
-                        "xtask: run --board takes one of: {}",
-                        jobs::BOARDS.map(|b| b.name).join(", ")
-                    );
-                    return ExitCode::from(2);
-                }
-            },
-            Some(other) => {
-                eprintln!("xtask: unknown argument to run: `{other}`\n\n{USAGE}");
-                return ExitCode::from(2);
-            }
-        },
-        Some("bench-fw") => setup::setup().and_then(|()| firmware::bench()),
-        Some("profile-fw") => setup::setup().and_then(|()| {
-            let bin = args.get(1).map_or(firmware::BENCH_BIN, String::as_str);
-            profile::profile(bin, args.get(2).map(String::as_str))
-        }),
-        Some("build-openmv") => openmv::build_and_check(),
-        Some("size") => {
-            setup::setup().and_then(|()| size::size(args.get(1).is_some_and(|a| a == "--update")))
-        }
-        Some("stack") => setup::setup().and_then(|()| firmware::stack()),
-        Some("panic-check") => match (args.get(1).map(String::as_str), args.get(2), args.get(3)) {
-            (Some("--locate"), Some(features), Some(target)) => {
-                panic_check::locate(features, target).map(|found| println!("{found}"))
-            }
-            _ => panic_check::check(),
-        },
-        Some("fuzz") => match args.get(1).map(|s| s.parse::<u64>()) {
-            None => fuzz::fuzz(fuzz::SMOKE_SECONDS, None),
-            Some(Ok(secs)) => fuzz::fuzz(secs, args.get(2).map(String::as_str)),
-            Some(Err(_)) => {
-                eprintln!("xtask: fuzz takes a number of seconds per target, then a target");
-                return ExitCode::from(2);
-            }
-        },
-        Some("fuzz-cmin") => fuzz::cmin(args.get(1).map(String::as_str)),
-        Some("ci") => ci::ci(),
-        Some("help" | "-h" | "--help") => {
-            println!("{USAGE}");
-            return ExitCode::SUCCESS;
-        }
-        other => {
-            if let Some(cmd) = other {
-                eprintln!("xtask: unknown command `{cmd}`\n");
-            }
-            eprintln!("{USAGE}");
-            return ExitCode::from(2);
-        }
-    };
-    match result {
+    // A usage error (unknown command, flag or argument, a missing value) prints clap's message
+    // and exits with status 2.
+    let cli = Cli::parse();
+    match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("xtask: error: {e:#}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::{CommandFactory, Parser};
+
+    use super::Cli;
+
+    #[test]
+    fn the_command_line_is_well_formed() {
+        Cli::command().debug_assert();
+    }
+
+    /// Every command line README.md, BENCHMARKS.md, docs/, firmware/README.md and .ci/run
+    /// quote parses (placeholders filled in).
+    #[test]
+    fn the_documented_command_lines_parse() {
+        for line in [
+            "setup",
+            "run",
+            "run --board mps2-an500",
+            "run --board mps2-an385",
+            "run --board mps2-an505",
+            "run --board virt",
+            "bench-fw",
+            "profile-fw",
+            "profile-fw camgeom-fw-bench",
+            "profile-fw camgeom-fw-emulated target/camgeom-run/320x240",
+            "build-openmv",
+            "size",
+            "size --update",
+            "stack",
+            "panic-check",
+            "panic-check --locate klt,f32 thumbv7em-none-eabihf",
+            "fuzz",
+            "fuzz 240",
+            "fuzz 3600",
+            "fuzz 240 pose",
+            "fuzz 600 chessboard",
+            "fuzz-cmin",
+            "fuzz-cmin chessboard",
+            "ci",
+        ] {
+            let args = ["cargo xtask"].into_iter().chain(line.split(' '));
+            if let Err(e) = Cli::try_parse_from(args) {
+                panic!("`cargo xtask {line}` does not parse: {e}");
+            }
+        }
+    }
+
+    /// Mistakes are errors, not a run of something else.
+    #[test]
+    fn mistakes_are_rejected() {
+        for line in [
+            "size --typo",
+            "size update",
+            "run --board",
+            "run --board qemu",
+            "run mps2-an500",
+            "panic-check --locate klt,f32",
+            "panic-check klt,f32 thumbv7em-none-eabihf",
+            "fuzz pose",
+            "fuzz 240 pose extra",
+            "fuzz-cmin a b",
+            "profile-fw a b c",
+            "ci --fast",
+            "setup now",
+            "frobnicate",
+        ] {
+            let args = ["cargo xtask"].into_iter().chain(line.split(' '));
+            assert!(
+                Cli::try_parse_from(args).is_err(),
+                "`cargo xtask {line}` parses"
+            );
         }
     }
 }
