@@ -1,6 +1,7 @@
 //! Point lists as CSV, the CLI's convention for every list of points (see `CLI.md`):
 //!
-//! * one point per line, fields separated by `,` (spaces around fields are ignored);
+//! * one point per line, fields separated by `,` (spaces around fields are ignored; a field
+//!   may be in double quotes);
 //! * an optional header: the first non-blank line is a header when none of its fields is a
 //!   number (`X,Y,Z`); it must have as many fields as the data rows. A first line that mixes
 //!   numbers and text (`0,zero,1`) is a bad data row, not a header;
@@ -37,6 +38,10 @@ pub fn read_csv(path: impl AsRef<Path>, columns: &[&str]) -> Result<Table> {
 }
 
 /// [`read_csv`] on a string; `path` is only used in messages.
+///
+/// The `csv` crate splits the records (fields may be in double quotes, as spreadsheets write
+/// them) and trims the fields; the rules of the module docs are checked here, each error
+/// naming the record's line.
 pub fn parse_csv(text: &str, path: impl AsRef<Path>, columns: &[&str]) -> Result<Table> {
     let path = path.as_ref();
     let n = columns.len();
@@ -46,14 +51,31 @@ pub fn parse_csv(text: &str, path: impl AsRef<Path>, columns: &[&str]) -> Result
         rows: Vec::new(),
         lines: Vec::new(),
     };
+    let mut reader = csv::ReaderBuilder::new()
+        // Whether the first record is a header is decided from its fields, below.
+        .has_headers(false)
+        // A record's field count is checked below, with the expected columns in the message.
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .comment(Some(b'#'))
+        .from_reader(text.as_bytes());
+    let mut lines = LineOf::new(text);
     let mut first = true;
-    for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let content = raw.trim();
-        if content.is_empty() || content.starts_with('#') {
+    let mut record = csv::StringRecord::new();
+    loop {
+        let more = reader.read_record(&mut record);
+        // The crate's own line count leaves out comment and empty lines: count to where the
+        // record ends.
+        let line = lines.ending_at(reader.position().byte());
+        if !more.map_err(|e| Error::at_line(path, line, ErrorKind::Syntax(e.to_string())))? {
+            break;
+        }
+        let fields: Vec<&str> = record.iter().collect();
+        // The crate skips empty lines and a `#` in the first column; a line of spaces, or a
+        // comment after spaces, is skipped here.
+        if fields.first().is_some_and(|f| f.starts_with('#')) || fields == [""] {
             continue;
         }
-        let fields: Vec<&str> = content.split(',').map(str::trim).collect();
         let is_first = std::mem::replace(&mut first, false);
         if is_first && fields.iter().all(|f| parse_number(f).is_none()) {
             if fields.len() != n {
@@ -101,6 +123,36 @@ pub fn parse_csv(text: &str, path: impl AsRef<Path>, columns: &[&str]) -> Result
         table.lines.push(line);
     }
     Ok(table)
+}
+
+/// The 1-based line on which a record of a text ends, from the offset just past it, for
+/// offsets in increasing order.
+struct LineOf<'a> {
+    text: &'a [u8],
+    /// The last offset asked for and the newlines before it.
+    byte: usize,
+    newlines: usize,
+}
+
+impl<'a> LineOf<'a> {
+    fn new(text: &'a str) -> Self {
+        Self {
+            text: text.as_bytes(),
+            byte: 0,
+            newlines: 0,
+        }
+    }
+
+    /// The line of the last byte before `end` that is not the record's final `\n`.
+    fn ending_at(&mut self, end: u64) -> usize {
+        let end = usize::try_from(end).map_or(self.text.len(), |e| e.min(self.text.len()));
+        if let Some(skipped) = self.text.get(self.byte..end) {
+            self.newlines += skipped.iter().filter(|&&b| b == b'\n').count();
+            self.byte = end;
+        }
+        let terminated = end.checked_sub(1).and_then(|i| self.text.get(i)) == Some(&b'\n');
+        self.newlines - usize::from(terminated) + 1
+    }
 }
 
 /// Reads 3-D points, rows `X,Y,Z`.
@@ -196,6 +248,31 @@ mod tests {
         assert_eq!(e.line(), Some(1));
         let e = parse_csv("X,Y\n", "p.csv", &cols).unwrap_err();
         assert!(e.to_string().contains("header"), "{e}");
+    }
+
+    #[test]
+    fn spaces_comments_quotes_and_line_ends() {
+        let cols = ["X", "Y", "Z"];
+        // A line of spaces and a comment after spaces are skipped; lines are counted through
+        // comments, blank lines and CRLF ends.
+        let t = parse_csv(
+            "# c, d\r\n   \r\n  # e\r\n\"X\",\"Y\",\"Z\"\r\n1,2,3\r\n\r\n\" 4\",5,6\r\n",
+            "p.csv",
+            &cols,
+        )
+        .unwrap();
+        assert_eq!(t.header, Some(vec!["X".into(), "Y".into(), "Z".into()]));
+        assert_eq!(t.rows, vec![vec![1.0, 2.0, 3.0], vec![4.0, 5.0, 6.0]]);
+        assert_eq!(t.lines, vec![5, 7]);
+        // A comment in a later line, and a row without a final newline.
+        let t = parse_csv("1,2,3\n# x\n4,5,6", "p.csv", &cols).unwrap();
+        assert_eq!(t.lines, vec![1, 3]);
+        // A trailing comma is a fourth field.
+        let e = parse_csv("1,2,3,\n", "p.csv", &cols).unwrap_err();
+        assert_eq!(e.line(), Some(1));
+        assert!(e.to_string().contains("found 4 fields"), "{e}");
+        // Empty input: no rows.
+        assert!(parse_csv("", "p.csv", &cols).unwrap().rows.is_empty());
     }
 
     #[test]
