@@ -11,7 +11,7 @@ use camgeom::target::{Acquire, GivenCorners, TargetConfig, TargetState};
 use camgeom_host::apriltag::{HostWorkspace, check_tag_size, detector, family};
 use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
 use camgeom_host::klt::Path;
-use camgeom_host::points::{format_float, read_csv, to_json};
+use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
@@ -105,6 +105,24 @@ pub struct ArArgs {
     #[arg(long, default_value_t = 2.0)]
     threshold: f32,
 }
+
+/// The columns of `poses.csv`.
+const POSES_COLUMNS: [&str; 14] = [
+    "frame",
+    "state",
+    "rx",
+    "ry",
+    "rz",
+    "tx",
+    "ty",
+    "tz",
+    "rms_px",
+    "alt_rms_px",
+    "outline_px",
+    "tracked",
+    "inliers",
+    "added",
+];
 
 /// How the target is found.
 enum Acquisition<'a> {
@@ -307,9 +325,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
             camgeom::Error::TooFewPoints,
         ));
     }
-    let mut csv = String::from(
-        "frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added\n",
-    );
+    let mut rows = Vec::with_capacity(results.len());
     let mut worst: Option<f32> = None;
     for f in &results {
         let state = match f.state {
@@ -337,17 +353,13 @@ pub fn run(a: &ArArgs) -> Result<String> {
         if let Some(o) = outline {
             worst = Some(worst.map_or(o, |w| w.max(o)));
         }
-        let nums: Vec<String> = nums.iter().map(|v| format_float(*v)).collect();
-        csv.push_str(&format!(
-            "{},{state},{},{},{},{},{}\n",
-            f.frame,
-            nums.join(","),
-            format_float(outline.unwrap_or(f32::NAN)),
-            f.tracked,
-            f.inliers,
-            f.added
-        ));
+        let mut row = vec![f.frame.to_string(), state.to_string()];
+        row.extend(nums.iter().map(|v| format_float(*v)));
+        row.push(format_float(outline.unwrap_or(f32::NAN)));
+        row.extend([f.tracked, f.inliers, f.added].map(|n| n.to_string()));
+        rows.push(row);
     }
+    let csv = format_csv(&POSES_COLUMNS, rows);
     let poses = a.out.join("poses.csv");
     write_file(&poses, csv)?;
     let sheet_path = a.out.join("contact_sheet.png");

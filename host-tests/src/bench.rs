@@ -16,7 +16,7 @@ use camgeom::Real;
 use nalgebra::Point2;
 use serde_json::{Map, Value};
 
-use crate::points::read_csv;
+use crate::points::{format_csv, read_csv};
 
 /// The directory of a bench's input files, `data/fixtures/<name>/`.
 pub fn fixture_dir(name: &str) -> PathBuf {
@@ -26,11 +26,10 @@ pub fn fixture_dir(name: &str) -> PathBuf {
 /// The CSV text of point pairs: a header `x1,y1,x2,y2` and one row per pair, each number in
 /// the shortest form that reads back to the same `f64`.
 pub fn pairs_csv(rows: &[(Point2<f64>, Point2<f64>)]) -> String {
-    let mut s = String::from("x1,y1,x2,y2\n");
-    for (a, b) in rows {
-        s.push_str(&format!("{:?},{:?},{:?},{:?}\n", a.x, a.y, b.x, b.y));
-    }
-    s
+    let rows = rows
+        .iter()
+        .map(|(a, b)| [a.x, a.y, b.x, b.y].map(|v| format!("{v:?}")));
+    format_csv(&["x1", "y1", "x2", "y2"], rows)
 }
 
 /// Writes `files` (`(name, text)`) into `dir` when `CAMGEOM_WRITE_FIXTURES=1`, otherwise

@@ -6,7 +6,7 @@ use camgeom::corners::CornerConfig;
 use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_sequence};
-use camgeom_host::points::{format_float, read_csv, to_json};
+use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result};
 use clap::Args;
 use serde::Serialize;
@@ -191,15 +191,18 @@ pub fn run_flow(a: &FlowArgs) -> Result<String> {
             .collect();
         return Ok(to_json(&JsonPoints { points }));
     }
-    let mut out = String::from("x,y,status\n");
-    for p in &res {
+    let rows = res.iter().map(|p| {
         if p.status == FlowStatus::Tracked {
-            out.push_str(&format!("{},{},ok\n", num(p.x), num(p.y)));
+            [num(p.x), num(p.y), "ok".to_string()]
         } else {
-            out.push_str(&format!("nan,nan,{}\n", status(p.status)));
+            [
+                "nan".to_string(),
+                "nan".to_string(),
+                status(p.status).to_string(),
+            ]
         }
-    }
-    Ok(out)
+    });
+    Ok(format_csv(&["x", "y", "status"], rows))
 }
 
 #[derive(Serialize)]
@@ -316,16 +319,17 @@ pub fn run_track(a: &TrackArgs) -> Result<String> {
     if let Some(e) = overlay_err {
         return Err(e);
     }
-    let mut csv = String::from("frame,id,x,y\n");
-    for r in &rows {
-        csv.push_str(&format!(
-            "{},{},{},{}\n",
-            r.frame,
-            r.id,
-            format_float(r.x),
-            format_float(r.y)
-        ));
-    }
+    let csv = format_csv(
+        &["frame", "id", "x", "y"],
+        rows.iter().map(|r| {
+            [
+                r.frame.to_string(),
+                r.id.to_string(),
+                format_float(r.x),
+                format_float(r.y),
+            ]
+        }),
+    );
     write_file(&a.out, csv)?;
     let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.id).collect();
     Ok(to_json(&TrackSummary {

@@ -17,7 +17,7 @@ use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point3, Vector3};
 use camgeom::transform::Pose;
 use camgeom_host::intrinsics::CameraSpec;
-use camgeom_host::points::{format_float, parse_vector, read_points3, to_json};
+use camgeom_host::points::{format_csv, format_float, parse_vector, read_points3, to_json};
 use camgeom_host::{Error, ErrorKind, Result, load_camera, status_name};
 use clap::{Args, Parser, Subcommand};
 use serde::Serialize;
@@ -350,12 +350,9 @@ fn project_as<T: Real + Serialize + Debug>(
     if json {
         return Ok(to_json(&Projected { points: projected }));
     }
-    let mut out = String::from("u,v,status\n");
-    for p in &projected {
-        let f = |v: Option<T>| v.map_or_else(|| "nan".to_string(), format_float);
-        out.push_str(&format!("{},{},{}\n", f(p.u), f(p.v), p.status));
-    }
-    Ok(out)
+    let f = |v: Option<T>| v.map_or_else(|| "nan".to_string(), format_float);
+    let rows = projected.iter().map(|p| [f(p.u), f(p.v), p.status.clone()]);
+    Ok(format_csv(&["u", "v", "status"], rows))
 }
 
 fn camera(a: &CameraArgs) -> Result<String> {

@@ -10,7 +10,8 @@
 //!
 //! Output numbers are written by [`format_float`]: the shortest text that reads back to the same
 //! value (Rust's `{:?}`: `342.28315473308373`, `320.0`, `1e-7`), and `nan` for a missing value.
-//! Structured results are JSON, written by [`to_json`].
+//! Tables (a header naming the columns, then a row per point) are written by [`format_csv`];
+//! structured results are JSON, written by [`to_json`].
 
 use std::fmt::Debug;
 use std::path::Path;
@@ -191,6 +192,28 @@ pub fn parse_vector<const N: usize>(s: &str) -> std::result::Result<[f64; N], St
     Ok(out)
 }
 
+/// The CLI's CSV: the `header` line, then one line per row of `rows`, each field as given
+/// (the `csv` crate quotes a field only when it holds a `,`, a quote or a line break, which
+/// numbers and status names never do), lines ending in `\n`.
+pub fn format_csv<R, F>(header: &[&str], rows: impl IntoIterator<Item = R>) -> String
+where
+    R: IntoIterator<Item = F>,
+    F: AsRef<[u8]>,
+{
+    let mut writer = csv::WriterBuilder::new()
+        .terminator(csv::Terminator::Any(b'\n'))
+        // A row may have other fields than the header; written as given.
+        .flexible(true)
+        .from_writer(Vec::new());
+    // Writing to memory cannot fail, nor can text fields make the bytes anything but UTF-8.
+    let _ = writer.write_record(header);
+    for row in rows {
+        let _ = writer.write_record(row);
+    }
+    let bytes = writer.into_inner().unwrap_or_default();
+    String::from_utf8(bytes).unwrap_or_default()
+}
+
 /// The CLI's JSON: pretty-printed (2-space indent) with a final newline. Floats are written with
 /// the shortest text that reads back to the same value; NaN and infinities, which JSON lacks,
 /// become `null`.
@@ -284,5 +307,16 @@ mod tests {
         assert_eq!(format_float(0.1f32), "0.1");
         assert_eq!(format_float(f64::NAN), "nan");
         assert_eq!(format_float(1e300f64), "1e300");
+    }
+
+    #[test]
+    fn tables() {
+        let rows = [["1.5", "nan", "ok"], ["-2.0", "", "behind_camera"]];
+        assert_eq!(
+            format_csv(&["u", "v", "status"], rows),
+            "u,v,status\n1.5,nan,ok\n-2.0,,behind_camera\n"
+        );
+        assert_eq!(format_csv(&["a"], [["x,y"]]), "a\n\"x,y\"\n");
+        assert_eq!(format_csv(&["a", "b"], Vec::<[&str; 2]>::new()), "a,b\n");
     }
 }

@@ -22,6 +22,7 @@ use camgeom_fw_app::report::FrameRecord;
 use camgeom_fw_app::run::{Acquisition, RunSpec};
 use camgeom_host::images::load_gray;
 use camgeom_host::load_camera;
+use camgeom_host::points::format_csv;
 
 use super::{compare, emulate, replay};
 use crate::firmware::{build_bin_for, size_of};
@@ -92,38 +93,36 @@ fn prepare(dir: &Path) -> Result<RunSpec> {
 /// A pose as the truth gives it: `R` and `t` (`X_cam = R X_tag + t`, AprilTag's tag frame).
 type TruePose = (Matrix3<f64>, Vector3<f64>);
 
+/// The columns of `truth.csv` the job reads (the file has more: the tag's corners, ...).
+#[derive(serde::Deserialize)]
+struct TruthRow {
+    frame: u32,
+    r11: f64,
+    r12: f64,
+    r13: f64,
+    r21: f64,
+    r22: f64,
+    r23: f64,
+    r31: f64,
+    r32: f64,
+    r33: f64,
+    tx: f64,
+    ty: f64,
+    tz: f64,
+}
+
 /// Per frame of the truth, its pose.
 fn truth() -> Result<BTreeMap<u32, TruePose>> {
     let path = sequence().join("truth.csv");
-    let text =
-        fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap_or("").split(',').collect();
-    let cols = [
-        "frame", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", "tx", "ty", "tz",
-    ];
-    let at: Vec<usize> = cols
-        .iter()
-        .map(|c| {
-            header
-                .iter()
-                .position(|h| h == c)
-                .with_context(|| format!("{}: no column {c}", path.display()))
-        })
-        .collect::<Result<_>>()?;
+    let mut reader =
+        csv::Reader::from_path(&path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut out = BTreeMap::new();
-    for (n, line) in lines.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        let v: Vec<f64> = at
-            .iter()
-            .map(|&i| {
-                f.get(i)
-                    .and_then(|x| x.trim().parse().ok())
-                    .with_context(|| format!("{}:{}: bad row", path.display(), n + 2))
-            })
-            .collect::<Result<_>>()?;
-        let m = Matrix3::from_row_slice(&v[1..10]);
-        out.insert(v[0] as u32, (m, Vector3::new(v[10], v[11], v[12])));
+    for row in reader.deserialize() {
+        let r: TruthRow = row.with_context(|| format!("{}: bad row", path.display()))?;
+        let m = Matrix3::new(
+            r.r11, r.r12, r.r13, r.r21, r.r22, r.r23, r.r31, r.r32, r.r33,
+        );
+        out.insert(r.frame, (m, Vector3::new(r.tx, r.ty, r.tz)));
     }
     Ok(out)
 }
@@ -152,6 +151,24 @@ fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<BTreeMap<u32, (f6
     Ok(out)
 }
 
+/// The columns of `frames.csv`.
+const FRAMES_COLUMNS: [&str; 14] = [
+    "frame",
+    "state",
+    "acquired",
+    "tracked",
+    "inliers",
+    "features",
+    "acquire",
+    "flow",
+    "homography",
+    "pose",
+    "redetect",
+    "total",
+    "rotation_deg",
+    "translation_mm",
+];
+
 /// One row a frame: what the board did and cost, and its pose error against the truth
 /// (`frames.csv` beside the run, for plots and for finding the frames worth a look).
 fn write_frames_csv(
@@ -159,32 +176,31 @@ fn write_frames_csv(
     frames: &BTreeMap<u32, FrameRecord>,
     errors: &BTreeMap<u32, (f64, f64)>,
 ) -> Result<()> {
-    let mut s = String::from(
-        "frame,state,acquired,tracked,inliers,features,acquire,flow,homography,pose,redetect,total,rotation_deg,translation_mm\n",
-    );
-    for (k, r) in frames {
+    let rows = frames.iter().map(|(k, r)| {
         let c = &r.costs;
         let (dr, dt) = errors
             .get(k)
             .map_or((String::new(), String::new()), |(a, b)| {
                 (format!("{a:.4}"), format!("{b:.3}"))
             });
-        let _ = writeln!(
-            s,
-            "{k},{:?},{},{},{},{},{},{},{},{},{},{},{dr},{dt}",
-            r.state,
-            u8::from(r.acquired),
-            r.tracked,
-            r.inliers,
-            r.features,
+        let counts = [
+            u32::from(r.acquired),
+            u32::from(r.tracked),
+            u32::from(r.inliers),
+            u32::from(r.features),
             c.acquire,
             c.flow,
             c.homography,
             c.pose,
             c.redetect,
-            c.total
-        );
-    }
+            c.total,
+        ];
+        [k.to_string(), format!("{:?}", r.state)]
+            .into_iter()
+            .chain(counts.map(|n| n.to_string()))
+            .chain([dr, dt])
+    });
+    let s = format_csv(&FRAMES_COLUMNS, rows);
     fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
 }
 
