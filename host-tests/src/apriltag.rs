@@ -12,8 +12,8 @@ use camgeom::nalgebra::Matrix3;
 use camgeom::pose::{PlanarConfig, PoseEstimate};
 use serde::Serialize;
 
-use crate::ar::RgbImage;
 use crate::images::GrayImage;
+use crate::rgb::{Overlay, RgbImage, label_size};
 use crate::{Error, Result};
 
 /// Widest and tallest frame (after decimation) [`HostWorkspace`] takes.
@@ -305,7 +305,7 @@ pub fn draw_tags(img: &GrayImage, tags: &[Detection]) -> RgbImage {
             }
         }
         let text = d.id.to_string();
-        let (w, h) = crate::ar::label_size(&text);
+        let (w, h) = label_size(&text);
         let at = |c: f32, half: usize| (c.round().max(0.0) as usize).saturating_sub(half);
         out.label(at(d.center.x, w / 2), at(d.center.y, h / 2), &text, w, h);
     }

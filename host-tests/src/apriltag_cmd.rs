@@ -8,6 +8,7 @@ use camgeom_host::apriltag::{
 };
 use camgeom_host::images::load_gray;
 use camgeom_host::points::to_json;
+use camgeom_host::rgb::Overlay;
 use camgeom_host::{Error, Result};
 use clap::Args;
 
@@ -91,11 +92,11 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
     }
     if let Some(out) = &a.overlay {
         if single {
-            overlays[0].save(out)?;
+            overlays[0].save_png(out)?;
         } else {
             create_dir(out)?;
             for (f, img) in files.iter().zip(&overlays) {
-                img.save(out.join(overlay_name(f)))?;
+                img.save_png(out.join(overlay_name(f)))?;
             }
         }
     }

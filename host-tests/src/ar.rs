@@ -1,6 +1,6 @@
-//! The AR loop on owned frames: [`camgeom::target::PlanarTarget::step`] over a sequence, overlays
-//! with the target outline, the tracked features and a cube standing on the target, and a
-//! contact sheet of overlays (for `camgeom ar` and the sequence tests).
+//! The AR loop on owned frames: [`camgeom::target::PlanarTarget::step`] over a sequence, and
+//! overlays with the target outline, the tracked features and a cube standing on the target
+//! (for `camgeom ar` and the sequence tests).
 
 use camgeom::camera::Camera;
 use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
@@ -16,6 +16,7 @@ use camgeom::target::{
 
 use crate::images::GrayImage;
 use crate::klt::{Path, levels};
+use crate::rgb::{Overlay, RgbImage};
 
 /// Most features the target tracks (the `N` of [`PlanarTarget`]).
 pub const MAX_FEATURES: usize = 128;
@@ -159,121 +160,6 @@ fn go<A: PoseArith>(
     Ok(out)
 }
 
-/// An RGB image, row-major, 3 bytes a pixel.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RgbImage {
-    /// Pixels `r, g, b`, row-major.
-    pub data: Vec<u8>,
-    /// Width in pixels.
-    pub width: usize,
-    /// Height in pixels.
-    pub height: usize,
-}
-
-impl RgbImage {
-    /// The grey image in colour.
-    pub fn from_gray(g: &GrayImage) -> Self {
-        Self {
-            data: g.data.iter().flat_map(|&v| [v, v, v]).collect(),
-            width: g.width,
-            height: g.height,
-        }
-    }
-
-    /// Writes the image as PNG (best compression: contact sheets are committed).
-    pub fn save(&self, path: impl AsRef<std::path::Path>) -> crate::Result<()> {
-        use image::ImageEncoder;
-        use image::codecs::png::{CompressionType, FilterType, PngEncoder};
-        let path = path.as_ref();
-        let io = |e: std::io::Error| crate::Error::new(path, crate::ErrorKind::Write(e));
-        let file = std::fs::File::create(path).map_err(io)?;
-        let enc = PngEncoder::new_with_quality(
-            std::io::BufWriter::new(file),
-            CompressionType::Best,
-            FilterType::Adaptive,
-        );
-        enc.write_image(
-            &self.data,
-            self.width as u32,
-            self.height as u32,
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| match e {
-            image::ImageError::IoError(e) => io(e),
-            other => crate::Error::new(path, crate::ErrorKind::Unsupported(other.to_string())),
-        })
-    }
-
-    /// Sets pixel `(x, y)` to `c`; nothing outside the image.
-    pub fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
-        if x >= 0 && y >= 0 && (x as usize) < self.width && (y as usize) < self.height {
-            let i = 3 * (y as usize * self.width + x as usize);
-            self.data[i..i + 3].copy_from_slice(&c);
-        }
-    }
-
-    /// Paints `colour` where `mask` is set, with a dark one-pixel halo around it so thin lines
-    /// read on any background.
-    pub fn ink(&mut self, mask: &GrayImage, colour: [u8; 3]) {
-        let (w, h) = (self.width as i64, self.height as i64);
-        let on = |x: i64, y: i64| {
-            x >= 0 && y >= 0 && x < w && y < h && mask.at(x as usize, y as usize) != 0
-        };
-        for y in 0..h {
-            for x in 0..w {
-                if on(x, y) {
-                    continue;
-                }
-                let near = (-1..=1).any(|dy| (-1..=1).any(|dx| on(x + dx, y + dy)));
-                if near {
-                    let i = 3 * (y as usize * self.width + x as usize);
-                    for c in &mut self.data[i..i + 3] {
-                        *c /= 3;
-                    }
-                }
-            }
-        }
-        for y in 0..h {
-            for x in 0..w {
-                if on(x, y) {
-                    self.put(x, y, colour);
-                }
-            }
-        }
-    }
-}
-
-impl RgbImage {
-    /// Writes `text` (digits and `.`; other characters are skipped) in white 3x5 digits at 2x
-    /// on a black box whose top-left corner is `(x, y)`, clipped to `max_w x max_h`.
-    pub fn label(&mut self, x: usize, y: usize, text: &str, max_w: usize, max_h: usize) {
-        let (lw, lh) = label_size(text);
-        for dy in 0..lh.min(max_h) {
-            for dx in 0..lw.min(max_w) {
-                self.put((x + dx) as i64, (y + dy) as i64, [0, 0, 0]);
-            }
-        }
-        for (i, ch) in text.bytes().enumerate() {
-            let glyph = match ch {
-                b'0'..=b'9' => DIGITS[usize::from(ch - b'0')],
-                b'.' => [0, 0, 0, 0, 2],
-                _ => continue,
-            };
-            for (r, bits) in glyph.iter().enumerate() {
-                for c in 0..3 {
-                    if bits & (4 >> c) != 0 {
-                        for (sy, sx) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
-                            let px = x + 2 + i * 8 + c * 2 + sx;
-                            let py = y + 2 + r * 2 + sy;
-                            self.put(px as i64, py as i64, [255, 255, 255]);
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
 /// Outline colour (green), cube (yellow), features (cyan), lost-frame marker (red).
 const OUTLINE: [u8; 3] = [40, 230, 40];
 const CUBE: [u8; 3] = [255, 220, 0];
@@ -314,16 +200,17 @@ pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOpti
         }
     }
     if f.state != TargetState::Tracking {
-        for x in 0..out.width as i64 {
+        let (w, h) = (i64::from(out.width()), i64::from(out.height()));
+        for x in 0..w {
             for t in 0..2 {
                 out.put(x, t, LOST);
-                out.put(x, out.height as i64 - 1 - t, LOST);
+                out.put(x, h - 1 - t, LOST);
             }
         }
-        for y in 0..out.height as i64 {
+        for y in 0..h {
             for t in 0..2 {
                 out.put(t, y, LOST);
-                out.put(out.width as i64 - 1 - t, y, LOST);
+                out.put(w - 1 - t, y, LOST);
             }
         }
     }
@@ -359,67 +246,6 @@ pub fn evenly_spaced(n: usize, count: usize) -> Vec<usize> {
     (0..count)
         .map(|i| (i * (n - 1) + (count - 1) / 2) / (count - 1))
         .collect()
-}
-
-/// 3x5 bitmaps of the digits 0-9, one row a `u8` (bit 2 = left column).
-const DIGITS: [[u8; 5]; 10] = [
-    [7, 5, 5, 5, 7],
-    [2, 6, 2, 2, 7],
-    [7, 1, 7, 4, 7],
-    [7, 1, 7, 1, 7],
-    [5, 5, 7, 1, 1],
-    [7, 4, 7, 1, 7],
-    [7, 4, 7, 5, 7],
-    [7, 1, 1, 1, 1],
-    [7, 5, 7, 5, 7],
-    [7, 5, 7, 1, 7],
-];
-
-/// Width and height in pixels of [`RgbImage::label`]'s box for `text`.
-pub(crate) fn label_size(text: &str) -> (usize, usize) {
-    (text.len() * 8 + 2, 14)
-}
-
-/// A grid of `tiles` (each downscaled by `factor` with a box filter), `cols` a row, each
-/// labelled with its number in the top-left corner.
-pub fn contact_sheet(tiles: &[(usize, RgbImage)], cols: usize, factor: usize) -> RgbImage {
-    let factor = factor.max(1);
-    let cols = cols.max(1);
-    let (tw, th) = tiles
-        .first()
-        .map_or((1, 1), |(_, t)| (t.width / factor, t.height / factor));
-    let rows = tiles.len().div_ceil(cols);
-    let gap = 2;
-    let (w, h) = (cols * tw + (cols + 1) * gap, rows * th + (rows + 1) * gap);
-    let mut sheet = RgbImage {
-        data: vec![32; w * h * 3],
-        width: w,
-        height: h,
-    };
-    for (k, (label, tile)) in tiles.iter().enumerate() {
-        let (ox, oy) = (gap + (k % cols) * (tw + gap), gap + (k / cols) * (th + gap));
-        for y in 0..th {
-            for x in 0..tw {
-                let mut acc = [0u32; 3];
-                for dy in 0..factor {
-                    for dx in 0..factor {
-                        let (sx, sy) = (x * factor + dx, y * factor + dy);
-                        if sx < tile.width && sy < tile.height {
-                            let i = 3 * (sy * tile.width + sx);
-                            for (a, c) in acc.iter_mut().zip(&tile.data[i..i + 3]) {
-                                *a += u32::from(*c);
-                            }
-                        }
-                    }
-                }
-                let n = (factor * factor) as u32;
-                let c = acc.map(|a| ((a + n / 2) / n) as u8);
-                sheet.put((ox + x) as i64, (oy + y) as i64, c);
-            }
-        }
-        sheet.label(ox, oy, &label.to_string(), tw, th);
-    }
-    sheet
 }
 
 #[cfg(test)]

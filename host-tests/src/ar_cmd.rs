@@ -9,9 +9,11 @@ use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
 use camgeom::target::{Acquire, GivenCorners, TargetConfig, TargetState};
 use camgeom_host::apriltag::{HostWorkspace, check_tag_size, detector, family};
-use camgeom_host::ar::{ArOptions, contact_sheet, draw_ar, evenly_spaced, run_ar};
+use camgeom_host::ar::{ArOptions, draw_ar, evenly_spaced, run_ar};
+use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::klt::Path;
 use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
+use camgeom_host::rgb::Overlay;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
@@ -302,7 +304,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_else(|| f.frame.to_string());
-        if let Err(e) = img.save(a.out.join(format!("{name}.png"))) {
+        if let Err(e) = img.save_png(a.out.join(format!("{name}.png"))) {
             write_err.get_or_insert(e);
         }
         if sheet_idx.contains(&f.frame) {
@@ -363,7 +365,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let poses = a.out.join("poses.csv");
     write_file(&poses, csv)?;
     let sheet_path = a.out.join("contact_sheet.png");
-    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale).save(&sheet_path)?;
+    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale).save_png(&sheet_path)?;
     let tracking = results
         .iter()
         .filter(|f| f.state == TargetState::Tracking)

@@ -16,9 +16,10 @@ use camgeom::camera::LensModel;
 use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectConfig, scratch_len};
 use camgeom::draw::draw_line;
 use camgeom::nalgebra::Point2;
-use camgeom_host::ar::{RgbImage, contact_sheet};
+use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::images::{GrayImage, load_gray};
 use camgeom_host::points::to_json;
+use camgeom_host::rgb::{Overlay, RgbImage};
 use camgeom_host::{Error, ErrorKind, Result, YamlWriter};
 use clap::Args;
 use serde::Serialize;
@@ -368,8 +369,8 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     let chart_path = dir.join(format!("{stem}_reprojection_errors.png"));
     create_dir(&dir)?;
     write_file(&a.out, &yaml)?;
-    sheet.save(&sheet_path)?;
-    chart.save(&chart_path)?;
+    sheet.save_png(&sheet_path)?;
+    chart.save_png(&chart_path)?;
 
     let k = &report.camera.intrinsics;
     let s = &report.std;
@@ -573,11 +574,7 @@ fn error_chart(labels: &[usize], per_view: &[f64], rms: f64) -> RgbImage {
     let (bar, gap, plot_h) = (24usize, 8usize, 240usize);
     let n = per_view.len().max(1);
     let (w, h) = (left + n * (bar + gap) + gap + right, top + plot_h + bottom);
-    let mut img = RgbImage {
-        data: vec![255; w * h * 3],
-        width: w,
-        height: h,
-    };
+    let mut img = RgbImage::from_pixel(w as u32, h as u32, image::Rgb([255, 255, 255]));
     let max = per_view.iter().copied().fold(rms, f64::max).max(1e-9) * 1.1;
     // Grid step: 1, 2 or 5 times a power of ten, about 5 lines.
     let raw = max / 5.0;

@@ -10,7 +10,9 @@
 //! | [`klt`] | camgeom's KLT flow and tracker on owned images (tests, benches, `flow`/`track`) |
 //! | [`bench`](mod@bench) | the criterion benches' input files and the answers they leave for the peer harness |
 //! | [`known_motion`] | known warps of a frame and an independent bilinear warp, for KLT accuracy |
-//! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence, its overlays and contact sheet (`ar`) |
+//! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence and its overlays (`ar`) |
+//! | [`rgb`] | colour overlays on `image::RgbImage`: grey in colour, inked masks, digit labels, compact PNG |
+//! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
@@ -19,12 +21,14 @@
 pub mod apriltag;
 pub mod ar;
 pub mod bench;
+pub mod contact_sheet;
 pub mod error;
 pub mod images;
 pub mod intrinsics;
 pub mod klt;
 pub mod known_motion;
 pub mod points;
+pub mod rgb;
 pub mod storage;
 
 pub use error::{Error, ErrorKind, Result, describe, status_name};

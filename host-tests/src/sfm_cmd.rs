@@ -28,7 +28,8 @@ use camgeom::sfm::{
 };
 use camgeom::transform::Pose;
 use camgeom_host::points::to_json;
-use camgeom_host::{Error, ErrorKind, Result, load_camera};
+use camgeom_host::rgb::{Overlay, RgbImage};
+use camgeom_host::{Error, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
@@ -324,46 +325,34 @@ fn write_ply(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> 
     write_file(path, s)
 }
 
-/// An RGB canvas with clipped pixel, line and disc drawing.
-struct Canvas {
-    img: image::RgbImage,
+/// Bresenham's line from `(x0, y0)` to `(x1, y1)`, clipped to the image.
+fn draw_line(img: &mut RgbImage, (mut x0, mut y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
+    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
+    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
+    let mut err = dx + dy;
+    for _ in 0..=(dx - dy).min(1 << 16) {
+        img.put(x0, y0, c);
+        if x0 == x1 && y0 == y1 {
+            break;
+        }
+        let e2 = 2 * err;
+        if e2 >= dy {
+            err += dy;
+            x0 += sx;
+        }
+        if e2 <= dx {
+            err += dx;
+            y0 += sy;
+        }
+    }
 }
 
-impl Canvas {
-    fn put(&mut self, x: i64, y: i64, c: [u8; 3]) {
-        if x >= 0 && y >= 0 && x < i64::from(self.img.width()) && y < i64::from(self.img.height()) {
-            self.img.put_pixel(x as u32, y as u32, image::Rgb(c));
-        }
-    }
-
-    /// Bresenham's line from `(x0, y0)` to `(x1, y1)`.
-    fn line(&mut self, (mut x0, mut y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
-        let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
-        let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
-        let mut err = dx + dy;
-        for _ in 0..=(dx - dy).min(1 << 16) {
-            self.put(x0, y0, c);
-            if x0 == x1 && y0 == y1 {
-                break;
-            }
-            let e2 = 2 * err;
-            if e2 >= dy {
-                err += dy;
-                x0 += sx;
-            }
-            if e2 <= dx {
-                err += dx;
-                y0 += sy;
-            }
-        }
-    }
-
-    fn disc(&mut self, (x, y): (i64, i64), r: i64, c: [u8; 3]) {
-        for j in -r..=r {
-            for i in -r..=r {
-                if i * i + j * j <= r * r {
-                    self.put(x + i, y + j, c);
-                }
+/// A filled disc of radius `r` around `(x, y)`, clipped to the image.
+fn draw_disc(img: &mut RgbImage, (x, y): (i64, i64), r: i64, c: [u8; 3]) {
+    for j in -r..=r {
+        for i in -r..=r {
+            if i * i + j * j <= r * r {
+                img.put(x + i, y + j, c);
             }
         }
     }
@@ -375,9 +364,7 @@ impl Canvas {
 fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> {
     const PANEL: u32 = 480;
     const MARGIN: f64 = 24.0;
-    let mut canvas = Canvas {
-        img: image::RgbImage::from_pixel(2 * PANEL, PANEL, image::Rgb([255, 255, 255])),
-    };
+    let mut canvas = RgbImage::from_pixel(2 * PANEL, PANEL, image::Rgb([255, 255, 255]));
     // Panel axes: (horizontal, vertical-up) as functions of a world point.
     type Axis = fn(&Vector3<f64>) -> (f64, f64);
     let panels: [Axis; 2] = [|p| (p.x, p.z), |p| (p.z, -p.y)];
@@ -417,22 +404,20 @@ fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()>
             )
         };
         for p in &pts {
-            canvas.disc(to_px(*p), 1, [90, 90, 90]);
+            draw_disc(&mut canvas, to_px(*p), 1, [90, 90, 90]);
         }
         for ((c, axis), rgb) in centres.iter().zip(&axes).zip(CAMERA_RGB) {
             let tip = c + axis * (0.15 * span);
-            canvas.line(to_px(proj(c)), to_px(proj(&tip)), rgb);
-            canvas.disc(to_px(proj(c)), 4, rgb);
+            draw_line(&mut canvas, to_px(proj(c)), to_px(proj(&tip)), rgb);
+            draw_disc(&mut canvas, to_px(proj(c)), 4, rgb);
         }
     }
     // Panel separator.
-    canvas.line(
+    draw_line(
+        &mut canvas,
         (i64::from(PANEL), 0),
         (i64::from(PANEL), i64::from(PANEL) - 1),
         [0, 0, 0],
     );
-    canvas.img.save(path).map_err(|e| match e {
-        image::ImageError::IoError(io) => Error::new(path, ErrorKind::Write(io)),
-        other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
-    })
+    canvas.save_png(path)
 }

@@ -36,8 +36,9 @@ use std::time::Instant;
 
 use anyhow::{Result, ensure};
 use camgeom_fw_app::recorded::FaultPlan;
-use camgeom_host::ar::{RgbImage, contact_sheet};
+use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::images::{GrayImage, save_gray};
+use camgeom_host::rgb::{Overlay, RgbImage};
 
 use crate::firmware::{build_and_run_projection, build_bin_for, size_of};
 use crate::jobs::{BOARDS, Board, FULL, HALF, M7, Size, snapshot_key};
@@ -91,7 +92,7 @@ fn write_overlays(dir: &Path, size: Size, overlays: &emulate::Overlays) -> Resul
         tiles.push((*i as usize, RgbImage::from_gray(&img)));
     }
     let sheet = dir.join("overlays.png");
-    contact_sheet(&tiles, 5, 1).save(&sheet)?;
+    contact_sheet(&tiles, 5, 1).save_png(&sheet)?;
     Ok(sheet)
 }
 
