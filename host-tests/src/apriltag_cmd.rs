@@ -6,14 +6,13 @@ use camgeom_host::apriltag::{
     Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags, families_list, json_tag,
     pose_inputs,
 };
+use camgeom_host::cli::files::create_dir;
+use camgeom_host::cli::frames::frame_files;
 use camgeom_host::images::load_gray;
 use camgeom_host::points::to_json;
 use camgeom_host::rgb::Overlay;
 use camgeom_host::{Error, Result};
 use clap::Args;
-
-use crate::create_dir;
-use crate::klt_cmd::frame_files;
 
 #[derive(Args, Debug)]
 #[command(group(clap::ArgGroup::new("input").required(true).args(["image", "frames"])))]

@@ -10,6 +10,9 @@ use camgeom::ransac::RansacConfig;
 use camgeom::target::{Acquire, GivenCorners, TargetConfig, TargetState};
 use camgeom_host::apriltag::{HostWorkspace, check_tag_size, detector, family};
 use camgeom_host::ar::{ArOptions, draw_ar, evenly_spaced, run_ar};
+use camgeom_host::cli::args::CameraArg;
+use camgeom_host::cli::files::{create_dir, write_file};
+use camgeom_host::cli::frames::{frame_files, load_frames, progress_bar};
 use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::klt::Path;
 use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
@@ -17,9 +20,6 @@ use camgeom_host::rgb::Overlay;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
-
-use crate::klt_cmd::{frame_files, load_frames, progress_bar};
-use crate::{create_dir, write_file};
 
 #[derive(Args, Debug)]
 pub struct ArArgs {
@@ -36,9 +36,8 @@ pub struct ArArgs {
         requires = "size"
     )]
     corners: Option<PathBuf>,
-    /// Camera file (see `camgeom project --help`).
-    #[arg(long, value_name = "FILE")]
-    intrinsics: PathBuf,
+    #[command(flatten)]
+    camera: CameraArg,
     /// The target's size `W,H` (metres, or the unit the pose should use), or `S` for a square
     /// (with --corners).
     #[arg(long, value_name = "W,H", conflicts_with = "tag")]
@@ -267,7 +266,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
         return Err(Error::usage(format!("--cube must be positive, got {cube}")));
     }
     let target = target_config(a)?;
-    let spec = load_camera(&a.intrinsics)?;
+    let spec = load_camera(&a.camera.intrinsics)?;
     let camera = spec.camera_f32();
     let mut given;
     let mut ws: Box<HostWorkspace>;

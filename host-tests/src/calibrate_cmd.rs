@@ -16,6 +16,8 @@ use camgeom::camera::LensModel;
 use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectConfig, scratch_len};
 use camgeom::draw::draw_line;
 use camgeom::nalgebra::Point2;
+use camgeom_host::cli::files::{create_dir, write_file};
+use camgeom_host::cli::frames::progress_bar;
 use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::images::{GrayImage, load_gray};
 use camgeom_host::points::to_json;
@@ -23,9 +25,6 @@ use camgeom_host::rgb::{Overlay, RgbImage};
 use camgeom_host::{Error, ErrorKind, Result, YamlWriter};
 use clap::Args;
 use serde::Serialize;
-
-use crate::klt_cmd::progress_bar;
-use crate::{create_dir, write_file};
 
 /// Views a calibration holds at most.
 pub const MAX_VIEWS: usize = 64;

@@ -17,39 +17,21 @@
 //! line naming the error (`degenerate`, `too_few_points`, `invalid_parameter (parameter out of
 //! range: threshold)`, ...).
 
-use std::path::{Path, PathBuf};
-
 use camgeom::Real;
-use camgeom::features::orb::{self, Feature, OrbConfig};
-use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
-use camgeom_host::images::load_gray;
-use camgeom_host::points::{read_csv, to_json};
-use camgeom_host::{Error, ErrorKind, Result};
+use camgeom_host::cli::args::MatchesArg;
+use camgeom_host::cli::matches::read_input;
+use camgeom_host::points::to_json;
+use camgeom_host::{Error, Result};
 use clap::Args;
 use serde::Serialize;
 
-/// The columns of a correspondence row.
-pub const COLUMNS: [&str; 4] = ["x1", "y1", "x2", "y2"];
-
 #[derive(Args, Debug)]
 pub struct HomographyArgs {
-    /// Correspondences, CSV rows `x1,y1,x2,y2` (a point in the first image, its match in the
-    /// second; optional header); `-` reads stdin. Exactly 4 rows: the exact 4-point solver;
-    /// more: RANSAC.
-    #[arg(long, value_name = "FILE.csv", required_unless_present = "images")]
-    pub matches: Option<PathBuf>,
-    /// Two images (PNG, JPEG; read as grey) instead of `--matches`: ORB features of both,
-    /// matched with cross-check, then RANSAC on the matched keypoints.
-    #[arg(
-        long,
-        num_args = 2,
-        value_names = ["A.png", "B.png"],
-        conflicts_with = "matches"
-    )]
-    pub images: Option<Vec<PathBuf>>,
+    #[command(flatten)]
+    pub input: MatchesArg,
     /// RANSAC inlier threshold in pixels, on camgeom's symmetric transfer error
     /// `sqrt((|x2 - H x1|² + |x1 - H⁻¹ x2|²) / 2)`.
     #[arg(long, value_name = "PX", default_value_t = 3.0)]
@@ -88,96 +70,9 @@ pub struct HomographyOutput<T> {
     pub matches: Option<usize>,
 }
 
-/// Point correspondences `(x1, y1) -> (x2, y2)`.
-pub type Correspondences = Vec<(Point2<f64>, Point2<f64>)>;
-
-/// Most ORB features per image (`OrbConfig::default().max_features`).
-const MAX_FEATURES: usize = 500;
-
-/// Cross-check only, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)` (the settings of
-/// the graf1 -> graf3 feature tests).
-const CROSS_CHECK: MatchConfig = MatchConfig {
-    ratio: 1.0,
-    cross_check: true,
-    max_distance: 256,
-};
-
-/// ORB features of an image file.
-pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
-    let img = load_gray(path)?;
-    let view = img.view().ok_or_else(|| {
-        Error::new(
-            path,
-            ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
-        )
-    })?;
-    let config = OrbConfig::default();
-    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
-    let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
-    orb::orb_detect(&view, &config, &mut scratch, &mut out)
-        .map_err(|e| Error::camgeom(format!("{}: orb_detect failed", path.display()), e))?;
-    Ok(out.to_vec())
-}
-
-/// Correspondences of two images: their ORB keypoints matched with cross-check.
-pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences> {
-    let (fa, fb) = (orb_features(a)?, orb_features(b)?);
-    let da: Vec<Descriptor> = fa.iter().map(|f| f.descriptor).collect();
-    let db: Vec<Descriptor> = fb.iter().map(|f| f.descriptor).collect();
-    let mut ms = vec![Match::default(); da.len()];
-    let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms).map_err(|e| {
-        let what = format!(
-            "{} -> {}: match_descriptors failed",
-            a.display(),
-            b.display()
-        );
-        Error::camgeom(what, e)
-    })?;
-    let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
-    Ok(ms[..n]
-        .iter()
-        .map(|m| {
-            (
-                point(&fa[usize::from(m.query)]),
-                point(&fb[usize::from(m.train)]),
-            )
-        })
-        .collect())
-}
-
-/// Reads the correspondences `(x1, y1) -> (x2, y2)` of a CSV file (`-`: stdin).
-pub fn read_matches(path: &PathBuf) -> Result<Vec<(Point2<f64>, Point2<f64>)>> {
-    Ok(read_csv(path, &COLUMNS)?
-        .rows
-        .iter()
-        .map(|r| (Point2::new(r[0], r[1]), Point2::new(r[2], r[3])))
-        .collect())
-}
-
-/// The correspondences of a subcommand's input, `--images A B` (matched with [`match_images`])
-/// or else `--matches FILE.csv` ([`read_matches`]): `(source, matches, from_images)`, `source`
-/// naming the input in error messages and `from_images` telling feature matches from rows.
-pub fn read_input(
-    images: Option<&[PathBuf]>,
-    matches: Option<&PathBuf>,
-) -> Result<(String, Correspondences, bool)> {
-    match (images, matches) {
-        (Some(images), _) => {
-            let [ia, ib] = images else {
-                return Err(Error::usage("--images takes two files"));
-            };
-            let source = format!("{} -> {}", ia.display(), ib.display());
-            Ok((source, match_images(ia, ib)?, true))
-        }
-        (None, Some(path)) => Ok((path.display().to_string(), read_matches(path)?, false)),
-        (None, None) => Err(Error::usage("one of --matches and --images is required")),
-    }
-}
-
 /// Runs the subcommand: the JSON result.
 pub fn run(a: &HomographyArgs) -> Result<String> {
-    let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
+    let (source, matches, from_images) = read_input(&a.input)?;
     let json = if a.f32 {
         to_json(&estimate::<f32>(a, &source, &matches, from_images)?)
     } else {

@@ -14,6 +14,7 @@
 //! | [`rgb`] | colour overlays on `image::RgbImage`: grey in colour, inked masks, digit labels, compact PNG |
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
+//! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
@@ -21,6 +22,7 @@
 pub mod apriltag;
 pub mod ar;
 pub mod bench;
+pub mod cli;
 pub mod contact_sheet;
 pub mod error;
 pub mod images;

@@ -9,13 +9,14 @@
 
 use std::fmt::Debug;
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use camgeom::Real;
 use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point3, Vector3};
 use camgeom::transform::Pose;
+use camgeom_host::cli::args::CameraArg;
 use camgeom_host::intrinsics::CameraSpec;
 use camgeom_host::points::{format_csv, format_float, parse_vector, read_points3, to_json};
 use camgeom_host::{Error, ErrorKind, Result, load_camera, status_name};
@@ -109,8 +110,9 @@ enum Command {
     /// Epipolar geometry and relative pose of two calibrated views (OpenCV's
     /// findFundamentalMat, findEssentialMat, recoverPose, triangulatePoints).
     ///
-    /// Reads rows `x1,y1,x2,y2` (CSV; or `--images A B`: ORB + cross-check) and the camera of
-    /// each view; prints JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N,
+    /// Reads rows `x1,y1,x2,y2` (CSV, pixels as recorded: the lens distortion of the camera
+    /// files is removed; or `--images A B`: ORB + cross-check) and the camera of each view;
+    /// prints JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N,
     /// "points": [[X, Y, Z], ..], ..}` with `X₂ = R X₁ + t`, `|t| = 1`, points in view 1's
     /// frame in baselines.
     Twoview(twoview_cmd::TwoviewArgs),
@@ -134,16 +136,6 @@ enum Command {
     ///
     /// Writes the image to --out and prints JSON `{"new_camera_matrix": [9], ..}`.
     Undistort(undistort_cmd::UndistortArgs),
-}
-
-/// The camera file option shared by every subcommand that needs a camera.
-#[derive(Args, Debug)]
-struct CameraOpt {
-    /// Camera file: .yml/.yaml or .xml (OpenCV calibration: camera_matrix and
-    /// distortion_coefficients), .json or .toml (camgeom: fx, fy, cx, cy and optional skew,
-    /// distortion, width and height).
-    #[arg(long, value_name = "FILE")]
-    intrinsics: PathBuf,
 }
 
 /// A world-to-camera pose as OpenCV gives it (solvePnP, calibrateCamera).
@@ -172,7 +164,7 @@ struct OutputOpt {
 #[derive(Args, Debug)]
 struct ProjectArgs {
     #[command(flatten)]
-    camera: CameraOpt,
+    camera: CameraArg,
     /// World points, CSV rows `X,Y,Z` (optional header); `-` reads stdin.
     #[arg(long, value_name = "FILE.csv")]
     points: PathBuf,
@@ -185,7 +177,7 @@ struct ProjectArgs {
 #[derive(Args, Debug)]
 struct CameraArgs {
     #[command(flatten)]
-    camera: CameraOpt,
+    camera: CameraArg,
     /// Print TOML instead of JSON.
     #[arg(long)]
     toml: bool,
@@ -282,16 +274,6 @@ fn write_stdout(s: &str) -> Result<()> {
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
         Err(e) => Err(Error::new("standard output", ErrorKind::Write(e))),
     }
-}
-
-/// Writes an output file of a subcommand.
-pub(crate) fn write_file(path: &Path, contents: impl AsRef<[u8]>) -> Result<()> {
-    std::fs::write(path, contents).map_err(|e| Error::new(path, ErrorKind::Write(e)))
-}
-
-/// Creates an output directory of a subcommand (and its parents).
-pub(crate) fn create_dir(path: &Path) -> Result<()> {
-    std::fs::create_dir_all(path).map_err(|e| Error::new(path, ErrorKind::Write(e)))
 }
 
 fn project(a: &ProjectArgs) -> Result<String> {

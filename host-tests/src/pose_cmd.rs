@@ -9,6 +9,7 @@ use camgeom::camera::Camera;
 use camgeom::nalgebra::{Point2, Point3};
 use camgeom::pose::{PlanarConfig, PoseEstimate, solve_planar, solve_pnp, solve_pnp_ransac};
 use camgeom::ransac::RansacConfig;
+use camgeom_host::cli::args::CameraArg;
 use camgeom_host::points::{read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
@@ -16,9 +17,8 @@ use serde::Serialize;
 
 #[derive(Args, Debug)]
 pub struct PoseArgs {
-    /// Camera file (see `camgeom project --help`).
-    #[arg(long, value_name = "FILE")]
-    intrinsics: PathBuf,
+    #[command(flatten)]
+    camera: CameraArg,
     /// Correspondences, CSV rows `X,Y,Z,u,v` (world point, its pixel; optional header); `-`
     /// reads stdin. All Z = 0 selects the planar solver (IPPE, both solutions, refined);
     /// otherwise EPnP + Levenberg-Marquardt.
@@ -111,7 +111,7 @@ fn no_pose(src: &impl std::fmt::Display, e: camgeom::Error, planar: bool) -> Err
 
 /// `camgeom pose`: the JSON result.
 pub fn run(a: &PoseArgs) -> Result<String> {
-    let spec = load_camera(&a.intrinsics)?;
+    let spec = load_camera(&a.camera.intrinsics)?;
     let table = read_csv(&a.points, &["X", "Y", "Z", "u", "v"])?;
     let n = table.rows.len();
     // 4 points: the fewest IPPE and EPnP accept (6 pose unknowns, 2 equations a point, and

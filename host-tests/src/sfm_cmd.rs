@@ -21,39 +21,30 @@ use std::path::{Path, PathBuf};
 
 use camgeom::camera::Camera;
 use camgeom::features::orb::Feature;
-use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::sfm::{
     PointBlock, SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views,
 };
 use camgeom::transform::Pose;
+use camgeom_host::cli::args::CameraArg;
+use camgeom_host::cli::files::{create_dir, write_file};
+use camgeom_host::cli::matches::{cross_check, orb_features};
 use camgeom_host::points::to_json;
 use camgeom_host::rgb::{Overlay, RgbImage};
 use camgeom_host::{Error, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
-use crate::homography_cmd::orb_features;
-use crate::{create_dir, write_file};
-
 /// Most tracks (three images of at most 500 ORB features each give fewer).
 const MAX_TRACKS: usize = 1024;
-
-/// Cross-check only, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`.
-const CROSS_CHECK: MatchConfig = MatchConfig {
-    ratio: 1.0,
-    cross_check: true,
-    max_distance: 256,
-};
 
 #[derive(Args, Debug)]
 pub struct SfmArgs {
     /// Three images of a static scene from one camera (PNG, JPEG; read as grey), in order.
     #[arg(long, num_args = 3, value_names = ["A.png", "B.png", "C.png"], required = true)]
     pub images: Vec<PathBuf>,
-    /// The camera file (OpenCV YAML/XML, camgeom JSON/TOML; see `camgeom camera`).
-    #[arg(long, value_name = "FILE")]
-    pub intrinsics: PathBuf,
+    #[command(flatten)]
+    pub camera: CameraArg,
     /// Output directory (created): `points.ply` and `plot.png`.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -124,20 +115,6 @@ pub struct SfmOutput {
     pub plot: String,
 }
 
-/// Cross-checked matches of two feature sets, `(index in a, index in b)`.
-fn match_pairs(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>> {
-    let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
-    let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
-    let mut ms = vec![Match::default(); da.len()];
-    let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms)
-        .map_err(|e| Error::camgeom(format!("{what}: match_descriptors failed"), e))?;
-    Ok(ms[..n]
-        .iter()
-        .map(|m| (usize::from(m.query), usize::from(m.train)))
-        .collect())
-}
-
 /// Tracks of features `(a, b, c)` (indices) from the pairwise matches (step 2 of the module
 /// docs); every feature is in at most one track.
 pub fn build_tracks(
@@ -185,12 +162,12 @@ pub fn run(a: &SfmArgs) -> Result<String> {
     let [ia, ib, ic] = a.images.as_slice() else {
         return Err(Error::usage("--images takes three files"));
     };
-    let spec = load_camera(&a.intrinsics)?;
+    let spec = load_camera(&a.camera.intrinsics)?;
     let feats = [orb_features(ia)?, orb_features(ib)?, orb_features(ic)?];
     let [fa, fb, fc] = &feats;
-    let ab = match_pairs(fa, fb, "A-B")?;
-    let bc = match_pairs(fb, fc, "B-C")?;
-    let ac = match_pairs(fa, fc, "A-C")?;
+    let ab = cross_check(fa, fb, "A-B")?;
+    let bc = cross_check(fb, fc, "B-C")?;
+    let ac = cross_check(fa, fc, "A-C")?;
     let mut ids = build_tracks(&ab, &bc, &ac);
     ids.truncate(MAX_TRACKS);
     let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));

@@ -34,28 +34,17 @@ use camgeom::transform::Transform;
 use camgeom::twoview::{
     View1, find_essential, find_fundamental, recover_pose, triangulate_optimal,
 };
+use camgeom_host::cli::args::MatchesArg;
+use camgeom_host::cli::matches::read_input;
 use camgeom_host::points::to_json;
 use camgeom_host::{Error, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
-use crate::homography_cmd::read_input;
-
 #[derive(Args, Debug)]
 pub struct TwoviewArgs {
-    /// Correspondences, CSV rows `x1,y1,x2,y2` (pixels of view 1 and view 2, as recorded:
-    /// distortion is removed with the camera files; optional header); `-` reads stdin.
-    #[arg(long, value_name = "FILE.csv", required_unless_present = "images")]
-    pub matches: Option<PathBuf>,
-    /// Two images (PNG, JPEG; read as grey) instead of `--matches`: ORB features of both,
-    /// matched with cross-check (as `camgeom homography --images`).
-    #[arg(
-        long,
-        num_args = 2,
-        value_names = ["A.png", "B.png"],
-        conflicts_with = "matches"
-    )]
-    pub images: Option<Vec<PathBuf>>,
+    #[command(flatten)]
+    pub input: MatchesArg,
     /// Camera file of view 1 (OpenCV YAML/XML, camgeom JSON/TOML; see `camgeom camera`).
     #[arg(long, value_name = "FILE")]
     pub intrinsics1: PathBuf,
@@ -125,7 +114,7 @@ pub struct TwoviewOutput<T> {
 
 /// Runs the subcommand: the JSON result.
 pub fn run(a: &TwoviewArgs) -> Result<String> {
-    let (source, matches, from_images) = read_input(a.images.as_deref(), a.matches.as_ref())?;
+    let (source, matches, from_images) = read_input(&a.input)?;
     let spec1 = load_camera(&a.intrinsics1)?;
     let spec2 = match &a.intrinsics2 {
         Some(p) => load_camera(p)?,

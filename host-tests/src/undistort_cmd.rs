@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use camgeom::camera::LensModel;
 use camgeom::remap::{MAX_MAP_DIM, build_map, map_len, new_camera_matrix, remap};
+use camgeom_host::cli::args::CameraArg;
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use camgeom_host::points::to_json;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
@@ -14,9 +15,8 @@ use serde::Serialize;
 
 #[derive(Args, Debug)]
 pub struct UndistortArgs {
-    /// Camera file (see `camgeom project --help`; OpenCV fisheye files with `fisheye_model: 1`).
-    #[arg(long, value_name = "FILE")]
-    intrinsics: PathBuf,
+    #[command(flatten)]
+    camera: CameraArg,
     /// The image (PNG/JPEG, converted to grey), of the size the camera was calibrated at.
     #[arg(long, value_name = "IMAGE")]
     image: PathBuf,
@@ -46,7 +46,7 @@ struct Summary {
 
 /// `camgeom undistort`: writes the image, prints the new camera matrix as JSON.
 pub fn run(a: &UndistortArgs) -> Result<String> {
-    let spec = load_camera(&a.intrinsics)?;
+    let spec = load_camera(&a.camera.intrinsics)?;
     let fisheye = matches!(spec.camera.model, LensModel::KannalaBrandt(_));
     let (name, value) = match (fisheye, a.alpha, a.balance) {
         (false, _, Some(_)) => {
@@ -76,7 +76,7 @@ pub fn run(a: &UndistortArgs) -> Result<String> {
             &a.image,
             ErrorKind::Shape(format!(
                 "image is {w}x{h} but {} was calibrated at {cw}x{ch}",
-                a.intrinsics.display()
+                a.camera.intrinsics.display()
             )),
         ));
     }
@@ -90,8 +90,12 @@ pub fn run(a: &UndistortArgs) -> Result<String> {
         ));
     }
     let camera = &spec.camera;
-    let k_new = new_camera_matrix(camera, w, h, value)
-        .map_err(|e| Error::camgeom(format!("{}: new camera matrix", a.intrinsics.display()), e))?;
+    let k_new = new_camera_matrix(camera, w, h, value).map_err(|e| {
+        Error::camgeom(
+            format!("{}: new camera matrix", a.camera.intrinsics.display()),
+            e,
+        )
+    })?;
     let mut map = vec![[0i16; 2]; map_len(w, h)];
     build_map(camera, &k_new, w, h, &mut map)
         .map_err(|e| Error::camgeom(format!("{}: undistortion map", a.image.display()), e))?;

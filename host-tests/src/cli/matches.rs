@@ -1,0 +1,100 @@
+//! Point correspondences of two images: read from a CSV file of rows `x1,y1,x2,y2`, or found
+//! by matching the ORB features of both images ([`camgeom::features::orb::orb_detect`],
+//! default settings) with cross-check, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`.
+
+use std::path::{Path, PathBuf};
+
+use camgeom::features::orb::{self, Feature, OrbConfig};
+use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
+use camgeom::nalgebra::Point2;
+
+use crate::cli::args::MatchesArg;
+use crate::error::{Error, ErrorKind, Result};
+use crate::images::load_gray;
+use crate::points::read_csv;
+
+/// The columns of a correspondence row.
+pub const COLUMNS: [&str; 4] = ["x1", "y1", "x2", "y2"];
+
+/// Point correspondences `(x1, y1) -> (x2, y2)`.
+pub type Correspondences = Vec<(Point2<f64>, Point2<f64>)>;
+
+/// Most ORB features per image (`OrbConfig::default().max_features`).
+pub const MAX_FEATURES: usize = 500;
+
+/// Cross-check only, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)` (the settings of
+/// the graf1 -> graf3 feature tests).
+const CROSS_CHECK: MatchConfig = MatchConfig {
+    ratio: 1.0,
+    cross_check: true,
+    max_distance: 256,
+};
+
+/// ORB features of an image file (at most [`MAX_FEATURES`]).
+pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
+    let img = load_gray(path)?;
+    let view = img.view().ok_or_else(|| {
+        Error::new(
+            path,
+            ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
+        )
+    })?;
+    let config = OrbConfig::default();
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
+    orb::orb_detect(&view, &config, &mut scratch, &mut out)
+        .map_err(|e| Error::camgeom(format!("{}: orb_detect failed", path.display()), e))?;
+    Ok(out.to_vec())
+}
+
+/// The cross-checked matches of two feature sets, `(index in a, index in b)`; `what` names
+/// the pair in an error message.
+pub fn cross_check(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>> {
+    let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
+    let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
+    let mut ms = vec![Match::default(); da.len()];
+    let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
+    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms)
+        .map_err(|e| Error::camgeom(format!("{what}: match_descriptors failed"), e))?;
+    Ok(ms[..n]
+        .iter()
+        .map(|m| (usize::from(m.query), usize::from(m.train)))
+        .collect())
+}
+
+/// Correspondences of two images: their ORB keypoints matched with cross-check.
+pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences> {
+    let (fa, fb) = (orb_features(a)?, orb_features(b)?);
+    let pairs = cross_check(&fa, &fb, &format!("{} -> {}", a.display(), b.display()))?;
+    let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
+    Ok(pairs
+        .iter()
+        .map(|&(i, j)| (point(&fa[i]), point(&fb[j])))
+        .collect())
+}
+
+/// Reads the correspondences `(x1, y1) -> (x2, y2)` of a CSV file (`-`: stdin).
+pub fn read_matches(path: &PathBuf) -> Result<Correspondences> {
+    Ok(read_csv(path, &COLUMNS)?
+        .rows
+        .iter()
+        .map(|r| (Point2::new(r[0], r[1]), Point2::new(r[2], r[3])))
+        .collect())
+}
+
+/// The correspondences of a subcommand's input, `--images A B` (matched with [`match_images`])
+/// or else `--matches FILE.csv` ([`read_matches`]): `(source, matches, from_images)`, `source`
+/// naming the input in error messages and `from_images` telling feature matches from rows.
+pub fn read_input(input: &MatchesArg) -> Result<(String, Correspondences, bool)> {
+    match (input.images.as_deref(), input.matches.as_ref()) {
+        (Some(images), _) => {
+            let [ia, ib] = images else {
+                return Err(Error::usage("--images takes two files"));
+            };
+            let source = format!("{} -> {}", ia.display(), ib.display());
+            Ok((source, match_images(ia, ib)?, true))
+        }
+        (None, Some(path)) => Ok((path.display().to_string(), read_matches(path)?, false)),
+        (None, None) => Err(Error::usage("one of --matches and --images is required")),
+    }
+}
