@@ -13,7 +13,7 @@
 //! coefficients (in `f32` especially) lose the roots that cluster. About 13 QR iterations for
 //! the five-point solver's 10x10 action matrix (about 10k flops in all).
 
-use super::swap_rows;
+use super::elementary::swap_rows;
 use crate::scalar::{Real, above, larger};
 
 /// Bound on the QR iterations spent on one eigenvalue (or pair), as EISPACK's `hqr`: with

@@ -1,6 +1,6 @@
 //! The null space of a few rows by Gauss-Jordan elimination (minimal solvers).
 
-use super::swap_rows;
+use super::elementary::swap_rows;
 use crate::corners::swap_checked;
 use crate::scalar::{Real, above};
 use crate::{Error, Result};

@@ -14,7 +14,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::hypot;
+use super::elementary::hypot;
 use super::reduction::{solve_lower_transposed, solve_upper};
 use super::svd::{Svd, svd_jacobi};
 use crate::Result;

@@ -66,7 +66,7 @@ impl<T: Real, const C: usize, const K: usize> Reduced<T, C, K> {
     /// The right singular vector of `B` of the `k`-th smallest singular value (`k = 0`: the
     /// least-squares `r`).
     pub fn r(&self, k: usize) -> SVector<T, K> {
-        super::column(&self.b.v, K.saturating_sub(1).saturating_sub(k))
+        super::elementary::column(&self.b.v, K.saturating_sub(1).saturating_sub(k))
     }
 
     /// `(p, q) = (R₁₁⁻¹ R₁₂ r, R₁₁⁻¹ R₁₃ r)`. A zero on `R₁₁`'s diagonal gives non-finite

@@ -17,7 +17,7 @@
 
 use nalgebra::{Const, SMatrix, SVector, VectorViewMut};
 
-use super::hypot;
+use super::elementary::hypot;
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
@@ -49,7 +49,7 @@ impl<T: Real, const R: usize, const C: usize> Svd<T, R, C> {
     /// unit `x` minimising `|A x|` (the least-squares null vector, `|A x| = σ_C`).
     pub fn null_vector(&self) -> SVector<T, C> {
         const { assert!(C > 0, "a null vector needs at least one column") };
-        super::column(&self.v, C - 1)
+        super::elementary::column(&self.v, C - 1)
     }
 
     /// `U Σ Vᵀ`.
