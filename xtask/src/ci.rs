@@ -37,6 +37,10 @@ fn steps() -> Vec<Step> {
         }),
     );
     add(
+        "imports point down (core, board app, host crate, xtask)",
+        Box::new(|| crate::imports::check(&root())),
+    );
+    add(
         "clippy (root)",
         Box::new(|| {
             let mut cmd = root_cargo(&["clippy", "--workspace", "--all-targets"]);

@@ -9,6 +9,7 @@
 mod ci;
 mod firmware;
 mod fuzz;
+mod imports;
 mod jobs;
 mod mainjob;
 mod openmv;
@@ -116,6 +117,10 @@ enum Command {
         #[arg(value_name = "TARGET")]
         target: Option<String>,
     },
+    /// Check that imports point down: no two files (or subdirectories) of a module import
+    /// each other, directly or around a loop, in the core, the board app, the host crate and
+    /// xtask.
+    Imports,
     /// Every check in order: fmt, clippy, tests, no_std builds, docs, then `run`.
     Ci,
 }
@@ -151,6 +156,7 @@ fn run(command: Command) -> Result<()> {
         }
         Command::Fuzz { seconds, target } => fuzz::fuzz(seconds, target.as_deref()),
         Command::FuzzCmin { target } => fuzz::cmin(target.as_deref()),
+        Command::Imports => imports::check(&util::root()),
         Command::Ci => ci::ci(),
     }
 }
@@ -207,6 +213,7 @@ mod tests {
             "fuzz 600 chessboard",
             "fuzz-cmin",
             "fuzz-cmin chessboard",
+            "imports",
             "ci",
         ] {
             let args = ["cargo xtask"].into_iter().chain(line.split(' '));
