@@ -19,24 +19,13 @@
 //! centres are at `(i + 0.5, j + 0.5)`; the sampling positions here are AprilTag's shifted by
 //! that half pixel, so both read the same pixels.
 
-use nalgebra::{Matrix3, Point2};
+use nalgebra::Matrix3;
 
 use super::family::Family;
+use super::geom::{Line, at4, eigen, intersect, project};
 use super::quad::Quad;
 use crate::image::ImageView;
 use crate::scalar::above;
-
-/// Element `i mod 4` of a quad's corners or lines (no bounds check needed).
-#[inline]
-pub(crate) fn at4<T: Copy>(a: &[T; 4], i: usize) -> T {
-    let [a0, a1, a2, a3] = *a;
-    match i & 3 {
-        0 => a0,
-        1 => a1,
-        2 => a2,
-        _ => a3,
-    }
-}
 
 /// Bilinear sample at `(x, y)`; `None` unless the four pixels are inside the image.
 #[inline]
@@ -63,40 +52,14 @@ fn bilinear(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
     )
 }
 
-/// A line through `(ex, ey)` with unit normal `(nx, ny)`.
-#[derive(Debug, Clone, Copy)]
-struct Line {
-    ex: f32,
-    ey: f32,
-    nx: f32,
-    ny: f32,
-}
-
-/// Intersection of two lines (AprilTag's solve), `None` when `|det| ≤ 0.001`.
-fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
-    let (a00, a01, a10, a11) = (a.ny, -b.ny, -a.nx, b.nx);
-    let (b0, b1) = (b.ex - a.ex, b.ey - a.ey);
-    let det = a00 * a11 - a10 * a01;
-    if !above(det.abs(), 0.001) {
-        return None;
-    }
-    let l0 = (a11 * b0 - a01 * b1) / det;
-    Some(Point2::new(a.ex + l0 * a00, a.ey + l0 * a10))
-}
-
-/// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
-/// whose two lines cannot be intersected stays where it was.
 /// Samples along an edge normal in [`refine_edges`]: `2 · 4 (d + 1) + 1 + 8` for decimation
 /// `d` up to 8 (`DetectorConfig::decimate`'s bound).
 const MAX_ALONG: usize = 8 * (8 + 1) + 9;
 
+/// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
+/// whose two lines cannot be intersected stays where it was.
 pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usize) {
-    let mut lines = [Line {
-        ex: 0.0,
-        ey: 0.0,
-        nx: 0.0,
-        ny: 0.0,
-    }; 4];
+    let mut lines = [Line::ZERO; 4];
     let range = decimate as f32 + 1.0;
     let steps = 2 * 4 * (decimate + 1) + 1;
     for (edge, line) in lines.iter_mut().enumerate() {
@@ -177,7 +140,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
         // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
         // direction from the eigenvectors, as the quad fit computes it).
-        let (_, _, nx, ny) = super::quad::eigen(cxx, cxy, cyy);
+        let (_, _, nx, ny) = eigen(cxx, cxy, cyy);
         if nx == 0.0 && ny == 0.0 {
             continue;
         }
@@ -193,19 +156,6 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         // Corner i joins edge i - 1 (from corner i - 1) and edge i.
         *p = intersect(&at4(&lines, i + 3), &at4(&lines, i)).unwrap_or(at4(&old, i));
     }
-}
-
-/// `H x` for a tag point, `None` at or beyond the horizon.
-#[inline]
-pub(crate) fn project(h: &Matrix3<f32>, x: f32, y: f32) -> Option<Point2<f32>> {
-    let w = h.m31 * x + h.m32 * y + h.m33;
-    if !above(w, 1e-9) {
-        return None;
-    }
-    Some(Point2::new(
-        (h.m11 * x + h.m12 * y + h.m13) / w,
-        (h.m21 * x + h.m22 * y + h.m23) / w,
-    ))
 }
 
 /// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.

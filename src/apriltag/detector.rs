@@ -3,8 +3,9 @@
 use heapless::Vec;
 use nalgebra::{Matrix3, Point2};
 
-use super::decode::{at4, project, read_code, refine_edges};
+use super::decode::{read_code, refine_edges};
 use super::family::{Family, MAX_CORRECTABLE};
+use super::geom::{at4, project};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
 use super::segment::{

@@ -76,6 +76,7 @@ pub mod decode;
 mod detector;
 pub mod families;
 pub mod family;
+mod geom;
 mod pose;
 pub mod quad;
 pub mod segment;
