@@ -27,31 +27,6 @@ use super::quad::Quad;
 use crate::image::ImageView;
 use crate::scalar::above;
 
-/// Bilinear sample at `(x, y)`; `None` unless the four pixels are inside the image.
-#[inline]
-fn bilinear(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
-    if !(x >= 0.0 && y >= 0.0) {
-        return None;
-    }
-    // Non-negative: truncation is the floor (and saturates far outside, which the test below
-    // rejects).
-    let (xi, yi) = (x as usize, y as usize);
-    let (xf, yf) = (xi as f32, yi as f32);
-    if xi + 1 >= img.width() || yi + 1 >= img.height() {
-        return None;
-    }
-    let (a, b) = (x - xf, y - yf);
-    let r0 = img.row(yi)?;
-    let r1 = img.row(yi + 1)?;
-    let p = |r: &[u8], i: usize| f32::from(r.get(i).copied().unwrap_or(0));
-    Some(
-        (1.0 - a) * (1.0 - b) * p(r0, xi)
-            + a * (1.0 - b) * p(r0, xi + 1)
-            + (1.0 - a) * b * p(r1, xi)
-            + a * b * p(r1, xi + 1),
-    )
-}
-
 /// Samples along an edge normal in [`refine_edges`]: `2 · 4 (d + 1) + 1 + 8` for decimation
 /// `d` up to 8 (`DetectorConfig::decimate`'s bound).
 const MAX_ALONG: usize = 8 * (8 + 1) + 9;
@@ -103,7 +78,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
             let mut along = [None; MAX_ALONG];
             for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
                 let m = -range - 1.0 + 0.25 * j as f32;
-                *g = bilinear(img, x0 + m * nx, y0 + m * ny);
+                *g = img.sample_bilinear(x0 + m * nx, y0 + m * ny);
             }
             for step in 0..steps {
                 let n = -range + 0.25 * step as f32;
@@ -302,7 +277,7 @@ pub(crate) fn read_code(
         let Some(p) = project(h, tx, ty) else {
             continue;
         };
-        let Some(v) = bilinear_or_edge(img, p.x, p.y) else {
+        let Some(v) = img.sample_bilinear(p.x, p.y) else {
             continue;
         };
         let thresh = 0.5 * (black.at(tx, ty) + white.at(tx, ty));
@@ -356,27 +331,4 @@ pub(crate) fn read_code(
         margin: (ws / wc).min(bs / bc),
         ring_in_view,
     })
-}
-
-/// AprilTag's `value_for_pixel`: bilinear between the pixels around `(x, y)`, also exactly on
-/// the last row or column.
-#[inline]
-fn bilinear_or_edge(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
-    if !(x >= 0.0 && y >= 0.0) {
-        return None;
-    }
-    // Non-negative: truncation is the floor.
-    let (x1, y1) = (x as usize, y as usize);
-    let (a, b) = (x - x1 as f32, y - y1 as f32);
-    let (x2, y2) = (x1 + usize::from(a > 0.0), y1 + usize::from(b > 0.0));
-    if x2 >= img.width() || y2 >= img.height() {
-        return None;
-    }
-    let p = |xx: usize, yy: usize| f32::from(img.get(xx, yy).unwrap_or(0));
-    Some(
-        p(x1, y1) * (1.0 - a) * (1.0 - b)
-            + p(x2, y1) * a * (1.0 - b)
-            + p(x1, y2) * (1.0 - a) * b
-            + p(x2, y2) * a * b,
-    )
 }
