@@ -158,6 +158,53 @@ impl<'a, P: Copy> ImageView<'a, P> {
     }
 }
 
+impl ImageView<'_, u8> {
+    /// The image at the real point `(x, y)` by bilinear interpolation (pixel `(i, j)` centred
+    /// at `(i, j)`): with `i = ⌊x⌋`, `j = ⌊y⌋`, `a = x - i`, `b = y - j`,
+    ///
+    /// `v = (1 - a)(1 - b) I(i, j) + a (1 - b) I(i + 1, j) + (1 - a) b I(i, j + 1) + a b I(i + 1, j + 1)`,
+    ///
+    /// evaluated in `f32` in that order, each weight formed before it multiplies its pixel
+    /// (the order fixes the rounding: callers that replay results bit for bit rely on it).
+    ///
+    /// Border: `Some` exactly on the closed rectangle `0 ≤ x ≤ width - 1`, `0 ≤ y ≤ height - 1`
+    /// (AprilTag's `value_for_pixel`): a neighbour is read only when its weight is not zero,
+    /// so the last column and row are reached at integer coordinates. `None` outside it and
+    /// for NaN; no pixel is ever replicated or read past the edge.
+    ///
+    /// ```
+    /// use camgeom::image::ImageView;
+    ///
+    /// let img = ImageView::packed(&[0u8, 100, 200, 40], 2, 2)?;
+    /// assert_eq!(img.sample_bilinear(0.5, 0.0), Some(50.0));
+    /// assert_eq!(img.sample_bilinear(0.5, 0.5), Some(85.0));
+    /// assert_eq!(img.sample_bilinear(1.0, 1.0), Some(40.0)); // the last pixel itself
+    /// assert_eq!(img.sample_bilinear(1.25, 0.0), None);
+    /// assert_eq!(img.sample_bilinear(-0.25, 0.0), None);
+    /// # Ok::<(), camgeom::Error>(())
+    /// ```
+    #[inline]
+    pub fn sample_bilinear(&self, x: f32, y: f32) -> Option<f32> {
+        // Exact in f32: sizes are at most MAX_DIM.
+        let (xmax, ymax) = ((self.width - 1) as f32, (self.height - 1) as f32);
+        if !(x >= 0.0 && y >= 0.0 && x <= xmax && y <= ymax) {
+            return None;
+        }
+        // In range and non-negative: truncation is the floor.
+        let (i, j) = (x as usize, y as usize);
+        let (a, b) = (x - i as f32, y - j as f32);
+        let (i1, j1) = (i + usize::from(a > 0.0), j + usize::from(b > 0.0));
+        let (r0, r1) = (self.row(j)?, self.row(j1)?);
+        let p = |r: &[u8], i: usize| f32::from(r.get(i).copied().unwrap_or(0));
+        Some(
+            (1.0 - a) * (1.0 - b) * p(r0, i)
+                + a * (1.0 - b) * p(r0, i1)
+                + (1.0 - a) * b * p(r1, i)
+                + a * b * p(r1, i1),
+        )
+    }
+}
+
 impl<'a, P: Copy> ImageMut<'a, P> {
     /// A mutable view, validated as [`ImageView::new`].
     pub fn new(data: &'a mut [P], width: usize, height: usize, stride: usize) -> Result<Self> {

@@ -24,6 +24,7 @@
 //! | [`pose`] | pose from a homography, IPPE (both planar solutions), LM refinement on reprojection |
 //! | [`draw`] | clipped integer line drawing and projected wireframes (AR cube) |
 //! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
+//! | [`probe`] | stage probes: a pipeline reports each stage's end (a board's cycle counter) |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
 //! | [`remap`] | frame undistortion: new camera matrix (alpha / balance), Q10.5 lookup table or a compact grid map, integer bilinear remap |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
@@ -87,6 +88,7 @@ pub mod image;
 pub mod klt;
 pub mod linalg;
 pub mod pose;
+pub mod probe;
 pub mod pyramid;
 pub mod ransac;
 pub mod remap;

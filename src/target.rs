@@ -415,17 +415,10 @@ pub enum Stage {
     Redetect,
 }
 
-/// Told as each [`Stage`] of [`PlanarTarget::step`] ends: a board reads its cycle counter
-/// here. `()` is the probe that does nothing. A stage that does not run is not reported; a
-/// stage may be reported more than once in a frame (re-detection after a loss).
-pub trait StageProbe {
-    /// `stage` has just finished.
-    fn stage_done(&mut self, stage: Stage);
-}
-
-impl StageProbe for () {
-    fn stage_done(&mut self, _stage: Stage) {}
-}
+/// Told as each [`Stage`] of [`PlanarTarget::step`] ends (`StageProbe<Stage>`): a board reads
+/// its cycle counter there. A stage may be reported more than once in a frame (re-detection
+/// after a loss).
+pub use crate::probe::StageProbe;
 
 #[derive(Debug, Clone, Copy)]
 struct Feature<C> {
@@ -611,7 +604,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
     /// pyramids of different sizes; [`Error::InvalidParameter`] (`prev`) for a frame after the
     /// first without `prev`; the acquisition's errors, and as [`Homography::from_four_points`]
     /// for acquired corners that do not form a proper quadrilateral.
-    pub fn step<Q: Acquire + ?Sized, P: StageProbe + ?Sized>(
+    pub fn step<Q: Acquire + ?Sized, P: StageProbe<Stage> + ?Sized>(
         &mut self,
         params: &TargetParams,
         prev: Option<&Pyramid<'_>>,
@@ -720,7 +713,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
 
     /// Asks `acquire`; with corners, starts the features from them and solves the pose into
     /// `out`. Returns whether it did.
-    fn try_acquire<Q: Acquire + ?Sized, P: StageProbe + ?Sized>(
+    fn try_acquire<Q: Acquire + ?Sized, P: StageProbe<Stage> + ?Sized>(
         &mut self,
         params: &TargetParams,
         frame: &ImageView<'_, u8>,
@@ -1034,7 +1027,7 @@ mod tests {
     #[derive(Default)]
     struct Stages(StdVec<Stage>);
 
-    impl StageProbe for Stages {
+    impl StageProbe<Stage> for Stages {
         fn stage_done(&mut self, stage: Stage) {
             self.0.push(stage);
         }

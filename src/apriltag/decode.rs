@@ -19,84 +19,22 @@
 //! centres are at `(i + 0.5, j + 0.5)`; the sampling positions here are AprilTag's shifted by
 //! that half pixel, so both read the same pixels.
 
-use nalgebra::{Matrix3, Point2};
+use nalgebra::Matrix3;
 
 use super::family::Family;
+use super::geom::{Line, at4, eigen, intersect, project};
 use super::quad::Quad;
 use crate::image::ImageView;
 use crate::scalar::above;
 
-/// Element `i mod 4` of a quad's corners or lines (no bounds check needed).
-#[inline]
-pub(crate) fn at4<T: Copy>(a: &[T; 4], i: usize) -> T {
-    let [a0, a1, a2, a3] = *a;
-    match i & 3 {
-        0 => a0,
-        1 => a1,
-        2 => a2,
-        _ => a3,
-    }
-}
-
-/// Bilinear sample at `(x, y)`; `None` unless the four pixels are inside the image.
-#[inline]
-fn bilinear(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
-    if !(x >= 0.0 && y >= 0.0) {
-        return None;
-    }
-    // Non-negative: truncation is the floor (and saturates far outside, which the test below
-    // rejects).
-    let (xi, yi) = (x as usize, y as usize);
-    let (xf, yf) = (xi as f32, yi as f32);
-    if xi + 1 >= img.width() || yi + 1 >= img.height() {
-        return None;
-    }
-    let (a, b) = (x - xf, y - yf);
-    let r0 = img.row(yi)?;
-    let r1 = img.row(yi + 1)?;
-    let p = |r: &[u8], i: usize| f32::from(r.get(i).copied().unwrap_or(0));
-    Some(
-        (1.0 - a) * (1.0 - b) * p(r0, xi)
-            + a * (1.0 - b) * p(r0, xi + 1)
-            + (1.0 - a) * b * p(r1, xi)
-            + a * b * p(r1, xi + 1),
-    )
-}
-
-/// A line through `(ex, ey)` with unit normal `(nx, ny)`.
-#[derive(Debug, Clone, Copy)]
-struct Line {
-    ex: f32,
-    ey: f32,
-    nx: f32,
-    ny: f32,
-}
-
-/// Intersection of two lines (AprilTag's solve), `None` when `|det| ≤ 0.001`.
-fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
-    let (a00, a01, a10, a11) = (a.ny, -b.ny, -a.nx, b.nx);
-    let (b0, b1) = (b.ex - a.ex, b.ey - a.ey);
-    let det = a00 * a11 - a10 * a01;
-    if !above(det.abs(), 0.001) {
-        return None;
-    }
-    let l0 = (a11 * b0 - a01 * b1) / det;
-    Some(Point2::new(a.ex + l0 * a00, a.ey + l0 * a10))
-}
-
-/// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
-/// whose two lines cannot be intersected stays where it was.
 /// Samples along an edge normal in [`refine_edges`]: `2 · 4 (d + 1) + 1 + 8` for decimation
 /// `d` up to 8 (`DetectorConfig::decimate`'s bound).
 const MAX_ALONG: usize = 8 * (8 + 1) + 9;
 
+/// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
+/// whose two lines cannot be intersected stays where it was.
 pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usize) {
-    let mut lines = [Line {
-        ex: 0.0,
-        ey: 0.0,
-        nx: 0.0,
-        ny: 0.0,
-    }; 4];
+    let mut lines = [Line::ZERO; 4];
     let range = decimate as f32 + 1.0;
     let steps = 2 * 4 * (decimate + 1) + 1;
     for (edge, line) in lines.iter_mut().enumerate() {
@@ -140,7 +78,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
             let mut along = [None; MAX_ALONG];
             for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
                 let m = -range - 1.0 + 0.25 * j as f32;
-                *g = bilinear(img, x0 + m * nx, y0 + m * ny);
+                *g = img.sample_bilinear(x0 + m * nx, y0 + m * ny);
             }
             for step in 0..steps {
                 let n = -range + 0.25 * step as f32;
@@ -177,7 +115,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
         // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
         // direction from the eigenvectors, as the quad fit computes it).
-        let (_, _, nx, ny) = super::quad::eigen(cxx, cxy, cyy);
+        let (_, _, nx, ny) = eigen(cxx, cxy, cyy);
         if nx == 0.0 && ny == 0.0 {
             continue;
         }
@@ -193,19 +131,6 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         // Corner i joins edge i - 1 (from corner i - 1) and edge i.
         *p = intersect(&at4(&lines, i + 3), &at4(&lines, i)).unwrap_or(at4(&old, i));
     }
-}
-
-/// `H x` for a tag point, `None` at or beyond the horizon.
-#[inline]
-pub(crate) fn project(h: &Matrix3<f32>, x: f32, y: f32) -> Option<Point2<f32>> {
-    let w = h.m31 * x + h.m32 * y + h.m33;
-    if !above(w, 1e-9) {
-        return None;
-    }
-    Some(Point2::new(
-        (h.m11 * x + h.m12 * y + h.m13) / w,
-        (h.m21 * x + h.m22 * y + h.m23) / w,
-    ))
 }
 
 /// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.
@@ -352,7 +277,7 @@ pub(crate) fn read_code(
         let Some(p) = project(h, tx, ty) else {
             continue;
         };
-        let Some(v) = bilinear_or_edge(img, p.x, p.y) else {
+        let Some(v) = img.sample_bilinear(p.x, p.y) else {
             continue;
         };
         let thresh = 0.5 * (black.at(tx, ty) + white.at(tx, ty));
@@ -406,27 +331,4 @@ pub(crate) fn read_code(
         margin: (ws / wc).min(bs / bc),
         ring_in_view,
     })
-}
-
-/// AprilTag's `value_for_pixel`: bilinear between the pixels around `(x, y)`, also exactly on
-/// the last row or column.
-#[inline]
-fn bilinear_or_edge(img: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
-    if !(x >= 0.0 && y >= 0.0) {
-        return None;
-    }
-    // Non-negative: truncation is the floor.
-    let (x1, y1) = (x as usize, y as usize);
-    let (a, b) = (x - x1 as f32, y - y1 as f32);
-    let (x2, y2) = (x1 + usize::from(a > 0.0), y1 + usize::from(b > 0.0));
-    if x2 >= img.width() || y2 >= img.height() {
-        return None;
-    }
-    let p = |xx: usize, yy: usize| f32::from(img.get(xx, yy).unwrap_or(0));
-    Some(
-        p(x1, y1) * (1.0 - a) * (1.0 - b)
-            + p(x2, y1) * a * (1.0 - b)
-            + p(x1, y2) * (1.0 - a) * b
-            + p(x2, y2) * a * b,
-    )
 }

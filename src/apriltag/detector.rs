@@ -3,8 +3,9 @@
 use heapless::Vec;
 use nalgebra::{Matrix3, Point2};
 
-use super::decode::{at4, project, read_code, refine_edges};
+use super::decode::{read_code, refine_edges};
 use super::family::{Family, MAX_CORRECTABLE};
+use super::geom::{at4, project};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
 use super::segment::{
@@ -13,6 +14,7 @@ use super::segment::{
 use super::workspace::{Parts, Stats, Workspace};
 use crate::homography::Homography;
 use crate::image::ImageView;
+use crate::probe::StageProbe;
 use crate::{Error, Result};
 
 /// Most families one detector decodes.
@@ -135,7 +137,9 @@ impl Detection {
     }
 }
 
-/// The stages of a detection, in the order they first run.
+/// The stages of a detection, in the order they first run: what a
+/// [`StageProbe`]`<Stage>` given to [`Detector::detect_into`] is told (the per-quad stages
+/// repeat, interleaved).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Stage {
@@ -155,17 +159,6 @@ pub enum Stage {
     Decode,
     /// Ordering the detections.
     Reconcile,
-}
-
-/// Told when a [`Stage`] ends: the time since the previous call belongs to that stage (the
-/// per-quad stages repeat, interleaved). `()` does nothing.
-pub trait StageProbe {
-    /// `stage` has just finished.
-    fn stage_done(&mut self, stage: Stage);
-}
-
-impl StageProbe for () {
-    fn stage_done(&mut self, _stage: Stage) {}
 }
 
 /// A validated detector: configuration and families. Keeps no per-frame state (that is the
@@ -285,7 +278,7 @@ impl Detector {
         &self,
         frame: &ImageView<'_, u8>,
         ws: &mut Workspace<W, T, L, C, P, S>,
-        probe: &mut impl StageProbe,
+        probe: &mut impl StageProbe<Stage>,
         keep: impl Fn(&Family, u16) -> bool,
         out: &mut Vec<Detection, N>,
     ) -> Result<()> {
@@ -329,7 +322,7 @@ impl Detector {
         &self,
         frame: &ImageView<'_, u8>,
         ws: &mut Parts<'_>,
-        probe: &mut impl StageProbe,
+        probe: &mut impl StageProbe<Stage>,
         keep: &impl Fn(&Family, u16) -> bool,
         sink: &mut impl FnMut(Detection, &mut Stats),
     ) -> Result<()> {

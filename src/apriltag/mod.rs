@@ -76,15 +76,18 @@ pub mod decode;
 mod detector;
 pub mod families;
 pub mod family;
+mod geom;
 mod pose;
 pub mod quad;
 pub mod segment;
 mod workspace;
 
+/// What [`Detector::detect_into`] tells as each [`Stage`] ends (`StageProbe<Stage>`).
+pub use crate::probe::StageProbe;
 pub use acquire::TagTarget;
 pub use detector::{
     APRILTAG_PIXEL_OFFSET, CORNER_TAG_COORDS, Detection, Detector, DetectorConfig, MAX_FAMILIES,
-    Stage, StageProbe,
+    Stage,
 };
 pub use family::{Decoded, Family, LayoutBit, rotate90};
 pub use pose::tag_pose;

@@ -29,7 +29,7 @@
 
 use nalgebra::Point2;
 
-use super::decode::at4;
+use super::geom::{Line, at4, eigen, intersect};
 use super::segment::{Sampled, unpack};
 use crate::features::offer_best;
 use crate::scalar::{above, at_most};
@@ -438,28 +438,6 @@ impl Moments {
     }
 }
 
-/// `λ_min, λ_max` and the normal of a 2x2 covariance (AprilTag's `fit_line`).
-#[inline]
-pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
-    let d = libm::sqrtf((cxx - cyy) * (cxx - cyy) + 4.0 * cxy * cxy);
-    let small = (0.5 * (cxx + cyy - d)).max(0.0);
-    let big = 0.5 * (cxx + cyy + d);
-    let (nx1, ny1) = (cxx - big, cxy);
-    let (nx2, ny2) = (cxy, cyy - big);
-    let (m1, m2) = (nx1 * nx1 + ny1 * ny1, nx2 * nx2 + ny2 * ny2);
-    let (nx, ny, m) = if m1 > m2 {
-        (nx1, ny1, m1)
-    } else {
-        (nx2, ny2, m2)
-    };
-    let len = libm::sqrtf(m);
-    if len < 1e-12 {
-        (small, big, 0.0, 0.0)
-    } else {
-        (small, big, nx / len, ny / len)
-    }
-}
-
 /// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
 /// points (`Σw < 2^14`, `Σw u² < 2^42`).
 #[inline]
@@ -477,16 +455,6 @@ fn window_error(m: &Moments, count: usize) -> f32 {
     count as f32 * small
 }
 
-/// A fitted line: a point (the weighted mean, pixels), the unit normal and `λ_min` (px²).
-#[derive(Debug, Clone, Copy)]
-struct Line {
-    ex: f32,
-    ey: f32,
-    nx: f32,
-    ny: f32,
-    mse: f32,
-}
-
 /// `w s₂ - a b` exactly (a covariance numerator), in `i64` when it fits (frames up to about
 /// 640x480), else `i128`; then as `f32`.
 #[inline]
@@ -498,8 +466,9 @@ fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
 }
 
 /// The line fit of a run from its moments (exact covariance numerators: a run can hold a
-/// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates.
-fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<Line> {
+/// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates: the line
+/// through the weighted mean (pixels) and its `λ_min` (the mean squared distance, px²).
+fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<(Line, f32)> {
     if m.w <= 0 {
         return None;
     }
@@ -509,25 +478,13 @@ fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<Line> {
     let wf = m.w as f32;
     let s = 0.25 / (wf * wf);
     let (small, _, nx, ny) = eigen(cxx * s, cxy * s, cyy * s);
-    Some(Line {
+    let line = Line {
         ex: 0.5 * (m.x as f32 / wf + x0 as f32),
         ey: 0.5 * (m.y as f32 / wf + y0 as f32),
         nx,
         ny,
-        mse: small,
-    })
-}
-
-/// Intersection of lines `a` and `b` (AprilTag's solve; `None` when `|det| < 0.001`).
-fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
-    let (a00, a01, a10, a11) = (a.ny, -b.ny, -a.nx, b.nx);
-    let (b0, b1) = (b.ex - a.ex, b.ey - a.ey);
-    let det = a00 * a11 - a10 * a01;
-    if !at_most(0.001, det.abs()) {
-        return None;
-    }
-    let l0 = (a11 * b0 - a01 * b1) / det;
-    Some(Point2::new(a.ex + l0 * a00, a.ey + l0 * a10))
+    };
+    Some((line, small))
 }
 
 /// The gradient weight of a boundary point in the sampled image (module docs).
@@ -698,10 +655,11 @@ pub(crate) fn fit_quad(
             (t, n - ia + ib + 1)
         }
     };
-    let fit = |a: usize, b: usize| -> Option<(Line, f32)> {
+    // The line of a run, its `λ_min` and its error `N λ_min`.
+    let fit = |a: usize, b: usize| -> Option<(Line, f32, f32)> {
         let (m, cnt) = run(a, b);
-        let l = fit_line(&m, xmin, ymin)?;
-        Some((l, cnt as f32 * l.mse))
+        let (l, mse) = fit_line(&m, xmin, ymin)?;
+        Some((l, mse, cnt as f32 * mse))
     };
     let mse_max = prm.max_line_fit_mse;
     let k = cand.len();
@@ -711,8 +669,8 @@ pub(crate) fn fit_quad(
     for (a, row) in fits.iter_mut().enumerate().take(k) {
         for (b, f) in row.iter_mut().enumerate().take(k) {
             if a != b
-                && let Some((l, e)) = fit(a, b)
-                && at_most(l.mse, mse_max)
+                && let Some((l, mse, e)) = fit(a, b)
+                && at_most(mse, mse_max)
             {
                 *f = Some((l.nx, l.ny, e));
             }
@@ -750,16 +708,10 @@ pub(crate) fn fit_quad(
         return None;
     }
     // 4. Lines, corners, and the shape checks.
-    let mut lines = [Line {
-        ex: 0.0,
-        ey: 0.0,
-        nx: 0.0,
-        ny: 0.0,
-        mse: 0.0,
-    }; 4];
+    let mut lines = [Line::ZERO; 4];
     for (i, l) in lines.iter_mut().enumerate() {
-        let (line, _) = fit(at4(&best_idx, i), at4(&best_idx, i + 1))?;
-        if !at_most(line.mse, mse_max) {
+        let (line, mse, _) = fit(at4(&best_idx, i), at4(&best_idx, i + 1))?;
+        if !at_most(mse, mse_max) {
             return None;
         }
         *l = line;

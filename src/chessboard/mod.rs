@@ -894,20 +894,6 @@ fn test_corner(image: &ImageView<'_, u8>, c: &mut Candidate, min_contrast: u8) {
     c.ok = false;
 }
 
-/// Bilinear sample, `None` outside the frame.
-fn bilinear(image: &ImageView<'_, u8>, x: f32, y: f32) -> Option<f32> {
-    if !(x >= 0.0 && y >= 0.0) {
-        return None;
-    }
-    let (x0, y0) = (x as usize, y as usize);
-    let (ax, ay) = (x - x0 as f32, y - y0 as f32);
-    let a = image.get(x0, y0)? as f32;
-    let b = image.get(x0 + 1, y0)? as f32;
-    let c = image.get(x0, y0 + 1)? as f32;
-    let d = image.get(x0 + 1, y0 + 1)? as f32;
-    Some((a * (1.0 - ax) + b * ax) * (1.0 - ay) + (c * (1.0 - ax) + d * ax) * ay)
-}
-
 /// The two edge lines through an x-corner at `p` from the dark/bright transitions on a ring.
 fn ring_lines(
     image: &ImageView<'_, u8>,
@@ -919,11 +905,7 @@ fn ring_lines(
     let mut raw = [0.0f32; RING];
     for (k, v) in raw.iter_mut().enumerate() {
         let a = k as f32 * step;
-        *v = bilinear(
-            image,
-            p.x + radius * libm::cosf(a),
-            p.y + radius * libm::sinf(a),
-        )?;
+        *v = image.sample_bilinear(p.x + radius * libm::cosf(a), p.y + radius * libm::sinf(a))?;
     }
     // Circular [1 2 1] smoothing against noise.
     let mut v = [0.0f32; RING];

@@ -213,7 +213,7 @@ struct Probe<'a, C: Clock> {
     costs: &'a mut StageCosts,
 }
 
-impl<C: Clock> StageProbe for Probe<'_, C> {
+impl<C: Clock> StageProbe<Stage> for Probe<'_, C> {
     fn stage_done(&mut self, stage: Stage) {
         let now = self.clock.now();
         let d = span(self.last, now);
