@@ -17,7 +17,7 @@
 //! The check does not trust the caller's frame order: any image, any point order.
 
 use super::arith::Bilinear;
-use super::window::{Rows, block_rows, native_state_len};
+use super::kernel::{Rows, block_rows, native_state_len};
 use crate::image::ImageView;
 
 /// `u32` words of a slot's key (flags, corner, four weights) and of its three `i64` sums.

@@ -71,14 +71,10 @@
 use crate::{Error, Result};
 
 mod arith;
-#[cfg(target_arch = "x86_64")]
-mod avx2;
 mod cache;
-mod lanes;
+mod kernel;
 mod lk;
-mod packed;
 mod tracker;
-mod window;
 
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
@@ -96,7 +92,7 @@ pub const MAX_WIN: usize = 63;
 /// pyramids for `win x win` windows: `2 (w + 2b)(h + 2b)` with the border
 /// `b = ⌊win / 2⌋ + 8` (every block a window centred in the level reads lies inside it).
 pub const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
-    window::bordered_len(w, h, win)
+    kernel::bordered_len(w, h, win)
 }
 
 /// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows: the window's
@@ -106,7 +102,7 @@ pub const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
 /// multiple of 8 lanes, `s = 8 ⌈win / 8⌉`, and the template's to an even count, `r = 2 ⌈win / 2⌉`
 /// (AVX2 holds two rows a vector): `3 (win + 1)(s + 1) + 3 r s`, 3 234 for 21x21.
 pub const fn scratch_len(win: usize) -> usize {
-    window::native_scratch_len(win)
+    kernel::native_scratch_len(win)
 }
 
 /// `[Ix, Iy]` elements a [`Gradients::PerLevel`] buffer needs for a `width x height` frame

@@ -414,7 +414,7 @@ mod ram {
         let n = pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512);
         std::println!("pipeline_ram 320x240 fixed N=200: {n} bytes");
         std::println!("tracker: {}", core::mem::size_of::<Tracker<Fixed, 200>>());
-        let scratch = if super::super::window::LANES {
+        let scratch = if super::super::kernel::LANES {
             3_234
         } else {
             2_775

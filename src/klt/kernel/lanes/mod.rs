@@ -1,4 +1,4 @@
-//! The window kernel for targets with 128-bit SIMD ([`super::window`]): the template in
+//! The window kernel for targets with 128-bit SIMD ([`super::window::Window`]): the template in
 //! planes, rows padded to whole vectors of [`L`] `i16`; the window's derivatives as `[Ix, Iy]`
 //! pairs, the level's own rows when the window lies inside it.
 //!
@@ -12,16 +12,18 @@
 //! `Σ |J - I|` pass masks them off. With AVX2 a vector holds two rows' samples
 //! ([`Sampler::Vector`]; a window of odd height ends with one padding row, zero).
 
-use super::arith::{Bilinear, W_BITS};
-use super::window::{
-    Column, PIX_SHIFT, Pixels, Rows, Window, block_of, block_rows, cached_patch, fetch_grad,
-    fetch_patch,
-};
+use super::border::Pixels;
+use super::patch::{Column, Rows, block_of, block_rows, cached_patch, fetch_grad, fetch_patch};
+use super::window::{PIX_SHIFT, Window};
 use crate::gradient::{scharr_window, scharr8};
 use crate::image::ImageView;
+use crate::klt::arith::{Bilinear, W_BITS};
 use crate::simd::low;
 use crate::{Error, Result};
 use wide::{i16x8, i32x4, i32x8, u8x16, u32x4};
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
 
 /// Lanes of one vector of `i16` (128 bits).
 pub(super) const L: usize = 8;
@@ -58,7 +60,7 @@ pub(super) const fn state_len(win: usize) -> usize {
 }
 
 /// The scratch split into its parts.
-pub(super) struct Lanes<'s> {
+pub(in crate::klt) struct Lanes<'s> {
     win: usize,
     /// [`stride`]`(win)`.
     s: usize,
@@ -78,7 +80,7 @@ pub(super) struct Lanes<'s> {
     /// The integer corner of the window of `J` in `patch`, if it holds one
     /// ([`cached_patch`]); cleared by [`Window::template`].
     patch_at: Option<(i32, i32)>,
-    /// AVX2, when this CPU has it ([`super::avx2`]).
+    /// AVX2, when this CPU has it ([`avx2`]).
     #[cfg(target_arch = "x86_64")]
     v3: Option<pulp::x86::V3>,
 }
@@ -147,7 +149,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         let win = self.win;
         #[cfg(target_arch = "x86_64")]
         if let Some(v3) = self.v3 {
-            let k = super::avx2::Avx2::new(v3, &w);
+            let k = avx2::Avx2::new(v3, &w);
             return v3.vectorize(move || template(k, rows, grads, tmpl, win));
         }
         template(PairWeights::new(&w), rows, grads, tmpl, win)
@@ -163,7 +165,7 @@ impl<'s> Window<'s> for Lanes<'s> {
         let (tmpl, win) = (&*self.tmpl, self.win);
         #[cfg(target_arch = "x86_64")]
         if let Some(v3) = self.v3 {
-            let k = super::avx2::Avx2::new(v3, &w);
+            let k = avx2::Avx2::new(v3, &w);
             return v3.vectorize(move || mismatch(k, rows, tmpl, win, abs));
         }
         mismatch(PairWeights::new(&w), rows, tmpl, win, abs)
@@ -229,7 +231,7 @@ pub(super) fn weights(b: &Bilinear) -> [i16; 4] {
 
 /// A bilinear sampler of eight pixels at a window's weights, and the vector arithmetic of the
 /// kernels on its samples: [`PairWeights`] (128-bit, every SIMD target) or
-/// [`super::avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same integers:
+/// [`avx2::Avx2`] (x86-64 CPUs with AVX2). Both compute the same integers:
 /// `⌊(p₀₀ w₀₀ + p₀₁ w₀₁ + p₁₀ w₁₀ + p₁₁ w₁₁) / 2⁹⌉`, exact in `i32`, packed to `i16`.
 ///
 /// A sample takes its taps from two rows; the kernels walk a window a column of vectors at a
@@ -510,7 +512,7 @@ fn template<K: Sampler>(
     tmpl: &mut [i16],
     win: usize,
 ) -> (i64, i64, i64) {
-    const _: () = assert!(super::MAX_WIN as i64 * G_VECTOR_BOUND <= i32::MAX as i64);
+    const _: () = assert!(crate::klt::MAX_WIN as i64 * G_VECTOR_BOUND <= i32::MAX as i64);
     let (ti, rest) = tmpl.split_at_mut(plane_len(win).min(tmpl.len()));
     let (tx, ty) = rest.split_at_mut(plane_len(win).min(rest.len()));
     for (v, oi) in columns_mut::<K>(ti, win).enumerate() {
@@ -553,7 +555,7 @@ fn template<K: Sampler>(
 }
 
 /// Vectors of the widest template row: [`stride`]`(MAX_WIN)` / [`L`].
-const MAX_VECTORS: usize = stride(super::MAX_WIN) / L;
+const MAX_VECTORS: usize = stride(crate::klt::MAX_WIN) / L;
 
 /// For each vector of a `win`-wide row, the lanes that are real columns (all ones; the
 /// padding beyond `win` zero).
@@ -632,12 +634,12 @@ mod tests {
     use super::*;
 
     /// For every window size the patch part of the scratch holds the mismatch's block with
-    /// [`PATCH_MARGIN`](super::super::window::PATCH_MARGIN) on every side (and the
+    /// [`PATCH_MARGIN`](super::super::patch::PATCH_MARGIN) on every side (and the
     /// template's block, which is smaller).
     #[test]
     fn scratch_holds_the_margin_patch() {
-        use super::super::window::PATCH_MARGIN;
-        for win in 3..=super::super::MAX_WIN {
+        use super::super::patch::PATCH_MARGIN;
+        for win in 3..=crate::klt::MAX_WIN {
             let mut scratch = std::vec![0i16; scratch_len(win)];
             let k = Lanes::new(&mut scratch, win).unwrap();
             let (c, n) = (stride(win) + 1, win + 1);
