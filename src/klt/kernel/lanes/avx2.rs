@@ -13,7 +13,7 @@
 //! the kernel that uses the sampler is inlined into [`pulp::x86::V3::vectorize`], where AVX2
 //! is enabled.
 
-use super::{L, PairWeights, Sampler, byte_pairs};
+use super::sampler::{L, PairWeights, Sampler, byte_pairs};
 use crate::klt::arith::W_BITS;
 use crate::klt::kernel::patch::Column;
 use crate::klt::kernel::window::PIX_SHIFT;
@@ -87,7 +87,7 @@ impl Sampler for Avx2 {
     }
 
     /// Eight `[Ix, Iy]` pairs at `x` and eight at `x + 1`, one load each, split as
-    /// [`split_pairs`](super::split_pairs) does (x86-64 is little-endian).
+    /// [`split_pairs`](super::sampler::split_pairs) does (x86-64 is little-endian).
     #[inline(always)]
     fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> (__m256i, __m256i) {
         let (avx, avx2) = (self.v3.avx, self.v3.avx2);
@@ -255,7 +255,7 @@ mod tests {
     /// compare, and the test says so.
     #[test]
     fn avx2_samples_as_the_128_bit_sampler() {
-        use super::super::weights;
+        use super::super::sampler::weights;
         use crate::klt::arith::{Fixed, FlowArith, Q16};
         let Some(v3) = V3::try_new() else {
             std::eprintln!("no AVX2 on this CPU: the AVX2 sampler is not run");
