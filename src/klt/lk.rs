@@ -309,7 +309,7 @@ pub fn calc_flow<A: FlowArith>(
 /// own block at its template and at every mismatch that moves it; the copy is made once a
 /// level, as OpenCV keeps its pyramids with a border. The flows are the same to the bit.
 ///
-/// A buffer of [`bordered_len`](super::bordered_len)`(w, h, win)` bytes for the level-1 size
+/// A buffer of [`bordered_len`]`(w, h, win)` bytes for the level-1 size
 /// `w x h` serves levels 1 and up (with 278 points and 21x21 windows on a 640x480 frame,
 /// 191 KB); an empty one is [`calc_flow`]. The copies serve the vector kernel (targets with
 /// 128-bit SIMD); where the boards' kernel runs, none is made and this is [`calc_flow`].
