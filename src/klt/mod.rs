@@ -72,6 +72,7 @@ use crate::{Error, Result};
 
 mod arith;
 mod cache;
+mod flow;
 mod kernel;
 mod lk;
 mod tracker;
@@ -79,12 +80,10 @@ mod tracker;
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
+pub use flow::{FlowBuffers, FlowItem, kept_scratch_len};
 pub use kernel::{bordered_len, scratch_len};
 pub use lk::{calc_flow, calc_flow_bordered, forward_backward};
-pub use tracker::{
-    FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, kept_scratch_len,
-    pipeline_ram,
-};
+pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;
