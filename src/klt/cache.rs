@@ -17,7 +17,7 @@
 //! The check does not trust the caller's frame order: any image, any point order.
 
 use super::arith::Bilinear;
-use super::window::{Rows, block_rows, native_state_len};
+use super::kernel::{Rows, block_rows, state_len};
 use crate::image::ImageView;
 
 /// `u32` words of a slot's key (flags, corner, four weights) and of its three `i64` sums.
@@ -36,7 +36,7 @@ const fn ring_words(win: usize) -> usize {
 
 /// `u32` words of one slot: key, sums, pixels, the kernel's template.
 const fn slot_words(win: usize) -> usize {
-    HEAD + ring_words(win) + native_state_len(win).div_ceil(2)
+    HEAD + ring_words(win) + state_len(win).div_ceil(2)
 }
 
 /// `i16` elements of a cache of `points` points over `levels` pyramid levels with `win x win`
@@ -104,7 +104,7 @@ impl<'c> TemplateCache<'c> {
             (w(0) | w(1) << 32) as i64
         };
         let state = bytemuck::try_cast_slice(slot.get(HEAD + ring_words(self.win)..)?).ok()?;
-        let state = state.get(..native_state_len(self.win))?;
+        let state = state.get(..state_len(self.win))?;
         Some((state, (sum(0), sum(1), sum(2))))
     }
 

@@ -2,7 +2,7 @@
 
 use super::arith::{Bilinear, Coordinate, FlowArith};
 use super::cache::TemplateCache;
-use super::window::{LANES, Lanes, Packed, Pixels, Window, border, bordered_len, pad};
+use super::kernel::{LANES, Lanes, Packed, Pixels, Window, border_width, bordered_len, pad};
 use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::image::{ImageMut, ImageView};
 use crate::pyramid::Pyramid;
@@ -221,7 +221,7 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
         // The level's copies with a reflected border, where they fit and pay.
         let (bl, bd) = (
             bordered_len(i.width(), i.height(), cfg.win),
-            border(cfg.win),
+            border_width(cfg.win),
         );
         let copies = match borders.get_mut(..bl) {
             Some(b) if W::BORDERED && windows_outweigh => {
@@ -309,7 +309,7 @@ pub fn calc_flow<A: FlowArith>(
 /// own block at its template and at every mismatch that moves it; the copy is made once a
 /// level, as OpenCV keeps its pyramids with a border. The flows are the same to the bit.
 ///
-/// A buffer of [`bordered_len`](super::bordered_len)`(w, h, win)` bytes for the level-1 size
+/// A buffer of [`bordered_len`]`(w, h, win)` bytes for the level-1 size
 /// `w x h` serves levels 1 and up (with 278 points and 21x21 windows on a 640x480 frame,
 /// 191 KB); an empty one is [`calc_flow`]. The copies serve the vector kernel (targets with
 /// 128-bit SIMD); where the boards' kernel runs, none is made and this is [`calc_flow`].
@@ -421,7 +421,7 @@ mod tests {
 
     /// Scratch for either window kernel ([`Packed`], [`Lanes`]) with `win x win` windows.
     fn both_len(win: usize) -> usize {
-        super::super::packed::scratch_len(win).max(super::super::lanes::scratch_len(win))
+        super::super::kernel::any_scratch_len(win)
     }
 
     fn run_both(dx: f64, dy: f64) -> (Vec<Flow<f32>>, Vec<Flow<Q16>>) {
@@ -874,7 +874,7 @@ mod tests {
         }
     }
 
-    /// The two window kernels ([`super::super::window`]) compute the same integers: flows,
+    /// The two window kernels ([`super::super::kernel`]) compute the same integers: flows,
     /// statuses and errors equal to the bit, for both arithmetics, both gradient sources, odd
     /// and whole-vector windows, on a noisy texture with points inside, near and past every
     /// border (the reflected-patch paths) and moved by up to a few pixels.

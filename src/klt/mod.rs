@@ -71,43 +71,22 @@
 use crate::{Error, Result};
 
 mod arith;
-#[cfg(target_arch = "x86_64")]
-mod avx2;
 mod cache;
-mod lanes;
+mod flow;
+mod kernel;
 mod lk;
-mod packed;
 mod tracker;
-mod window;
 
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
+pub use flow::{FlowBuffers, FlowItem, kept_scratch_len};
+pub use kernel::{bordered_len, scratch_len};
 pub use lk::{calc_flow, calc_flow_bordered, forward_backward};
-pub use tracker::{
-    FlowBuffers, FlowItem, Track, Tracker, TrackerConfig, TrackerStats, kept_scratch_len,
-    pipeline_ram,
-};
+pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;
-
-/// Bytes of the bordered copies [`calc_flow_bordered`] makes of a `w x h` level of both
-/// pyramids for `win x win` windows: `2 (w + 2b)(h + 2b)` with the border
-/// `b = ⌊win / 2⌋ + 8` (every block a window centred in the level reads lies inside it).
-pub const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
-    window::bordered_len(w, h, win)
-}
-
-/// `i16` elements of scratch [`calc_flow`] needs for `win x win` windows: the window's
-/// derivatives and pixels at integer positions, the interpolated template and its
-/// derivatives. On cores without vector units `3 (win + 1)² + 3 win²`, 2 775 (5.4 KB) for
-/// 21x21; on targets with 128-bit SIMD (x86-64, aarch64, ...) the rows are padded to a
-/// multiple of 8 lanes, `s = 8 ⌈win / 8⌉`, and the template's to an even count, `r = 2 ⌈win / 2⌉`
-/// (AVX2 holds two rows a vector): `3 (win + 1)(s + 1) + 3 r s`, 3 234 for 21x21.
-pub const fn scratch_len(win: usize) -> usize {
-    window::native_scratch_len(win)
-}
 
 /// `[Ix, Iy]` elements a [`Gradients::PerLevel`] buffer needs for a `width x height` frame
 /// (level 0 is the largest).

@@ -1,4 +1,4 @@
-//! The AVX2 sampler of the vector window kernel ([`super::lanes`]), for x86-64 CPUs that have
+//! The AVX2 sampler of the vector window kernel ([`super`]), for x86-64 CPUs that have
 //! AVX2 (found at run time with the `std` feature, at compile time without it).
 //!
 //! The same integers as [`PairWeights`]: each row's eight pixel tap pairs `(p[x], p[x + 1])`
@@ -13,10 +13,10 @@
 //! the kernel that uses the sampler is inlined into [`pulp::x86::V3::vectorize`], where AVX2
 //! is enabled.
 
-use super::arith::W_BITS;
-use super::lanes::{L, PairWeights, Sampler, byte_pairs};
-use super::window::Column;
-use super::window::PIX_SHIFT;
+use super::sampler::{L, PairWeights, Sampler, byte_pairs};
+use crate::klt::arith::W_BITS;
+use crate::klt::kernel::patch::Column;
+use crate::klt::kernel::window::PIX_SHIFT;
 use core::arch::x86_64::{__m128i, __m256i};
 use pulp::x86::V3;
 use wide::i16x8;
@@ -87,7 +87,7 @@ impl Sampler for Avx2 {
     }
 
     /// Eight `[Ix, Iy]` pairs at `x` and eight at `x + 1`, one load each, split as
-    /// [`split_pairs`](super::lanes::split_pairs) does (x86-64 is little-endian).
+    /// [`split_pairs`](super::sampler::split_pairs) does (x86-64 is little-endian).
     #[inline(always)]
     fn derivative_taps(self, r: &[[i16; 2]; L + 1]) -> (__m256i, __m256i) {
         let (avx, avx2) = (self.v3.avx, self.v3.avx2);
@@ -216,7 +216,7 @@ impl Sampler for Avx2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::klt::window::block_of;
+    use crate::klt::kernel::patch::block_of;
 
     /// The vectors a sampler gives down the column of `rows` rows (`L + 1` wide) of `buf`:
     /// pixels, or `Ix` and `Iy` when `buf` holds `[Ix, Iy]` pairs; all of them, as arrays.
@@ -248,15 +248,15 @@ mod tests {
 
     /// The AVX2 sampler gives the 128-bit one's pixels and derivatives, two rows a vector
     /// in the order of [`pair_lanes`] and a missing last row zero, for the weights the
-    /// tracker makes ([`Fixed::bilinear`](super::super::arith::FlowArith::bilinear) of random
+    /// tracker makes ([`Fixed::bilinear`](crate::klt::FlowArith::bilinear) of random
     /// Q16 fractions, through the kernel's `weights`, so `w11 = -1` at tiny fractions too) on
     /// taps that reach both ends of their ranges (bytes; derivatives `±16 · 255`), down
     /// columns of two and three samples. Without AVX2 on this CPU there is nothing to
     /// compare, and the test says so.
     #[test]
     fn avx2_samples_as_the_128_bit_sampler() {
-        use super::super::arith::{Fixed, FlowArith, Q16};
-        use super::super::lanes::weights;
+        use super::super::sampler::weights;
+        use crate::klt::arith::{Fixed, FlowArith, Q16};
         let Some(v3) = V3::try_new() else {
             std::eprintln!("no AVX2 on this CPU: the AVX2 sampler is not run");
             return;

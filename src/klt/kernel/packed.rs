@@ -1,13 +1,12 @@
-//! The window kernel for cores without vector units ([`super::window`]): the template
+//! The window kernel for cores without vector units ([`super::window::Window`]): the template
 //! interleaved `[I, Ix, Iy]` a pixel, rows exactly `win` wide.
 
-use super::arith::{Bilinear, W_BITS};
-use super::window::{
-    PIX_SHIFT, Pixels, Rows, Window, block_of, block_rows, cached_patch, descale, fetch_grad,
-    fetch_patch, lerp, taps,
-};
+use super::border::Pixels;
+use super::patch::{Rows, block_of, block_rows, cached_patch, fetch_grad, fetch_patch};
+use super::window::{PIX_SHIFT, Window};
 use crate::gradient::scharr_window;
 use crate::image::ImageView;
+use crate::klt::arith::{Bilinear, W_BITS};
 use crate::{Error, Result};
 
 /// `i16` elements of scratch for `win x win` windows: `3 win²` for the template and its
@@ -31,7 +30,7 @@ pub(super) const fn state_len(win: usize) -> usize {
 }
 
 /// The scratch split into its parts.
-pub(super) struct Packed<'s> {
+pub(in crate::klt) struct Packed<'s> {
     win: usize,
     /// Work space, used by one step at a time: while a template is made, its derivatives at
     /// integer positions (`(win + 1)²` `[Ix, Iy]` pairs) and the pixels of a block that leaves
@@ -326,16 +325,56 @@ fn inside_row(vert: &[[i32; 2]], mid: &[i32], out: &mut [[i16; 3]]) -> [i32; 3] 
     [s11, s12, s22]
 }
 
+/// `v / 2ⁿ` rounded half up.
+#[inline(always)]
+fn descale(v: i32, n: u32) -> i32 {
+    (v + (1 << (n - 1))) >> n
+}
+
+/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
+#[inline(always)]
+fn lerp<P: Copy + Into<i32>, W: Copy + Into<i32>>(
+    p00: P,
+    p01: P,
+    p10: P,
+    p11: P,
+    w: &[W; 4],
+) -> i32 {
+    p00.into() * w[0].into()
+        + p01.into() * w[1].into()
+        + p10.into() * w[2].into()
+        + p11.into() * w[3].into()
+}
+
+/// The four taps of `m` bilinear samples along two rows: `(r0[x], r0[x+1], r1[x], r1[x+1])`
+/// for `x < m`, as four slices of exactly `m` (empty when a row is shorter than `m + 1`).
+///
+/// Exact lengths let the zips below run on one index with no per-element length tests, so
+/// the loop bodies stay straight-line (the Cortex-M7 keeps the four weights and both sums in
+/// registers; with unequal lengths it predicated every instruction and spilled the weights).
+#[inline(always)]
+fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
+    match (r0.get(..m + 1), r1.get(..m + 1)) {
+        (Some(a), Some(b)) => [
+            a.get(..m).unwrap_or(&[]),
+            a.get(1..).unwrap_or(&[]),
+            b.get(..m).unwrap_or(&[]),
+            b.get(1..).unwrap_or(&[]),
+        ],
+        _ => [&[]; 4],
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// For every window size the work space holds the mismatch's block with
-    /// [`PATCH_MARGIN`](super::super::window::PATCH_MARGIN) on every side.
+    /// [`PATCH_MARGIN`](super::super::patch::PATCH_MARGIN) on every side.
     #[test]
     fn scratch_holds_the_margin_patch() {
-        use super::super::window::PATCH_MARGIN;
-        for win in 3..=super::super::MAX_WIN {
+        use super::super::patch::PATCH_MARGIN;
+        for win in 3..=crate::klt::MAX_WIN {
             let mut scratch = std::vec![0i16; scratch_len(win)];
             let k = Packed::new(&mut scratch, win).unwrap();
             let n = win + 1 + 2 * PATCH_MARGIN;

@@ -1,200 +1,10 @@
-//! The per-window work of one tracking step, in the shape that suits the target.
-//!
-//! Both kernels compute the same integers (tested to agree bit for bit): the template `I`, `Ix`,
-//! `Iy` bilinear at a window's weights with `G`'s sums, and the mismatch sums
-//! `Σ (J - I) [Ix Iy]` (or `Σ |J - I|`). They differ in memory layout only:
-//!
-//! - [`Packed`] (Cortex-M, RISC-V without vectors): the template interleaved `[I, Ix, Iy]` a
-//!   pixel, rows exactly `win` wide, so the mismatch loop keeps one template pointer, two image
-//!   rows, four weights and both sums in the thirteen registers of an M-class core.
-//! - [`Lanes`] (targets with 128-bit SIMD: SSE2, NEON, wasm `simd128`): the template in
-//!   separate planes, rows padded to a multiple of eight lanes (`Ix`, `Iy` zero in the
-//!   padding, so it adds nothing to any sum), so every loop runs on whole vectors of eight
-//!   `i16` with products `i16 x i16 -> i32` (`pmaddwd` on x86-64); the window's derivatives
-//!   as the level's `[Ix, Iy]` pairs (read in place when the window lies inside the level).
-//!   On x86-64 CPUs with AVX2 (found at run time with the `std` feature) its bilinear samples
-//!   take 256-bit vectors ([`super::avx2`]); the integers are the same.
+//! The blocks of pixels and derivatives a window reads: copied out reflected ([`fetch_patch`],
+//! [`cached_patch`]) or zero-filled ([`fetch_grad`]) where the block leaves the level, read in
+//! place otherwise ([`block_rows`]), and walked as rows ([`Rows`]) or as a column of taps
+//! ([`Column`]).
 
-use super::arith::{Bilinear, W_BITS};
-use crate::Result;
 use crate::gradient::reflect101;
 use crate::image::ImageView;
-
-pub(super) use super::lanes::Lanes;
-pub(super) use super::packed::Packed;
-
-/// Whether this target runs [`Lanes`] (128-bit SIMD) rather than [`Packed`]. A constant: the
-/// other kernel is compiled out of every optimised build.
-pub(super) const LANES: bool = crate::SIMD;
-
-/// `i16` elements of scratch the target's kernel needs for `win x win` windows.
-pub(super) const fn native_scratch_len(win: usize) -> usize {
-    if LANES {
-        super::lanes::scratch_len(win)
-    } else {
-        super::packed::scratch_len(win)
-    }
-}
-
-/// The per-window kernel over its part of the caller's scratch.
-pub(super) trait Window<'s>: Sized {
-    /// Whether the kernel reads blocks from a level's bordered copy ([`Pixels::block`]); the
-    /// driver makes the copies only for a kernel that does.
-    const BORDERED: bool;
-    /// Splits `scratch` for `win x win` windows ([`crate::Error::BufferTooSmall`] when short).
-    fn new(scratch: &'s mut [i16], win: usize) -> Result<Self>;
-    /// Interpolates the template at the window of `i` with integer corner `(b.x, b.y)` and
-    /// weights `b.w` (derivatives from `grad`, the level's, or by Scharr from `i`'s level);
-    /// returns `G`'s sums `(Σ Ix², Σ Ix Iy, Σ Iy²)`.
-    fn template(
-        &mut self,
-        i: &Pixels<'_>,
-        grad: Option<&ImageView<'_, [i16; 2]>>,
-        b: &Bilinear,
-    ) -> (i64, i64, i64);
-    /// `(Σ (J - I) Ix, Σ (J - I) Iy)` over the window of `j` at `b` against the template
-    /// (`(Σ |J - I|, 0)` when `abs`); `J` reflected outside the image.
-    fn mismatch(&mut self, j: &Pixels<'_>, b: &Bilinear, abs: bool) -> (i64, i64);
-    /// The template as [`Self::template`] left it: all that [`Self::mismatch`] reads of it,
-    /// [`native_state_len`]`(win)` elements for the target's kernel.
-    fn state(&self) -> &[i16];
-    /// Puts back a template [`Self::state`] returned for the same `win` (as if
-    /// [`Self::template`] had just computed it).
-    fn restore(&mut self, state: &[i16]);
-}
-
-/// A level's pixels, and maybe a copy of them with a reflected border ([`pad`]): a window
-/// that leaves the level but not the border reads its rows from the copy, where it would
-/// otherwise be copied out pixel row by pixel row ([`fetch_patch`]), at every template and
-/// at every mismatch that moves it. The copy is made once a level, so it pays where many
-/// windows cross the level's edges (the coarse levels).
-#[derive(Clone, Copy)]
-pub(super) struct Pixels<'a> {
-    /// The level.
-    pub(super) img: ImageView<'a, u8>,
-    /// The copy, and the width of its border.
-    padded: Option<(ImageView<'a, u8>, i32)>,
-}
-
-impl<'a> Pixels<'a> {
-    /// The level alone.
-    pub(super) fn new(img: ImageView<'a, u8>) -> Self {
-        Self { img, padded: None }
-    }
-
-    /// The level and its copy `padded`, made by [`pad`] with `border`.
-    pub(super) fn bordered(
-        img: ImageView<'a, u8>,
-        padded: ImageView<'a, u8>,
-        border: usize,
-    ) -> Self {
-        Self {
-            img,
-            padded: Some((padded, border as i32)),
-        }
-    }
-
-    /// The `rows` rows, `cols` wide, of the block at `(x0, y0)`: from the level when it lies
-    /// inside, else from the copy when it lies inside that (the same pixels: the copy's
-    /// border is the level reflected as [`fetch_patch`] reflects it); `None` otherwise.
-    #[inline]
-    pub(super) fn block(
-        &self,
-        (x0, y0): (i32, i32),
-        cols: usize,
-        rows: usize,
-    ) -> Option<Rows<'a, u8>> {
-        block_rows(&self.img, (x0, y0), cols, rows).or_else(|| {
-            let (p, b) = self.padded.as_ref()?;
-            block_rows(
-                p,
-                (x0.saturating_add(*b), y0.saturating_add(*b)),
-                cols,
-                rows,
-            )
-        })
-    }
-}
-
-/// The border of the copies of [`pad`] for `win x win` windows: every block a window whose
-/// centre lies in the level reads (its `win + 1` taps, the vector kernel's rows padded to
-/// whole vectors and one tap more, at most `win / 2 + 8` beyond either edge) lies inside it.
-pub(super) const fn border(win: usize) -> usize {
-    win / 2 + 8
-}
-
-/// Bytes of the two copies (`I`'s and `J`'s) with [`border`]`(win)` of a `w x h` level.
-pub(super) const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
-    let b = 2 * border(win);
-    2 * (w + b) * (h + b)
-}
-
-/// Copies `img` with `border` pixels on every side, reflected as [`fetch_patch`] reflects
-/// them (it is one [`fetch_patch`] of the whole bordered block), into the start of `out`;
-/// `None` when `out` is too short.
-pub(super) fn pad<'o>(
-    img: &ImageView<'_, u8>,
-    border: usize,
-    out: &'o mut [u8],
-) -> Option<ImageView<'o, u8>> {
-    let (w, h) = (img.width() + 2 * border, img.height() + 2 * border);
-    let out = out.get_mut(..w.checked_mul(h)?)?;
-    let b = i32::try_from(border).ok()?;
-    fetch_patch(img, (-b, -b), w, h, out);
-    ImageView::packed(out, w, h).ok()
-}
-
-/// `i16` elements of the target's kernel's [`Window::state`] for `win x win` windows.
-pub(super) const fn native_state_len(win: usize) -> usize {
-    if LANES {
-        super::lanes::state_len(win)
-    } else {
-        super::packed::state_len(win)
-    }
-}
-
-/// Shift from Q14-weighted pixels to the template's 1/32 grey levels.
-pub(super) const PIX_SHIFT: u32 = W_BITS - 5;
-
-/// `v / 2ⁿ` rounded half up.
-#[inline(always)]
-pub(super) fn descale(v: i32, n: u32) -> i32 {
-    (v + (1 << (n - 1))) >> n
-}
-
-/// The bilinear sample `p00 w0 + p01 w1 + p10 w2 + p11 w3` at one position.
-#[inline(always)]
-pub(super) fn lerp<P: Copy + Into<i32>, W: Copy + Into<i32>>(
-    p00: P,
-    p01: P,
-    p10: P,
-    p11: P,
-    w: &[W; 4],
-) -> i32 {
-    p00.into() * w[0].into()
-        + p01.into() * w[1].into()
-        + p10.into() * w[2].into()
-        + p11.into() * w[3].into()
-}
-
-/// The four taps of `m` bilinear samples along two rows: `(r0[x], r0[x+1], r1[x], r1[x+1])`
-/// for `x < m`, as four slices of exactly `m` (empty when a row is shorter than `m + 1`).
-///
-/// Exact lengths let the zips below run on one index with no per-element length tests, so
-/// the loop bodies stay straight-line (the Cortex-M7 keeps the four weights and both sums in
-/// registers; with unequal lengths it predicated every instruction and spilled the weights).
-#[inline(always)]
-pub(super) fn taps<'a, P>(r0: &'a [P], r1: &'a [P], m: usize) -> [&'a [P]; 4] {
-    match (r0.get(..m + 1), r1.get(..m + 1)) {
-        (Some(a), Some(b)) => [
-            a.get(..m).unwrap_or(&[]),
-            a.get(1..).unwrap_or(&[]),
-            b.get(..m).unwrap_or(&[]),
-            b.get(1..).unwrap_or(&[]),
-        ],
-        _ => [&[]; 4],
-    }
-}
 
 /// Copies the `cols x rows` pixels at `(x0, y0)` of `img` into `out` (row-major), reflecting
 /// outside the image. When no column reaches past the first reflection (the block is less
@@ -331,7 +141,7 @@ fn grad_row<'a, P: Copy>(
 /// then the rest of the block); [`Rows::pairs`] hands each row on to the next pair instead
 /// of finding it twice.
 #[derive(Clone)]
-pub(super) struct Rows<'a, P> {
+pub(in crate::klt) struct Rows<'a, P> {
     rest: &'a [P],
     stride: usize,
     cols: usize,
@@ -408,7 +218,7 @@ impl<'a, P, const N: usize> Iterator for Column<'a, P, N> {
 
 /// The `rows` rows, `cols` wide, of the block at `(x0, y0)` of `img`, straight from the image,
 /// when the block lies inside it (then no copy into a scratch patch is needed).
-pub(super) fn block_rows<'a, P: Copy>(
+pub(in crate::klt) fn block_rows<'a, P: Copy>(
     img: &ImageView<'a, P>,
     (x0, y0): (i32, i32),
     cols: usize,
@@ -501,39 +311,6 @@ mod tests {
                         let want = img[reflect101(y, h) * w + reflect101(x, w)];
                         assert_eq!(g, i16::from(want), "{cols}x{rows} at ({x0}, {y0}), {k}");
                     }
-                }
-            }
-        }
-    }
-
-    /// A block read from a bordered copy ([`Pixels::block`]) is the block [`fetch_patch`]
-    /// copies, at every corner where the copy holds it; where it does not, `block` says so.
-    #[test]
-    fn bordered_blocks_are_the_patches() {
-        let (w, h) = (13usize, 9usize);
-        let img: std::vec::Vec<u8> = (0..w * h).map(|i| (i * 7 % 251) as u8).collect();
-        let view = ImageView::packed(&img, w, h).unwrap();
-        for win in [3usize, 9] {
-            let b = border(win);
-            let mut buf = std::vec![0u8; bordered_len(w, h, win) / 2];
-            let padded = pad(&view, b, &mut buf).unwrap();
-            assert!(pad(&view, b, &mut [0u8; 10]).is_none());
-            let px = Pixels::bordered(view, padded, b);
-            let (cols, rows) = (win + 1, win + 1);
-            let reach = b as i32 + 4;
-            for y0 in -reach..h as i32 + reach {
-                for x0 in -reach..w as i32 + reach {
-                    let inside = |v: i32, n: usize, len: usize| {
-                        v >= -(b as i32) && v + len as i32 <= (n + b) as i32
-                    };
-                    let fits = inside(x0, w, cols) && inside(y0, h, rows);
-                    let got = px.block((x0, y0), cols, rows);
-                    assert_eq!(got.is_some(), fits, "win {win} at ({x0}, {y0})");
-                    let Some(got) = got else { continue };
-                    let mut want = std::vec![0u8; cols * rows];
-                    fetch_patch(&view, (x0, y0), cols, rows, &mut want);
-                    let got: std::vec::Vec<u8> = got.flat_map(|r| r.iter().copied()).collect();
-                    assert_eq!(got, want, "win {win} at ({x0}, {y0})");
                 }
             }
         }
