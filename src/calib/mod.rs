@@ -79,7 +79,7 @@ mod zhang;
 use heapless::Vec;
 use nalgebra::{Point2, Point3, SMatrix, SVector, Vector3};
 
-use crate::camera::{CAMERA_PARAMETERS, Camera, Distortion, Fisheye, Intrinsics, LensModel};
+use crate::camera::{CAMERA_PARAMETERS, Camera, Intrinsics, Lens, LensModel};
 use crate::chessboard::{BoardSize, Chessboard};
 use crate::homography::dlt;
 use crate::linalg::{StreamingQr, rotation_step};
@@ -104,18 +104,6 @@ const MAX_DAMPING_TRIES: u8 = 8;
 /// calibration fail with an undocumented `NonFinite` instead of a parameter error.
 pub const ASPECT_RATIO_RANGE: core::ops::RangeInclusive<f64> = 1e-3..=1e3;
 
-/// The lens model to calibrate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum LensKind {
-    /// Brown-Conrady `(k1, k2, p1, p2, k3)`, OpenCV's `calibrateCamera`.
-    #[default]
-    BrownConrady,
-    /// Kannala-Brandt `(k1, k2, k3, k4)`, OpenCV's `fisheye::calibrate` (with
-    /// `CALIB_FIX_SKEW`).
-    KannalaBrandt,
-}
-
 /// Which parameters stay fixed, as OpenCV's calibration flags.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -138,8 +126,9 @@ pub struct CalibrationFlags {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CalibrationConfig {
-    /// Lens model.
-    pub model: LensKind,
+    /// The lens model to estimate: Brown-Conrady (OpenCV's `calibrateCamera`) or
+    /// Kannala-Brandt (OpenCV's `fisheye::calibrate`, with `CALIB_FIX_SKEW`).
+    pub model: LensModel,
     /// Fixed parameters.
     pub flags: CalibrationFlags,
     /// Levenberg-Marquardt steps at most (`1..=255`; OpenCV's default criteria stop at 30).
@@ -160,7 +149,7 @@ impl Default for CalibrationConfig {
     /// give a focal-length deviation of tens of percent.
     fn default() -> Self {
         Self {
-            model: LensKind::BrownConrady,
+            model: LensModel::BrownConrady,
             flags: CalibrationFlags::default(),
             max_iterations: 50,
             focal_warning: 0.05,
@@ -376,15 +365,13 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     }
 
     /// The camera of parameter vector `p` (normalised pixel units).
-    fn camera(&self, kind: LensKind, p: &[T; NC]) -> Result<Camera<T>> {
+    fn camera(&self, model: LensModel, p: &[T; NC]) -> Result<Camera<T>> {
         let [fx, fy, cx, cy, c1, c2, c3, c4, c5] = *p;
         let k = Intrinsics::new(fx, fy, cx, cy)?;
-        Ok(match kind {
-            LensKind::BrownConrady => {
-                Camera::new(k, Distortion::from_opencv([c1, c2, c3, c4, c5])?)
-            }
-            LensKind::KannalaBrandt => Camera::fisheye(k, Fisheye::from_opencv([c1, c2, c3, c4])?),
-        })
+        Ok(Camera::with_lens(
+            k,
+            Lens::from_coefficients(model, [c1, c2, c3, c4, c5])?,
+        ))
     }
 
     /// Which camera parameters are free.
@@ -404,7 +391,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             set(&mut free, 3);
         }
         match cfg.model {
-            LensKind::BrownConrady => {
+            LensModel::BrownConrady => {
                 if f.zero_tangent {
                     set(&mut free, 6);
                     set(&mut free, 7);
@@ -413,7 +400,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
                     set(&mut free, 8);
                 }
             }
-            LensKind::KannalaBrandt => {
+            LensModel::KannalaBrandt => {
                 if f.fix_k3 {
                     set(&mut free, 6);
                 }
@@ -568,7 +555,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         let aspect = self.check(cfg)?;
         let p = self.closed_form(cfg, aspect)?;
         let first = self.refine(cfg, aspect, p);
-        if cfg.model != LensKind::KannalaBrandt {
+        if cfg.model != LensModel::KannalaBrandt {
             return first;
         }
         // A fisheye lens is far from the pinhole the closed form assumes, and the lens
@@ -599,7 +586,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
 
     /// [`Self::solve`] from a given camera instead of the closed form (OpenCV's
     /// `CALIB_USE_INTRINSIC_GUESS`): its intrinsics and lens coefficients start the joint
-    /// refinement (the model of `cfg` is used; coefficients of the other model are ignored).
+    /// refinement (the model of `cfg` is used; the coefficients of a lens of the other model are ignored).
     ///
     /// Errors: as [`Self::solve`]; [`Error::NonFinite`] for a non-finite guess,
     /// [`Error::InvalidIntrinsics`] for one whose focal lengths, in units of
@@ -613,13 +600,10 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         let aspect = self.check(cfg)?;
         let (s, c0) = (self.scale(), self.centre());
         let k = &guess.intrinsics;
-        let c = match (&guess.model, cfg.model) {
-            (LensModel::KannalaBrandt(f), LensKind::KannalaBrandt) => {
-                let [a, b, c, d] = f.to_opencv();
-                [a, b, c, d, T::zero()]
-            }
-            (LensModel::BrownConrady, LensKind::BrownConrady) => guess.distortion.to_opencv(),
-            _ => [T::zero(); 5],
+        let c = if guess.lens.model() == cfg.model {
+            guess.lens.coefficients()
+        } else {
+            [T::zero(); 5]
         };
         let [c1, c2, c3, c4, c5] = c;
         let mut cam = [
@@ -724,7 +708,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         aspect: Option<T>,
         p: Params<T>,
     ) -> Result<CalibrationReport<T, V>> {
-        if cfg.model != LensKind::KannalaBrandt {
+        if cfg.model != LensModel::KannalaBrandt {
             return self.refine_with(cfg, aspect, p, &self.free(cfg));
         }
         // Fisheye: the four coefficients of an odd polynomial in θ over the limited range
@@ -758,14 +742,7 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
     fn normalised(&self, camera: &Camera<T>) -> [T; NC] {
         let (s, c0) = (self.scale(), self.centre());
         let k = &camera.intrinsics;
-        let c = match &camera.model {
-            LensModel::KannalaBrandt(f) => {
-                let [a, b, c, d] = f.to_opencv();
-                [a, b, c, d, T::zero()]
-            }
-            LensModel::BrownConrady => camera.distortion.to_opencv(),
-        };
-        let [c1, c2, c3, c4, c5] = c;
+        let [c1, c2, c3, c4, c5] = camera.lens.coefficients();
         [
             k.fx() / s,
             k.fy() / s,
@@ -1014,12 +991,8 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
         let [fx, fy, cx, cy, c1, c2, c3, c4, c5] = p.cam;
         let k = Intrinsics::new(fx * s, fy * s, cx * s + c0.x, cy * s + c0.y)
             .map_err(|_| Error::NoConvergence)?;
-        let camera = match cfg.model {
-            LensKind::BrownConrady => {
-                Camera::new(k, Distortion::from_opencv([c1, c2, c3, c4, c5])?)
-            }
-            LensKind::KannalaBrandt => Camera::fisheye(k, Fisheye::from_opencv([c1, c2, c3, c4])?),
-        };
+        let camera =
+            Camera::with_lens(k, Lens::from_coefficients(cfg.model, [c1, c2, c3, c4, c5])?);
         let mut warnings = Vec::new();
         let lim = |x: f64| T::lit(x);
         let [sfx, sfy, scx, scy, ..] = std;
@@ -1050,13 +1023,5 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             return Err(Error::NoConvergence);
         }
         Ok(report)
-    }
-}
-
-/// The model of a camera as [`LensKind`].
-pub fn lens_kind<T: Real>(camera: &Camera<T>) -> LensKind {
-    match camera.model {
-        LensModel::BrownConrady => LensKind::BrownConrady,
-        LensModel::KannalaBrandt(_) => LensKind::KannalaBrandt,
     }
 }

@@ -4,8 +4,8 @@
 //! and rendered data are in `host-tests/tests/it/calib_*.rs`.
 
 use camgeom::Error;
-use camgeom::calib::{CalibrationConfig, CalibrationWarning, Calibrator, LensKind};
-use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
+use camgeom::calib::{CalibrationConfig, CalibrationWarning, Calibrator};
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens, LensModel};
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, saddle_subpix,
     scratch_len,
@@ -195,7 +195,9 @@ fn flags_hold_their_parameters() {
     let k = &r.camera.intrinsics;
     assert_eq!(k.fx(), k.fy());
     assert!((k.cx() - 319.5).abs() < 1e-9 && (k.cy() - 239.5).abs() < 1e-9);
-    let d = r.camera.distortion;
+    let Lens::BrownConrady(d) = r.camera.lens else {
+        panic!("not a Brown-Conrady camera: {:?}", r.camera.lens)
+    };
     assert_eq!((d.p1, d.p2, d.k3), (0.0, 0.0, 0.0));
     assert_eq!(
         (r.std[2], r.std[3], r.std[6], r.std[7], r.std[8]),
@@ -272,9 +274,9 @@ proptest! {
     ) {
         let k = Intrinsics::new(f, f * aspect, 319.5 + c[0], 239.5 + c[1]).unwrap();
         let (cam, kind) = if fisheye {
-            (Camera::fisheye(k, Fisheye::from_opencv([k1 * 0.2, k2 * 0.1, 0.0, 0.0]).unwrap()), LensKind::KannalaBrandt)
+            (Camera::fisheye(k, Fisheye::from_opencv([k1 * 0.2, k2 * 0.1, 0.0, 0.0]).unwrap()), LensModel::KannalaBrandt)
         } else {
-            (Camera::new(k, Distortion::from_opencv([k1, k2, 0.0, 0.0, 0.0]).unwrap()), LensKind::BrownConrady)
+            (Camera::new(k, Distortion::from_opencv([k1, k2, 0.0, 0.0, 0.0]).unwrap()), LensModel::BrownConrady)
         };
         let vs = views(&cam, 8, 0.6, seed, 0.0);
         let mut cfg = CalibrationConfig { model: kind, max_iterations: 100, ..CalibrationConfig::default() };

@@ -179,7 +179,7 @@ impl CalibRecord {
             cost,
             warnings,
             intrinsics: [k.fx(), k.fy(), k.cx(), k.cy()],
-            distortion: r.camera.distortion.to_opencv(),
+            distortion: r.camera.lens.coefficients(),
             rms_px: r.rms_px,
             initial_rms_px: r.initial_rms_px,
             std: r.std,
