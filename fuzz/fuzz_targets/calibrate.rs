@@ -314,7 +314,7 @@ fn run<T: Real>(inp: &Input) {
                 | Error::InvalidParameter("flags.fix_aspect_ratio" | "max_iterations")
         )
     };
-    match cal.solve(&cfg) {
+    match cfg.check().and_then(|p| cal.solve(&p)) {
         Ok(r) => check(&r, added, "solve"),
         Err(e) => assert!(documented(&e), "solve: undocumented error {e:?}"),
     }
@@ -327,7 +327,7 @@ fn run<T: Real>(inp: &Input) {
             Ok(d) => Camera::new(k, d),
             Err(_) => return,
         };
-        match cal.solve_with_guess(&cfg, &guess) {
+        match cfg.check().and_then(|p| cal.solve_with_guess(&p, &guess)) {
             Ok(r) => check(&r, added, "solve_with_guess"),
             Err(e) => assert!(
                 documented(&e) || matches!(e, Error::NonFinite | Error::InvalidIntrinsics),

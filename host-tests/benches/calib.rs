@@ -61,7 +61,9 @@ fn bench_calibration<T: Real>(c: &mut Criterion, ty: &str, views: &[Vec<Point2<f
         let cfg = CalibrationConfig {
             model,
             ..CalibrationConfig::default()
-        };
+        }
+        .check()
+        .expect("config");
         let r = cal.solve(&cfg).expect("solve");
         println!(
             "calibrate13 {name} {ty}: rms {:.6} px, {} iterations",

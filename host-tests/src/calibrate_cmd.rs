@@ -304,7 +304,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
                 .map_err(|e| Error::camgeom(format!("{}: view rejected", v.path.display()), e))?;
         }
     }
-    let report = cal.solve(&cfg).map_err(|e| {
+    let report = cfg.check().and_then(|p| cal.solve(&p)).map_err(|e| {
         let why = match e {
             camgeom::Error::Degenerate => {
                 "the views do not determine the camera (all parallel to each other, e.g. \

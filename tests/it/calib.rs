@@ -4,7 +4,7 @@
 //! and rendered data are in `host-tests/tests/it/calib_*.rs`.
 
 use camgeom::Error;
-use camgeom::calib::{CalibrationConfig, CalibrationWarning, Calibrator};
+use camgeom::calib::{CalibrationConfig, CalibrationParams, CalibrationWarning, Calibrator};
 use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens, LensModel};
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, saddle_subpix,
@@ -124,7 +124,7 @@ fn bad_input_is_a_typed_error() {
     cal.add_view(640, 480, &vs[1]).unwrap();
     // Two views: too few.
     assert_eq!(
-        cal.solve(&CalibrationConfig::default()).err(),
+        cal.solve(&CalibrationParams::default()).err(),
         Some(Error::TooFewPoints)
     );
     cal.add_view(640, 480, &vs[2]).unwrap();
@@ -137,13 +137,13 @@ fn bad_input_is_a_typed_error() {
         ..CalibrationConfig::default()
     };
     assert_eq!(
-        cal.solve(&bad).err(),
+        bad.check().and_then(|p| cal.solve(&p)).err(),
         Some(Error::InvalidParameter("max_iterations"))
     );
     let mut bad = CalibrationConfig::default();
     bad.flags.fix_aspect_ratio = Some(f64::NAN);
     assert_eq!(
-        cal.solve(&bad).err(),
+        bad.check().and_then(|p| cal.solve(&p)).err(),
         Some(Error::InvalidParameter("flags.fix_aspect_ratio"))
     );
     // Three views that are all parallel to the image plane: the focal length is not
@@ -154,7 +154,7 @@ fn bad_input_is_a_typed_error() {
         .collect();
     assert_eq!(
         calibrator(&parallel)
-            .solve(&CalibrationConfig::default())
+            .solve(&CalibrationParams::default())
             .err(),
         Some(Error::Degenerate)
     );
@@ -167,10 +167,13 @@ fn nearly_fronto_parallel_views_warn_that_the_focal_length_is_free() {
     cfg.flags.fix_k3 = true;
     // 1.5° of tilt and 0.3 px of noise: the closed form finds no camera at all.
     let vs = views(&brown(), 8, 0.026, 5, 0.3);
-    assert_eq!(calibrator(&vs).solve(&cfg).err(), Some(Error::Degenerate));
+    assert_eq!(
+        calibrator(&vs).solve(&cfg.check().unwrap()).err(),
+        Some(Error::Degenerate)
+    );
     // 4.6°: a camera, but its focal length is uncertain by more than 5 % (measured 5.4 %).
     let vs = views(&brown(), 8, 0.08, 5, 0.3);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     assert!(
         r.warnings
             .contains(&CalibrationWarning::FocalLengthUnconstrained),
@@ -179,7 +182,7 @@ fn nearly_fronto_parallel_views_warn_that_the_focal_length_is_free() {
     assert!(r.std[0] > 0.05 * r.camera.intrinsics.fx());
     // The same camera seen at 30°: no warning.
     let vs = views(&brown(), 8, 0.5, 5, 0.3);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     assert!(r.warnings.is_empty(), "{:?}", r.warnings);
 }
 
@@ -191,7 +194,7 @@ fn flags_hold_their_parameters() {
     cfg.flags.zero_tangent = true;
     cfg.flags.fix_k3 = true;
     cfg.flags.fix_aspect_ratio = Some(1.0);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     let k = &r.camera.intrinsics;
     assert_eq!(k.fx(), k.fy());
     assert!((k.cx() - 319.5).abs() < 1e-9 && (k.cy() - 239.5).abs() < 1e-9);
@@ -283,7 +286,7 @@ proptest! {
         cfg.flags.zero_tangent = true;
         cfg.flags.fix_k3 = true;
         cfg.flags.fix_k4 = true;
-        let r = calibrator(&vs).solve(&cfg).unwrap();
+        let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
         prop_assert!(r.rms_px < 1e-5, "rms {}", r.rms_px);
         let e = &r.camera.intrinsics;
         prop_assert!((e.fx() - k.fx()).abs() < 1e-4 && (e.fy() - k.fy()).abs() < 1e-4);

@@ -212,14 +212,14 @@ fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
     ] {
         cfg.flags.fix_aspect_ratio = Some(ratio);
         assert_eq!(
-            cal.solve(&cfg).map(|r| r.rms_px),
+            cfg.check().and_then(|p| cal.solve(&p)).map(|r| r.rms_px),
             Err(Error::InvalidParameter("flags.fix_aspect_ratio")),
             "ratio {ratio}"
         );
     }
     // In range: a result or one of the documented errors, never `NonFinite`.
     cfg.flags.fix_aspect_ratio = Some(1.0);
-    match cal.solve(&cfg) {
+    match cal.solve(&cfg.check().unwrap()) {
         Ok(r) => assert!(r.rms_px.is_finite() && r.rms_px >= 0.0, "{r:?}"),
         Err(e) => assert!(
             matches!(

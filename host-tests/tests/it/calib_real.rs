@@ -27,7 +27,7 @@ pub fn calibrate<T: Real>(
             .collect();
         cal.add_view(640, 480, &px).unwrap();
     }
-    cal.solve(cfg).unwrap()
+    cal.solve(&cfg.check().unwrap()).unwrap()
 }
 
 fn summary<T: Real>(r: &CalibrationReport<T, 32>) -> String {

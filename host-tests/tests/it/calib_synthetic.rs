@@ -46,7 +46,7 @@ fn calibrate<T: Real>(views: &[Vec<Point2<f64>>], model: LensModel) -> Calibrati
         max_iterations: 100,
         ..CalibrationConfig::default()
     };
-    cal.solve(&cfg).unwrap()
+    cal.solve(&cfg.check().unwrap()).unwrap()
 }
 
 fn params<T: Real>(r: &CalibrationReport<T, 32>) -> (Vec<f64>, Vec<f64>) {
@@ -127,7 +127,7 @@ fn recovers_known_cameras_as_well_as_opencv() {
             };
             // Started at OpenCV's answer, camgeom stays in that minimum: the two cost functions
             // are the same (to the stopping rules' 1e-9 px).
-            let rg = cal.solve_with_guess(&cfg, &g).unwrap();
+            let rg = cal.solve_with_guess(&cfg.check().unwrap(), &g).unwrap();
             assert!((rg.rms_px - orms).abs() < 1e-9, "{} vs {orms}", rg.rms_px);
         }
         let noise: f64 = noise.parse().unwrap();
