@@ -85,6 +85,7 @@ fn q5<T: Real>(v: T) -> Option<i16> {
 ///
 /// Errors: [`Error::InvalidImage`] for a zero size or one beyond [`MAX_MAP_DIM`],
 /// `BufferTooSmall("map")`; an entry whose source cannot be computed is [`INVALID`].
+#[doc(alias = "initUndistortRectifyMap")]
 pub fn build_map<T: Real>(
     camera: &Camera<T>,
     k_new: &Intrinsics<T>,
@@ -276,6 +277,8 @@ impl<'a> GridMap<'a> {
 /// Errors: `InvalidParameter("alpha")` outside `[0, 1]`, [`Error::InvalidImage`] for a zero
 /// size, as [`Camera::undistort_to_normalized`] for an outline point the lens model cannot
 /// invert, [`Error::Degenerate`] for a collapsed outline.
+#[doc(alias = "getOptimalNewCameraMatrix")]
+#[doc(alias = "estimateNewCameraMatrixForUndistortRectify")]
 pub fn new_camera_matrix<T: Real>(
     camera: &Camera<T>,
     width: usize,
@@ -289,7 +292,7 @@ pub fn new_camera_matrix<T: Real>(
         return Err(Error::InvalidImage);
     }
     let (w, h) = (T::lit(width as f64), T::lit(height as f64));
-    match camera.model {
+    match camera.lens.model() {
         LensModel::BrownConrady => {
             const N: usize = 9;
             let big = T::max_value().unwrap_or(T::one() / T::EPSILON);
@@ -335,7 +338,7 @@ pub fn new_camera_matrix<T: Real>(
             let mix = |a: T, b: T| a * (T::one() - alpha) + b * alpha;
             Intrinsics::new(mix(fx0, fx1), mix(fy0, fy1), mix(cx0, cx1), mix(cy0, cy1))
         }
-        LensModel::KannalaBrandt(_) => {
+        LensModel::KannalaBrandt => {
             let half = T::lit(0.5);
             let edge = [
                 Point2::new(w * half, T::zero()),

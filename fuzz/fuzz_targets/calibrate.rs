@@ -11,10 +11,8 @@
 use arbitrary::Arbitrary;
 use camgeom::Error;
 use camgeom::Real;
-use camgeom::calib::{
-    CalibrationConfig, CalibrationFlags, CalibrationReport, Calibrator, LensKind,
-};
-use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, LensModel};
+use camgeom::calib::{CalibrationConfig, CalibrationFlags, CalibrationReport, Calibrator};
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens, LensModel};
 use camgeom::chessboard::BoardSize;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::transform::Pose;
@@ -96,11 +94,15 @@ fn check<T: Real>(r: &CalibrationReport<T, V>, views: usize, what: &str) {
         k.fx() > T::zero() && k.fy() > T::zero(),
         "{what}: focal {kk:?}"
     );
-    let d = r.camera.distortion.to_opencv();
-    assert!(d.iter().all(|v| v.finite()), "{what}: distortion {d:?}");
-    if let LensModel::KannalaBrandt(f) = &r.camera.model {
-        let c = f.to_opencv();
-        assert!(c.iter().all(|v| v.finite()), "{what}: fisheye {c:?}");
+    match &r.camera.lens {
+        Lens::BrownConrady(d) => {
+            let d = d.to_opencv();
+            assert!(d.iter().all(|v| v.finite()), "{what}: distortion {d:?}");
+        }
+        Lens::KannalaBrandt(f) => {
+            let c = f.to_opencv();
+            assert!(c.iter().all(|v| v.finite()), "{what}: fisheye {c:?}");
+        }
     }
     for (name, rms) in [("rms", r.rms_px), ("initial rms", r.initial_rms_px)] {
         assert!(rms.finite() && rms >= T::zero(), "{what}: {name} {rms:?}");
@@ -288,9 +290,9 @@ fn run<T: Real>(inp: &Input) {
 
     let cfg = CalibrationConfig {
         model: if inp.model_fisheye {
-            LensKind::KannalaBrandt
+            LensModel::KannalaBrandt
         } else {
-            LensKind::BrownConrady
+            LensModel::BrownConrady
         },
         flags: CalibrationFlags {
             fix_aspect_ratio: inp.fix_aspect_ratio.map(|a| f64::from(a.get())),
@@ -312,7 +314,7 @@ fn run<T: Real>(inp: &Input) {
                 | Error::InvalidParameter("flags.fix_aspect_ratio" | "max_iterations")
         )
     };
-    match cal.solve(&cfg) {
+    match cfg.check().and_then(|p| cal.solve(&p)) {
         Ok(r) => check(&r, added, "solve"),
         Err(e) => assert!(documented(&e), "solve: undocumented error {e:?}"),
     }
@@ -325,7 +327,7 @@ fn run<T: Real>(inp: &Input) {
             Ok(d) => Camera::new(k, d),
             Err(_) => return,
         };
-        match cal.solve_with_guess(&cfg, &guess) {
+        match cfg.check().and_then(|p| cal.solve_with_guess(&p, &guess)) {
             Ok(r) => check(&r, added, "solve_with_guess"),
             Err(e) => assert!(
                 documented(&e) || matches!(e, Error::NonFinite | Error::InvalidIntrinsics),

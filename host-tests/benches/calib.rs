@@ -14,7 +14,8 @@
 use std::hint::black_box;
 
 use camgeom::Real;
-use camgeom::calib::{CalibrationConfig, Calibrator, LensKind};
+use camgeom::calib::{CalibrationConfig, Calibrator};
+use camgeom::camera::LensModel;
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SubPixConfig, scratch_len,
 };
@@ -53,14 +54,16 @@ fn calibrator<T: Real>(views: &[Vec<Point2<f64>>]) -> Box<Calibrator<T, 16, 54>>
 
 fn bench_calibration<T: Real>(c: &mut Criterion, ty: &str, views: &[Vec<Point2<f64>>]) {
     for (name, model) in [
-        ("brown", LensKind::BrownConrady),
-        ("fisheye", LensKind::KannalaBrandt),
+        ("brown", LensModel::BrownConrady),
+        ("fisheye", LensModel::KannalaBrandt),
     ] {
         let mut cal = calibrator::<T>(views);
         let cfg = CalibrationConfig {
             model,
             ..CalibrationConfig::default()
-        };
+        }
+        .check()
+        .expect("config");
         let r = cal.solve(&cfg).expect("solve");
         println!(
             "calibrate13 {name} {ty}: rms {:.6} px, {} iterations",

@@ -9,7 +9,7 @@
 //!     target/release/examples/calib_count calibrate
 //! ```
 
-use camgeom::calib::{CalibrationConfig, Calibrator};
+use camgeom::calib::{CalibrationParams, Calibrator};
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
     scratch_len,
@@ -58,7 +58,7 @@ fn main() {
         for v in &views {
             cal.add_view(640, 480, v).unwrap();
         }
-        let r = cal.solve(&CalibrationConfig::default()).unwrap();
+        let r = cal.solve(&CalibrationParams::default()).unwrap();
         println!("rms {} px after {} steps", r.rms_px, r.iterations);
     }
 }

@@ -10,9 +10,8 @@ use std::path::{Path, PathBuf};
 
 use camgeom::calib::{
     CalibrationConfig, CalibrationFlags, CalibrationReport, CalibrationWarning, Calibrator,
-    LensKind,
 };
-use camgeom::camera::LensModel;
+use camgeom::camera::{Lens, LensModel};
 use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectConfig, scratch_len};
 use camgeom::draw::draw_line;
 use camgeom::nalgebra::Point2;
@@ -119,9 +118,9 @@ fn calibration_config(a: &CalibrateArgs) -> Result<CalibrationConfig> {
     }
     Ok(CalibrationConfig {
         model: if a.fisheye {
-            LensKind::KannalaBrandt
+            LensModel::KannalaBrandt
         } else {
-            LensKind::BrownConrady
+            LensModel::BrownConrady
         },
         flags: CalibrationFlags {
             fix_aspect_ratio: a.fix_aspect,
@@ -148,13 +147,13 @@ fn opencv_flags(cfg: &CalibrationConfig) -> (i64, String) {
         }
     };
     match cfg.model {
-        LensKind::BrownConrady => {
+        LensModel::BrownConrady => {
             set(f.fix_aspect_ratio.is_some(), 2, "+fix_aspectRatio");
             set(f.fix_principal_point, 4, "+fix_principal_point");
             set(f.zero_tangent, 8, "+zero_tangent_dist");
             set(f.fix_k3, 128, "+fix_k3");
         }
-        LensKind::KannalaBrandt => {
+        LensModel::KannalaBrandt => {
             set(true, 1, "+recompute_extrinsic");
             set(true, 8, "+fix_skew");
             set(f.fix_k3, 64, "+fix_k3");
@@ -229,9 +228,9 @@ fn warning_name(w: &CalibrationWarning) -> &'static str {
 
 /// Lens coefficients in OpenCV's order: 5 (Brown-Conrady) or 4 (fisheye).
 fn lens_coefficients(r: &CalibrationReport<f64, MAX_VIEWS>) -> Vec<f64> {
-    match &r.camera.model {
-        LensModel::KannalaBrandt(f) => f.to_opencv().to_vec(),
-        LensModel::BrownConrady => r.camera.distortion.to_opencv().to_vec(),
+    match &r.camera.lens {
+        Lens::KannalaBrandt(f) => f.to_opencv().to_vec(),
+        Lens::BrownConrady(d) => d.to_opencv().to_vec(),
     }
 }
 
@@ -305,7 +304,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
                 .map_err(|e| Error::camgeom(format!("{}: view rejected", v.path.display()), e))?;
         }
     }
-    let report = cal.solve(&cfg).map_err(|e| {
+    let report = cfg.check().and_then(|p| cal.solve(&p)).map_err(|e| {
         let why = match e {
             camgeom::Error::Degenerate => {
                 "the views do not determine the camera (all parallel to each other, e.g. \
@@ -482,7 +481,7 @@ fn camera_yaml(
     w.int("flags", flags)
         .int(
             "fisheye_model",
-            i64::from(cfg.model == LensKind::KannalaBrandt),
+            i64::from(cfg.model == LensModel::KannalaBrandt),
         )
         .matrix(
             "camera_matrix",

@@ -23,7 +23,7 @@
 
 use std::path::Path;
 
-use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, LensModel};
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, ErrorKind, Result};
@@ -49,9 +49,9 @@ impl CameraSpec {
     /// the four fisheye coefficients for a fisheye camera).
     pub fn to_file(&self) -> CameraFile {
         let k = &self.camera.intrinsics;
-        let (distortion, fisheye) = match &self.camera.model {
-            LensModel::KannalaBrandt(f) => (Vec::new(), f.to_opencv().to_vec()),
-            LensModel::BrownConrady => (self.camera.distortion.to_opencv().to_vec(), Vec::new()),
+        let (distortion, fisheye) = match &self.camera.lens {
+            Lens::KannalaBrandt(f) => (Vec::new(), f.to_opencv().to_vec()),
+            Lens::BrownConrady(d) => (d.to_opencv().to_vec(), Vec::new()),
         };
         CameraFile {
             fx: k.fx(),

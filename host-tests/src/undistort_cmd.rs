@@ -47,7 +47,7 @@ struct Summary {
 /// `camgeom undistort`: writes the image, prints the new camera matrix as JSON.
 pub fn run(a: &UndistortArgs) -> Result<String> {
     let spec = load_camera(&a.camera.intrinsics)?;
-    let fisheye = matches!(spec.camera.model, LensModel::KannalaBrandt(_));
+    let fisheye = spec.camera.lens.model() == LensModel::KannalaBrandt;
     let (name, value) = match (fisheye, a.alpha, a.balance) {
         (false, _, Some(_)) => {
             return Err(Error::usage(

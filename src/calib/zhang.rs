@@ -1,15 +1,68 @@
-//! Closed-form intrinsics from plane homographies (Zhang 2000), and OpenCV's fallback with a
-//! known principal point.
+//! The closed-form start of a calibration: intrinsics from the plane homographies of the
+//! views (Zhang 2000), and OpenCV's fallback with a known principal point.
 
+use heapless::Vec;
 use nalgebra::{Matrix3, Vector3};
 
-use crate::homography::Homography;
+use super::config::CalibrationParams;
+use super::views::Views;
+use crate::camera::CAMERA_PARAMETERS;
+use crate::homography::{Homography, dlt};
 use crate::linalg::StreamingQr;
 use crate::scalar::{Real, above};
 use crate::{Error, Result};
 
+/// The closed-form camera of `views` as the normalised parameter vector (module docs,
+/// step 2): Zhang's closed form on the per-view homographies, or, with a fixed principal point
+/// or aspect ratio, or when Zhang's has no positive-definite solution, OpenCV's
+/// initialisation ([`focal_with_principal_point`]); zero distortion.
+///
+/// Errors: [`Error::TooFewPoints`] with fewer than 3 views whose homography is found, those
+/// of [`focal_with_principal_point`] otherwise.
+pub(super) fn closed_form<T: Real, const V: usize, const P: usize>(
+    views: &Views<T, V, P>,
+    params: &CalibrationParams,
+) -> Result<[T; CAMERA_PARAMETERS]> {
+    let fix_principal_point = params.config().flags.fix_principal_point;
+    let aspect = params.aspect::<T>();
+    let n = views.corners();
+    // Per-view homographies (board squares to normalised pixels).
+    let plane = views.board_plane();
+    let plane = plane.get(..n).ok_or(Error::LengthMismatch)?;
+    let mut homs: Vec<Homography<T>, V> = Vec::new();
+    for v in 0..views.count {
+        if let Ok(h) = dlt(plane, views.view_obs(v)) {
+            homs.push(h).map_err(|_| Error::BufferTooSmall("views"))?;
+        }
+    }
+    if homs.len() < 3 {
+        return Err(Error::TooFewPoints);
+    }
+    let closed = if fix_principal_point || aspect.is_some() {
+        Err(Error::Degenerate)
+    } else {
+        zhang(homs.iter().copied())
+    };
+    let [fx, fy, cx, cy] = match closed {
+        Ok(k) => k,
+        Err(Error::Degenerate) => {
+            let [fx, fy] = focal_with_principal_point(homs.iter().copied(), aspect)?;
+            [fx, fy, T::zero(), T::zero()]
+        }
+        Err(e) => return Err(e),
+    };
+    let fx = aspect.map_or(fx, |a| a * fy);
+    let z = T::zero();
+    let mut p = [fx, fy, cx, cy, z, z, z, z, z];
+    if fix_principal_point {
+        p[2] = T::zero();
+        p[3] = T::zero();
+    }
+    Ok(p)
+}
+
 /// Pinhole intrinsics `(fx, fy, cx, cy)`, zero skew.
-pub(crate) type Pinhole<T> = [T; 4];
+type Pinhole<T> = [T; 4];
 
 /// `vᵢⱼ(H)`: `hᵢᵀ B hⱼ = vᵢⱼᵀ b` for `b = (B11, B12, B22, B13, B23, B33)`.
 fn v<T: Real>(hi: &Vector3<T>, hj: &Vector3<T>) -> [T; 6] {
@@ -43,7 +96,7 @@ fn columns<T: Real>(h: &Homography<T>) -> (Vector3<T>, Vector3<T>) {
 /// The homographies should map the board plane to pixel coordinates normalised to about unit
 /// size. Errors with [`Error::Degenerate`] when the views do not fix `B` (fewer than three
 /// distinct orientations, e.g. all parallel) or `B` is not positive definite (no camera fits).
-pub(crate) fn zhang<T: Real>(hs: impl Iterator<Item = Homography<T>>) -> Result<Pinhole<T>> {
+fn zhang<T: Real>(hs: impl Iterator<Item = Homography<T>>) -> Result<Pinhole<T>> {
     let mut qr = StreamingQr::<T, 6>::new();
     let mut count = 0usize;
     for h in hs {
@@ -112,7 +165,7 @@ pub(crate) fn zhang<T: Real>(hs: impl Iterator<Item = Homography<T>>) -> Result<
 ///
 /// Errors with [`Error::Degenerate`] when the views do not fix the focal lengths (all nearly
 /// fronto-parallel) or the solution is not positive.
-pub(crate) fn focal_with_principal_point<T: Real>(
+fn focal_with_principal_point<T: Real>(
     hs: impl Iterator<Item = Homography<T>>,
     aspect: Option<T>,
 ) -> Result<[T; 2]> {

@@ -2,6 +2,7 @@
 
 use nalgebra::{Matrix2, Point2, Vector2};
 
+use super::undistort::UndistortParams;
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
@@ -24,29 +25,6 @@ pub struct Distortion<T: Real = f32> {
     pub p2: T,
     /// `r⁶` coefficient.
     pub k3: T,
-}
-
-/// Bounds of the iterative [`Distortion::undistort`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct UndistortConfig<T: Real = f32> {
-    /// Newton iterations at most (each costs one distortion and one 2x2 solve).
-    pub max_iterations: u8,
-    /// Accept when `|distort(x) - x_d|` (normalised units) is at most this. Raised to
-    /// `8 ε max(1, |x_d|)` when smaller; the iteration keeps improving past it while it can,
-    /// down to the rounding floor `2 ε max(1, |x_d|)`.
-    pub tolerance: T,
-}
-
-impl<T: Real> Default for UndistortConfig<T> {
-    fn default() -> Self {
-        // Newton converges quadratically from x = x_d for lenses like the bundled chessboard
-        // camera in 3..5 steps; 20 leaves a wide margin and still bounds the cost.
-        Self {
-            max_iterations: 20,
-            tolerance: T::zero(),
-        }
-    }
 }
 
 impl<T: Real> Distortion<T> {
@@ -90,11 +68,12 @@ impl<T: Real> Distortion<T> {
         Ok(Point2::new(d.x, d.y))
     }
 
-    /// Inverts [`Self::distort`] by Newton's method on the 2x2 system, bounded by `cfg`.
+    /// Inverts [`Self::distort`] by Newton's method on the 2x2 system, bounded by `params`.
     ///
     /// Errors with [`Error::NoConvergence`] when the point lies where the model folds over
     /// (the Jacobian stops being invertible) or the bound is reached before the tolerance.
-    pub fn undistort(&self, d: &Point2<T>, cfg: &UndistortConfig<T>) -> Result<Point2<T>> {
+    pub fn undistort(&self, d: &Point2<T>, params: &UndistortParams<T>) -> Result<Point2<T>> {
+        let cfg = params.config();
         check_finite(&[d.x, d.y])?;
         if self.is_none() {
             return Ok(*d);
@@ -228,7 +207,7 @@ mod tests {
     #[test]
     fn undistort_inverts_distort() {
         let d = lens();
-        let cfg = UndistortConfig::default();
+        let cfg = UndistortParams::default();
         for &(x, y) in &[(0.0, 0.0), (0.3, -0.2), (0.7, 0.5), (-0.8, -0.55)] {
             let p = Point2::new(x, y);
             let back = d.undistort(&d.distort(&p).unwrap(), &cfg).unwrap();
@@ -239,7 +218,7 @@ mod tests {
     #[test]
     fn bad_inputs_are_errors() {
         let d = lens();
-        let cfg = UndistortConfig::default();
+        let cfg = UndistortParams::default();
         assert_eq!(
             d.distort(&Point2::new(f64::NAN, 0.0)),
             Err(Error::NonFinite)

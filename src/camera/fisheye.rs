@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix2, Point2, SMatrix};
 
-use super::UndistortConfig;
+use super::undistort::UndistortParams;
 use crate::scalar::{Real, above, check_finite};
 use crate::{Error, Result};
 
@@ -121,14 +121,15 @@ impl<T: Real> Fisheye<T> {
     }
 
     /// Inverts [`Self::distort`]: Newton's method on `θ_d(θ) = |x_d|` from `θ = |x_d|`
-    /// (OpenCV's `fisheye::undistortPoints`), bounded by `cfg`, then `x_n = x_d tan θ / θ_d`.
+    /// (OpenCV's `fisheye::undistortPoints`), bounded by `params`, then `x_n = x_d tan θ / θ_d`.
     /// Where the model folds (`θ_d` not increasing beyond some angle) two angles share an
     /// image; the answer is then a preimage where `θ_d` is increasing, as OpenCV's.
     ///
     /// Errors with [`Error::NoConvergence`] where `θ_d(θ)` is not increasing (the model folds
     /// over), when the angle reaches 90° (no pinhole point: the ray is behind the image plane)
     /// or the bound is reached before the tolerance.
-    pub fn undistort(&self, d: &Point2<T>, cfg: &UndistortConfig<T>) -> Result<Point2<T>> {
+    pub fn undistort(&self, d: &Point2<T>, params: &UndistortParams<T>) -> Result<Point2<T>> {
+        let cfg = params.config();
         check_finite(&[d.x, d.y])?;
         let td = (d.x * d.x + d.y * d.y).sqrt();
         if td == T::zero() {
@@ -219,7 +220,7 @@ mod tests {
     #[test]
     fn undistort_inverts_distort() {
         let d = lens();
-        let cfg = UndistortConfig::default();
+        let cfg = UndistortParams::default();
         for &(x, y) in &[
             (0.0, 0.0),
             (1e-5, 0.0),
@@ -239,7 +240,7 @@ mod tests {
     #[test]
     fn bad_inputs_are_errors() {
         let d = lens();
-        let cfg = UndistortConfig::default();
+        let cfg = UndistortParams::default();
         assert_eq!(
             d.distort(&Point2::new(f64::NAN, 0.0)),
             Err(Error::NonFinite)

@@ -5,9 +5,9 @@
 //! `X_c = R X + t`,  `x_n = (X_c/Z_c, Y_c/Z_c)`,  `x_d = distort(x_n)`,  `u = K x_d`,
 //!
 //! which is OpenCV's `projectPoints` with the 5-coefficient model, or, for a fisheye lens
-//! ([`LensModel::KannalaBrandt`]), `x_d = (θ_d / r) x_n` with `θ_d = θ (1 + k1 θ² + … + k4 θ⁸)`,
+//! ([`Lens::KannalaBrandt`]), `x_d = (θ_d / r) x_n` with `θ_d = θ (1 + k1 θ² + … + k4 θ⁸)`,
 //! `θ = atan |x_n|` (OpenCV's `fisheye::projectPoints`). Every entry point taking a [`Camera`]
-//! (projection, back-projection, pose solvers and refinement, drawing) follows its lens model.
+//! (projection, back-projection, pose solvers and refinement, drawing) follows its [`Lens`].
 //!
 //! ```
 //! use camgeom::camera::{Camera, Distortion, Intrinsics};
@@ -31,104 +31,64 @@
 mod distortion;
 mod fisheye;
 mod intrinsics;
+mod lens;
+mod undistort;
 
-pub use distortion::{Distortion, UndistortConfig};
+pub use distortion::Distortion;
 pub use fisheye::Fisheye;
 pub use intrinsics::Intrinsics;
+pub use lens::{LENS_COEFFICIENTS, Lens, LensModel};
+pub use undistort::{UndistortConfig, UndistortParams};
 
 use nalgebra::{Matrix2, Matrix2x3, Point2, Point3, SMatrix, Unit, Vector3};
-
-/// Lens coefficients a [`Camera`] exposes to calibration: Brown-Conrady `(k1, k2, p1, p2, k3)`
-/// or Kannala-Brandt `(k1, k2, k3, k4)` (the fifth unused, zero).
-pub const LENS_COEFFICIENTS: usize = 5;
-
-/// Parameters of a camera as calibration sees them: `fx fy cx cy` and the lens coefficients.
-pub const CAMERA_PARAMETERS: usize = 4 + LENS_COEFFICIENTS;
-
-/// Which lens model a [`Camera`] follows.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum LensModel<T: Real = f32> {
-    /// Brown-Conrady: [`Camera::distortion`] applies (all zero: an ideal pinhole).
-    #[default]
-    BrownConrady,
-    /// Kannala-Brandt fisheye with these coefficients; [`Camera::distortion`] must then be all
-    /// zero (projection errors with `InvalidParameter("distortion")` otherwise, rather than
-    /// silently ignoring it).
-    KannalaBrandt(Fisheye<T>),
-}
 
 use crate::scalar::{Real, check_finite};
 use crate::transform::Pose;
 use crate::{Error, Result};
 
-/// A calibrated camera: intrinsics `K` and lens distortion.
+/// Parameters of a camera as calibration sees them: `fx fy cx cy` and the lens coefficients.
+pub const CAMERA_PARAMETERS: usize = 4 + LENS_COEFFICIENTS;
+
+/// A calibrated camera: intrinsics `K` and its lens.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Camera<T: Real = f32> {
     /// `K`.
     pub intrinsics: Intrinsics<T>,
-    /// Lens distortion of normalised coordinates.
-    pub distortion: Distortion<T>,
+    /// The lens map of normalised coordinates: Brown-Conrady or Kannala-Brandt fisheye.
+    pub lens: Lens<T>,
     /// Bounds of the iterative undistortion used by back-projection.
-    pub undistort: UndistortConfig<T>,
-    /// The lens model: Brown-Conrady (`distortion`) or Kannala-Brandt fisheye.
-    pub model: LensModel<T>,
+    pub undistort: UndistortParams<T>,
 }
 
 impl<T: Real> Camera<T> {
-    /// A camera with lens distortion.
+    /// A camera with Brown-Conrady lens distortion.
     pub fn new(intrinsics: Intrinsics<T>, distortion: Distortion<T>) -> Self {
-        Self {
-            intrinsics,
-            distortion,
-            undistort: UndistortConfig::default(),
-            model: LensModel::BrownConrady,
-        }
+        Self::with_lens(intrinsics, Lens::BrownConrady(distortion))
     }
 
     /// A fisheye camera (Kannala-Brandt, OpenCV's `cv::fisheye` model).
     pub fn fisheye(intrinsics: Intrinsics<T>, lens: Fisheye<T>) -> Self {
+        Self::with_lens(intrinsics, Lens::KannalaBrandt(lens))
+    }
+
+    /// A camera with either lens.
+    pub fn with_lens(intrinsics: Intrinsics<T>, lens: Lens<T>) -> Self {
         Self {
             intrinsics,
-            distortion: Distortion::none(),
-            undistort: UndistortConfig::default(),
-            model: LensModel::KannalaBrandt(lens),
+            lens,
+            undistort: UndistortParams::default(),
         }
     }
 
-    /// The fisheye coefficients when the camera follows Kannala-Brandt, after checking that
-    /// the Brown-Conrady coefficients beside them are zero.
-    fn fisheye_lens(&self) -> Result<Option<&Fisheye<T>>> {
-        match &self.model {
-            LensModel::BrownConrady => Ok(None),
-            LensModel::KannalaBrandt(f) if self.distortion.is_none() => Ok(Some(f)),
-            LensModel::KannalaBrandt(_) => Err(Error::InvalidParameter("distortion")),
-        }
-    }
-
-    /// The lens map of normalised coordinates, `x_d = distort(x_n)`, of this camera's model.
+    /// The lens map of normalised coordinates, `x_d = distort(x_n)`, of this camera's lens.
     pub fn distort_normalized(&self, n: &Point2<T>) -> Result<Point2<T>> {
-        match self.fisheye_lens()? {
-            None => self.distortion.distort(n),
-            Some(f) => f.distort(n),
-        }
+        self.lens.distort(n)
     }
 
     /// Inverts [`Self::distort_normalized`], bounded by [`Self::undistort`].
     pub fn undistort_normalized(&self, d: &Point2<T>) -> Result<Point2<T>> {
-        match self.fisheye_lens()? {
-            None => self.distortion.undistort(d, &self.undistort),
-            Some(f) => f.undistort(d, &self.undistort),
-        }
-    }
-
-    /// `∂x_d/∂x_n` of the lens model (2x2).
-    fn lens_jacobian(&self, x: T, y: T) -> Matrix2<T> {
-        match &self.model {
-            LensModel::BrownConrady => self.distortion.jacobian(x, y),
-            LensModel::KannalaBrandt(f) => f.jacobian(x, y),
-        }
+        self.lens.undistort(d, &self.undistort)
     }
 
     /// [`Self::project_with_jacobian`] and the Jacobian of the pixel with respect to the
@@ -151,12 +111,12 @@ impl<T: Real> Camera<T> {
         let mut jp = SMatrix::<T, 2, CAMERA_PARAMETERS>::zeros();
         jp.fixed_view_mut::<2, 4>(0, 0)
             .copy_from(&nalgebra::Matrix2x4::new(d.x, z, o, z, z, d.y, z, o));
-        match &self.model {
-            LensModel::BrownConrady => {
+        match &self.lens {
+            Lens::BrownConrady(_) => {
                 let jc = k2 * Distortion::<T>::coefficient_jacobian(x, y);
                 jp.fixed_view_mut::<2, 5>(0, 4).copy_from(&jc);
             }
-            LensModel::KannalaBrandt(f) => {
+            Lens::KannalaBrandt(f) => {
                 let jc = k2 * f.coefficient_jacobian(x, y);
                 jp.fixed_view_mut::<2, 4>(0, 4).copy_from(&jc);
             }
@@ -195,10 +155,10 @@ impl<T: Real> Camera<T> {
         let dn = Matrix2x3::new(iz, T::zero(), -x * iz, T::zero(), iz, -y * iz);
         let k = &self.intrinsics;
         let k2 = Matrix2::new(k.fx(), k.skew(), T::zero(), k.fy());
-        let j = if self.distortion.is_none() && self.model == LensModel::BrownConrady {
+        let j = if self.lens.is_pinhole() {
             k2 * dn
         } else {
-            k2 * self.lens_jacobian(x, y) * dn
+            k2 * self.lens.jacobian(x, y) * dn
         };
         check_finite(j.as_slice())?;
         Ok((u, j))
@@ -213,6 +173,7 @@ impl<T: Real> Camera<T> {
     /// Projects many points; each output holds the point's own result, so one point behind the
     /// camera does not spoil the others. Errors with [`Error::LengthMismatch`] when the slices
     /// differ in length.
+    #[doc(alias = "projectPoints")]
     pub fn project_points(
         &self,
         pose: &Pose<T>,
@@ -231,6 +192,7 @@ impl<T: Real> Camera<T> {
     /// Removes lens distortion from a pixel: the pixel an ideal pinhole camera with the same
     /// `K` would see. Errors: as [`Self::undistort_to_normalized`]; [`Error::NonFinite`] when
     /// the result overflows.
+    #[doc(alias = "undistortPoints")]
     pub fn undistort_pixel(&self, pixel: &Point2<T>) -> Result<Point2<T>> {
         let n = self.undistort_to_normalized(pixel)?;
         let u = self.intrinsics.normalized_to_pixel(&n);
@@ -251,6 +213,7 @@ impl<T: Real> Camera<T> {
     }
 
     /// Pixel to undistorted normalised coordinates `x_n = distort⁻¹(K⁻¹ u)`.
+    #[doc(alias = "undistortPoints")]
     pub fn undistort_to_normalized(&self, pixel: &Point2<T>) -> Result<Point2<T>> {
         let d = self.intrinsics.pixel_to_normalized(pixel)?;
         self.undistort_normalized(&d)
@@ -271,30 +234,10 @@ impl<T: Real> Camera<T> {
 
     /// The same camera in another float type.
     pub fn cast<U: Real>(&self) -> Camera<U> {
-        let c = |v: T| U::lit(v.to_f64());
-        let d = &self.distortion;
         Camera {
             intrinsics: self.intrinsics.cast(),
-            distortion: Distortion {
-                k1: c(d.k1),
-                k2: c(d.k2),
-                p1: c(d.p1),
-                p2: c(d.p2),
-                k3: c(d.k3),
-            },
-            undistort: UndistortConfig {
-                max_iterations: self.undistort.max_iterations,
-                tolerance: c(self.undistort.tolerance),
-            },
-            model: match &self.model {
-                LensModel::BrownConrady => LensModel::BrownConrady,
-                LensModel::KannalaBrandt(f) => LensModel::KannalaBrandt(Fisheye {
-                    k1: c(f.k1),
-                    k2: c(f.k2),
-                    k3: c(f.k3),
-                    k4: c(f.k4),
-                }),
-            },
+            lens: self.lens.cast(),
+            undistort: self.undistort.cast(),
         }
     }
 }
@@ -339,23 +282,25 @@ mod tests {
     }
 
     #[test]
-    fn fisheye_camera_round_trips_and_checks_its_model() {
+    fn fisheye_camera_round_trips_and_holds_one_lens() {
         let cam = fisheye_camera();
         // 75° off the axis: far outside what a pinhole lens of this focal length images.
         let xc = Point3::new(3.0, -2.0, 1.0);
         let u = cam.project(&Pose::identity(), &xc).unwrap();
         let ray = cam.back_project(&u).unwrap();
         assert_relative_eq!(ray.into_inner(), xc.coords.normalize(), epsilon = 1e-12);
-        let mut bad = cam;
-        bad.distortion.k1 = 0.1;
-        assert_eq!(
-            bad.project(&Pose::identity(), &xc),
-            Err(Error::InvalidParameter("distortion"))
-        );
-        assert_eq!(
-            bad.back_project(&u),
-            Err(Error::InvalidParameter("distortion"))
-        );
+        // Brown-Conrady coefficients are no field beside the fisheye ones (a fisheye camera
+        // with them cannot be built): giving the camera some replaces its lens, and it then
+        // projects through Brown-Conrady alone.
+        assert_eq!(cam.lens.model(), LensModel::KannalaBrandt);
+        let brown = Distortion::from_opencv([0.1, 0.0, 0.0, 0.0, 0.0]).unwrap();
+        let mut other = cam;
+        other.lens = Lens::BrownConrady(brown);
+        assert_eq!(other.lens.model(), LensModel::BrownConrady);
+        let expected = cam
+            .intrinsics
+            .normalized_to_pixel(&brown.distort(&Point2::new(3.0, -2.0)).unwrap());
+        assert_eq!(other.project(&Pose::identity(), &xc), Ok(expected));
     }
 
     /// `∂u/∂X_c` and `∂u/∂(fx fy cx cy c)` of both models against central differences.
@@ -385,13 +330,13 @@ mod tests {
                     if k < 4 {
                         kk[k] += d;
                     } else {
-                        match &mut c.model {
-                            LensModel::BrownConrady => {
-                                let mut v = c.distortion.to_opencv();
+                        match &mut c.lens {
+                            Lens::BrownConrady(b) => {
+                                let mut v = b.to_opencv();
                                 v[k - 4] += d;
-                                c.distortion = Distortion::from_opencv(v).unwrap();
+                                *b = Distortion::from_opencv(v).unwrap();
                             }
-                            LensModel::KannalaBrandt(f) => {
+                            Lens::KannalaBrandt(f) => {
                                 let mut v = f.to_opencv();
                                 if let Some(x) = v.get_mut(k - 4) {
                                     *x += d;
@@ -504,7 +449,7 @@ mod tests {
             3.0 * c.intrinsics.cy(),
         )
         .unwrap();
-        let cam = Camera::new(k, c.distortion).cast::<f32>();
+        let cam = Camera::with_lens(k, c.lens).cast::<f32>();
         let mut worst = 0.0f32;
         for y in (0..1440).step_by(7) {
             for x in (0..1920).step_by(7) {

@@ -4,8 +4,8 @@
 //! and rendered data are in `host-tests/tests/it/calib_*.rs`.
 
 use camgeom::Error;
-use camgeom::calib::{CalibrationConfig, CalibrationWarning, Calibrator, LensKind};
-use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
+use camgeom::calib::{CalibrationConfig, CalibrationParams, CalibrationWarning, Calibrator};
+use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens, LensModel};
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, saddle_subpix,
     scratch_len,
@@ -124,7 +124,7 @@ fn bad_input_is_a_typed_error() {
     cal.add_view(640, 480, &vs[1]).unwrap();
     // Two views: too few.
     assert_eq!(
-        cal.solve(&CalibrationConfig::default()).err(),
+        cal.solve(&CalibrationParams::default()).err(),
         Some(Error::TooFewPoints)
     );
     cal.add_view(640, 480, &vs[2]).unwrap();
@@ -137,13 +137,13 @@ fn bad_input_is_a_typed_error() {
         ..CalibrationConfig::default()
     };
     assert_eq!(
-        cal.solve(&bad).err(),
+        bad.check().and_then(|p| cal.solve(&p)).err(),
         Some(Error::InvalidParameter("max_iterations"))
     );
     let mut bad = CalibrationConfig::default();
     bad.flags.fix_aspect_ratio = Some(f64::NAN);
     assert_eq!(
-        cal.solve(&bad).err(),
+        bad.check().and_then(|p| cal.solve(&p)).err(),
         Some(Error::InvalidParameter("flags.fix_aspect_ratio"))
     );
     // Three views that are all parallel to the image plane: the focal length is not
@@ -154,7 +154,7 @@ fn bad_input_is_a_typed_error() {
         .collect();
     assert_eq!(
         calibrator(&parallel)
-            .solve(&CalibrationConfig::default())
+            .solve(&CalibrationParams::default())
             .err(),
         Some(Error::Degenerate)
     );
@@ -167,10 +167,13 @@ fn nearly_fronto_parallel_views_warn_that_the_focal_length_is_free() {
     cfg.flags.fix_k3 = true;
     // 1.5° of tilt and 0.3 px of noise: the closed form finds no camera at all.
     let vs = views(&brown(), 8, 0.026, 5, 0.3);
-    assert_eq!(calibrator(&vs).solve(&cfg).err(), Some(Error::Degenerate));
+    assert_eq!(
+        calibrator(&vs).solve(&cfg.check().unwrap()).err(),
+        Some(Error::Degenerate)
+    );
     // 4.6°: a camera, but its focal length is uncertain by more than 5 % (measured 5.4 %).
     let vs = views(&brown(), 8, 0.08, 5, 0.3);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     assert!(
         r.warnings
             .contains(&CalibrationWarning::FocalLengthUnconstrained),
@@ -179,7 +182,7 @@ fn nearly_fronto_parallel_views_warn_that_the_focal_length_is_free() {
     assert!(r.std[0] > 0.05 * r.camera.intrinsics.fx());
     // The same camera seen at 30°: no warning.
     let vs = views(&brown(), 8, 0.5, 5, 0.3);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     assert!(r.warnings.is_empty(), "{:?}", r.warnings);
 }
 
@@ -191,11 +194,13 @@ fn flags_hold_their_parameters() {
     cfg.flags.zero_tangent = true;
     cfg.flags.fix_k3 = true;
     cfg.flags.fix_aspect_ratio = Some(1.0);
-    let r = calibrator(&vs).solve(&cfg).unwrap();
+    let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
     let k = &r.camera.intrinsics;
     assert_eq!(k.fx(), k.fy());
     assert!((k.cx() - 319.5).abs() < 1e-9 && (k.cy() - 239.5).abs() < 1e-9);
-    let d = r.camera.distortion;
+    let Lens::BrownConrady(d) = r.camera.lens else {
+        panic!("not a Brown-Conrady camera: {:?}", r.camera.lens)
+    };
     assert_eq!((d.p1, d.p2, d.k3), (0.0, 0.0, 0.0));
     assert_eq!(
         (r.std[2], r.std[3], r.std[6], r.std[7], r.std[8]),
@@ -272,16 +277,16 @@ proptest! {
     ) {
         let k = Intrinsics::new(f, f * aspect, 319.5 + c[0], 239.5 + c[1]).unwrap();
         let (cam, kind) = if fisheye {
-            (Camera::fisheye(k, Fisheye::from_opencv([k1 * 0.2, k2 * 0.1, 0.0, 0.0]).unwrap()), LensKind::KannalaBrandt)
+            (Camera::fisheye(k, Fisheye::from_opencv([k1 * 0.2, k2 * 0.1, 0.0, 0.0]).unwrap()), LensModel::KannalaBrandt)
         } else {
-            (Camera::new(k, Distortion::from_opencv([k1, k2, 0.0, 0.0, 0.0]).unwrap()), LensKind::BrownConrady)
+            (Camera::new(k, Distortion::from_opencv([k1, k2, 0.0, 0.0, 0.0]).unwrap()), LensModel::BrownConrady)
         };
         let vs = views(&cam, 8, 0.6, seed, 0.0);
         let mut cfg = CalibrationConfig { model: kind, max_iterations: 100, ..CalibrationConfig::default() };
         cfg.flags.zero_tangent = true;
         cfg.flags.fix_k3 = true;
         cfg.flags.fix_k4 = true;
-        let r = calibrator(&vs).solve(&cfg).unwrap();
+        let r = calibrator(&vs).solve(&cfg.check().unwrap()).unwrap();
         prop_assert!(r.rms_px < 1e-5, "rms {}", r.rms_px);
         let e = &r.camera.intrinsics;
         prop_assert!((e.fx() - k.fx()).abs() < 1e-4 && (e.fy() - k.fy()).abs() < 1e-4);

@@ -159,8 +159,9 @@ fn solve_planar_alternative_rms_is_finite_when_its_squares_overflow() {
 /// views calibrate with a ratio in range.
 #[test]
 fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
-    use camgeom::calib::{CalibrationConfig, Calibrator, LensKind};
+    use camgeom::calib::{CalibrationConfig, Calibrator};
     use camgeom::camera::Distortion;
+    use camgeom::camera::LensModel;
     use camgeom::chessboard::BoardSize;
     use camgeom::nalgebra::{Point3, Vector3};
     use camgeom::transform::Pose;
@@ -195,7 +196,7 @@ fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
         cal.add_view(640, 480, &px).unwrap();
     }
     let mut cfg = CalibrationConfig {
-        model: LensKind::KannalaBrandt,
+        model: LensModel::KannalaBrandt,
         max_iterations: 15,
         ..CalibrationConfig::default()
     };
@@ -211,14 +212,14 @@ fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
     ] {
         cfg.flags.fix_aspect_ratio = Some(ratio);
         assert_eq!(
-            cal.solve(&cfg).map(|r| r.rms_px),
+            cfg.check().and_then(|p| cal.solve(&p)).map(|r| r.rms_px),
             Err(Error::InvalidParameter("flags.fix_aspect_ratio")),
             "ratio {ratio}"
         );
     }
     // In range: a result or one of the documented errors, never `NonFinite`.
     cfg.flags.fix_aspect_ratio = Some(1.0);
-    match cal.solve(&cfg) {
+    match cal.solve(&cfg.check().unwrap()) {
         Ok(r) => assert!(r.rms_px.is_finite() && r.rms_px >= 0.0, "{r:?}"),
         Err(e) => assert!(
             matches!(

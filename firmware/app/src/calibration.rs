@@ -17,7 +17,7 @@
 //! The run description is [`CalibSpec`] (`calib.bin`): the frame size, the board, the square.
 
 use camgeom::Error;
-use camgeom::calib::{CalibrationConfig, CalibrationReport, CalibrationWarning, Calibrator};
+use camgeom::calib::{CalibrationParams, CalibrationReport, CalibrationWarning, Calibrator};
 use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
 use camgeom::image::ImageMut;
 use camgeom::image::ImageView;
@@ -179,7 +179,7 @@ impl CalibRecord {
             cost,
             warnings,
             intrinsics: [k.fx(), k.fy(), k.cx(), k.cy()],
-            distortion: r.camera.distortion.to_opencv(),
+            distortion: r.camera.lens.coefficients(),
             rms_px: r.rms_px,
             initial_rms_px: r.initial_rms_px,
             std: r.std,
@@ -360,7 +360,7 @@ pub fn calibrate<Src: FrameSource>(
         });
     }
     let t0 = clock.now();
-    let report = calibrator.solve(&CalibrationConfig::default())?;
+    let report = calibrator.solve(&CalibrationParams::default())?;
     let cost = u32::try_from(clock.now().saturating_sub(t0)).unwrap_or(u32::MAX);
     Ok(CalibRecord::of(&report, cost))
 }

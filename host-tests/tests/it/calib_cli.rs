@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use camgeom::camera::LensModel;
+use camgeom::camera::Lens;
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use serde_json::Value;
 
@@ -96,9 +96,9 @@ fn loaded(path: &Path) -> (Vec<f64>, Vec<f64>, bool) {
     let k = &spec.camera.intrinsics;
     assert_eq!(spec.image_size, Some((640, 480)));
     let kv = vec![k.fx(), k.skew(), k.cx(), 0.0, k.fy(), k.cy(), 0.0, 0.0, 1.0];
-    match spec.camera.model {
-        LensModel::KannalaBrandt(f) => (kv, f.to_opencv().to_vec(), true),
-        LensModel::BrownConrady => (kv, spec.camera.distortion.to_opencv().to_vec(), false),
+    match spec.camera.lens {
+        Lens::KannalaBrandt(f) => (kv, f.to_opencv().to_vec(), true),
+        Lens::BrownConrady(d) => (kv, d.to_opencv().to_vec(), false),
     }
 }
 
@@ -600,14 +600,14 @@ fn fisheye_camera_files_are_checked() {
     };
     // fisheye_model 1 with 4 coefficients: a Kannala-Brandt camera with them, in order.
     let spec = load(&yaml("1", "0.1, -0.02, 0.003, -0.0004")).unwrap();
-    match spec.camera.model {
-        LensModel::KannalaBrandt(f) => assert_eq!(f.to_opencv(), [0.1, -0.02, 0.003, -0.0004]),
-        LensModel::BrownConrady => panic!("not a fisheye"),
+    match spec.camera.lens {
+        Lens::KannalaBrandt(f) => assert_eq!(f.to_opencv(), [0.1, -0.02, 0.003, -0.0004]),
+        Lens::BrownConrady(_) => panic!("not a fisheye"),
     }
     // 0 (or absent): Brown-Conrady, 4 coefficients mean k3 = 0.
     let spec = load(&yaml("0", "0.1, -0.02, 0.003, -0.0004")).unwrap();
     assert_eq!(
-        spec.camera.distortion.to_opencv(),
+        spec.camera.lens.coefficients(),
         [0.1, -0.02, 0.003, -0.0004, 0.0]
     );
     // A fisheye needs exactly 4; the flag must be 0 or 1.

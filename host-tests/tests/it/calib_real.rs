@@ -27,12 +27,12 @@ pub fn calibrate<T: Real>(
             .collect();
         cal.add_view(640, 480, &px).unwrap();
     }
-    cal.solve(cfg).unwrap()
+    cal.solve(&cfg.check().unwrap()).unwrap()
 }
 
 fn summary<T: Real>(r: &CalibrationReport<T, 32>) -> String {
     let k = &r.camera.intrinsics;
-    let d = r.camera.distortion.to_opencv();
+    let d = r.camera.lens.coefficients();
     format!(
         "rms {:.6} fx {:.4} fy {:.4} cx {:.4} cy {:.4} dist [{:.5} {:.5} {:.6} {:.6} {:.5}] it {} std {:?}",
         r.rms_px.to_f64(),
@@ -73,7 +73,7 @@ fn opencv_acceptance<T: Real>(r: &CalibrationReport<T, 32>) {
         + (k.cy().to_f64() - k_test[3]).abs()
         + k.skew().to_f64().abs();
     assert!(kl1 < 10.0, "K L1 {kl1}: {}", summary(r));
-    let d = r.camera.distortion.to_opencv();
+    let d = r.camera.lens.coefficients();
     let dl1: f64 = d
         .iter()
         .zip(d_test)

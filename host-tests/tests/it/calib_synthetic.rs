@@ -6,8 +6,8 @@
 use std::collections::BTreeMap;
 
 use camgeom::Real;
-use camgeom::calib::{CalibrationConfig, CalibrationReport, Calibrator, LensKind};
-use camgeom::camera::LensModel;
+use camgeom::calib::{CalibrationConfig, CalibrationReport, Calibrator};
+use camgeom::camera::{Lens, LensModel};
 use camgeom::chessboard::BoardSize;
 use camgeom::nalgebra::Point2;
 
@@ -31,7 +31,7 @@ fn load() -> (Views, serde_json::Value) {
     (views, serde_json::from_str(&json).unwrap())
 }
 
-fn calibrate<T: Real>(views: &[Vec<Point2<f64>>], model: LensKind) -> CalibrationReport<T, 32> {
+fn calibrate<T: Real>(views: &[Vec<Point2<f64>>], model: LensModel) -> CalibrationReport<T, 32> {
     let board = BoardSize::new(9, 6).unwrap();
     let mut cal = Box::new(Calibrator::<T, 32, 100>::new(board, T::lit(0.025), 640, 480).unwrap());
     for v in views {
@@ -46,7 +46,7 @@ fn calibrate<T: Real>(views: &[Vec<Point2<f64>>], model: LensKind) -> Calibratio
         max_iterations: 100,
         ..CalibrationConfig::default()
     };
-    cal.solve(&cfg).unwrap()
+    cal.solve(&cfg.check().unwrap()).unwrap()
 }
 
 fn params<T: Real>(r: &CalibrationReport<T, 32>) -> (Vec<f64>, Vec<f64>) {
@@ -55,15 +55,9 @@ fn params<T: Real>(r: &CalibrationReport<T, 32>) -> (Vec<f64>, Vec<f64>) {
         .into_iter()
         .map(|x| x.to_f64())
         .collect();
-    let d = match r.camera.model {
-        LensModel::BrownConrady => r
-            .camera
-            .distortion
-            .to_opencv()
-            .iter()
-            .map(|x| x.to_f64())
-            .collect(),
-        LensModel::KannalaBrandt(f) => f.to_opencv().iter().map(|x| x.to_f64()).collect(),
+    let d = match r.camera.lens {
+        Lens::BrownConrady(d) => d.to_opencv().iter().map(|x| x.to_f64()).collect(),
+        Lens::KannalaBrandt(f) => f.to_opencv().iter().map(|x| x.to_f64()).collect(),
     };
     (kk, d)
 }
@@ -91,9 +85,9 @@ fn recovers_known_cameras_as_well_as_opencv() {
     );
     for ((model, noise), v) in &views {
         let kind = if model == "brown" {
-            LensKind::BrownConrady
+            LensModel::BrownConrady
         } else {
-            LensKind::KannalaBrandt
+            LensModel::KannalaBrandt
         };
         let truth = &cv[model]["truth"];
         let (kt, dt) = (json_vec(&truth["K"]), json_vec(&truth["dist"]));
@@ -133,7 +127,7 @@ fn recovers_known_cameras_as_well_as_opencv() {
             };
             // Started at OpenCV's answer, camgeom stays in that minimum: the two cost functions
             // are the same (to the stopping rules' 1e-9 px).
-            let rg = cal.solve_with_guess(&cfg, &g).unwrap();
+            let rg = cal.solve_with_guess(&cfg.check().unwrap(), &g).unwrap();
             assert!((rg.rms_px - orms).abs() < 1e-9, "{} vs {orms}", rg.rms_px);
         }
         let noise: f64 = noise.parse().unwrap();

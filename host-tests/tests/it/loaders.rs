@@ -49,7 +49,7 @@ fn bundled_camera_has_the_printed_values() {
         (k.fx(), k.fy(), k.cx(), k.cy(), k.skew()),
         (FX, FX, CX, CY, 0.0)
     );
-    assert_eq!(spec.camera.distortion.to_opencv(), DIST);
+    assert_eq!(spec.camera.lens.coefficients(), DIST);
     assert_eq!(spec.image_size, Some((640, 480)));
 }
 
@@ -76,7 +76,7 @@ fn f32_camera_rounds_each_parameter() {
     let spec = bundled_camera();
     let c = spec.camera_f32();
     assert_eq!(c.intrinsics.fx(), FX as f32);
-    assert_eq!(c.distortion.k3, DIST[4] as f32);
+    assert_eq!(c.lens.coefficients()[4], DIST[4] as f32);
 }
 
 #[test]
@@ -85,14 +85,14 @@ fn four_and_eight_coefficients() {
     let d4 = "distortion_coefficients: !!opencv-matrix\n  rows: 1\n  cols: 4\n  dt: d\n  data: [ -0.2, 0.05, 0.001, -0.002 ]";
     let spec = yaml(&yaml_with(GOOD_K, d4)).unwrap();
     assert_eq!(
-        spec.camera.distortion.to_opencv(),
+        spec.camera.lens.coefficients(),
         [-0.2, 0.05, 0.001, -0.002, 0.0]
     );
     // 8 coefficients whose rational part is zero: the 5-coefficient model, accepted.
     let d8 = "distortion_coefficients: !!opencv-matrix\n  rows: 8\n  cols: 1\n  dt: d\n  data: [ -0.2, 0.05, 0.001, -0.002, 0.01, 0., 0., 0. ]";
     let spec = yaml(&yaml_with(GOOD_K, d8)).unwrap();
     assert_eq!(
-        spec.camera.distortion.to_opencv(),
+        spec.camera.lens.coefficients(),
         [-0.2, 0.05, 0.001, -0.002, 0.01]
     );
     // A real rational model is refused, and the message says why.
@@ -383,7 +383,7 @@ fn malformed_json_and_toml_are_errors() {
     }
     // The minimal JSON file: integers are fine, the optional keys default.
     let s = camera_from_json(r#"{"fx": 500, "fy": 510, "cx": 320, "cy": 240}"#, "t.json").unwrap();
-    assert!(s.camera.distortion.is_none());
+    assert!(s.camera.lens.is_pinhole());
     assert_eq!(s.image_size, None);
     assert_eq!(s.camera.intrinsics.fy(), 510.0);
 }
@@ -593,7 +593,7 @@ inf: -.Inf
         // An 8-coefficient file whose rational terms are zero reads as the 5-coefficient model.
         let spec = camera_from_storage(&fs).unwrap();
         assert_eq!(
-            spec.camera.distortion.to_opencv(),
+            spec.camera.lens.coefficients(),
             [0.1, -0.2, 0.001, 0.002, 0.03],
             "{name}"
         );

@@ -4,6 +4,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow, ensure};
+use camgeom::camera::Lens;
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::pyramid::{down_size, pyr_down};
 use camgeom_fw_app::run::{Acquisition, RunSpec};
@@ -29,7 +30,12 @@ fn box_camera() -> Result<([f32; 4], [f32; 5])> {
     let spec = load_camera(sequence_dir().join("box-camera.yml"))?;
     let c = spec.camera_f32();
     let k = &c.intrinsics;
-    Ok(([k.fx(), k.fy(), k.cx(), k.cy()], c.distortion.to_opencv()))
+    let Lens::BrownConrady(d) = c.lens else {
+        return Err(anyhow!(
+            "box-camera.yml: the board takes a Brown-Conrady camera"
+        ));
+    };
+    Ok(([k.fx(), k.fy(), k.cx(), k.cy()], d.to_opencv()))
 }
 
 /// The lid corners of `box-top.csv`.

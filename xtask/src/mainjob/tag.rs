@@ -14,6 +14,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, ensure};
+use camgeom::camera::Lens;
 use camgeom::nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
 use camgeom::target::TargetState;
 use camgeom_fw_app::pipeline::STAGES;
@@ -69,6 +70,9 @@ fn prepare(dir: &Path) -> Result<RunSpec> {
     fs::write(dir.join("frames.raw"), &raw)?;
     let cam = load_camera(seq.join("camera.yml"))?.camera_f32();
     let k = &cam.intrinsics;
+    let Lens::BrownConrady(d) = cam.lens else {
+        anyhow::bail!("{}: the board takes a Brown-Conrady camera", seq.display());
+    };
     let spec = RunSpec {
         width: 320,
         height: 240,
@@ -76,7 +80,7 @@ fn prepare(dir: &Path) -> Result<RunSpec> {
         stride: 1,
         overlay_every: 16,
         intrinsics: [k.fx(), k.fy(), k.cx(), k.cy()],
-        distortion: cam.distortion.to_opencv(),
+        distortion: d.to_opencv(),
         target_size: [TAG_SIZE_M; 2],
         corners: [[0.0; 2]; 4],
         acquisition: Acquisition::Tag {

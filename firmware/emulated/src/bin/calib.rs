@@ -125,7 +125,7 @@ fn main() -> ! {
         result.rms_px,
         result.cost,
         result.stack,
-        BoardCalibrator::MEMORY
+        BoardCalibrator::BYTES
     );
     board::exit_success()
 }

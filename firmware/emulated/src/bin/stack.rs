@@ -20,7 +20,7 @@ use camgeom_fw_emulated::{board, cost};
 use core::hint::black_box;
 
 use camgeom::apriltag::{Detector, DetectorConfig, families};
-use camgeom::calib::{CalibrationConfig, Calibrator};
+use camgeom::calib::{CalibrationParams, Calibrator};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
@@ -721,7 +721,7 @@ fn main() -> ! {
             fail("add_view", e)
         }
     }
-    let ccfg = black_box(CalibrationConfig::default());
+    let ccfg = black_box(CalibrationParams::default());
     let (r, s) = measure(|| calibrator.solve(&ccfg));
     row(
         "Calibrator::<f32, 16, 64>::solve 8 views of 54 corners, Brown-Conrady",
