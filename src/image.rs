@@ -279,11 +279,40 @@ impl<'a, P: Copy> ImageMut<'a, P> {
             }
         }
     }
+
+    /// Copies `src`, row by row (any strides). Errors: [`Error::InvalidImage`] when the sizes
+    /// differ.
+    #[doc(alias = "copyTo")]
+    pub fn copy_from(&mut self, src: &ImageView<'_, P>) -> Result<()> {
+        if (src.width(), src.height()) != (self.width, self.height) {
+            return Err(Error::InvalidImage);
+        }
+        for (y, from) in src.rows().enumerate() {
+            let to = self.row_mut(y).ok_or(Error::InvalidImage)?;
+            to.copy_from_slice(from.get(..to.len()).ok_or(Error::InvalidImage)?);
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn copy_from_copies_across_strides_and_rejects_other_sizes() {
+        let src: std::vec::Vec<u8> = (0..24).collect();
+        let view = ImageView::new(&src, 3, 4, 6).unwrap();
+        let mut dst = [0u8; 12];
+        ImageMut::packed(&mut dst, 3, 4)
+            .unwrap()
+            .copy_from(&view)
+            .unwrap();
+        assert_eq!(dst, [0, 1, 2, 6, 7, 8, 12, 13, 14, 18, 19, 20]);
+        let mut small = [0u8; 9];
+        let mut m = ImageMut::packed(&mut small, 3, 3).unwrap();
+        assert_eq!(m.copy_from(&view), Err(Error::InvalidImage));
+    }
 
     #[test]
     fn validation() {

@@ -1,4 +1,5 @@
-//! Image views of arbitrary geometry over buffers of arbitrary length, Gaussian pyramids into
+//! Image views of arbitrary geometry over buffers of arbitrary length, Gaussian pyramids (and
+//! the frame loop's pyramid pair) into
 //! buffers of arbitrary length, Shi-Tomasi corners with arbitrary parameters and scratch, FAST
 //! corners and ORB features with arbitrary parameters and scratch, their descriptors matched
 //! with an arbitrary configuration, the view warped into a frame through an arbitrary
@@ -21,7 +22,7 @@ use camgeom::heapless::Vec;
 use camgeom::homography::Homography;
 use camgeom::image::{ImageMut, ImageView, buffer_len};
 use camgeom::nalgebra::{Matrix3, Point2};
-use camgeom::pyramid::{self, Pyramid};
+use camgeom::pyramid::{self, Pyramid, PyramidPair};
 use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
 use libfuzzer_sys::fuzz_target;
 
@@ -110,6 +111,34 @@ fuzz_target!(|inp: Input| {
             );
         }
         assert!(p.level(p.len()).is_none());
+    }
+
+    // The frame loop's pair over buffers of the fuzzed slack: accepted exactly when they hold
+    // the geometry; a frame copied in comes back as the next pyramid's base.
+    let frame_len = grow(w * h, inp.slack);
+    let pyr_len = grow(pyramid::buffer_len(w, h, levels.min(8)), inp.pyr_slack);
+    let mut pair = PyramidPair::new(
+        [std::vec![0u8; frame_len], std::vec![0u8; frame_len]],
+        [std::vec![0u8; pyr_len], std::vec![0u8; pyr_len]],
+    );
+    let fits = (1..=pyramid::MAX_LEVELS).contains(&levels)
+        && frame_len >= w * h
+        && pyr_len >= pyramid::buffer_len(w, h, levels);
+    assert_eq!(pair.set_geometry(w, h, levels).is_ok(), fits, "pair geometry");
+    if fits {
+        for k in 0..3 {
+            pair.capture().expect("capture").copy_from(&view).expect("copy");
+            let ps = pair.advance().expect("advance");
+            assert_eq!(ps.previous.is_some(), k > 0);
+            assert_eq!(ps.next.level(0).and_then(|l| l.get(0, 0)), view.get(0, 0));
+            drop(ps);
+            if k == 1 {
+                pair.rewind();
+            }
+        }
+        assert!(pair.previous_mut().expect("previous").is_some());
+    } else {
+        assert!(pair.advance().is_err() || pair.geometry() != (w, h, levels));
     }
 
     let cfg = CornerConfig {

@@ -63,7 +63,7 @@ pub const AREAS: [Area; 19] = [
     area(
         "pyramid",
         false,
-        "`Pyramid::build`, `from_buffer`, `level`; `pyr_down`",
+        "`Pyramid::build`, `from_buffer`, `level`; `PyramidPair`; `pyr_down`",
     ),
     area(
         "gradient",

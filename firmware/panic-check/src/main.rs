@@ -195,6 +195,23 @@ fn run_pyramid() {
     if let Ok(p) = Pyramid::from_buffer(v, black_box(&buf[..]), black_box(3)) {
         black_box(p.level(black_box(1)));
     }
+    let mut pair = camgeom::pyramid::PyramidPair::new(
+        [black_box([0u8; W * H]), black_box([0u8; W * H])],
+        [black_box([0u8; W * H / 2]), black_box([0u8; W * H / 2])],
+    );
+    if pair
+        .set_geometry(black_box(W), black_box(H), black_box(3))
+        .is_ok()
+    {
+        if let Ok(mut img) = pair.capture() {
+            black_box(img.copy_from(&v).ok());
+        }
+        if let Ok(p) = pair.advance() {
+            black_box(p.next.level(black_box(1)));
+        }
+        pair.rewind();
+        black_box(pair.previous_mut().ok().flatten().is_some());
+    }
     let mut small = black_box([0u8; W * H]);
     let (w, h) = black_box((W / 2, H / 2));
     if let Ok(mut dst) = ImageMut::packed(black_box(&mut small[..]), w, h) {

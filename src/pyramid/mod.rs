@@ -6,6 +6,9 @@
 //!
 //! `out(x, y) = (Σᵢⱼ gᵢ gⱼ in(2x + i - 2, 2y + j - 2) + 128) >> 8`, size `(⌈w/2⌉, ⌈h/2⌉)`.
 //!
+//! [`PyramidPair`] owns the two frames and two pyramid buffers of a frame loop (the previous
+//! frame's pyramid is the template of the next flow) and swaps their roles frame by frame.
+//!
 //! Integer only. The work runs in tiles of [`TILE`] output pixels with the vertical sums in a
 //! fixed stack array, so there is no scratch to provide and no size limit beyond
 //! [`crate::image::MAX_DIM`].
@@ -29,6 +32,10 @@
 //! assert_eq!((l2.width(), l2.height()), level_size(40, 30, 2)); // (10, 8): sizes round up
 //! # Ok::<(), camgeom::Error>(())
 //! ```
+
+mod pair;
+
+pub use pair::{PyramidPair, Pyramids};
 
 use core::ops::Range;
 
