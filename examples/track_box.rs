@@ -18,7 +18,7 @@ use camgeom::camera::{Camera, Intrinsics};
 use camgeom::image::ImageView;
 use camgeom::klt::Fixed;
 use camgeom::nalgebra::Point2;
-use camgeom::pyramid::{Pyramid, buffer_len};
+use camgeom::pyramid::{PyramidPair, buffer_len};
 use camgeom::target::{
     GivenCorners, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
     flow_scratch_len,
@@ -47,11 +47,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let params = black_box(TargetParams::new(&cfg, camera, [0.258, 0.189])?);
     let mut acquire = GivenCorners::new(lid.map(|(x, y)| Point2::new(x, y)));
     let mut target = Box::new(Target::new());
-    let mut bufs = [
-        vec![0u8; buffer_len(W, H, LEVELS)],
-        vec![0u8; buffer_len(W, H, LEVELS)],
-    ];
-    let mut images: Vec<Vec<u8>> = Vec::new();
+    let mut pair = PyramidPair::new(
+        [vec![0u8; W * H], vec![0u8; W * H]],
+        [
+            vec![0u8; buffer_len(W, H, LEVELS)],
+            vec![0u8; buffer_len(W, H, LEVELS)],
+        ],
+    );
+    pair.set_geometry(W, H, LEVELS)?;
+    let mut count = 0;
     let mut tracking = 0;
     for k in 0..frames {
         let path = seq.join(format!("box/{k:04}.png"));
@@ -62,19 +66,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         if (w, h) != (W, H) {
             return Err(format!("{}: not {W}x{H}", path.display()).into());
         }
-        images.push(px);
-        let [b0, b1] = &mut bufs;
-        let (cur, old) = if k % 2 == 0 { (b0, &*b1) } else { (b1, &*b0) };
-        let next = Pyramid::build(ImageView::packed(&images[k], W, H)?, cur, LEVELS)?;
-        let prev = match k.checked_sub(1) {
-            Some(p) => Some(Pyramid::from_buffer(
-                ImageView::packed(&images[p], W, H)?,
-                old,
-                LEVELS,
-            )?),
-            None => None,
-        };
-        let r = target.step(&params, prev.as_ref(), &next, &mut acquire, &mut ())?;
+        count += 1;
+        pair.capture()?.copy_from(&ImageView::packed(&px, W, H)?)?;
+        let pyramids = pair.advance()?;
+        let r = target.step(
+            &params,
+            pyramids.previous.as_ref(),
+            &pyramids.next,
+            &mut acquire,
+            &mut (),
+        )?;
         tracking += usize::from(r.state == TargetState::Tracking);
         if k % 15 == 0 {
             let pose = r.pose.map(|p| p.best.pose.translation());
@@ -91,6 +92,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
         }
     }
-    println!("tracking in {tracking} of {} frames", images.len());
+    println!("tracking in {tracking} of {count} frames");
     Ok(())
 }

@@ -415,6 +415,33 @@ pub enum Stage {
     Redetect,
 }
 
+impl Stage {
+    /// Every stage, in the order a frame runs them (a probe's cost table follows it).
+    pub const ALL: [Stage; 5] = [
+        Stage::Acquire,
+        Stage::Flow,
+        Stage::Homography,
+        Stage::Pose,
+        Stage::Redetect,
+    ];
+
+    /// Its place in [`Self::ALL`] (a cost table's index).
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Its name in snake case (a cost table's column).
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::Acquire => "acquire",
+            Stage::Flow => "flow",
+            Stage::Homography => "homography",
+            Stage::Pose => "pose",
+            Stage::Redetect => "redetect",
+        }
+    }
+}
+
 /// Told as each [`Stage`] of [`PlanarTarget::step`] ends (`StageProbe<Stage>`): a board reads
 /// its cycle counter there. A stage may be reported more than once in a frame (re-detection
 /// after a loss).
@@ -973,7 +1000,7 @@ mod tests {
     use super::*;
     use crate::camera::Intrinsics;
     use crate::klt::Fixed;
-    use crate::pyramid::buffer_len;
+    use crate::pyramid::{PyramidPair, buffer_len};
     use crate::transform::Pose;
     use nalgebra::Vector3;
     use std::vec;
@@ -1081,25 +1108,39 @@ mod tests {
         frames: &[StdVec<u8>],
         acquire: &mut dyn Acquire,
     ) -> StdVec<(TargetFrame, StdVec<Stage>)> {
+        run_with(params, frames, acquire, |_, _| {})
+    }
+
+    /// [`run`], with `before(acquire, t)` called before frame `t`.
+    fn run_with<Q: Acquire + ?Sized>(
+        params: &TargetParams,
+        frames: &[StdVec<u8>],
+        acquire: &mut Q,
+        mut before: impl FnMut(&mut Q, usize),
+    ) -> StdVec<(TargetFrame, StdVec<Stage>)> {
         let levels = 3;
         let mut target = std::boxed::Box::new(Tracker::new());
-        let mut bufs = [
-            vec![0u8; buffer_len(W, H, levels)],
-            vec![0u8; buffer_len(W, H, levels)],
-        ];
+        let mut pair = PyramidPair::new(
+            [vec![0u8; W * H], vec![0u8; W * H]],
+            [(); 2].map(|()| vec![0u8; buffer_len(W, H, levels)]),
+        );
+        pair.set_geometry(W, H, levels).unwrap();
         let mut out = StdVec::new();
-        for t in 0..frames.len() {
-            let [b0, b1] = &mut bufs;
-            let (pb, nb) = if t % 2 == 1 { (b0, b1) } else { (b1, b0) };
-            let next =
-                Pyramid::build(ImageView::packed(&frames[t], W, H).unwrap(), nb, levels).unwrap();
-            let prev = (t > 0).then(|| {
-                let v = ImageView::packed(&frames[t - 1], W, H).unwrap();
-                Pyramid::from_buffer(v, pb, levels).unwrap()
-            });
+        for (t, frame) in frames.iter().enumerate() {
+            before(acquire, t);
+            let mut img = pair.capture().unwrap();
+            img.copy_from(&ImageView::packed(frame, W, H).unwrap())
+                .unwrap();
+            let pyramids = pair.advance().unwrap();
             let mut stages = Stages::default();
             let r = target
-                .step(params, prev.as_ref(), &next, acquire, &mut stages)
+                .step(
+                    params,
+                    pyramids.previous.as_ref(),
+                    &pyramids.next,
+                    acquire,
+                    &mut stages,
+                )
                 .unwrap();
             out.push((r, stages.0));
         }
@@ -1193,26 +1234,9 @@ mod tests {
             blind: &[0, 1, 5],
             calls: StdVec::new(),
         };
-        let levels = 3;
-        let mut target = std::boxed::Box::new(Tracker::new());
-        let mut bufs = [
-            vec![0u8; buffer_len(W, H, levels)],
-            vec![0u8; buffer_len(W, H, levels)],
-        ];
         let mut states = StdVec::new();
-        for t in 0..frames.len() {
-            oracle.frame = t;
-            let [b0, b1] = &mut bufs;
-            let (pb, nb) = if t % 2 == 1 { (b0, b1) } else { (b1, b0) };
-            let next =
-                Pyramid::build(ImageView::packed(&frames[t], W, H).unwrap(), nb, levels).unwrap();
-            let prev = (t > 0).then(|| {
-                let v = ImageView::packed(&frames[t - 1], W, H).unwrap();
-                Pyramid::from_buffer(v, pb, levels).unwrap()
-            });
-            let r = target
-                .step(&params, prev.as_ref(), &next, &mut oracle, &mut ())
-                .unwrap();
+        let run = run_with(&params, &frames, &mut oracle, |o, t| o.frame = t);
+        for (t, (r, _)) in run.iter().enumerate() {
             if r.state == TargetState::Tracking {
                 let (dr, dt) = pose_error(&r.pose.unwrap().best.pose, t as f64);
                 // As the tracking test: a fraction of a degree, about 1 % of the distance.

@@ -8,10 +8,10 @@ use camgeom::image::ImageMut;
 use camgeom::klt::Fixed;
 use camgeom::nalgebra::{Point2, Point3};
 use camgeom::pose::PlanarPose;
-use camgeom::pyramid::{Pyramid, buffer_len};
+use camgeom::pyramid::{PyramidPair, buffer_len};
 use camgeom::target::{
-    Acquire, PlanarTarget, PoseArith, TargetConfig, TargetParams, TargetState, corner_scratch_len,
-    flow_scratch_len,
+    Acquire, PlanarTarget, PoseArith, TargetConfig, TargetFrame, TargetParams, TargetState,
+    corner_scratch_len, flow_scratch_len,
 };
 
 use crate::images::GrayImage;
@@ -34,25 +34,13 @@ pub struct ArOptions {
     pub target: TargetConfig,
 }
 
-/// The outcome of one frame.
+/// The outcome of one frame: the core's [`TargetFrame`] and the features behind it.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ArFrame {
     /// 0-based index in the sequence.
-    pub frame: usize,
-    /// Tracking state after the frame.
-    pub state: TargetState,
-    /// The target was acquired on this frame.
-    pub acquired: bool,
-    /// Both planar poses (target to camera), when tracking.
-    pub pose: Option<PlanarPose<f32>>,
-    /// The target's corners through the tracked homography, when tracking.
-    pub outline: Option<[Point2<f32>; 4]>,
-    /// Tracks that survived the flow (0 on an acquisition).
-    pub tracked: usize,
-    /// Homography inliers (on an acquisition: the features detected).
-    pub inliers: usize,
-    /// Features added by acquisition, re-detection or relocation.
-    pub added: usize,
+    pub index: usize,
+    /// What the loop found: state, poses, outline, counts.
+    pub frame: TargetFrame,
     /// Image positions of the features tracked after the frame.
     pub features: Vec<Point2<f32>>,
     /// Their target-plane positions, in the same order.
@@ -61,10 +49,10 @@ pub struct ArFrame {
 
 impl ArFrame {
     /// Largest distance (pixels) between the target's corners projected through the best pose
-    /// and [`Self::outline`] (the homography's corners): how well the pose explains the
+    /// and the frame's outline (the homography's corners): how well the pose explains the
     /// homography. `None` without both.
     pub fn outline_error_px(&self, camera: &Camera<f32>, size: [f32; 2]) -> Option<f32> {
-        let (pose, outline) = (self.pose?, self.outline?);
+        let (pose, outline) = (self.frame.pose?, self.frame.outline?);
         let corners = camgeom::target::corners_3d(size[0], size[1]);
         let mut worst = 0.0f32;
         for (c, o) in corners.iter().zip(outline.iter()) {
@@ -120,37 +108,29 @@ fn go<A: PoseArith>(
         return Err(camgeom::Error::InvalidImage);
     }
     let mut target: Box<HostTarget<A>> = Box::default();
-    let l = levels(&params.config().lk);
-    let len = buffer_len(w, h, l);
-    let mut bufs = [vec![0u8; len], vec![0u8; len]];
+    let mut pair = PyramidPair::new(
+        [vec![0u8; w * h], vec![0u8; w * h]],
+        [(); 2].map(|()| vec![0u8; buffer_len(w, h, levels(&params.config().lk))]),
+    );
+    pair.set_geometry(w, h, levels(&params.config().lk))?;
     let mut out = Vec::with_capacity(frames.len());
     for (k, img) in frames.iter().enumerate() {
         if (img.width, img.height) != (w, h) {
             return Err(camgeom::Error::InvalidImage);
         }
-        // Two pyramid buffers swap roles: the previous frame's pyramid is re-wrapped.
-        let [b0, b1] = &mut bufs;
-        let (cur, old) = if k % 2 == 0 { (b0, &*b1) } else { (b1, &*b0) };
-        let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
-        let next = Pyramid::build(view, cur, l)?;
-        let prev = match k.checked_sub(1).and_then(|p| frames.get(p)) {
-            Some(p) => Some(Pyramid::from_buffer(
-                p.view().ok_or(camgeom::Error::InvalidImage)?,
-                old,
-                l,
-            )?),
-            None => None,
-        };
-        let r = target.step(params, prev.as_ref(), &next, acquire, &mut ())?;
+        pair.capture()?
+            .copy_from(&img.view().ok_or(camgeom::Error::InvalidImage)?)?;
+        let pyramids = pair.advance()?;
+        let frame = target.step(
+            params,
+            pyramids.previous.as_ref(),
+            &pyramids.next,
+            acquire,
+            &mut (),
+        )?;
         let f = ArFrame {
-            frame: k,
-            state: r.state,
-            acquired: r.acquired,
-            pose: r.pose,
-            outline: r.outline,
-            tracked: r.tracked,
-            inliers: r.inliers,
-            added: r.added,
+            index: k,
+            frame,
             features: target.features().map(|(p, _)| p).collect(),
             targets: target.features().map(|(_, t)| t).collect(),
         };
@@ -173,7 +153,7 @@ const LOST: [u8; 3] = [255, 40, 40];
 pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOptions) -> RgbImage {
     let mut out = RgbImage::from_gray(img);
     let blank = || GrayImage::filled(img.width, img.height, 0);
-    if let Some(outline) = f.outline {
+    if let Some(outline) = f.frame.outline {
         let mut m = blank();
         if let Some(mut v) = m.view_mut() {
             for (a, b) in outline.iter().zip(outline.iter().cycle().skip(1)) {
@@ -182,7 +162,7 @@ pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOpti
         }
         out.ink(&m, OUTLINE);
     }
-    if let Some(pose) = f.pose {
+    if let Some(pose) = f.frame.pose {
         let s = opts.cube;
         let (x, y) = ((opts.size[0] - s) / 2.0, (opts.size[1] - s) / 2.0);
         let (vertices, edges) = cube(x, y, s);
@@ -199,7 +179,7 @@ pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOpti
             out.put(cx, cy + d, FEATURE);
         }
     }
-    if f.state != TargetState::Tracking {
+    if f.frame.state != TargetState::Tracking {
         let (w, h) = (i64::from(out.width()), i64::from(out.height()));
         for x in 0..w {
             for t in 0..2 {

@@ -298,16 +298,16 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let mut write_err = None;
     let results = run_ar(&frames, acquire, &camera, &opts, |f| {
         bar.inc(1);
-        let img = draw_ar(&frames[f.frame], &camera, f, &opts);
-        let name = files[f.frame]
+        let img = draw_ar(&frames[f.index], &camera, f, &opts);
+        let name = files[f.index]
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| f.frame.to_string());
+            .unwrap_or_else(|| f.index.to_string());
         if let Err(e) = img.save_png(a.out.join(format!("{name}.png"))) {
             write_err.get_or_insert(e);
         }
-        if sheet_idx.contains(&f.frame) {
-            tiles.push((f.frame, img));
+        if sheet_idx.contains(&f.index) {
+            tiles.push((f.index, img));
         }
     })
     .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
@@ -316,7 +316,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
         return Err(e);
     }
     if let Acquisition::Corners(path) = acquisition
-        && results.first().is_some_and(|f| f.pose.is_none())
+        && results.first().is_some_and(|f| f.frame.pose.is_none())
     {
         return Err(Error::camgeom(
             format!(
@@ -329,12 +329,12 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let mut rows = Vec::with_capacity(results.len());
     let mut worst: Option<f32> = None;
     for f in &results {
-        let state = match f.state {
+        let state = match f.frame.state {
             TargetState::Tracking => "tracking",
             TargetState::Lost => "lost",
             TargetState::Uninitialised => "uninitialised",
         };
-        let nums = match f.pose {
+        let nums = match f.frame.pose {
             Some(p) => {
                 let (r, t) = (p.best.pose.rotation_vector(), p.best.pose.translation());
                 [
@@ -354,10 +354,10 @@ pub fn run(a: &ArArgs) -> Result<String> {
         if let Some(o) = outline {
             worst = Some(worst.map_or(o, |w| w.max(o)));
         }
-        let mut row = vec![f.frame.to_string(), state.to_string()];
+        let mut row = vec![f.index.to_string(), state.to_string()];
         row.extend(nums.iter().map(|v| format_float(*v)));
         row.push(format_float(outline.unwrap_or(f32::NAN)));
-        row.extend([f.tracked, f.inliers, f.added].map(|n| n.to_string()));
+        row.extend([f.frame.tracked, f.frame.inliers, f.frame.added].map(|n| n.to_string()));
         rows.push(row);
     }
     let csv = format_csv(&POSES_COLUMNS, rows);
@@ -367,13 +367,13 @@ pub fn run(a: &ArArgs) -> Result<String> {
     contact_sheet(&tiles, a.sheet_cols, a.sheet_scale).save_png(&sheet_path)?;
     let tracking = results
         .iter()
-        .filter(|f| f.state == TargetState::Tracking)
+        .filter(|f| f.frame.state == TargetState::Tracking)
         .count();
     let summary = Summary {
         frames: results.len(),
         tracking,
         lost: results.len() - tracking,
-        mean_inliers: results.iter().map(|f| f.inliers as f64).sum::<f64>()
+        mean_inliers: results.iter().map(|f| f.frame.inliers as f64).sum::<f64>()
             / results.len().max(1) as f64,
         worst_outline_px: worst,
         out: a.out.display().to_string(),

@@ -7,7 +7,7 @@ use camgeom::klt::{
     Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Tracker,
     TrackerConfig, bordered_len, calc_flow_bordered, forward_backward, scratch_len,
 };
-use camgeom::pyramid::{Pyramid, buffer_len};
+use camgeom::pyramid::{Pyramid, PyramidPair, buffer_len};
 
 use crate::images::GrayImage;
 
@@ -258,23 +258,24 @@ pub fn track_sequence(
         let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
         let mut cands = vec![Corner::default(); 8192];
         let mut cs = Vec::new();
-        // Ping-pong pyramid buffers: the previous frame's pyramid is re-wrapped, never rebuilt.
-        let mut bufs = [Vec::new(), Vec::new()];
+        let (w, h) = frames.first().map_or((0, 0), |f| (f.width, f.height));
+        let mut pair = PyramidPair::new(
+            [vec![0u8; w * h], vec![0u8; w * h]],
+            [
+                vec![0u8; buffer_len(w, h, l)],
+                vec![0u8; buffer_len(w, h, l)],
+            ],
+        );
+        if !frames.is_empty() {
+            pair.set_geometry(w, h, l)?;
+        }
         let mut rows = Vec::new();
         for (k, img) in frames.iter().enumerate() {
             let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
-            let (b0, b1) = bufs.split_at_mut(1);
-            let (cur, old) = if k % 2 == 0 {
-                (&mut b0[0], &b1[0])
-            } else {
-                (&mut b1[0], &b0[0])
-            };
-            cur.resize(buffer_len(img.width, img.height, l), 0);
-            let next = Pyramid::build(view, cur, l)?;
-            if k > 0 {
-                let pview = frames[k - 1].view().ok_or(camgeom::Error::InvalidImage)?;
-                let prev = Pyramid::from_buffer(pview, old, l)?;
-                tracker.update(&prev, &next, &mut scratch)?;
+            pair.capture()?.copy_from(&view)?;
+            let pyramids = pair.advance()?;
+            if let Some(prev) = &pyramids.previous {
+                tracker.update(prev, &pyramids.next, &mut scratch)?;
             }
             cs.resize(camgeom::corners::scratch_len(img.width), 0);
             tracker.replenish(&view, &mut cands, &mut cs)?;

@@ -13,15 +13,18 @@
 extern crate std;
 
 pub mod calibration;
+pub mod costs;
 pub mod pipeline;
 pub mod qvga;
 pub mod recorded;
 pub mod report;
 pub mod run;
+pub mod sizes;
 pub mod slot;
 pub mod source;
 pub mod texture;
 
-pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameReport, Pipeline, StageCosts};
+pub use costs::{Cost, StageCosts};
+pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameLoop, FrameReport, Pipeline};
 pub use run::{RunSpec, drive};
 pub use source::FrameSource;

@@ -8,12 +8,10 @@
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::target::Acquire;
 
-use crate::pipeline::{AppConfig, AppError, FrameReport, NoClock};
-use crate::run::{CANDIDATES, LEVELS, TRACKS, WIN};
+use crate::pipeline::{AppConfig, AppError, FrameLoop, FrameReport, NoClock};
 use crate::source::FrameSource;
 
-/// The 320x240 pipeline of the main job.
-pub type Qvga = crate::pipeline_type!(320, 240, LEVELS, WIN, CANDIDATES, TRACKS);
+pub use crate::sizes::Qvga;
 
 /// Frames read one after the other from a slice of packed `width x height` frames.
 #[derive(Debug, Clone)]

@@ -19,15 +19,18 @@
 //! | 28..56 | best pose: `f32` `t` (3), rotation vector (3), RMS px | `u32` overlays saved, then zeros |
 //! | 56..84 | alternative pose, as the best | zeros |
 //! | 84..116 | outline: `f32` `x y` of 4 corners | zeros |
-//! | 116..152 | `u32` stage costs in the order of [`STAGES`](crate::pipeline::STAGES) | zeros |
+//! | 116.. | `u32` stage costs in the order of [`STAGES`](crate::costs::STAGES), the total last | zeros |
 //!
-//! Absent poses and outlines are zeros with their flag clear.
+//! Absent poses and outlines are zeros with their flag clear. The cost columns follow the
+//! stages ([`Cost::COLUMNS`]), so a new stage lengthens every record: bump [`VERSION`] with
+//! it.
 
 use camgeom::Error;
 use camgeom::pose::{PlanarPose, PoseEstimate};
 use camgeom::target::TargetState;
 
-use crate::pipeline::{AppError, FrameReport, StageCosts};
+use crate::costs::{Cost, StageCosts};
+use crate::pipeline::{AppError, FrameReport};
 
 /// `"CFRM"` as a little-endian word: a frame record.
 pub const FRAME_TAG: u32 = u32::from_le_bytes(*b"CFRM");
@@ -35,8 +38,8 @@ pub const FRAME_TAG: u32 = u32::from_le_bytes(*b"CFRM");
 pub const SUMMARY_TAG: u32 = u32::from_le_bytes(*b"CSUM");
 /// Layout version.
 pub const VERSION: u32 = 1;
-/// Bytes of every record.
-pub const RECORD_LEN: usize = 152;
+/// Bytes of every record: the fields up to the costs, then one `u32` a cost column.
+pub const RECORD_LEN: usize = 116 + 4 * Cost::COLUMNS;
 
 /// Why a frame failed, as one byte: the pipeline's [`AppError`] kind, or the core's
 /// [`Error`] kind (its index in [`Error::ALL`], plus [`ErrorCode::CORE`]).
@@ -55,9 +58,7 @@ impl ErrorCode {
     pub fn of<E>(e: &AppError<E>) -> Self {
         Self(match e {
             AppError::Source(_) => 1,
-            AppError::NoFrame => 2,
             AppError::Geometry => 3,
-            AppError::NotStarted => 4,
             AppError::Core(c) => Self::of_core(c).0,
         })
     }
@@ -75,9 +76,8 @@ impl ErrorCode {
     pub fn name(self) -> &'static str {
         match self.0 {
             1 => "source",
-            2 => "no_frame",
+            // 2 and 4 were `no_frame` and `not_started`, gone with the separate start step.
             3 => "geometry",
-            4 => "not_started",
             5 => "wrong_size",
             6 => "read_failed",
             c => Error::ALL
@@ -162,20 +162,21 @@ fn count(n: usize) -> u16 {
 impl FrameRecord {
     /// The record of a frame's report.
     pub fn of(r: &FrameReport) -> Self {
+        let f = &r.frame;
         Self {
             index: r.index,
-            state: r.state,
-            acquired: r.acquired,
+            state: f.state,
+            acquired: f.acquired,
             error: None,
-            tracked: count(r.tracked),
-            inliers: count(r.inliers),
-            added: count(r.added),
-            features: count(r.features),
+            tracked: count(f.tracked),
+            inliers: count(f.inliers),
+            added: count(f.added),
+            features: count(f.features),
             checksum: r.checksum,
-            pose: r.pose.map(|p: PlanarPose<f32>| {
+            pose: f.pose.map(|p: PlanarPose<f32>| {
                 (PoseRecord::of(&p.best), PoseRecord::of(&p.alternative))
             }),
-            outline: r.outline.map(|o| o.map(|p| [p.x, p.y])),
+            outline: f.outline.map(|o| o.map(|p| [p.x, p.y])),
             costs: r.costs,
         }
     }
@@ -229,7 +230,7 @@ pub struct SummaryRecord {
     pub frames: u32,
     /// Frames that ended tracking.
     pub tracking: u32,
-    /// Bytes of the pipeline's static ([`crate::Pipeline::RAM`]).
+    /// Bytes of the pipeline's static ([`crate::Pipeline::BYTES`]).
     pub pipeline_ram: u32,
     /// Stack high-water mark (bytes).
     pub stack_used: u32,
@@ -295,7 +296,7 @@ impl Record {
                 let best = PoseRecord::from_array([(); 7].map(|_| r.f32()));
                 let alt = PoseRecord::from_array([(); 7].map(|_| r.f32()));
                 let outline = [(); 4].map(|_| [r.f32(), r.f32()]);
-                let costs = StageCosts::from_array([(); 9].map(|_| r.u32()));
+                let costs = StageCosts::from_array([(); Cost::COLUMNS].map(|_| r.u32()));
                 Ok(Record::Frame(FrameRecord {
                     index,
                     state,

@@ -23,7 +23,7 @@ use camgeom::target::{TargetConfig, TargetParams};
 use camgeom::image::ImageView;
 use camgeom::target::Acquire;
 
-use crate::pipeline::{AppConfig, AppError, Clock, CubeConfig, Pipeline};
+use crate::pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
 use crate::report::{ErrorCode, FrameRecord};
 
@@ -246,23 +246,15 @@ impl RunSpec {
 }
 
 /// Runs `pipeline` over every frame of `camera`, the same way on the board and in its host
-/// replay: the first frame that arrives starts it ([`Pipeline::start`]), every later one steps
-/// it, and the last overlay is drawn at the end. Each delivered frame gives `record` one
+/// replay: every frame steps it ([`FrameLoop::step`]; the first one that arrives starts it),
+/// and the last overlay is drawn at the end. Each delivered frame gives `record` one
 /// [`FrameRecord`], numbered by delivery ([`RecordedCamera::delivered`]): the frame's report,
 /// or the error it met with the tracker's state. A frame that fails does not end the run (a
 /// faulty camera is what the fault job tests); `overlay` receives the overlays as
-/// [`Pipeline::step`] draws them. Errors: only [`AppError::Core`] from drawing the last overlay.
-#[allow(clippy::too_many_arguments)]
-pub fn drive<
-    const F: usize,
-    const P: usize,
-    const S: usize,
-    const C: usize,
-    const K: usize,
-    const N: usize,
-    R: RecordedFrames,
->(
-    pipeline: &mut Pipeline<F, P, S, C, K, N>,
+/// [`FrameLoop::step`] draws them. Errors: only [`AppError::Core`] from drawing the last
+/// overlay.
+pub fn drive<R: RecordedFrames>(
+    pipeline: &mut impl FrameLoop,
     cfg: &AppConfig,
     camera: &mut RecordedCamera<R>,
     acquire: &mut (impl Acquire + ?Sized),
@@ -270,29 +262,23 @@ pub fn drive<
     record: &mut impl FnMut(&FrameRecord),
     overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
 ) -> Result<(), AppError<CameraError<R::Error>>> {
-    let mut started = false;
+    pipeline.reset();
     loop {
         let k = camera.delivered();
-        let out = if started {
-            pipeline.step(cfg, camera, acquire, clock, overlay)
-        } else {
-            pipeline.start(cfg, camera, acquire, clock).map(Some)
-        };
-        match out {
+        match pipeline.step(cfg, camera, acquire, clock, overlay) {
             Ok(Some(r)) => {
-                started = true;
                 let mut rec = FrameRecord::of(&r);
                 rec.index = k;
                 record(&rec);
             }
-            Ok(None) | Err(AppError::NoFrame) => break,
+            Ok(None) => break,
             Err(e) => {
                 let code = match e {
                     AppError::Source(CameraError::WrongSize) => ErrorCode::WRONG_SIZE,
                     AppError::Source(CameraError::Read(_)) => ErrorCode::READ_FAILED,
                     other => ErrorCode::of(&other),
                 };
-                record(&FrameRecord::failed(k, pipeline.target().state(), code));
+                record(&FrameRecord::failed(k, pipeline.state(), code));
             }
         }
         if camera.delivered() == k {
@@ -300,10 +286,7 @@ pub fn drive<
             break;
         }
     }
-    if started {
-        pipeline.finish(cfg, overlay)?;
-    }
-    Ok(())
+    pipeline.finish(cfg, overlay)
 }
 
 #[cfg(test)]

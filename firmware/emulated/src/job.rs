@@ -2,7 +2,7 @@
 //!
 //! Reads the run description (`run.bin`), the frames (`frames.raw`) and, for the fault job, a
 //! fault plan (`faults.bin`) from the host over semihosting ([`crate::semihost`]), runs
-//! [`Pipeline`] on every frame ([`drive`], the loop the host replay runs too) and writes what it
+//! the pipeline on every frame ([`drive`], the loop the host replay runs too) and writes what it
 //! found back as binary records ([`camgeom_fw_app::report`]: one per frame with state, counts,
 //! track checksum, poses, outline and per-stage cost in instructions, then a summary with the
 //! pipeline's RAM and the stack high-water mark) to `report.bin`. Every `overlay_every`-th
@@ -12,7 +12,7 @@
 use camgeom::image::ImageView;
 use camgeom::target::{Acquire, GivenCorners, TargetState};
 use camgeom_fw_app::drive;
-use camgeom_fw_app::pipeline::{AppError, Clock, Pipeline};
+use camgeom_fw_app::pipeline::{AppError, Clock, FrameLoop};
 use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 use camgeom_fw_app::run::{Acquisition, RUN_SPEC_LEN, RunSpec};
@@ -120,16 +120,8 @@ fn read_spec() -> RunSpec {
 /// Runs the main job on `app` (a `static`) for `W x H` frames, the target found by what
 /// `acquisition` makes of the run description (`None`: this firmware cannot acquire the
 /// run's target, a failed run); exits the emulator.
-pub fn run<
-    const F: usize,
-    const P: usize,
-    const S: usize,
-    const C: usize,
-    const K: usize,
-    const N: usize,
-    A: Acquire,
->(
-    app: &mut Pipeline<F, P, S, C, K, N>,
+pub fn run<A: Acquire>(
+    app: &mut impl FrameLoop,
     width: usize,
     height: usize,
     acquisition: impl FnOnce(&RunSpec) -> Option<A>,
@@ -174,8 +166,8 @@ pub fn run<
         LEVELS,
         WIN,
         WIN,
-        N,
-        Pipeline::<F, P, S, C, K, N>::RAM
+        TRACKS,
+        app.bytes()
     );
     let mut clock = SysTickClock;
     let overlay_every = spec.overlay_every as usize;
@@ -219,7 +211,7 @@ pub fn run<
         fail_host("overlay", e)
     }
     let (stack, stack_size) = board::stack_usage();
-    summary.pipeline_ram = Pipeline::<F, P, S, C, K, N>::RAM as u32;
+    summary.pipeline_ram = app.bytes() as u32;
     summary.stack_used = stack;
     summary.stack_size = stack_size;
     summary.overlays = saved;

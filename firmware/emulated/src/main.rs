@@ -11,15 +11,14 @@ use camgeom_fw_emulated::job;
 
 use camgeom_fw_emulated::entry;
 
-use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use camgeom_fw_app::sizes::Qvga;
 use static_cell::ConstStaticCell;
 
 const W: usize = 320;
 const H: usize = 240;
 
 /// Every buffer of the pipeline, in `.bss`: the linker checks it against `memory.x`.
-static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
-    ConstStaticCell::new(camgeom_fw_app::Pipeline::new());
+static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 
 #[entry]
 fn main() -> ! {

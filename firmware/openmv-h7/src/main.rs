@@ -22,7 +22,8 @@
 mod camera;
 mod tracker;
 
-use camgeom_fw_app::{AppError, FrameReport};
+use camgeom::target::Stage;
+use camgeom_fw_app::{AppError, Cost, FrameLoop, FrameReport};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
@@ -154,25 +155,13 @@ async fn main(_spawner: Spawner) {
     let mut clock = DwtClock::default();
     // The card held in the middle half of the view; after a second lost, held there again.
     let mut acquire = tracker::acquire();
-    loop {
-        match app.start(&cfg, &mut cam, &mut acquire, &mut clock) {
-            Ok(r) => {
-                defmt::info!(
-                    "first frame: {=usize} features ({=u32} cycles)",
-                    r.features,
-                    r.costs.total
-                );
-                break;
-            }
-            // A failed capture: try the next frame.
-            Err(e @ AppError::Source(_)) => tracker::log_error("start", &e),
-            // The configuration does not fit the buffers: nothing to run.
-            Err(e) => defmt::panic!("start: {=str}", e.name()),
-        }
-    }
+    // The first frame that arrives starts the target; a frame that fails leaves the pipeline
+    // as it was.
     loop {
         match app.step(&cfg, &mut cam, &mut acquire, &mut clock, &mut |_, _| {}) {
             Ok(Some(r)) => log(&r),
+            // The configuration does not fit the buffers: nothing to run.
+            Err(e @ AppError::Geometry) => defmt::panic!("start: {=str}", e.name()),
             // A camera never ends.
             Ok(None) => {}
             // A failed capture (or a frame the core rejects) leaves the pipeline as it was: go
@@ -187,7 +176,9 @@ async fn main(_spawner: Spawner) {
 /// capture, a DMA wait, apart).
 fn log(r: &FrameReport) {
     let c = &r.costs;
-    match r.pose {
+    let stage = |s: Stage| c[Cost::Step(s)];
+    let f = &r.frame;
+    match f.pose {
         Some(p) => {
             let pose = p.best;
             let t = pose.pose.translation();
@@ -195,8 +186,8 @@ fn log(r: &FrameReport) {
             defmt::info!(
                 "frame {=u32}: {=str}, {=usize} inliers, t = ({=f32}, {=f32}, {=f32}) m, r = ({=f32}, {=f32}, {=f32}) rad, rms {=f32} px, {=u32} cycles (flow {=u32}, homography {=u32}, pose {=u32}, redetect {=u32}, draw {=u32})",
                 r.index,
-                r.state.name(),
-                r.inliers,
+                f.state.name(),
+                f.inliers,
                 t.x,
                 t.y,
                 t.z,
@@ -205,18 +196,18 @@ fn log(r: &FrameReport) {
                 rv.z,
                 pose.rms_px,
                 c.total,
-                c.flow,
-                c.homography,
-                c.pose,
-                c.redetect,
-                c.draw
+                stage(Stage::Flow),
+                stage(Stage::Homography),
+                stage(Stage::Pose),
+                stage(Stage::Redetect),
+                c[Cost::Draw]
             )
         }
         None => defmt::info!(
             "frame {=u32}: {=str}, {=usize} tracked, no pose, {=u32} cycles",
             r.index,
-            r.state.name(),
-            r.tracked,
+            f.state.name(),
+            f.tracked,
             c.total
         ),
     }

@@ -6,7 +6,7 @@
 //!
 //! Everything lives in one static in AXI SRAM (`memory.x`): the pipeline's two frames, two
 //! pyramids (levels 1-2), corner candidates and scratch, KLT scratch and the target
-//! ([`Qvga::RAM`] bytes, in `.bss`).
+//! ([`Qvga::BYTES`] bytes, in `.bss`).
 
 use camgeom::nalgebra::Point2;
 use camgeom::target::GivenCorners;
@@ -97,8 +97,6 @@ pub fn log_error<E: defmt::Format>(what: &str, e: &AppError<E>) {
     match e {
         AppError::Source(e) => defmt::warn!("{=str}: camera: {}", what, e),
         AppError::Core(e) => defmt::warn!("{=str}: {}", what, e),
-        AppError::NoFrame => defmt::warn!("{=str}: no frame", what),
         AppError::Geometry => defmt::warn!("{=str}: configuration and buffers disagree", what),
-        AppError::NotStarted => defmt::warn!("{=str}: not started", what),
     }
 }

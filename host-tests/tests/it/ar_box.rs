@@ -63,14 +63,17 @@ fn run_on(
 }
 
 fn rot_deg(a: &ArFrame, b: &ArFrame) -> f64 {
-    let (pa, pb) = (a.pose.unwrap().best.pose, b.pose.unwrap().best.pose);
+    let (pa, pb) = (
+        a.frame.pose.unwrap().best.pose,
+        b.frame.pose.unwrap().best.pose,
+    );
     (pa.isometry().rotation.cast::<f64>() * pb.isometry().rotation.cast::<f64>().inverse())
         .angle()
         .to_degrees()
 }
 
 fn t_of(a: &ArFrame) -> camgeom::nalgebra::Vector3<f64> {
-    a.pose.unwrap().best.pose.translation().cast()
+    a.frame.pose.unwrap().best.pose.translation().cast()
 }
 
 /// The pose stage of a `PlanarTarget<Fixed>` (integer refinement in the undistorted image,
@@ -81,8 +84,8 @@ fn t_of(a: &ArFrame) -> camgeom::nalgebra::Vector3<f64> {
 fn integer_pose_stays_within_its_bound_of_the_float_pose() {
     let (frames, camera) = run(Path::Fixed);
     let (mut worst_r, mut worst_t, mut worst_rms, mut compared) = (0.0f64, 0.0f64, 0.0f32, 0);
-    for f in frames.iter().filter(|f| f.added == 0) {
-        let int = f.pose.unwrap();
+    for f in frames.iter().filter(|f| f.frame.added == 0) {
+        let int = f.frame.pose.unwrap();
         let mut scratch = vec![Point2::origin(); f.features.len()];
         let float = solve_planar(
             &camera,
@@ -129,21 +132,21 @@ fn box_lid_is_tracked_with_a_continuous_pose() {
         assert_eq!(frames.len(), 150);
         let tracking = frames
             .iter()
-            .filter(|f| f.state == TargetState::Tracking && f.pose.is_some())
+            .filter(|f| f.frame.state == TargetState::Tracking && f.frame.pose.is_some())
             .count();
         let (mut worst_outline, mut worst_rms) = (0.0f32, 0.0f32);
         let (mut worst_dr, mut worst_dt) = (0.0f64, 0.0f64);
-        for f in frames.iter().filter(|f| f.pose.is_some()) {
+        for f in frames.iter().filter(|f| f.frame.pose.is_some()) {
             worst_outline = worst_outline.max(f.outline_error_px(&camera, SIZE).unwrap());
-            worst_rms = worst_rms.max(f.pose.unwrap().best.rms_px);
+            worst_rms = worst_rms.max(f.frame.pose.unwrap().best.rms_px);
         }
         for w in frames.windows(2) {
-            if w[0].pose.is_some() && w[1].pose.is_some() {
+            if w[0].frame.pose.is_some() && w[1].frame.pose.is_some() {
                 worst_dr = worst_dr.max(rot_deg(&w[0], &w[1]));
                 worst_dt = worst_dt.max((t_of(&w[1]) - t_of(&w[0])).norm());
             }
         }
-        let min_inliers = frames.iter().map(|f| f.inliers).min().unwrap();
+        let min_inliers = frames.iter().map(|f| f.frame.inliers).min().unwrap();
         println!(
             "box: tracked {tracking}/150, fewest inliers {min_inliers}, worst RMS {worst_rms:.2} px, \
              worst outline {worst_outline:.2} px, worst step {worst_dr:.2} deg / {:.1} mm",
@@ -277,7 +280,7 @@ fn target_lost_on_blank_frames_is_found_again() {
         v.extend_from_slice(&f[30..60]);
         v
     });
-    let states: Vec<TargetState> = frames.iter().map(|f| f.state).collect();
+    let states: Vec<TargetState> = frames.iter().map(|f| f.frame.state).collect();
     // Lost on the 5 blank frames and on the first frame back (its features were re-detected
     // there, around the last outline, so there is no flow into it yet); tracking after.
     assert!(states[..30].iter().all(|s| *s == TargetState::Tracking));
@@ -289,7 +292,7 @@ fn target_lost_on_blank_frames_is_found_again() {
         states[36..].iter().all(|s| *s == TargetState::Tracking),
         "{states:?}"
     );
-    assert!(frames[35].added >= 20 && frames[36].inliers >= 20);
+    assert!(frames[35].frame.added >= 20 && frames[36].frame.inliers >= 20);
     // The pose found again is where the box was: within 2 deg and 2 % of the distance of the
     // last pose before the gap (the box turns ~0.2 deg a frame here).
     let (a, b) = (&frames[29], &frames[36]);

@@ -7,11 +7,12 @@ use anyhow::{Result, anyhow, bail};
 use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, Workspace320x240};
 use camgeom::image::ImageView;
 use camgeom::target::{Acquire, GivenCorners};
-use camgeom_fw_app::pipeline::{NoClock, Pipeline};
+use camgeom_fw_app::drive;
+use camgeom_fw_app::pipeline::{FrameLoop, NoClock};
 use camgeom_fw_app::recorded::{FaultPlan, RecordedCamera, SliceFrames};
 use camgeom_fw_app::report::FrameRecord;
-use camgeom_fw_app::run::{Acquisition, CANDIDATES, LEVELS, RunSpec, TAG_FAMILIES, TRACKS, WIN};
-use camgeom_fw_app::{drive, pipeline_type};
+use camgeom_fw_app::run::{Acquisition, RunSpec, TAG_FAMILIES};
+use camgeom_fw_app::sizes::{Qqvga, Qvga};
 
 use super::emulate::Overlays;
 use crate::jobs::Size;
@@ -19,15 +20,8 @@ use crate::jobs::Size;
 /// Every frame's record and the overlays the board would write.
 pub type Replay = (BTreeMap<u32, FrameRecord>, Overlays);
 
-fn replay<
-    const F: usize,
-    const P: usize,
-    const S: usize,
-    const C: usize,
-    const K: usize,
-    const N: usize,
->(
-    app: &mut Pipeline<F, P, S, C, K, N>,
+fn replay(
+    app: &mut impl FrameLoop,
     spec: &RunSpec,
     plan: &FaultPlan,
     raw: &[u8],
@@ -95,14 +89,12 @@ pub fn replay_size(size: Size, spec: &RunSpec, plan: &FaultPlan, raw: &[u8]) -> 
     // The pipeline is a few hundred KB: build it on the heap.
     match (size.width, size.height) {
         (320, 240) => {
-            let mut app: Box<pipeline_type!(320, 240, LEVELS, WIN, CANDIDATES, TRACKS)> =
-                Box::default();
-            replay(&mut app, spec, plan, raw)
+            let mut app: Box<Qvga> = Box::default();
+            replay(&mut *app, spec, plan, raw)
         }
         (160, 120) => {
-            let mut app: Box<pipeline_type!(160, 120, LEVELS, WIN, CANDIDATES, TRACKS)> =
-                Box::default();
-            replay(&mut app, spec, plan, raw)
+            let mut app: Box<Qqvga> = Box::default();
+            replay(&mut *app, spec, plan, raw)
         }
         (w, h) => bail!("no host pipeline for {w}x{h}"),
     }

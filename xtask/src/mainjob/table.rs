@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 
 use camgeom::target::TargetState;
-use camgeom_fw_app::pipeline::STAGES;
+use camgeom_fw_app::costs::STAGES;
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 
 use crate::jobs::{Board, M7, Size};

@@ -16,8 +16,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, ensure};
 use camgeom::camera::Lens;
 use camgeom::nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
-use camgeom::target::TargetState;
-use camgeom_fw_app::pipeline::STAGES;
+use camgeom::target::{Stage, TargetState};
+use camgeom_fw_app::costs::{Cost, STAGES};
 use camgeom_fw_app::recorded::FaultPlan;
 use camgeom_fw_app::report::FrameRecord;
 use camgeom_fw_app::run::{Acquisition, RunSpec};
@@ -192,11 +192,11 @@ fn write_frames_csv(
             u32::from(r.tracked),
             u32::from(r.inliers),
             u32::from(r.features),
-            c.acquire,
-            c.flow,
-            c.homography,
-            c.pose,
-            c.redetect,
+            c[Cost::Step(Stage::Acquire)],
+            c[Cost::Step(Stage::Flow)],
+            c[Cost::Step(Stage::Homography)],
+            c[Cost::Step(Stage::Pose)],
+            c[Cost::Step(Stage::Redetect)],
             c.total,
         ];
         [k.to_string(), format!("{:?}", r.state)]
@@ -258,7 +258,7 @@ pub fn run(stride: u32) -> Result<String> {
     for (name, detect) in [("detection", true), ("tracking", false)] {
         let rows: Vec<&FrameRecord> = frames
             .values()
-            .filter(|r| r.index > 0 && (r.costs.acquire > 0) == detect)
+            .filter(|r| r.index > 0 && (r.costs[Cost::Step(Stage::Acquire)] > 0) == detect)
             .collect();
         let n = rows.len().max(1) as u64;
         let cells: Vec<String> = (1..STAGES.len())

@@ -7,15 +7,14 @@ use camgeom_fw_emulated::job;
 
 use camgeom_fw_emulated::entry;
 
-use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use camgeom_fw_app::sizes::Qqvga;
 use static_cell::ConstStaticCell;
 
 const W: usize = 160;
 const H: usize = 120;
 
 /// Every buffer of the pipeline, in `.bss`: the linker checks it against `memory.x`.
-static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
-    ConstStaticCell::new(camgeom_fw_app::Pipeline::new());
+static APP: ConstStaticCell<Qqvga> = ConstStaticCell::new(Qqvga::new());
 
 #[entry]
 fn main() -> ! {

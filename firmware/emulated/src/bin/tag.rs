@@ -8,7 +8,7 @@
 
 use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, Workspace320x240};
 use camgeom_fw_app::run::{Acquisition, TAG_FAMILIES};
-use camgeom_fw_emulated::job::{CANDIDATES, LEVELS, TRACKS, WIN};
+use camgeom_fw_app::sizes::Qvga;
 use camgeom_fw_emulated::{board, entry, job};
 use static_cell::{ConstStaticCell, StaticCell};
 
@@ -16,8 +16,7 @@ const W: usize = 320;
 const H: usize = 240;
 
 /// Every buffer of the pipeline, in `.bss`.
-static APP: ConstStaticCell<camgeom_fw_app::pipeline_type!(W, H, LEVELS, WIN, CANDIDATES, TRACKS)> =
-    ConstStaticCell::new(camgeom_fw_app::Pipeline::new());
+static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 /// The tag detector's memory (119 KB at 320x240), in `.bss` too.
 static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
 static DETECTOR: StaticCell<Detector> = StaticCell::new();
