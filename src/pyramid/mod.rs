@@ -391,6 +391,10 @@ impl<'a> Pyramid<'a> {
     /// Builds `levels` levels (1 to [`MAX_LEVELS`]) of `frame` into `buf`, which must hold at
     /// least [`buffer_len`] bytes. Errors: [`Error::InvalidParameter`] for a level count out of
     /// range, [`Error::InvalidImage`] when the buffer is too short.
+    ///
+    /// Never inlined: its tile buffers then live on the stack only while it runs, not under
+    /// every later stage of a frame loop that calls it.
+    #[inline(never)]
     pub fn build(frame: ImageView<'a, u8>, buf: &'a mut [u8], levels: usize) -> Result<Self> {
         if levels == 0 || levels > MAX_LEVELS {
             return Err(Error::InvalidParameter("levels"));

@@ -41,17 +41,30 @@ use crate::{Error, Result};
 pub struct PyramidPair<F, P> {
     frames: [F; 2],
     pyramids: [P; 2],
-    width: usize,
-    height: usize,
-    levels: usize,
-    /// The buffer holding the latest frame.
-    latest: usize,
-    /// Frames held (0, 1 or 2): the latest and, with 2, the one before it.
-    held: u8,
-    /// `held` before the last [`PyramidPair::advance`], while it can be undone
-    /// ([`PyramidPair::rewind`]).
-    undo: Option<u8>,
+    // The geometry in the smallest types that hold it ([`crate::image::MAX_DIM`],
+    // [`super::MAX_LEVELS`]): a board's pipeline static keeps its size to the byte.
+    width: u16,
+    height: u16,
+    levels: u8,
+    /// Bit 0: the buffer holding the latest frame; bits 1-2: frames held (0, 1 or 2: the
+    /// latest and, with 2, the one before it); bit 3: the last [`PyramidPair::advance`] can
+    /// be undone ([`PyramidPair::rewind`]).
+    state: u8,
 }
+
+/// `PyramidPair::state` of the latest buffer, the frames held and whether the last advance
+/// can be undone.
+const fn pack(latest: usize, held: usize, undo: bool) -> u8 {
+    (latest as u8 & LATEST)
+        | ((if held > 2 { 2 } else { held as u8 }) << HELD_SHIFT)
+        | if undo { UNDO } else { 0 }
+}
+
+/// `PyramidPair::state`'s fields.
+const LATEST: u8 = 1;
+const HELD_SHIFT: u8 = 1;
+const HELD: u8 = 0b110;
+const UNDO: u8 = 0b1000;
 
 /// What [`PyramidPair::advance`] hands out: the new frame's pyramid and the previous frame's.
 #[derive(Debug, Clone)]
@@ -72,28 +85,42 @@ impl<F, P> PyramidPair<F, P> {
             width: 0,
             height: 0,
             levels: 0,
-            latest: 0,
-            held: 0,
-            undo: None,
+            state: 0,
         }
     }
 
     /// `(width, height, levels)` set by [`Self::set_geometry`] (zeros before).
     pub const fn geometry(&self) -> (usize, usize, usize) {
-        (self.width, self.height, self.levels)
+        (
+            self.width as usize,
+            self.height as usize,
+            self.levels as usize,
+        )
     }
 
     /// Frames held: 0 before the first [`Self::advance`] (and after [`Self::clear`]), then
     /// 1, then 2.
     pub const fn held(&self) -> usize {
-        self.held as usize
+        ((self.state & HELD) >> HELD_SHIFT) as usize
+    }
+
+    /// The buffer (0 or 1) holding the latest frame.
+    const fn latest(&self) -> usize {
+        (self.state & LATEST) as usize
+    }
+
+    /// The buffer the next frame goes into.
+    const fn free(&self) -> usize {
+        if self.held() == 0 {
+            0
+        } else {
+            1 - self.latest()
+        }
     }
 
     /// Forgets the frames held: the next [`Self::advance`] is a first frame again.
     pub fn clear(&mut self) {
-        self.held = 0;
-        self.undo = None;
-        self.latest = 0;
+        self.state = 0;
     }
 
     /// Undoes the last [`Self::advance`] (the frame it took in is dropped; the frame before is
@@ -102,11 +129,13 @@ impl<F, P> PyramidPair<F, P> {
     /// been overwritten by the dropped frame's capture, so no previous frame is lent out until
     /// the next advance. Once only; nothing otherwise.
     pub fn rewind(&mut self) {
-        if let Some(before) = self.undo.take() {
-            if before > 0 {
-                self.latest = 1 - self.latest;
+        if self.state & UNDO != 0 {
+            // One frame held: it was the first, nothing is left. Two: the one before is the
+            // latest again.
+            match self.held() {
+                2 => self.state = pack(1 - self.latest(), 1, false),
+                _ => self.state = pack(0, 0, false),
             }
-            self.held = before.min(1);
         }
     }
 }
@@ -133,7 +162,14 @@ impl<F: AsRef<[u8]> + AsMut<[u8]>, P: AsRef<[u8]> + AsMut<[u8]>> PyramidPair<F, 
         if self.pyramids.iter().any(|p| p.as_ref().len() < pyr) {
             return Err(Error::BufferTooSmall("pyramids"));
         }
-        (self.width, self.height, self.levels) = (width, height, levels);
+        let (Ok(w), Ok(h), Ok(l)) = (
+            u16::try_from(width),
+            u16::try_from(height),
+            u8::try_from(levels),
+        ) else {
+            return Err(Error::InvalidImage);
+        };
+        (self.width, self.height, self.levels) = (w, h, l);
         self.clear();
         Ok(())
     }
@@ -141,8 +177,8 @@ impl<F: AsRef<[u8]> + AsMut<[u8]>, P: AsRef<[u8]> + AsMut<[u8]>> PyramidPair<F, 
     /// The buffer the next frame goes into: the free one (never the latest frame's). Errors:
     /// as [`ImageMut::packed`] before [`Self::set_geometry`].
     pub fn capture(&mut self) -> Result<ImageMut<'_, u8>> {
-        let free = if self.held == 0 { 0 } else { 1 - self.latest };
-        let (w, h) = (self.width, self.height);
+        let free = self.free();
+        let (w, h, _) = self.geometry();
         let buf = self
             .frames
             .get_mut(free)
@@ -154,9 +190,14 @@ impl<F: AsRef<[u8]> + AsMut<[u8]>, P: AsRef<[u8]> + AsMut<[u8]>> PyramidPair<F, 
     /// Takes the frame written through [`Self::capture`] as the latest: builds its pyramid into
     /// the free pyramid buffer and returns it with the previous frame's (re-wrapped from its
     /// buffer). Errors: as [`Pyramid::build`] (before [`Self::set_geometry`]).
+    ///
+    /// Never inlined, for the same reason as [`Pyramid::build`]: what it needs on the stack
+    /// is not held under the later stages of the caller's frame.
+    #[inline(never)]
     pub fn advance(&mut self) -> Result<Pyramids<'_>> {
-        let next_index = if self.held == 0 { 0 } else { 1 - self.latest };
-        let (w, h, levels) = (self.width, self.height, self.levels);
+        let next_index = self.free();
+        let held = self.held();
+        let (w, h, levels) = self.geometry();
         let [f0, f1] = &self.frames;
         let [p0, p1] = &mut self.pyramids;
         let (next_frame, prev_frame, next_pyr, prev_pyr) = if next_index == 0 {
@@ -166,7 +207,7 @@ impl<F: AsRef<[u8]> + AsMut<[u8]>, P: AsRef<[u8]> + AsMut<[u8]>> PyramidPair<F, 
         };
         let prev_pyr: &P = prev_pyr;
         let next = Pyramid::build(view(next_frame, w, h)?, next_pyr.as_mut(), levels)?;
-        let previous = if self.held > 0 {
+        let previous = if held > 0 {
             Some(Pyramid::from_buffer(
                 view(prev_frame, w, h)?,
                 prev_pyr.as_ref(),
@@ -175,32 +216,30 @@ impl<F: AsRef<[u8]> + AsMut<[u8]>, P: AsRef<[u8]> + AsMut<[u8]>> PyramidPair<F, 
         } else {
             None
         };
-        self.undo = Some(self.held);
-        self.held = (self.held + 1).min(2);
-        self.latest = next_index;
+        self.state = pack(next_index, held + 1, true);
         Ok(Pyramids { previous, next })
     }
 
     /// The frame before the latest, writable (it is no template any more once the latest
     /// frame has been tracked from it): `None` with fewer than two frames held.
     pub fn previous_mut(&mut self) -> Result<Option<ImageMut<'_, u8>>> {
-        if self.held < 2 {
+        if self.held() < 2 {
             return Ok(None);
         }
-        self.frame_mut(1 - self.latest).map(Some)
+        self.frame_mut(1 - self.latest()).map(Some)
     }
 
     /// The latest frame, writable (for a last overlay: the next [`Self::advance`] then tracks
     /// from what was drawn): `None` before the first frame.
     pub fn latest_mut(&mut self) -> Result<Option<ImageMut<'_, u8>>> {
-        if self.held == 0 {
+        if self.held() == 0 {
             return Ok(None);
         }
-        self.frame_mut(self.latest).map(Some)
+        self.frame_mut(self.latest()).map(Some)
     }
 
     fn frame_mut(&mut self, i: usize) -> Result<ImageMut<'_, u8>> {
-        let (w, h) = (self.width, self.height);
+        let (w, h, _) = self.geometry();
         let buf = self.frames.get_mut(i).ok_or(Error::InvalidImage)?.as_mut();
         ImageMut::packed(buf.get_mut(..w * h).ok_or(Error::InvalidImage)?, w, h)
     }

@@ -158,8 +158,40 @@ impl<E> From<Error> for AppError<E> {
     }
 }
 
-/// The latest frame: its number, best pose and outline (what its overlay draws).
-type LastFrame = (u32, Option<PoseEstimate<f32>>, Option<[Point2<f32>; 4]>);
+/// The latest frame: its number and what its overlay draws. Flags rather than `Option`s: two
+/// `Option` tags would take 8 bytes of the pipeline's static where these take 2.
+#[derive(Debug, Clone, Copy)]
+struct LastFrame {
+    index: u32,
+    pose: PoseEstimate<f32>,
+    outline: [Point2<f32>; 4],
+    has_pose: bool,
+    has_outline: bool,
+}
+
+impl LastFrame {
+    fn of(index: u32, frame: &TargetFrame) -> Self {
+        let best = frame.pose.map(|p| p.best);
+        Self {
+            index,
+            pose: best.unwrap_or(PoseEstimate {
+                pose: camgeom::transform::Pose::identity(),
+                rms_px: 0.0,
+            }),
+            outline: frame.outline.unwrap_or([Point2::origin(); 4]),
+            has_pose: best.is_some(),
+            has_outline: frame.outline.is_some(),
+        }
+    }
+
+    fn pose(&self) -> Option<PoseEstimate<f32>> {
+        self.has_pose.then_some(self.pose)
+    }
+
+    fn outline(&self) -> Option<[Point2<f32>; 4]> {
+        self.has_outline.then_some(self.outline)
+    }
+}
 
 /// A frame loop, whatever its buffer sizes: what code that runs a [`Pipeline`] needs.
 pub trait FrameLoop {
@@ -280,14 +312,12 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         clock: &mut Clk,
         overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
     ) -> Result<Option<FrameReport>, AppError<Src::Error>> {
-        let previous = match self.frames.held() {
-            0 => {
-                self.start(cfg, source.size())?;
-                None
-            }
-            _ => self.last.get().copied(),
-        };
-        let index = previous.map_or(0, |(i, _, _)| i.saturating_add(1));
+        if self.frames.held() == 0 {
+            self.start(cfg, source.size())?;
+        }
+        // Only the number is held across the frame; the previous frame's overlay is read back
+        // after the core's loop, which does not touch it (less stack under the loop).
+        let index = self.last.get().map_or(0, |p| p.index.saturating_add(1));
         let mut costs = StageCosts::default();
         let t0 = clock.now();
         {
@@ -324,16 +354,15 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         };
         // The previous frame has served as the template: draw its overlay into it.
         let t3 = clock.now();
-        if let Some((prev_index, pose, outline)) = previous
+        if let Some(p) = self.last.get().copied()
             && let Some(mut img) = self.frames.previous_mut()?
         {
-            draw_overlay(cfg, &mut img, pose, outline)?;
-            overlay(prev_index, &img.as_view());
+            draw_overlay(cfg, &mut img, p.pose(), p.outline())?;
+            overlay(p.index, &img.as_view());
             costs[Cost::Draw] = span(t3, clock.now());
         }
         costs.total = span(t1, clock.now());
-        self.last
-            .set((index, out.pose.map(|p| p.best), out.outline));
+        self.last.set(LastFrame::of(index, &out));
         Ok(Some(FrameReport {
             index,
             frame: out,
@@ -347,11 +376,11 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         cfg: &AppConfig,
         overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
     ) -> Result<(), AppError<E>> {
-        if let Some((index, pose, outline)) = self.last.take()
+        if let Some(last) = self.last.take()
             && let Some(mut img) = self.frames.latest_mut()?
         {
-            draw_overlay(cfg, &mut img, pose, outline)?;
-            overlay(index, &img.as_view());
+            draw_overlay(cfg, &mut img, last.pose(), last.outline())?;
+            overlay(last.index, &img.as_view());
         }
         Ok(())
     }
