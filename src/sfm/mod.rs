@@ -52,8 +52,10 @@
 //! ```
 
 mod bundle;
+mod track;
 
 pub use bundle::{BundleReport, PointBlock, bundle_adjust};
+pub use track::Track;
 
 use nalgebra::{Point2, Point3};
 
@@ -64,9 +66,6 @@ use crate::scalar::{Real, above};
 use crate::transform::Pose;
 use crate::twoview::{find_essential, recover_pose, triangulate_optimal};
 use crate::{Error, Result};
-
-/// The observations of one scene point in the three views (`None`: not seen), raw pixels.
-pub type Track<T = f32> = [Option<Point2<T>>; 3];
 
 /// Parameters of [`reconstruct_three_views`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -78,7 +78,24 @@ pub const STAGES: [&str; Cost::COLUMNS] = {
     names
 };
 
-/// What one frame cost, in the [`crate::pipeline::Clock`]'s unit (saturating at
+/// The board's clock: a monotonic count in its own unit (cycles on hardware, instructions on
+/// QEMU with `-icount`). Differences are what the cost record holds.
+pub trait Clock {
+    /// The count now.
+    fn now(&mut self) -> u64;
+}
+
+/// A clock that always reads 0 (every cost 0): for replays where only the results matter.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct NoClock;
+
+impl Clock for NoClock {
+    fn now(&mut self) -> u64 {
+        0
+    }
+}
+
+/// What one frame cost, in the [`Clock`]'s unit (saturating at
 /// `u32::MAX`), per [`Cost`] (`costs[Cost::Pyramid]`); a stage that did not run costs 0.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct StageCosts {
@@ -136,7 +153,7 @@ pub fn span(from: u64, to: u64) -> u32 {
 }
 
 /// Attributes the time between the core's stage reports to the stages of a [`StageCosts`].
-pub struct Probe<'a, C: crate::pipeline::Clock> {
+pub struct Probe<'a, C: Clock> {
     /// The board's clock.
     pub clock: &'a mut C,
     /// The clock when the last stage ended.
@@ -145,7 +162,7 @@ pub struct Probe<'a, C: crate::pipeline::Clock> {
     pub costs: &'a mut StageCosts,
 }
 
-impl<C: crate::pipeline::Clock> StageProbe<Stage> for Probe<'_, C> {
+impl<C: Clock> StageProbe<Stage> for Probe<'_, C> {
     fn stage_done(&mut self, stage: Stage) {
         let now = self.clock.now();
         self.costs.add(Cost::Step(stage), span(self.last, now));

@@ -34,6 +34,7 @@ use camgeom::pose::PoseEstimate;
 use camgeom::pyramid::{self, PyramidPair};
 use camgeom::target::{Acquire, PlanarTarget, TargetFrame, TargetParams, TargetState};
 
+pub use crate::costs::{Clock, NoClock};
 use crate::costs::{Cost, Probe, StageCosts, span};
 use crate::slot::Slot;
 use crate::source::FrameSource;
@@ -81,23 +82,6 @@ pub struct AppConfig {
     pub wire: WireframeConfig<f32>,
     /// Pixel value of the target's outline.
     pub outline_value: u8,
-}
-
-/// The board's clock: a monotonic count in its own unit (cycles on hardware, instructions on
-/// QEMU with `-icount`). Differences are what the cost record holds.
-pub trait Clock {
-    /// The count now.
-    fn now(&mut self) -> u64;
-}
-
-/// A clock that always reads 0 (every cost 0): for replays where only the results matter.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct NoClock;
-
-impl Clock for NoClock {
-    fn now(&mut self) -> u64 {
-        0
-    }
 }
 
 /// The outcome of one frame: the core's [`TargetFrame`], and what the board adds to it.

@@ -1,0 +1,6 @@
+//! A track: one scene point's observations in the three views.
+
+use nalgebra::Point2;
+
+/// The observations of one scene point in the three views (`None`: not seen), raw pixels.
+pub type Track<T = f32> = [Option<Point2<T>>; 3];
