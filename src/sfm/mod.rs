@@ -226,19 +226,13 @@ pub fn reconstruct_three_views<T: Real, const N: usize>(
 
     // 2. Triangulate the 1-2 inliers.
     let mut initial_inliers = 0usize;
-    for (idx, _) in ws
-        .index
-        .iter()
-        .zip(ws.mask.iter())
-        .take(m)
-        .filter(|(_, m)| **m)
-    {
+    for idx in inliers(&ws.index, &ws.mask, m) {
         initial_inliers += 1;
-        let (Some(norm), Some(track)) = (ws.normalized.get(*idx), tracks.get(*idx)) else {
+        let (Some(norm), Some(track)) = (ws.normalized.get(idx), tracks.get(idx)) else {
             continue;
         };
         if let Some(x) = triangulate_checked(camera, config, [(&p1, 0), (&p2, 1)], norm, track)
-            && let (Some(pt), Some(used)) = (ws.points.get_mut(*idx), ws.used.get_mut(*idx))
+            && let (Some(pt), Some(used)) = (ws.points.get_mut(idx), ws.used.get_mut(idx))
         {
             *pt = Some(x);
             used[0] = true;
@@ -270,14 +264,8 @@ pub fn reconstruct_three_views<T: Real, const N: usize>(
     );
     let (est, report) = solve_pnp_ransac(camera, world, pixels, scratch, &config.pnp, mask)?;
     let p3 = est.pose;
-    for (idx, _) in ws
-        .index
-        .iter()
-        .zip(ws.mask.iter())
-        .take(m)
-        .filter(|(_, m)| **m)
-    {
-        if let Some(used) = ws.used.get_mut(*idx) {
+    for idx in inliers(&ws.index, &ws.mask, m) {
+        if let Some(used) = ws.used.get_mut(idx) {
             used[2] = true;
         }
     }
@@ -328,6 +316,15 @@ pub fn reconstruct_three_views<T: Real, const N: usize>(
         new_points,
         bundle,
     })
+}
+
+/// The track indices of the first `m` correspondences that `mask` marks as inliers.
+fn inliers<'a>(index: &'a [usize], mask: &'a [bool], m: usize) -> impl Iterator<Item = usize> + 'a {
+    index
+        .iter()
+        .zip(mask)
+        .take(m)
+        .filter_map(|(&i, &inlier)| inlier.then_some(i))
 }
 
 /// Triangulates a track between two views (optimal method) and accepts the point when it is

@@ -80,7 +80,7 @@ use nalgebra::{Matrix3, Point2, Rotation3, Vector3};
 
 use crate::camera::Intrinsics;
 use crate::homogeneous::{Line2h, Point2h};
-use crate::linalg::svd_jacobi;
+use crate::linalg::{Svd, svd_jacobi};
 use crate::scalar::{Real, above, check_finite};
 use crate::transform::Transform;
 use crate::{Error, Result};
@@ -180,6 +180,19 @@ pub fn sampson_distance_sq<T: Real>(m: &Matrix3<T>, x1: &Point2<T>, x2: &Point2<
     d.finite().then_some(d)
 }
 
+/// The SVD of a 3x3 matrix of rank at least 2, with its two largest singular values `σ₁ ≥ σ₂`:
+/// what projecting onto the fundamental or the essential matrices starts from. Errors:
+/// [`Error::NonFinite`]; [`Error::Degenerate`] when `σ₂ ≤ √ε σ₁` (rank below 2).
+fn rank_two_svd<T: Real>(m: &Matrix3<T>) -> Result<(Svd<T, 3, 3>, [T; 2])> {
+    check_finite(m.as_slice())?;
+    let svd = svd_jacobi(m)?;
+    let [s1, s2, _]: [T; 3] = svd.singular_values.into();
+    if !above(s2, T::EPSILON.sqrt() * s1) {
+        return Err(Error::Degenerate);
+    }
+    Ok((svd, [s1, s2]))
+}
+
 /// A fundamental matrix: `x₂ᵀ F x₁ = 0` for every pair of pixels `x₁ ↔ x₂` imaging the same
 /// scene point, rank 2, stored with unit Frobenius norm (`F` is defined up to scale).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -198,12 +211,7 @@ impl<T: Real> Fundamental<T> {
     /// Project well-scaled matrices (normalised coordinates): a pixel `F` has `σ₂/σ₁` of
     /// about `1/f²`, below `√ε` in `f32`, and is rejected there.
     pub fn from_matrix(m: &Matrix3<T>) -> Result<Self> {
-        check_finite(m.as_slice())?;
-        let svd = svd_jacobi(m)?;
-        let [s1, s2, _]: [T; 3] = svd.singular_values.into();
-        if !above(s2, T::EPSILON.sqrt() * s1) {
-            return Err(Error::Degenerate);
-        }
+        let (svd, [s1, s2]) = rank_two_svd(m)?;
         let d = Matrix3::from_diagonal(&Vector3::new(s1, s2, T::zero()));
         Self::from_rank2(&(svd.u * d * svd.v.transpose()))
     }
@@ -274,12 +282,7 @@ impl<T: Real> Essential<T> {
     ///
     /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when `σ₂ ≤ √ε σ₁` (rank below 2).
     pub fn from_matrix(m: &Matrix3<T>) -> Result<Self> {
-        check_finite(m.as_slice())?;
-        let svd = svd_jacobi(m)?;
-        let [s1, s2, _]: [T; 3] = svd.singular_values.into();
-        if !above(s2, T::EPSILON.sqrt() * s1) {
-            return Err(Error::Degenerate);
-        }
+        let (svd, _) = rank_two_svd(m)?;
         let d = Matrix3::from_diagonal(&Vector3::new(T::one(), T::one(), T::zero()));
         Ok(Self {
             e: svd.u * d * svd.v.transpose(),
