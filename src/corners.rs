@@ -415,6 +415,7 @@ pub(crate) fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::O
 /// Returns the number of corners added. Errors: as [`CornerConfig::check`];
 /// [`Error::BufferTooSmall`] for fewer than 2 candidates or scratch shorter than
 /// [`scratch_len`].
+#[doc(alias = "goodFeaturesToTrack")]
 pub fn good_features<const K: usize>(
     img: &ImageView<'_, u8>,
     cfg: &CornerConfig,

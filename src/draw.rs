@@ -40,6 +40,7 @@ use crate::{Error, Result};
 
 /// Rasterises the segment `(x0, y0)–(x1, y1)` (pixel centres at integers), clipped to the
 /// image; returns the number of pixels written. Integer-only.
+#[doc(alias = "line")]
 pub fn draw_line_i32(
     img: &mut ImageMut<'_, u8>,
     x0: i32,
@@ -149,6 +150,7 @@ fn bresenham(img: &mut ImageMut<'_, u8>, x0: i64, y0: i64, x1: i64, y1: i64, val
 /// outside the image are first clipped in `f64` (Cohen-Sutherland, intersections computed on
 /// the clipping edge itself so huge coordinates keep their precision), so they cannot overflow
 /// `i32`.
+#[doc(alias = "line")]
 pub fn draw_line<T: Real>(
     img: &mut ImageMut<'_, u8>,
     a: &Point2<T>,
@@ -253,6 +255,8 @@ impl<T: Real> Default for WireframeConfig<T> {
 ///
 /// Errors: [`Error::InvalidParameter`] for an edge index out of range or `segments` outside
 /// `1..=64`; [`Error::NonFinite`].
+#[doc(alias = "projectPoints")]
+#[doc(alias = "drawFrameAxes")]
 pub fn draw_wireframe<T: Real>(
     img: &mut ImageMut<'_, u8>,
     camera: &Camera<T>,

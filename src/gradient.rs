@@ -210,6 +210,8 @@ pub(crate) fn scharr8(a: &[u8; 10], b: &[u8; 10], c: &[u8; 10]) -> [[i16; 2]; 8]
 
 /// Derivatives of a whole level into `dst` (interleaved `[Ix, Iy]`, same size as `img`, else
 /// [`Error::InvalidImage`]).
+#[doc(alias = "Scharr")]
+#[doc(alias = "spatialGradient")]
 pub fn scharr_level(img: &ImageView<'_, u8>, dst: &mut ImageMut<'_, [i16; 2]>) -> Result<()> {
     if (dst.width(), dst.height()) != (img.width(), img.height()) {
         return Err(Error::InvalidImage);

@@ -15,8 +15,9 @@
 //! 5. stop after `min(N, max_iterations)` samples, then polish the best model once with
 //!    [`Estimator::refine`] (e.g. Levenberg-Marquardt) and write its inlier mask.
 //!
-//! The same loop serves homographies ([`crate::homography::find_homography`]) and, later,
-//! fundamental and essential matrices: only the [`Estimator`] changes.
+//! The same loop serves homographies ([`crate::homography::find_homography`]), fundamental and
+//! essential matrices ([`crate::twoview`]) and PnP ([`crate::pose::solve_pnp_ransac`]): only the
+//! [`Estimator`] changes.
 //!
 //! A line `y = a x + b` through points with outliers, as a minimal [`Estimator`]:
 //!

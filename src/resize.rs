@@ -92,6 +92,8 @@ fn strip_width(ws: usize, wd: usize, left: usize) -> usize {
 /// bytes are those of the per-pixel formula.
 ///
 /// Never fails for valid views; the `Result` is for API symmetry with the other kernels.
+#[doc(alias = "resize")]
+#[doc(alias = "INTER_LINEAR")]
 pub fn resize_bilinear(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
     let (ws, hs) = (src.width(), src.height());
     let (wd, hd) = (dst.width(), dst.height());

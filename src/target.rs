@@ -470,8 +470,9 @@ impl<C: Copy> FlowItem<C> for Feature<C> {
 ///   the lens model in `f32`.
 /// - [`Fixed`]: [`solve_planar_integer`]: IPPE from the loop's homography at four points,
 ///   refined with integer per-point arithmetic on the error in the undistorted image; for cores
-///   without an FPU, where it costs a sixth of the float path's instructions (BENCHMARKS.md, the
-///   main job's pose column), and within a stated bound of it (`solve_planar_integer`'s tests,
+///   without an FPU, where it costs a fraction of the float path's instructions (measured in
+///   BENCHMARKS.md: the Cortex-M3 row of the main job's pose column), and within a stated bound
+///   of it (`solve_planar_integer`'s tests,
 ///   and the host test over the box sequence).
 pub trait PoseArith: FlowArith {
     /// One pair of the pose stage's scratch.

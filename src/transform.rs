@@ -160,6 +160,7 @@ impl<A: Frame, B: Frame, T: Real> Transform<A, B, T> {
     }
 
     /// From OpenCV's `rvec` (axis-angle, `|r|` = angle in radians) and `tvec`.
+    #[doc(alias = "Rodrigues")]
     pub fn from_rodrigues(rvec: Vector3<T>, tvec: Vector3<T>) -> Result<Self> {
         check_finite(rvec.as_slice())?;
         check_finite(tvec.as_slice())?;
@@ -188,6 +189,7 @@ impl<A: Frame, B: Frame, T: Real> Transform<A, B, T> {
     }
 
     /// Rotation as an axis-angle vector (OpenCV's `rvec`).
+    #[doc(alias = "Rodrigues")]
     pub fn rotation_vector(&self) -> Vector3<T> {
         self.iso.rotation.scaled_axis()
     }

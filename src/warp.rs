@@ -228,6 +228,7 @@ fn blend(s: u8, d: u8, alpha: u8) -> u8 {
 /// [`Error::NonFinite`] / [`Error::Degenerate`] from the set-up of the inverse;
 /// [`Error::Overflow`] ([`Arithmetic::Fixed`] only) when `M` cannot be quantised with at least
 /// 8 fractional bits (a quadrilateral of a fraction of a pixel showing a whole logo).
+#[doc(alias = "warpPerspective")]
 pub fn warp_perspective_into(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,

@@ -447,6 +447,8 @@ fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
 ///
 /// Errors: [`Error::InvalidParameter`] when `threshold == 0`; [`Error::BufferTooSmall`] when
 /// `scratch` is too short.
+#[doc(alias = "FAST")]
+#[doc(alias = "FastFeatureDetector")]
 pub fn fast_detect(
     img: &ImageView<'_, u8>,
     config: &FastConfig,

@@ -25,6 +25,8 @@ pub struct Descriptor(pub [u32; 8]);
 
 /// Hamming distance `popcount(a ⊕ b)`, `0..=256`.
 #[inline]
+#[doc(alias = "norm")]
+#[doc(alias = "NORM_HAMMING")]
 pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
     a.0.iter()
         .zip(b.0.iter())
@@ -84,6 +86,8 @@ pub const MAX_DESCRIPTORS: usize = u16::MAX as usize;
 /// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a side
 /// or a NaN ratio; [`Error::BufferTooSmall`] for a short `scratch`; [`Error::LengthMismatch`]
 /// when `out` is shorter than `query`.
+#[doc(alias = "BFMatcher")]
+#[doc(alias = "NORM_HAMMING")]
 pub fn match_descriptors(
     query: &[Descriptor],
     train: &[Descriptor],

@@ -253,6 +253,8 @@ impl LevelMap {
 /// Errors: [`Error::InvalidParameter`] for `levels` outside `1..=MAX_LEVELS`, `scale_q8`
 /// outside `272..=512` or a zero FAST threshold; [`Error::BufferTooSmall`] for a short
 /// `scratch`.
+#[doc(alias = "ORB")]
+#[doc(alias = "detectAndCompute")]
 pub fn orb_detect<const N: usize>(
     frame: &ImageView<'_, u8>,
     config: &OrbConfig,

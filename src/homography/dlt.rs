@@ -44,6 +44,7 @@ pub fn rank_tolerance<T: Real>() -> T {
 /// e.g. three of four source points collinear), or when `H_n` is close to singular
 /// (`σ₃(H_n) ≤ tol σ₁(H_n)`: e.g. all destination points collinear), with `tol` =
 /// [`rank_tolerance`]; [`Error::NoConvergence`] if an SVD does not converge.
+#[doc(alias = "findHomography")]
 pub fn dlt<T: Real>(src: &[Point2<T>], dst: &[Point2<T>]) -> Result<Homography<T>> {
     if src.len() != dst.len() {
         return Err(Error::LengthMismatch);

@@ -107,6 +107,7 @@ impl<T: Real> Homography<T> {
     /// `λ = adj[p₁ p₂ p₃] p₄`, which send the canonical frame `e₁, e₂, e₃, (1, 1, 1)` to the
     /// four points: no iteration and no division until the final `h33` normalisation, ~200
     /// flops. Finally `H = T_dst⁻¹ H_n T_src`.
+    #[doc(alias = "getPerspectiveTransform")]
     pub fn from_four_points(src: &[Point2<T>; 4], dst: &[Point2<T>; 4]) -> Result<Self> {
         check_sample(src, dst)?;
         let ns = Normalization::from_points(src)?;

@@ -117,6 +117,7 @@ impl<T: Real> Homography<T> {
     /// Errors: [`Error::NonFinite`] for NaN/inf input or an overflowing result;
     /// [`Error::AtInfinity`] when `|w| ≤ ε max(|(H x)₁|, |(H x)₂|)` (the point is on, or within
     /// rounding of, the line `H` sends to infinity).
+    #[doc(alias = "perspectiveTransform")]
     pub fn transfer(&self, p: &Point2<T>) -> Result<Point2<T>> {
         check_finite(&[p.x, p.y])?;
         let v = self.h * Vector3::new(p.x, p.y, T::one());

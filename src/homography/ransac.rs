@@ -159,6 +159,7 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
 /// assert!((h.transfer(&probe)? - truth.transfer(&probe)?).norm() < 0.01);
 /// # Ok::<(), camgeom::Error>(())
 /// ```
+#[doc(alias = "findHomography")]
 pub fn find_homography<T: Real>(
     src: &[Point2<T>],
     dst: &[Point2<T>],

@@ -42,6 +42,8 @@ const PAIRS: [(usize, usize); 6] = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 4 points;
 /// [`Error::NonFinite`]; [`Error::Degenerate`] for (nearly) planar or collinear world points
 /// or when no candidate places the points in front of the camera; as [`crate::linalg::svd_jacobi`].
+#[doc(alias = "solvePnP")]
+#[doc(alias = "SOLVEPNP_EPNP")]
 pub fn epnp<T: Real>(world: &[Point3<T>], normalized: &[Point2<T>]) -> Result<(Pose<T>, T)> {
     if world.len() != normalized.len() {
         return Err(Error::LengthMismatch);

@@ -20,6 +20,7 @@ use crate::{Error, Result};
 /// [`super::solve_planar`] (IPPE plus refinement) is more accurate.
 ///
 /// Errors: [`Error::Degenerate`] when `m₁` or `m₂` vanishes; as [`closest_rotation`].
+#[doc(alias = "decomposeHomographyMat")]
 pub fn pose_from_homography<T: Real>(k: &Intrinsics<T>, h: &Homography<T>) -> Result<Pose<T>> {
     let m = k.inverse_matrix() * h.matrix();
     let (m1, m2, m3) = (m.column(0), m.column(1), m.column(2));

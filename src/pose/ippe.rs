@@ -78,6 +78,7 @@ impl<T: Real> PlanarPose<T> {
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 4 points; as
 /// [`dlt`] for degenerate point sets; [`Error::Degenerate`] when the homography's Jacobian is
 /// singular (the target is seen edge-on).
+#[doc(alias = "SOLVEPNP_IPPE")]
 pub fn ippe<T: Real>(model: &[Point2<T>], normalized: &[Point2<T>]) -> Result<[(Pose<T>, T); 2]> {
     if model.len() != normalized.len() {
         return Err(Error::LengthMismatch);
@@ -239,6 +240,8 @@ fn normalized_rms<T: Real>(
 /// `scratch` holds the undistorted normalised points and must have at least `model.len()`
 /// entries. Errors: as [`ippe`] and [`super::refine_pose`]; [`Error::LengthMismatch`] when
 /// `scratch` is too short.
+#[doc(alias = "solvePnP")]
+#[doc(alias = "SOLVEPNP_IPPE")]
 pub fn solve_planar<T: Real>(
     camera: &Camera<T>,
     model: &[Point2<T>],

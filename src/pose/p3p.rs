@@ -37,6 +37,7 @@ const CUBIC_NEWTON_ITERATIONS: u8 = 4;
 ///
 /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] for (nearly) collinear world points
 /// (`|d₁₂ × d₁₃|² ≤ ε a₁₂ a₁₃`), a zero bearing or two bearings closer than `√ε` rad.
+#[doc(alias = "solveP3P")]
 pub fn p3p<T: Real>(
     bearings: &[Vector3<T>; 3],
     world: &[Point3<T>; 3],

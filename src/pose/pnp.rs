@@ -27,6 +27,7 @@ type Sample<T> = ([Point3<T>; 4], [Vector3<T>; 4]);
 /// Errors: [`Error::LengthMismatch`] (slices, or `scratch` too short); as
 /// [`Camera::undistort_to_normalized`], [`epnp`] (planar points: use
 /// [`super::solve_planar`]) and [`refine_pose`].
+#[doc(alias = "solvePnP")]
 pub fn solve_pnp<T: Real>(
     camera: &Camera<T>,
     world: &[Point3<T>],
@@ -196,6 +197,7 @@ impl<T: Real> Estimator for PnpEstimator<'_, T> {
 /// Errors: [`Error::LengthMismatch`] (slices, `scratch` too short, `mask.len() != N`); as
 /// [`Camera::undistort_to_normalized`] and [`ransac`] ([`Error::Degenerate`] when no sample
 /// gave a pose).
+#[doc(alias = "solvePnPRansac")]
 pub fn solve_pnp_ransac<T: Real>(
     camera: &Camera<T>,
     world: &[Point3<T>],

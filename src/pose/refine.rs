@@ -38,6 +38,7 @@ pub fn reprojection_rms<T: Real>(
 /// Errors: [`Error::LengthMismatch`]; [`Error::TooFewPoints`] below 3 points (6 unknowns);
 /// [`Error::NonFinite`] for non-finite input or a residual that overflows;
 /// [`Error::BehindCamera`] when the starting pose puts a point behind the camera.
+#[doc(alias = "solvePnPRefineLM")]
 pub fn refine_pose<T: Real>(
     camera: &Camera<T>,
     pose: &Pose<T>,

@@ -103,6 +103,7 @@ fn reflect101(i: isize, n: usize) -> usize {
 /// the odd ones to the other, so that the horizontal pass is a straight-line loop over
 /// contiguous `u16` lanes (no stride-2 access, no reflection). Only the at most two source
 /// columns per side that fall outside the image take the reflecting slow path.
+#[doc(alias = "pyrDown")]
 pub fn pyr_down(src: &ImageView<'_, u8>, dst: &mut ImageMut<'_, u8>) -> Result<()> {
     pyr_down_with(src, dst, SWAR)
 }
@@ -395,6 +396,8 @@ impl<'a> Pyramid<'a> {
     /// Never inlined: its tile buffers then live on the stack only while it runs, not under
     /// every later stage of a frame loop that calls it.
     #[inline(never)]
+    #[doc(alias = "buildPyramid")]
+    #[doc(alias = "buildOpticalFlowPyramid")]
     pub fn build(frame: ImageView<'a, u8>, buf: &'a mut [u8], levels: usize) -> Result<Self> {
         if levels == 0 || levels > MAX_LEVELS {
             return Err(Error::InvalidParameter("levels"));
