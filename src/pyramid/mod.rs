@@ -7,7 +7,9 @@
 //! `out(x, y) = (Σᵢⱼ gᵢ gⱼ in(2x + i - 2, 2y + j - 2) + 128) >> 8`, size `(⌈w/2⌉, ⌈h/2⌉)`.
 //!
 //! [`PyramidPair`] owns the two frames and two pyramid buffers of a frame loop (the previous
-//! frame's pyramid is the template of the next flow) and swaps their roles frame by frame.
+//! frame's pyramid is the template of the next flow) and swaps their roles frame by frame:
+//! capture into the free frame, [`PyramidPair::advance`] for both pyramids,
+//! [`PyramidPair::previous_mut`] to draw on the frame that is no template any more.
 //!
 //! Integer only. The work runs in tiles of [`TILE`] output pixels with the vertical sums in a
 //! fixed stack array, so there is no scratch to provide and no size limit beyond

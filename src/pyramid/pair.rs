@@ -36,7 +36,7 @@ use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result};
 
 /// Two frame buffers (`F`) and two pyramid buffers (`P`) that swap roles each frame: see the
-/// [module documentation](self).
+/// module documentation of [`crate::pyramid`].
 #[derive(Debug, Clone)]
 pub struct PyramidPair<F, P> {
     frames: [F; 2],
