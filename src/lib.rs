@@ -73,6 +73,7 @@ pub(crate) const SIMD: bool = cfg!(any(
 ));
 
 pub mod apriltag;
+pub mod arith;
 pub mod calib;
 pub mod camera;
 pub mod chessboard;

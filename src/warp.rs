@@ -16,11 +16,11 @@
 //! source, so no input can make a read or a write go out of bounds. Work: one row setup per
 //! frame row the quadrilateral covers, then per written pixel one bilinear sample.
 //!
-//! Two arithmetics, chosen by [`Arithmetic`]:
+//! Two arithmetics, chosen by type ([`crate::arith`]):
 //!
-//! - [`Arithmetic::Float`]: `f32`; `x_s = X / W` per pixel and the bilinear sample
+//! - `f32`: `x_s = X / W` per pixel and the bilinear sample
 //!   `t + (b - t) f_y` (`t`, `b` the cell's rows at `f_x`) in `f32`, rounded once at the end.
-//! - [`Arithmetic::Fixed`], for cores without an FPU: `M` is quantised once to `i64` with `F`
+//! - [`Fixed`](crate::arith::Fixed), for cores without an FPU: `M` is quantised once to `i64` with `F`
 //!   fractional bits (the largest `F <= 40` that keeps every product below 2⁶² — see
 //!   [`warp_perspective_into`]). Along a scanline the homogeneous numerators and the
 //!   denominator advance by constant integer deltas, `X += m₁₁`, `Y += m₂₁`, `W += m₃₁`, which
@@ -48,44 +48,38 @@
 //! ```
 //! use camgeom::image::{ImageMut, ImageView};
 //! use camgeom::nalgebra::Point2;
-//! use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+//! use camgeom::arith::{Arithmetic, Fixed};
+//! use camgeom::warp::{WarpConfig, warp_into_quad};
 //!
 //! // A 5x5 logo, a ramp 0, 50, .. 200 across; into the square (10, 10)-(18, 18): twice as big.
 //! let logo: [u8; 25] = core::array::from_fn(|i| 50 * (i % 5) as u8);
 //! let quad = [(10.0, 10.0), (18.0, 10.0), (18.0, 18.0), (10.0, 18.0)];
 //! let quad = quad.map(|(x, y)| Point2::new(x, y));
-//! for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+//! fn check<A: Arithmetic>(logo: &[u8], quad: &[Point2<f32>; 4]) -> camgeom::Result<()> {
 //!     let mut frame = [7u8; 32 * 32];
 //!     let mut dst = ImageMut::packed(&mut frame, 32, 32)?;
-//!     let cfg = WarpConfig { arithmetic, ..WarpConfig::default() };
-//!     let report = warp_into_quad(&ImageView::packed(&logo, 5, 5)?, &mut dst, &quad, &cfg)?;
+//!     let cfg = WarpConfig::default();
+//!     let report = warp_into_quad::<A>(&ImageView::packed(logo, 5, 5)?, &mut dst, quad, &cfg)?;
 //!     assert_eq!(report.written, 9 * 9); // the pixel centres 10..=18 on both axes
 //!     for x in 10..=18 {
 //!         // Source column (x - 10) / 2: on a logo pixel, or halfway between two.
 //!         assert_eq!(frame[14 * 32 + x], (25 * (x - 10)) as u8);
 //!     }
 //!     assert_eq!((frame[14 * 32 + 9], frame[14 * 32 + 19], frame[9 * 32 + 14]), (7, 7, 7));
+//!     Ok(())
 //! }
+//! check::<f32>(&logo, &quad)?;
+//! check::<Fixed>(&logo, &quad)?;
 //! # Ok::<(), camgeom::Error>(())
 //! ```
 
 use nalgebra::{Matrix3, Point2, Vector3};
 
+use crate::arith::Arithmetic;
 use crate::homography::Homography;
 use crate::image::{ImageMut, ImageView};
 use crate::{Error, Result, SIMD};
 use wide::{f32x4, i16x8, i32x4, u8x16};
-
-/// Arithmetic of the per-pixel work of [`warp_perspective_into`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Arithmetic {
-    /// `f32` coordinates and weights.
-    #[default]
-    Float,
-    /// Integer homogeneous stepping and an integer bilinear sample (module docs).
-    Fixed,
-}
 
 /// Parameters of [`warp_perspective_into`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,16 +88,11 @@ pub struct WarpConfig {
     /// Constant opacity of the source, `out = (α s + (255 - α) d + 127) / 255`; 255 (the
     /// default) replaces the destination pixels.
     pub alpha: u8,
-    /// Float or fixed-point per-pixel arithmetic. Default [`Arithmetic::Float`].
-    pub arithmetic: Arithmetic,
 }
 
 impl Default for WarpConfig {
     fn default() -> Self {
-        Self {
-            alpha: 255,
-            arithmetic: Arithmetic::Float,
-        }
+        Self { alpha: 255 }
     }
 }
 
@@ -113,7 +102,7 @@ impl Default for WarpConfig {
 pub struct WarpReport {
     /// Destination pixels written.
     pub written: u32,
-    /// Fractional bits `F` of the quantised inverse map ([`Arithmetic::Fixed`]; 0 for float).
+    /// Fractional bits `F` of the quantised inverse map ([`Fixed`](crate::arith::Fixed); 0 for `f32`).
     pub fraction_bits: u8,
 }
 
@@ -226,10 +215,10 @@ fn blend(s: u8, d: u8, alpha: u8) -> u8 {
 /// Errors: [`Error::AtInfinity`] when a source corner maps to infinity or the corners map to
 /// both sides of `H`'s vanishing line (the image of the logo is unbounded);
 /// [`Error::NonFinite`] / [`Error::Degenerate`] from the set-up of the inverse;
-/// [`Error::Overflow`] ([`Arithmetic::Fixed`] only) when `M` cannot be quantised with at least
+/// [`Error::Overflow`] ([`Fixed`](crate::arith::Fixed) only) when `M` cannot be quantised with at least
 /// 8 fractional bits (a quadrilateral of a fraction of a pixel showing a whole logo).
 #[doc(alias = "warpPerspective")]
-pub fn warp_perspective_into(
+pub fn warp_perspective_into<A: Arithmetic>(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,
     h: &Homography<f32>,
@@ -238,9 +227,10 @@ pub fn warp_perspective_into(
     let Some(s) = setup((src.width(), src.height()), (dst.width(), dst.height()), h)? else {
         return Ok(WarpReport::default());
     };
-    match config.arithmetic {
-        Arithmetic::Float => Ok(warp_float::<SIMD>(src, dst, &s, config.alpha)),
-        Arithmetic::Fixed => warp_fixed::<SIMD>(src, dst, &s, config.alpha),
+    if A::INTEGER {
+        warp_fixed::<SIMD>(src, dst, &s, config.alpha)
+    } else {
+        Ok(warp_float::<SIMD>(src, dst, &s, config.alpha))
     }
 }
 
@@ -250,7 +240,7 @@ pub fn warp_perspective_into(
 /// Errors: [`Error::NonFinite`] for NaN/inf corners, [`Error::Degenerate`] for a quadrilateral
 /// with three collinear corners or a fold (self-intersecting, or not convex), else as
 /// [`warp_perspective_into`].
-pub fn warp_into_quad(
+pub fn warp_into_quad<A: Arithmetic>(
     src: &ImageView<'_, u8>,
     dst: &mut ImageMut<'_, u8>,
     quad: &[Point2<f32>; 4],
@@ -265,7 +255,7 @@ pub fn warp_into_quad(
     ];
     let q = quad.map(|p| p.cast::<f64>());
     let hom = Homography::<f64>::from_four_points(&corners, &q)?.cast::<f32>()?;
-    warp_perspective_into(src, dst, &hom, config).map_err(|e| match e {
+    warp_perspective_into::<A>(src, dst, &hom, config).map_err(|e| match e {
         // The four points passed the fold test, so a vanishing-line crossing is degeneracy of
         // the quadrilateral (for instance a logo of one pixel's width).
         Error::AtInfinity => Error::Degenerate,
@@ -632,7 +622,7 @@ fn clip_i64(lo: &mut i64, hi: &mut i64, a: i64, b: i64) {
     }
 }
 
-/// `⌊n / d⌋` along a scanline ([`Arithmetic::Fixed`]'s source coordinates `(2⁸ X + W/2) / W`),
+/// `⌊n / d⌋` along a scanline ([`Fixed`](crate::arith::Fixed)'s source coordinates `(2⁸ X + W/2) / W`),
 /// without a division per pixel. The quotient moves by nearly the same step from pixel to
 /// pixel, so the last quotient plus the last step, `q`, is `⌊n / d⌋` or next to it: the
 /// remainder `e = n - q d` tells which (`0 <= e < d`: `q`; `-d <= e < 0`: `q - 1`;
@@ -975,6 +965,7 @@ fn warp_fixed<const V: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::arith::Fixed;
     use proptest::prelude::*;
     use std::vec::Vec;
 
@@ -991,25 +982,50 @@ mod tests {
         Homography::from_matrix(&Matrix3::from_row_slice(&m)).unwrap()
     }
 
-    const FLOAT: WarpConfig = WarpConfig {
-        alpha: 255,
-        arithmetic: Arithmetic::Float,
-    };
-    const FIXED: WarpConfig = WarpConfig {
-        alpha: 255,
-        arithmetic: Arithmetic::Fixed,
-    };
+    const CFG: WarpConfig = WarpConfig { alpha: 255 };
+
+    /// [`warp_into_quad`] in the integer (`fixed`) or the `f32` arithmetic.
+    fn wq(
+        fixed: bool,
+        src: &ImageView<'_, u8>,
+        dst: &mut ImageMut<'_, u8>,
+        quad: &[Point2<f32>; 4],
+        cfg: &WarpConfig,
+    ) -> Result<WarpReport> {
+        if fixed {
+            warp_into_quad::<Fixed>(src, dst, quad, cfg)
+        } else {
+            warp_into_quad::<f32>(src, dst, quad, cfg)
+        }
+    }
+
+    /// [`warp_perspective_into`] in the integer (`fixed`) or the `f32` arithmetic.
+    fn wp(
+        fixed: bool,
+        src: &ImageView<'_, u8>,
+        dst: &mut ImageMut<'_, u8>,
+        h: &Homography<f32>,
+        cfg: &WarpConfig,
+    ) -> Result<WarpReport> {
+        if fixed {
+            warp_perspective_into::<Fixed>(src, dst, h, cfg)
+        } else {
+            warp_perspective_into::<f32>(src, dst, h, cfg)
+        }
+    }
 
     #[test]
     fn integer_translation_copies_and_clips() {
         let (w, h) = (20, 12);
         let src = logo(w, h);
         let sv = ImageView::packed(&src, w, h).unwrap();
-        for cfg in [FLOAT, FIXED] {
+        for fixed in [false, true] {
+            let cfg = CFG;
             // Shift by (+7, -3) into a 24x10 frame: partly outside on the right and the top.
             let mut out = std::vec![0u8; 24 * 10];
             let mut dv = ImageMut::packed(&mut out, 24, 10).unwrap();
-            let r = warp_perspective_into(
+            let r = wp(
+                fixed,
                 &sv,
                 &mut dv,
                 &hom([1., 0., 7., 0., 1., -3., 0., 0., 1.]),
@@ -1051,18 +1067,20 @@ mod tests {
             let hm = hom(m);
             let mut a = std::vec![7u8; 200 * 150];
             let mut b = std::vec![7u8; 200 * 150];
-            let ra = warp_perspective_into(
+            let ra = wp(
+                false,
                 &sv,
                 &mut ImageMut::packed(&mut a, 200, 150).unwrap(),
                 &hm,
-                &FLOAT,
+                &CFG,
             )
             .unwrap();
-            let rb = warp_perspective_into(
+            let rb = wp(
+                true,
                 &sv,
                 &mut ImageMut::packed(&mut b, 200, 150).unwrap(),
                 &hm,
-                &FIXED,
+                &CFG,
             )
             .unwrap();
             assert!(ra.written > 1000, "{ra:?}");
@@ -1094,7 +1112,8 @@ mod tests {
         let src = logo(32, 32);
         let sv = ImageView::packed(&src, 32, 32).unwrap();
         let mut out = std::vec![0u8; 50 * 40];
-        for cfg in [FLOAT, FIXED] {
+        for fixed in [false, true] {
+            let cfg = CFG;
             let mut dv = ImageMut::packed(&mut out, 50, 40).unwrap();
             let quad = |c: [[f32; 2]; 4]| c.map(|p| Point2::new(p[0], p[1]));
             // Entirely outside: nothing written.
@@ -1104,38 +1123,26 @@ mod tests {
                 [1e6 + 50.0, 1e6 + 50.0],
                 [1e6, 1e6 + 50.0],
             ]);
-            assert_eq!(warp_into_quad(&sv, &mut dv, &far, &cfg).unwrap().written, 0);
+            assert_eq!(wq(fixed, &sv, &mut dv, &far, &cfg).unwrap().written, 0);
             // Covering the whole frame: every pixel written once.
             let huge = quad([[-1e5, -1e5], [1e5, -1e5], [1e5, 1e5], [-1e5, 1e5]]);
-            assert_eq!(
-                warp_into_quad(&sv, &mut dv, &huge, &cfg).unwrap().written,
-                2000
-            );
+            assert_eq!(wq(fixed, &sv, &mut dv, &huge, &cfg).unwrap().written, 2000);
             // NaN, collinear, folded (bow-tie), non-convex.
             let nan = quad([[f32::NAN, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 10.0]]);
-            assert_eq!(
-                warp_into_quad(&sv, &mut dv, &nan, &cfg),
-                Err(Error::NonFinite)
-            );
+            assert_eq!(wq(fixed, &sv, &mut dv, &nan, &cfg), Err(Error::NonFinite));
             let line = quad([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [0.0, 10.0]]);
-            assert_eq!(
-                warp_into_quad(&sv, &mut dv, &line, &cfg),
-                Err(Error::Degenerate)
-            );
+            assert_eq!(wq(fixed, &sv, &mut dv, &line, &cfg), Err(Error::Degenerate));
             let bowtie = quad([[0.0, 0.0], [10.0, 10.0], [10.0, 0.0], [0.0, 10.0]]);
             assert_eq!(
-                warp_into_quad(&sv, &mut dv, &bowtie, &cfg),
+                wq(fixed, &sv, &mut dv, &bowtie, &cfg),
                 Err(Error::Degenerate)
             );
             let dart = quad([[0.0, 0.0], [20.0, 0.0], [5.0, 5.0], [0.0, 20.0]]);
-            assert_eq!(
-                warp_into_quad(&sv, &mut dv, &dart, &cfg),
-                Err(Error::Degenerate)
-            );
+            assert_eq!(wq(fixed, &sv, &mut dv, &dart, &cfg), Err(Error::Degenerate));
             // H whose vanishing line crosses the logo.
             let cross = hom([1.0, 0.0, 0.0, 0.0, 1.0, 0.0, -0.1, 0.0, 1.0]);
             assert_eq!(
-                warp_perspective_into(&sv, &mut dv, &cross, &cfg),
+                wp(fixed, &sv, &mut dv, &cross, &cfg),
                 Err(Error::AtInfinity)
             );
         }
@@ -1147,12 +1154,13 @@ mod tests {
     fn one_pixel_wide_and_high_sources() {
         let line = [0u8, 60, 120, 180];
         let want = [0u8, 30, 60, 90, 120, 150, 180];
-        for cfg in [FLOAT, FIXED] {
+        for fixed in [false, true] {
+            let cfg = CFG;
             let sv = ImageView::packed(&line, 1, 4).unwrap();
             let mut out = [7u8; 2 * 8];
             let mut dv = ImageMut::packed(&mut out, 2, 8).unwrap();
             let stretch = hom([1., 0., 0., 0., 2., 0., 0., 0., 1.]);
-            let r = warp_perspective_into(&sv, &mut dv, &stretch, &cfg).unwrap();
+            let r = wp(fixed, &sv, &mut dv, &stretch, &cfg).unwrap();
             assert_eq!(r.written, 7, "{cfg:?}");
             let column: Vec<u8> = out.chunks(2).map(|row| row[0]).collect();
             assert_eq!(column[..7], want, "{cfg:?}");
@@ -1165,7 +1173,7 @@ mod tests {
             let mut out = [7u8; 8 * 2];
             let mut dv = ImageMut::packed(&mut out, 8, 2).unwrap();
             let stretch = hom([2., 0., 0., 0., 1., 0., 0., 0., 1.]);
-            let r = warp_perspective_into(&sv, &mut dv, &stretch, &cfg).unwrap();
+            let r = wp(fixed, &sv, &mut dv, &stretch, &cfg).unwrap();
             assert_eq!(r.written, 7, "{cfg:?}");
             assert_eq!(out[..7], want, "{cfg:?}");
             assert!(out[7..].iter().all(|&v| v == 7), "{cfg:?}");
@@ -1291,8 +1299,10 @@ mod tests {
         let src = [200u8; 16];
         let sv = ImageView::packed(&src, 4, 4).unwrap();
         let mut out = [100u8; 16];
-        let cfg = WarpConfig { alpha: 64, ..FIXED };
-        let r = warp_perspective_into(
+        let cfg = WarpConfig { alpha: 64 };
+        let fixed = true;
+        let r = wp(
+            fixed,
             &sv,
             &mut ImageMut::packed(&mut out, 4, 4).unwrap(),
             &Homography::identity(),
@@ -1457,10 +1467,10 @@ mod tests {
                 Point2::new(c[0], c[1]), Point2::new(c[2], c[3]),
                 Point2::new(c[4], c[5]), Point2::new(c[6], c[7]),
             ];
-            let cfg = if fixed { FIXED } else { FLOAT };
+            let cfg = CFG;
             let written = {
                 let mut dv = ImageMut::new(&mut buf[5 * 80 + 10..], 60, 40, 80).unwrap();
-                match warp_into_quad(&sv, &mut dv, &quad, &cfg) {
+                match wq(fixed, &sv, &mut dv, &quad, &cfg) {
                     Ok(r) => r.written as usize,
                     Err(e) => {
                         prop_assert!(matches!(e, Error::Degenerate | Error::AtInfinity), "{e:?}");

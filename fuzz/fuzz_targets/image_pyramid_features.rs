@@ -23,7 +23,8 @@ use camgeom::homography::Homography;
 use camgeom::image::{ImageMut, ImageView, buffer_len};
 use camgeom::nalgebra::{Matrix3, Point2};
 use camgeom::pyramid::{self, Pyramid, PyramidPair};
-use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
+use camgeom::arith::Fixed;
+use camgeom::warp::{WarpConfig, warp_into_quad, warp_perspective_into};
 use libfuzzer_sys::fuzz_target;
 
 #[derive(Debug, Arbitrary)]
@@ -173,22 +174,29 @@ fuzz_target!(|inp: Input| {
     fast_and_orb(&view, &inp);
 
     let quad = inp.quad.map(|(x, y)| Point2::new(x, y));
-    for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
+    for fixed in [false, true] {
         let mut frame = [0u8; 64 * 48];
         let Ok(mut dst) = ImageMut::packed(&mut frame[..], 64, 48) else {
             return;
         };
-        let cfg = WarpConfig {
-            alpha: inp.alpha,
-            arithmetic,
+        let cfg = WarpConfig { alpha: inp.alpha };
+        let into_quad = if fixed {
+            warp_into_quad::<Fixed>(&view, &mut dst, &quad, &cfg)
+        } else {
+            warp_into_quad::<f32>(&view, &mut dst, &quad, &cfg)
         };
-        if let Ok(r) = warp_into_quad(&view, &mut dst, &quad, &cfg) {
+        if let Ok(r) = into_quad {
             assert!(r.written <= 64 * 48, "written beyond the frame");
         }
-        if let Ok(map) = Homography::from_matrix(&Matrix3::from_row_slice(&inp.map))
-            && let Ok(r) = warp_perspective_into(&view, &mut dst, &map, &cfg)
-        {
-            assert!(r.written <= 64 * 48, "written beyond the frame");
+        if let Ok(map) = Homography::from_matrix(&Matrix3::from_row_slice(&inp.map)) {
+            let through = if fixed {
+                warp_perspective_into::<Fixed>(&view, &mut dst, &map, &cfg)
+            } else {
+                warp_perspective_into::<f32>(&view, &mut dst, &map, &cfg)
+            };
+            if let Ok(r) = through {
+                assert!(r.written <= 64 * 48, "written beyond the frame");
+            }
         }
     }
 });

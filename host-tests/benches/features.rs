@@ -7,10 +7,11 @@
 
 use std::hint::black_box;
 
+use camgeom::arith::{Arithmetic, Fixed};
 use camgeom::features::orb::{self, Feature, OrbConfig};
 use camgeom::features::{Descriptor, Match, MatchConfig, fast, match_descriptors, matching};
 use camgeom::heapless::Vec as HVec;
-use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+use camgeom::warp::{WarpConfig, warp_into_quad};
 use camgeom_host::bench::Answers;
 use camgeom_host::images::{GrayImage, load_gray, save_gray};
 use criterion::{Criterion, criterion_group, criterion_main};
@@ -71,39 +72,38 @@ fn bench_features(c: &mut Criterion) {
         })
     });
 
+    bench_warp::<f32>(c, &mut answers);
+    bench_warp::<Fixed>(c, &mut answers);
+    answers.save();
+}
+
+/// The warp of the bench logo into a 320x240 frame in arithmetic `A`.
+fn bench_warp<A: Arithmetic>(c: &mut Criterion, answers: &mut Answers) {
     let (logo, quad) = camgeom_host::bench::warp_case();
     let mut frame = GrayImage::filled(320, 240, 100);
-    for (name, arithmetic) in [
-        ("warp_128_into_320x240_f32", Arithmetic::Float),
-        ("warp_128_into_320x240_fixed", Arithmetic::Fixed),
-    ] {
-        let cfg = WarpConfig {
-            alpha: 255,
-            arithmetic,
-        };
-        let mut once = GrayImage::filled(320, 240, 100);
-        warp_into_quad(
-            &logo.view().unwrap(),
-            &mut once.view_mut().unwrap(),
-            &quad,
-            &cfg,
-        )
-        .unwrap();
-        let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
-            .join("peers")
-            .join(format!("{name}.png"));
-        std::fs::create_dir_all(png.parent().unwrap()).unwrap();
-        save_gray(&once, &png).unwrap();
-        answers.record(&format!("warp/{name}"), json!({ "png": png }));
-        c.bench_function(name, |b| {
-            b.iter(|| {
-                black_box(camgeom_host::bench::warp_once(
-                    &logo, &mut frame, &quad, &cfg,
-                ))
-            })
-        });
-    }
-    answers.save();
+    let name = &format!("warp_128_into_320x240_{}", A::NAME);
+    let cfg = WarpConfig { alpha: 255 };
+    let mut once = GrayImage::filled(320, 240, 100);
+    warp_into_quad::<A>(
+        &logo.view().unwrap(),
+        &mut once.view_mut().unwrap(),
+        &quad,
+        &cfg,
+    )
+    .unwrap();
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("peers")
+        .join(format!("{name}.png"));
+    std::fs::create_dir_all(png.parent().unwrap()).unwrap();
+    save_gray(&once, &png).unwrap();
+    answers.record(&format!("warp/{name}"), json!({ "png": png }));
+    c.bench_function(name, |b| {
+        b.iter(|| {
+            black_box(camgeom_host::bench::warp_once::<A>(
+                &logo, &mut frame, &quad, &cfg,
+            ))
+        })
+    });
 }
 
 criterion_group!(benches, bench_features);

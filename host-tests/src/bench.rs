@@ -139,14 +139,14 @@ pub fn fnv1a(values: impl IntoIterator<Item = u64>) -> u64 {
 }
 
 /// One warp of the [`warp_case`] logo into `frame`; the destination pixels written.
-pub fn warp_once(
+pub fn warp_once<A: camgeom::arith::Arithmetic>(
     logo: &crate::images::GrayImage,
     frame: &mut crate::images::GrayImage,
     quad: &[Point2<f32>; 4],
     cfg: &camgeom::warp::WarpConfig,
 ) -> u32 {
     let (src, mut dst) = (logo.view().unwrap(), frame.view_mut().unwrap());
-    camgeom::warp::warp_into_quad(&src, &mut dst, quad, cfg)
+    camgeom::warp::warp_into_quad::<A>(&src, &mut dst, quad, cfg)
         .unwrap()
         .written
 }

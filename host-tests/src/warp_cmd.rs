@@ -12,9 +12,10 @@
 
 use std::path::PathBuf;
 
+use camgeom::arith::Fixed;
 use camgeom::homography::Homography;
 use camgeom::nalgebra::Point2;
-use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+use camgeom::warp::{WarpConfig, warp_into_quad};
 use camgeom_host::images::{load_gray, save_gray};
 use camgeom_host::points::{read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result};
@@ -80,19 +81,16 @@ pub fn run(a: &WarpArgs) -> Result<String> {
     ];
     let hom = Homography::<f64>::from_four_points(&src, &quad.map(|p| p.cast::<f64>()))
         .map_err(|e| fail("from_four_points", e))?;
-    let config = WarpConfig {
-        alpha: a.alpha,
-        arithmetic: if a.fixed {
-            Arithmetic::Fixed
-        } else {
-            Arithmetic::Float
-        },
-    };
+    let config = WarpConfig { alpha: a.alpha };
     let too_big = |p: &PathBuf| Error::new(p, ErrorKind::Unsupported("the image size".into()));
     let logo_view = logo.view().ok_or_else(|| too_big(&a.logo))?;
     let mut frame_view = frame.view_mut().ok_or_else(|| too_big(&a.frame))?;
-    let report =
-        warp_into_quad(&logo_view, &mut frame_view, &quad, &config).map_err(|e| fail("warp", e))?;
+    let report = if a.fixed {
+        warp_into_quad::<Fixed>(&logo_view, &mut frame_view, &quad, &config)
+    } else {
+        warp_into_quad::<f32>(&logo_view, &mut frame_view, &quad, &config)
+    }
+    .map_err(|e| fail("warp", e))?;
     save_gray(&frame, &a.out)?;
     let m = hom.matrix();
     let out = WarpOutput {

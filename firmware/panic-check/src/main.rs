@@ -550,8 +550,9 @@ fn run_features() {
 /// Perspective warps, float and integer per-pixel arithmetic.
 #[cfg(feature = "warp")]
 fn run_warp() {
+    use camgeom::arith::{Arithmetic, Fixed};
     use camgeom::homography::Homography;
-    use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad, warp_perspective_into};
+    use camgeom::warp::{WarpConfig, warp_into_quad, warp_perspective_into};
     let logo = black_box([0u8; 16 * 16]);
     let (lw, lh) = black_box((16usize, 16usize));
     let Ok(src) = ImageView::packed(black_box(&logo[..]), lw, lh) else {
@@ -562,17 +563,20 @@ fn run_warp() {
         return;
     };
     let quad = points2::<f32, 4>();
-    for arithmetic in [Arithmetic::Float, Arithmetic::Fixed] {
-        let cfg = black_box(WarpConfig {
-            alpha: 200,
-            arithmetic,
-        });
-        black_box(warp_into_quad(&src, &mut dst, &quad, &cfg).ok());
+    fn both<A: Arithmetic>(
+        src: &ImageView<'_, u8>,
+        dst: &mut camgeom::image::ImageMut<'_, u8>,
+        quad: &[camgeom::nalgebra::Point2<f32>; 4],
+    ) {
+        let cfg = black_box(WarpConfig { alpha: 200 });
+        black_box(warp_into_quad::<A>(src, dst, quad, &cfg).ok());
         let m = black_box(camgeom::nalgebra::Matrix3::from_element(0.5f32));
         if let Ok(h) = Homography::from_matrix(&m) {
-            black_box(warp_perspective_into(&src, &mut dst, &h, &cfg).ok());
+            black_box(warp_perspective_into::<A>(src, dst, &h, &cfg).ok());
         }
     }
+    both::<f32>(&src, &mut dst, &quad);
+    both::<Fixed>(&src, &mut dst, &quad);
 }
 
 // ---------------------------------------------------------------- twoview

@@ -245,7 +245,7 @@ mod klt_bench {
         GivenCorners, PlanarTarget, TargetConfig, TargetParams, TargetState, corner_scratch_len,
         flow_scratch_len,
     };
-    use camgeom::warp::{Arithmetic, WarpConfig, warp_into_quad};
+    use camgeom::warp::{WarpConfig, warp_into_quad};
     use camgeom_fw_app::texture::textured_frame;
 
     use super::check;
@@ -578,14 +578,15 @@ mod klt_bench {
             Err(e) => fail("logo", e),
         };
         let quad = black_box(QUAD.map(|(x, y)| Point2::new(x, y)));
-        let mut warp = |name: &'static str, arithmetic: Arithmetic| {
-            let cfg = WarpConfig {
-                alpha: 255,
-                arithmetic,
-            };
+        let mut warp = |name: &'static str, fixed: bool| {
+            let cfg = WarpConfig { alpha: 255 };
             let (r, cost) = measure(|| {
                 let mut dst = ImageMut::packed(&mut frame_b[..], W, H)?;
-                warp_into_quad(&logo, &mut dst, &quad, &cfg)
+                if fixed {
+                    warp_into_quad::<Fixed>(&logo, &mut dst, &quad, &cfg)
+                } else {
+                    warp_into_quad::<f32>(&logo, &mut dst, &quad, &cfg)
+                }
             });
             match r {
                 Ok(r) => {
@@ -596,8 +597,8 @@ mod klt_bench {
                 Err(e) => fail(name, e),
             }
         };
-        let warp_f32 = warp("warp_f32", Arithmetic::Float);
-        let warp_fixed = warp("warp_fixed", Arithmetic::Fixed);
+        let warp_f32 = warp("warp_f32", false);
+        let warp_fixed = warp("warp_fixed", true);
         Summary {
             pyramid,
             fixed_50,
