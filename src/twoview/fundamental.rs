@@ -269,6 +269,7 @@ impl<T: Real> Estimator for FundamentalEstimator<'_, T> {
 /// 7-point samples, MSAC on the Sampson distance in pixels (`config.threshold`), 8-point
 /// local optimisation, Sampson Levenberg-Marquardt polish ([`super::refine_fundamental`]),
 /// on the generic [`ransac`] loop. Errors: see [`ransac`].
+#[doc(alias = "findFundamentalMat")]
 pub fn find_fundamental<T: Real>(
     x1: &[Point2<T>],
     x2: &[Point2<T>],
