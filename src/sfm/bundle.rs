@@ -22,7 +22,7 @@
 
 use nalgebra::{Matrix2x3, Matrix3, Point2, Point3, SMatrix, SVector, Vector3};
 
-use super::Track;
+use super::track::Track;
 use crate::camera::Camera;
 use crate::linalg::rotation_step;
 use crate::scalar::{Real, above};

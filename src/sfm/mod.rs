@@ -53,9 +53,11 @@
 
 mod bundle;
 mod config;
+mod track;
 
 pub use bundle::{BundleReport, PointBlock, bundle_adjust};
 pub use config::{SfmConfig, SfmParams};
+pub use track::Track;
 
 use nalgebra::{Point2, Point3};
 
@@ -65,9 +67,6 @@ use crate::scalar::{Real, above};
 use crate::transform::Pose;
 use crate::twoview::{find_essential, recover_pose, triangulate_optimal};
 use crate::{Error, Result};
-
-/// The observations of one scene point in the three views (`None`: not seen), raw pixels.
-pub type Track<T = f32> = [Option<Point2<T>>; 3];
 
 /// The caller-owned memory of [`reconstruct_three_views`] for up to `N` tracks: the outputs
 /// ([`Self::points`], [`Self::used`]) and the scratch of every stage: about 100 scalars and
