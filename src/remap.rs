@@ -178,6 +178,7 @@ impl<'a> GridMap<'a> {
     /// Errors: [`Error::InvalidImage`] for a bad size, `InvalidParameter("shift")`,
     /// `BufferTooSmall("nodes")`, [`Error::Degenerate`] when a node's source cannot be
     /// computed (the new camera sees beyond the lens model: use a smaller field of view).
+    #[doc(alias = "initUndistortRectifyMap")]
     pub fn build<T: Real>(
         camera: &Camera<T>,
         k_new: &Intrinsics<T>,

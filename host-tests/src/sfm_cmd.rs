@@ -162,6 +162,16 @@ pub fn run(a: &SfmArgs) -> Result<String> {
     let [ia, ib, ic] = a.images.as_slice() else {
         return Err(Error::usage("--images takes three files"));
     };
+    let mut config = SfmConfig::<f64>::default();
+    config.essential.threshold = a.threshold;
+    config.essential.seed = a.seed;
+    config.pnp.threshold = a.pnp_threshold;
+    config.pnp.seed = a.seed;
+    // The bundle adjustment runs below, on its own, so that its effect can be measured.
+    config.bundle_iterations = 0;
+    let params = config
+        .check()
+        .map_err(|e| Error::camgeom("sfm configuration (--threshold, --pnp-threshold)", e))?;
     let spec = load_camera(&a.camera.intrinsics)?;
     let feats = [orb_features(ia)?, orb_features(ib)?, orb_features(ic)?];
     let [fa, fb, fc] = &feats;
@@ -175,16 +185,9 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         .iter()
         .map(|t| core::array::from_fn(|v| t[v].and_then(|i| feats[v].get(i)).map(point)))
         .collect();
-    let mut config = SfmConfig::<f64>::default();
-    config.essential.threshold = a.threshold;
-    config.essential.seed = a.seed;
-    config.pnp.threshold = a.pnp_threshold;
-    config.pnp.seed = a.seed;
-    // The bundle adjustment runs below, on its own, so that its effect can be measured.
-    config.bundle_iterations = 0;
     let mut ws: Box<SfmWorkspace<f64, MAX_TRACKS>> = Box::default();
     let source = format!("{} {} {}", ia.display(), ib.display(), ic.display());
-    let r = reconstruct_three_views(&spec.camera, &tracks, &config, &mut ws).map_err(|e| {
+    let r = reconstruct_three_views(&spec.camera, &tracks, &params, &mut ws).map_err(|e| {
         let what = format!(
             "{source}: reconstruct_three_views failed on {} tracks",
             tracks.len()

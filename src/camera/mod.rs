@@ -193,6 +193,7 @@ impl<T: Real> Camera<T> {
     /// `K` would see. Errors: as [`Self::undistort_to_normalized`]; [`Error::NonFinite`] when
     /// the result overflows.
     #[doc(alias = "undistortPoints")]
+    #[doc(alias = "undistortImagePoints")]
     pub fn undistort_pixel(&self, pixel: &Point2<T>) -> Result<Point2<T>> {
         let n = self.undistort_to_normalized(pixel)?;
         let u = self.intrinsics.normalized_to_pixel(&n);
@@ -204,6 +205,7 @@ impl<T: Real> Camera<T> {
 
     /// Applies lens distortion to an ideal pinhole pixel. Errors: [`Error::NonFinite`] for
     /// NaN/inf input or a result that overflows.
+    #[doc(alias = "distortPoints")]
     pub fn distort_pixel(&self, ideal: &Point2<T>) -> Result<Point2<T>> {
         let n = self.intrinsics.pixel_to_normalized(ideal)?;
         let d = self.distort_normalized(&n)?;

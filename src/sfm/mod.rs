@@ -19,7 +19,7 @@
 //! ```
 //! use camgeom::camera::{Camera, Intrinsics};
 //! use camgeom::nalgebra::{Point3, Vector3};
-//! use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
+//! use camgeom::sfm::{SfmParams, SfmWorkspace, Track, reconstruct_three_views};
 //! use camgeom::transform::Pose;
 //!
 //! let camera = Camera::pinhole(Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?);
@@ -38,7 +38,7 @@
 //!     [see(0), see(1), if i % 7 == 0 { None } else { see(2) }]
 //! }).collect();
 //! let mut ws = SfmWorkspace::<f64, 64>::new();
-//! let r = reconstruct_three_views(&camera, &tracks, &SfmConfig::default(), &mut ws)?;
+//! let r = reconstruct_three_views(&camera, &tracks, &SfmParams::default(), &mut ws)?;
 //! assert_eq!(r.points, 40);
 //! // Exact observations: poses and points come back to rounding, in the baseline's unit.
 //! for (rebuilt, truth) in r.poses.iter().zip(&views) {
@@ -52,62 +52,21 @@
 //! ```
 
 mod bundle;
+mod config;
 mod track;
 
 pub use bundle::{BundleReport, PointBlock, bundle_adjust};
+pub use config::{SfmConfig, SfmParams};
 pub use track::Track;
 
 use nalgebra::{Point2, Point3};
 
 use crate::camera::Camera;
 use crate::pose::solve_pnp_ransac;
-use crate::ransac::RansacConfig;
 use crate::scalar::{Real, above};
 use crate::transform::Pose;
 use crate::twoview::{find_essential, recover_pose, triangulate_optimal};
 use crate::{Error, Result};
-
-/// Parameters of [`reconstruct_three_views`].
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SfmConfig<T: Real = f32> {
-    /// RANSAC of the essential matrix of views 1-2 (threshold: Sampson distance, pixels).
-    pub essential: RansacConfig<T>,
-    /// RANSAC of the PnP registration of view 3 (threshold: reprojection error, pixels).
-    pub pnp: RansacConfig<T>,
-    /// Largest reprojection error of a newly triangulated point in either view, pixels.
-    pub max_reprojection_px: T,
-    /// Largest depth of a point, in 1-2 baselines (also the cheirality bound of
-    /// [`recover_pose`]).
-    pub max_depth: T,
-    /// Smallest angle between the two rays of a triangulated point, radians.
-    pub min_parallax: T,
-    /// Levenberg-Marquardt steps of the bundle adjustment (0 skips it).
-    pub bundle_iterations: u8,
-}
-
-impl<T: Real> Default for SfmConfig<T> {
-    /// 1 px Sampson threshold for `E`, 2 px for PnP, 2 px reprojection bound, depth ≤ 50
-    /// baselines, parallax ≥ 1°, 20 bundle steps.
-    fn default() -> Self {
-        Self {
-            essential: RansacConfig {
-                threshold: T::one(),
-                confidence: T::lit(0.999),
-                ..RansacConfig::default()
-            },
-            pnp: RansacConfig {
-                threshold: T::lit(2.0),
-                confidence: T::lit(0.999),
-                ..RansacConfig::default()
-            },
-            max_reprojection_px: T::lit(2.0),
-            max_depth: T::lit(50.0),
-            min_parallax: T::lit(1.0f64.to_radians()),
-            bundle_iterations: 20,
-        }
-    }
-}
 
 /// The caller-owned memory of [`reconstruct_three_views`] for up to `N` tracks: the outputs
 /// ([`Self::points`], [`Self::used`]) and the scratch of every stage: about 100 scalars and
@@ -172,8 +131,8 @@ pub struct ThreeViewReconstruction<T: Real = f32> {
     pub bundle: BundleReport<T>,
 }
 
-/// Runs the three-view pipeline of the module docs on `tracks` (at most `N`), writing the
-/// points and the used observations into `ws`.
+/// Runs the three-view pipeline of the module docs on `tracks` (at most `N`) with the checked
+/// `params` ([`SfmConfig::check`]), writing the points and the used observations into `ws`.
 ///
 /// Errors: [`Error::LengthMismatch`] for more tracks than `N`; [`Error::TooFewPoints`] when
 /// fewer than 5 tracks link views 1-2 or fewer than 4 reconstructed points are seen by view 3;
@@ -182,9 +141,10 @@ pub struct ThreeViewReconstruction<T: Real = f32> {
 pub fn reconstruct_three_views<T: Real, const N: usize>(
     camera: &Camera<T>,
     tracks: &[Track<T>],
-    config: &SfmConfig<T>,
+    params: &SfmParams<T>,
     ws: &mut SfmWorkspace<T, N>,
 ) -> Result<ThreeViewReconstruction<T>> {
+    let config = params.config();
     let n = tracks.len();
     if n > N {
         return Err(Error::LengthMismatch);

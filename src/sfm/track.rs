@@ -1,4 +1,4 @@
-//! A track: one scene point's observations in the three views.
+//! What the pipeline and the bundle adjustment read: one scene point's pixels in the views.
 
 use nalgebra::Point2;
 

@@ -53,6 +53,7 @@ pub(crate) fn ray_depths<T: Real>(
 ///
 /// Errors: [`Error::LengthMismatch`]; [`Error::InvalidParameter`] for a `max_distance` that
 /// is not positive; [`Error::Degenerate`] when no candidate has support.
+#[doc(alias = "recoverPose")]
 pub fn recover_pose<T: Real>(
     e: &Essential<T>,
     k1: &Intrinsics<T>,

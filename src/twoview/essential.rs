@@ -185,6 +185,7 @@ impl<T: Real> Estimator for EssentialEstimator<'_, T> {
 /// ranking), 8-point local optimisation, Sampson LM polish ([`super::refine_essential`]).
 /// Solutions of a sample that break the oriented epipolar constraint on it are not scored
 /// ([`EssentialEstimator`]). Errors: see [`ransac`].
+#[doc(alias = "findEssentialMat")]
 pub fn find_essential<T: Real>(
     k1: &Intrinsics<T>,
     k2: &Intrinsics<T>,

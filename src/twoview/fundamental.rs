@@ -133,7 +133,7 @@ where
 ///
 /// The 7 epipolar rows (Hartley-normalised) leave a 2-dimensional null space `F̂₁, F̂₂` (an
 /// orthonormal basis by Gauss-Jordan elimination of the unit rows with full pivoting, a
-/// tenth of the cost of the QR and SVD it replaces); `det(α F̂₁ + (1 - α) F̂₂) = 0` is a cubic
+/// tenth of the cost of a QR and SVD); `det(α F̂₁ + (1 - α) F̂₂) = 0` is a cubic
 /// in `α` whose coefficients come from its values at `α = -1, 0, 1, 2`; each real root gives
 /// one `F` (between one and [`MAX_SEVEN_POINT_SOLUTIONS`]).
 ///
@@ -269,6 +269,7 @@ impl<T: Real> Estimator for FundamentalEstimator<'_, T> {
 /// 7-point samples, MSAC on the Sampson distance in pixels (`config.threshold`), 8-point
 /// local optimisation, Sampson Levenberg-Marquardt polish ([`super::refine_fundamental`]),
 /// on the generic [`ransac`] loop. Errors: see [`ransac`].
+#[doc(alias = "findFundamentalMat")]
 pub fn find_fundamental<T: Real>(
     x1: &[Point2<T>],
     x2: &[Point2<T>],

@@ -154,6 +154,7 @@ pub(crate) fn oriented_consistent<T: Real>(
 /// the first-order approximation of `min |x̂₁ - x₁|² + |x̂₂ - x₂|²` over pairs that satisfy the
 /// constraint (in the units of the points). `None` when the gradient vanishes (a point at an
 /// epipole) or the result is not finite.
+#[doc(alias = "sampsonDistance")]
 pub fn sampson_distance_sq<T: Real>(m: &Matrix3<T>, x1: &Point2<T>, x2: &Point2<T>) -> Option<T> {
     // `l₂ = M x₁`, the first two entries of `l₁ = Mᵀ x₂` and `e = x₂ · l₂`, written out with
     // the sums in the order of nalgebra's products (column by column, then the dot product
@@ -245,12 +246,14 @@ impl<T: Real> Fundamental<T> {
     /// The epipolar line of `x₁` in image 2, `l₂ = F x₁` (every match of `x₁` lies on it).
     ///
     /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when `x₁` is the epipole.
+    #[doc(alias = "computeCorrespondEpilines")]
     pub fn line_in_second(&self, x1: &Point2<T>) -> Result<Line2h<T>> {
         check_finite(&[x1.x, x1.y])?;
         Line2h::from_vector(self.f * lift(x1))
     }
 
     /// The epipolar line of `x₂` in image 1, `l₁ = Fᵀ x₂`. Errors as [`Self::line_in_second`].
+    #[doc(alias = "computeCorrespondEpilines")]
     pub fn line_in_first(&self, x2: &Point2<T>) -> Result<Line2h<T>> {
         check_finite(&[x2.x, x2.y])?;
         Line2h::from_vector(self.f.transpose() * lift(x2))
@@ -333,6 +336,7 @@ impl<T: Real> Essential<T> {
     /// `R ∈ {U W Vᵀ, U Wᵀ Vᵀ}`, `t = ±u₃` (unit): in the order `(R₁, t)`, `(R₁, -t)`,
     /// `(R₂, t)`, `(R₂, -t)`. Only one puts the scene in front of both cameras
     /// ([`recover_pose`]).
+    #[doc(alias = "decomposeEssentialMat")]
     pub fn decompose(&self) -> Result<[RelativePose<T>; 4]> {
         let svd = svd_jacobi(&self.e)?;
         let u = complete_rotation(&svd.u);

@@ -77,6 +77,7 @@ fn check_inputs<T: Real>(x1: &Point2<T>, x2: &Point2<T>) -> Result<()> {
 ///
 /// Errors: [`Error::NonFinite`]; [`Error::AtInfinity`] when the solution has `w ≈ 0` (parallel
 /// rays); [`Error::BehindCamera`] when the point is not in front of both views.
+#[doc(alias = "triangulatePoints")]
 pub fn triangulate_dlt<W: Frame, C1: Frame, C2: Frame, T: Real>(
     p1: &Transform<W, C1, T>,
     p2: &Transform<W, C2, T>,
@@ -157,6 +158,7 @@ pub fn triangulate_midpoint<W: Frame, C1: Frame, C2: Frame, T: Real>(
 /// with `S = [I₂ 0]`, `M̃ = S M Sᵀ`; exact (to rounding) on the constraint.
 ///
 /// Errors: [`Error::NonFinite`]; [`Error::Degenerate`] when both points sit at the epipoles.
+#[doc(alias = "correctMatches")]
 pub fn correct_matches<T: Real>(
     m: &Matrix3<T>,
     x1: &Point2<T>,

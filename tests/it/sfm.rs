@@ -103,7 +103,8 @@ fn reconstructs_three_views() {
         cfg.essential.threshold = (2.0 * noise).max(1.0);
         cfg.pnp.threshold = (3.0 * noise).max(2.0);
         cfg.max_reprojection_px = (3.0 * noise).max(2.0);
-        let r = reconstruct_three_views(&camera(), &tracks, &cfg, &mut ws).unwrap();
+        let r =
+            reconstruct_three_views(&camera(), &tracks, &cfg.check().unwrap(), &mut ws).unwrap();
         let (r2, r3) = (
             rot_err(&r.poses[1], &truth[1]),
             rot_err(&r.poses[2], &truth[2]),

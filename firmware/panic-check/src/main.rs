@@ -623,7 +623,9 @@ fn run_sfm<T: Real>() {
     };
     let Some(cam) = camera::<T>() else { return };
     let tracks: [Track<T>; N] = black_box([[Some(pt2(1.0, 2.0)); 3]; N]);
-    let cfg = black_box(SfmConfig::default());
+    let Ok(cfg) = black_box(SfmConfig::default()).check() else {
+        return;
+    };
     let mut ws = black_box(SfmWorkspace::<T, N>::new());
     black_box(reconstruct_three_views(&cam, &tracks, &cfg, &mut ws).ok());
     let Some(p) = pose::<T>() else { return };

@@ -37,7 +37,7 @@ use camgeom::pyramid::{Pyramid, buffer_len};
 use camgeom::ransac::RansacConfig;
 use camgeom::remap::{GridMap, grid_len, new_camera_matrix};
 use camgeom::rng::Pcg32;
-use camgeom::sfm::{SfmConfig, SfmWorkspace, Track, reconstruct_three_views};
+use camgeom::sfm::{SfmParams, SfmWorkspace, Track, reconstruct_three_views};
 use camgeom::target::{
     GivenCorners, PlanarTarget, TargetConfig, TargetParams, corner_scratch_len, flow_scratch_len,
 };
@@ -610,7 +610,7 @@ fn main() -> ! {
     }
     let sfm_slot = SFM.take();
     let sfm_ws = sfm_slot.insert(SfmWorkspace::new());
-    let (tracks, scfg) = black_box((tracks, SfmConfig::default()));
+    let (tracks, scfg) = black_box((tracks, SfmParams::default()));
     let pin = black_box(Camera::pinhole(kp));
     let (r, s) = measure(|| reconstruct_three_views(&pin, &tracks[..], &scfg, sfm_ws));
     row(
