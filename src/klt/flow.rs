@@ -9,7 +9,7 @@ use super::cache::{TemplateCache, cache_len};
 #[cfg(doc)]
 use super::lk::calc_flow;
 use super::lk::{Keep, forward_backward_keeping, run_native};
-use super::{Flow, FlowStatus, Gradients, LkParams};
+use super::{Borders, Flow, FlowStatus, Gradients, LkParams};
 use crate::pyramid::Pyramid;
 use crate::{Error, Result};
 
@@ -104,7 +104,7 @@ impl<A: FlowArith, const N: usize> FlowBuffers<A, N> {
             flows,
             &lk,
             grads,
-            &mut [],
+            &mut Borders::None,
             scratch,
             &mut keep,
         )?;

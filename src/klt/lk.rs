@@ -3,7 +3,7 @@
 use super::arith::{Bilinear, Coordinate, FlowArith};
 use super::cache::TemplateCache;
 use super::kernel::{LANES, Lanes, Packed, Pixels, Window, border_width, bordered_len, pad};
-use super::{Flow, FlowStatus, Gradients, LkConfig, LkParams};
+use super::{Borders, Flow, FlowStatus, Gradients, LkConfig, LkParams};
 use crate::image::{ImageMut, ImageView};
 use crate::pyramid::Pyramid;
 use crate::{Error, Result};
@@ -177,13 +177,23 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
     flows: &mut [Flow<A::Coord>],
     params: &LkParams,
     grads: &mut Gradients<'_>,
-    borders: &mut [u8],
+    borders: &mut Borders<'_>,
     scratch: &'s mut [i16],
     keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
     let cfg = params.config();
     let mut s = W::new(scratch, cfg.win)?;
     let top = usable_levels(prev, next, cfg);
+    // The copies' buffer holds level 1's, the largest copied ([`Borders::Copy`]).
+    if let Borders::Copy(buf) = borders
+        && top > 0
+    {
+        let level1 = prev.level(1).map(|l| (l.width(), l.height()));
+        let need = level1.map_or(0, |(w, h)| bordered_len(w, h, cfg.win));
+        if buf.len() < need {
+            return Err(Error::BufferTooSmall("borders"));
+        }
+    }
     let params = A::params(params, (cfg.win * cfg.win) as u32);
     for f in flows.iter_mut() {
         f.status = FlowStatus::Tracked;
@@ -218,15 +228,18 @@ fn run<'s, A: FlowArith, W: Window<'s>>(
             }
             None => None,
         };
-        // The level's copies with a reflected border, where they fit and pay.
+        // The level's copies with a reflected border, on the levels the rule of
+        // `Borders::Copy` picks (the buffer was checked to hold them).
         let (bl, bd) = (
             bordered_len(i.width(), i.height(), cfg.win),
             border_width(cfg.win),
         );
-        let copies = match borders.get_mut(..bl) {
-            Some(b) if W::BORDERED && windows_outweigh => {
-                let (bi, bj) = b.split_at_mut(bl / 2);
-                pad(&i, bd, bi).zip(pad(&j, bd, bj))
+        let copies = match borders {
+            Borders::Copy(b) if W::BORDERED && level > 0 && windows_outweigh => {
+                b.get_mut(..bl).and_then(|b| {
+                    let (bi, bj) = b.split_at_mut(bl / 2);
+                    pad(&i, bd, bi).zip(pad(&j, bd, bj))
+                })
             }
             _ => None,
         };
@@ -265,7 +278,7 @@ pub(super) fn run_native<A: FlowArith>(
     flows: &mut [Flow<A::Coord>],
     params: &LkParams,
     grads: &mut Gradients<'_>,
-    borders: &mut [u8],
+    borders: &mut Borders<'_>,
     scratch: &mut [i16],
     keep: &mut Keep<'_, '_>,
 ) -> Result<()> {
@@ -284,45 +297,27 @@ pub(super) fn run_native<A: FlowArith>(
 ///
 /// `flows[k]` receives the position of `prev_pts[k]` in `next` with its status and error
 /// (with [`LkConfig::use_initial_flow`] it must hold the initial guesses on entry). Points are
-/// full-resolution pixel coordinates, `(0, 0)` the centre of the top-left pixel.
+/// full-resolution pixel coordinates, `(0, 0)` the centre of the top-left pixel. `grads` says
+/// where the window derivatives come from and `borders` whether the coarse levels are copied
+/// with a reflected border first ([`Borders::Copy`]: which levels, and the buffer's length);
+/// neither changes a flow, to the bit. `scratch` holds at least
+/// [`scratch_len`](super::scratch_len)`(win)` elements, whatever the number of points.
 ///
 /// Errors: [`Error::LengthMismatch`] when the slices differ in length,
-/// [`Error::BufferTooSmall`] for scratch shorter than [`scratch_len`](super::scratch_len)`(win)` (or a
-/// [`Gradients::PerLevel`] buffer too short), [`Error::InvalidImage`] when the pyramids'
-/// levels differ in size. The configuration was checked once by [`LkConfig::check`].
+/// [`Error::BufferTooSmall`] for scratch shorter than [`scratch_len`](super::scratch_len)`(win)`,
+/// a [`Gradients::PerLevel`] buffer or a [`Borders::Copy`] buffer too short,
+/// [`Error::InvalidImage`] when the pyramids' levels differ in size. The configuration was
+/// checked once by [`LkConfig::check`].
+#[doc(alias = "calcOpticalFlowPyrLK")]
+#[allow(clippy::too_many_arguments)]
 pub fn calc_flow<A: FlowArith>(
     prev: &Pyramid<'_>,
     next: &Pyramid<'_>,
     prev_pts: &[[A::Coord; 2]],
     flows: &mut [Flow<A::Coord>],
     cfg: &LkParams,
-    grads: Gradients<'_>,
-    scratch: &mut [i16],
-) -> Result<()> {
-    calc_flow_bordered::<A>(prev, next, prev_pts, flows, cfg, grads, &mut [], scratch)
-}
-
-/// [`calc_flow`] that first copies each level of both pyramids, with a reflected border, into
-/// `borders`, where the copies fit and the level is small against the windows' work (the rule
-/// of [`Gradients::Auto`]: `w h <= n (win + 1)²` for `n` points). A window that leaves the
-/// image but not the border then reads the copy's rows where it would otherwise copy out its
-/// own block at its template and at every mismatch that moves it; the copy is made once a
-/// level, as OpenCV keeps its pyramids with a border. The flows are the same to the bit.
-///
-/// A buffer of [`bordered_len`]`(w, h, win)` bytes for the level-1 size
-/// `w x h` serves levels 1 and up (with 278 points and 21x21 windows on a 640x480 frame,
-/// 191 KB); an empty one is [`calc_flow`]. The copies serve the vector kernel (targets with
-/// 128-bit SIMD); where the boards' kernel runs, none is made and this is [`calc_flow`].
-/// Errors: those of [`calc_flow`].
-#[allow(clippy::too_many_arguments)]
-pub fn calc_flow_bordered<A: FlowArith>(
-    prev: &Pyramid<'_>,
-    next: &Pyramid<'_>,
-    prev_pts: &[[A::Coord; 2]],
-    flows: &mut [Flow<A::Coord>],
-    cfg: &LkParams,
     mut grads: Gradients<'_>,
-    borders: &mut [u8],
+    mut borders: Borders<'_>,
     scratch: &mut [i16],
 ) -> Result<()> {
     if prev_pts.len() != flows.len() {
@@ -335,7 +330,7 @@ pub fn calc_flow_bordered<A: FlowArith>(
         flows,
         cfg,
         &mut grads,
-        borders,
+        &mut borders,
         scratch,
         &mut Keep::Off,
     )
@@ -383,7 +378,8 @@ pub(super) fn forward_backward_keeping<A: FlowArith>(
     {
         let fw: &[Flow<A::Coord>] = flows;
         let pts = |k: usize| fw.get(k).map(|f| [f.x, f.y]);
-        run_native::<A>(next, prev, pts, back, &bcfg, grads, &mut [], scratch, keep)?;
+        let no = &mut Borders::None;
+        run_native::<A>(next, prev, pts, back, &bcfg, grads, no, scratch, keep)?;
     }
     let win = cfg.config().win;
     let params = A::params(cfg, (win * win) as u32);
@@ -445,6 +441,7 @@ mod tests {
             &mut ff,
             &cfg,
             Gradients::PerWindow,
+            Borders::None,
             &mut scratch,
         )
         .unwrap();
@@ -466,6 +463,7 @@ mod tests {
             &mut fq,
             &cfg,
             Gradients::PerLevel(&mut lvl),
+            Borders::None,
             &mut scratch,
         )
         .unwrap();
@@ -520,7 +518,17 @@ mod tests {
         let mut s = std::vec![0i16; scratch_len(9)];
         let mut f1 = [Flow::<Q16>::default(); 4];
         let mut f2 = [Flow::<Q16>::default(); 4];
-        calc_flow::<Fixed>(&pa, &pb, &pts, &mut f1, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        calc_flow::<Fixed>(
+            &pa,
+            &pb,
+            &pts,
+            &mut f1,
+            &cfg,
+            Gradients::PerWindow,
+            Borders::None,
+            &mut s,
+        )
+        .unwrap();
         let mut g = std::vec![[0i16; 2]; w * h];
         calc_flow::<Fixed>(
             &pa,
@@ -529,6 +537,7 @@ mod tests {
             &mut f2,
             &cfg,
             Gradients::PerLevel(&mut g),
+            Borders::None,
             &mut s,
         )
         .unwrap();
@@ -553,22 +562,35 @@ mod tests {
         for n in [40, 4] {
             let p = &pts[..n];
             let mut want = std::vec![Flow::<Q16>::default(); n];
-            calc_flow::<Fixed>(&pa, &pb, p, &mut want, &cfg, Gradients::PerWindow, &mut s).unwrap();
+            calc_flow::<Fixed>(
+                &pa,
+                &pb,
+                p,
+                &mut want,
+                &cfg,
+                Gradients::PerWindow,
+                Borders::None,
+                &mut s,
+            )
+            .unwrap();
             for len in [w * h, w * h - 1, 0] {
                 let mut g = std::vec![[0i16; 2]; len];
                 let mut got = std::vec![Flow::<Q16>::default(); n];
                 let grads = Gradients::Auto(&mut g);
-                calc_flow::<Fixed>(&pa, &pb, p, &mut got, &cfg, grads, &mut s).unwrap();
+                calc_flow::<Fixed>(&pa, &pb, p, &mut got, &cfg, grads, Borders::None, &mut s)
+                    .unwrap();
                 assert_eq!(got, want, "{n} points, buffer {len}");
             }
         }
     }
 
-    /// The bordered copies ([`calc_flow_bordered`]) change no flow, status or error, for both
-    /// arithmetics, with every level copied, some, or none (a buffer one byte short of a
-    /// level's copies, or empty); the points include windows across every edge and one centred
-    /// outside the image. The vector kernel reads the copies; the packed one, which makes none
-    /// ([`Window::BORDERED`]), is run with the same buffers and is the reference.
+    /// The bordered copies ([`Borders::Copy`]) change no flow, status or error, for both
+    /// arithmetics, with levels 1 and 2 copied (40 points, whose windows outweigh both levels)
+    /// or level 2 only (4 points), from a buffer of exactly the level-1 size or longer; the
+    /// points include windows across every edge and one centred outside the image. The vector
+    /// kernel reads the copies; the packed one, which makes none ([`Window::BORDERED`]), is run
+    /// with the same buffers and is the reference. A buffer one byte short of level 1's copies
+    /// is an error for both kernels, never a quiet fallback; without level 1 any buffer does.
     #[test]
     fn bordered_copies_change_nothing() {
         let (w, h) = (64, 48);
@@ -577,6 +599,7 @@ mod tests {
         let [ba, bb] = &mut bufs;
         let pa = Pyramid::build(ImageView::packed(&a, w, h).unwrap(), ba, 3).unwrap();
         let pb = Pyramid::build(ImageView::packed(&b, w, h).unwrap(), bb, 3).unwrap();
+        let top0 = cfg;
         let cfg = LkConfig {
             max_level: 2,
             ..*cfg.config()
@@ -589,43 +612,50 @@ mod tests {
             })
             .collect();
         let pf: Vec<[f32; 2]> = pts.iter().map(|p| p.map(Q16::to_f32)).collect();
-        let full = bordered_len(w, h, 9);
+        let level1 = bordered_len(w / 2, h / 2, 9);
         let mut s = std::vec![0i16; both_len(9)];
         fn go<'s, A: FlowArith, W: Window<'s>>(
             (pa, pb): (&Pyramid<'_>, &Pyramid<'_>),
             pts: &[[A::Coord; 2]],
             cfg: &LkParams,
-            borders: &mut [u8],
+            mut borders: Borders<'_>,
             s: &'s mut [i16],
-        ) -> Vec<Flow<A::Coord>> {
+        ) -> Result<Vec<Flow<A::Coord>>> {
             let mut f = std::vec![Flow::<A::Coord>::default(); pts.len()];
             let p = |k: usize| pts.get(k).copied();
             let g = &mut Gradients::PerWindow;
-            run::<A, W>(pa, pb, p, &mut f, cfg, g, borders, s, &mut Keep::Off).unwrap();
-            f
+            let bd = &mut borders;
+            run::<A, W>(pa, pb, p, &mut f, cfg, g, bd, s, &mut Keep::Off).map(|()| f)
         }
         let py = (&pa, &pb);
-        let want_q = go::<Fixed, Packed<'_>>(py, &pts, &cfg, &mut [], &mut s);
-        let want_f = go::<f32, Packed<'_>>(py, &pf, &cfg, &mut [], &mut s);
-        assert!(want_q.iter().any(|f| f.status == FlowStatus::Tracked));
-        for len in [full, full - 1, bordered_len(w / 2, h / 2, 9), 0] {
-            let mut borders = std::vec![0u8; len];
-            let bd = &mut borders;
-            assert_eq!(
-                go::<Fixed, Packed<'_>>(py, &pts, &cfg, bd, &mut s),
-                want_q,
-                "{len}"
-            );
-            assert_eq!(
-                go::<Fixed, Lanes<'_>>(py, &pts, &cfg, bd, &mut s),
-                want_q,
-                "{len}"
-            );
+        for n in [40, 4] {
+            let (pts, pf) = (&pts[..n], &pf[..n]);
+            let none = || Borders::None;
+            let want_q = go::<Fixed, Packed<'_>>(py, pts, &cfg, none(), &mut s).unwrap();
+            let want_f = go::<f32, Packed<'_>>(py, pf, &cfg, none(), &mut s).unwrap();
+            assert!(want_q.iter().any(|f| f.status == FlowStatus::Tracked));
             let bits = flow_bits(&want_f);
-            let got = go::<f32, Packed<'_>>(py, &pf, &cfg, bd, &mut s);
-            assert_eq!(flow_bits(&got), bits, "{len}");
-            let got = go::<f32, Lanes<'_>>(py, &pf, &cfg, bd, &mut s);
-            assert_eq!(flow_bits(&got), bits, "{len}");
+            for len in [level1, bordered_len(w, h, 9)] {
+                let mut buf = std::vec![0u8; len];
+                let got = go::<Fixed, Packed<'_>>(py, pts, &cfg, Borders::Copy(&mut buf), &mut s);
+                assert_eq!(got.unwrap(), want_q, "{n} points, {len}");
+                let got = go::<Fixed, Lanes<'_>>(py, pts, &cfg, Borders::Copy(&mut buf), &mut s);
+                assert_eq!(got.unwrap(), want_q, "{n} points, {len}");
+                let got = go::<f32, Packed<'_>>(py, pf, &cfg, Borders::Copy(&mut buf), &mut s);
+                assert_eq!(flow_bits(&got.unwrap()), bits, "{n} points, {len}");
+                let got = go::<f32, Lanes<'_>>(py, pf, &cfg, Borders::Copy(&mut buf), &mut s);
+                assert_eq!(flow_bits(&got.unwrap()), bits, "{n} points, {len}");
+            }
+            let mut short = std::vec![0u8; level1 - 1];
+            let short_err = Err(Error::BufferTooSmall("borders"));
+            let got = go::<Fixed, Packed<'_>>(py, pts, &cfg, Borders::Copy(&mut short), &mut s);
+            assert_eq!(got, short_err);
+            let got = go::<Fixed, Lanes<'_>>(py, pts, &cfg, Borders::Copy(&mut short), &mut s);
+            assert_eq!(got, short_err);
+            // Level 0 alone: nothing to copy, so no length is too short.
+            let want = go::<Fixed, Packed<'_>>(py, pts, &top0, none(), &mut s).unwrap();
+            let got = go::<Fixed, Lanes<'_>>(py, pts, &top0, Borders::Copy(&mut []), &mut s);
+            assert_eq!(got.unwrap(), want, "{n} points, level 0 only");
         }
     }
 
@@ -677,7 +707,7 @@ mod tests {
             &mut f1,
             cfg,
             &mut grads(g, per_level),
-            &mut [],
+            &mut Borders::None,
             s,
             &mut Keep::Off,
         )
@@ -689,7 +719,7 @@ mod tests {
             &mut f2,
             cfg,
             &mut grads(g, per_level),
-            &mut [],
+            &mut Borders::None,
             s,
             &mut Keep::Off,
         )
@@ -719,7 +749,7 @@ mod tests {
             let mut cache = cache.and_then(|b| TemplateCache::new(b, c.win, c.max_level + 1, n));
             let half = A::Coord::from_half_px(c.win as i32 - 1);
             let mut s = std::vec![0i16; both_len(c.win)];
-            let g = &mut Gradients::PerWindow;
+            let (g, no) = (&mut Gradients::PerWindow, &mut Borders::None);
             let (mut pts, mut out, mut hits) = (pts0.to_vec(), Vec::new(), 0);
             let mut pass = |prev: &Pyramid<'_>,
                             next: &Pyramid<'_>,
@@ -728,12 +758,8 @@ mod tests {
                 let mut f = std::vec![Flow::<A::Coord>::default(); n];
                 let p = |k: usize| from.get(k).copied();
                 match lanes {
-                    true => {
-                        run::<A, Lanes<'_>>(prev, next, p, &mut f, cfg, g, &mut [], &mut s, keep)
-                    }
-                    false => {
-                        run::<A, Packed<'_>>(prev, next, p, &mut f, cfg, g, &mut [], &mut s, keep)
-                    }
+                    true => run::<A, Lanes<'_>>(prev, next, p, &mut f, cfg, g, no, &mut s, keep),
+                    false => run::<A, Packed<'_>>(prev, next, p, &mut f, cfg, g, no, &mut s, keep),
                 }
                 .unwrap();
                 f
@@ -970,7 +996,17 @@ mod tests {
             .unwrap();
             let mut s = std::vec![0i16; scratch_len(9)];
             let mut f = [Flow::<Q16>::default(); 5];
-            calc_flow::<Fixed>(&pa, &pb, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+            calc_flow::<Fixed>(
+                &pa,
+                &pb,
+                &pts,
+                &mut f,
+                &cfg,
+                Gradients::PerWindow,
+                Borders::None,
+                &mut s,
+            )
+            .unwrap();
             f
         };
         let (with, without) = (run(true), run(false));
@@ -997,7 +1033,17 @@ mod tests {
         let pts = [[-50.0f32, 3.0], [f32::NAN, 1.0], [10.0, 1e30]];
         let mut f = [Flow::<f32>::default(); 3];
         let mut s = std::vec![0i16; scratch_len(7)];
-        calc_flow::<f32>(&pa, &pa, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        calc_flow::<f32>(
+            &pa,
+            &pa,
+            &pts,
+            &mut f,
+            &cfg,
+            Gradients::PerWindow,
+            Borders::None,
+            &mut s,
+        )
+        .unwrap();
         assert!(f.iter().all(|f| f.status == FlowStatus::OutOfBounds));
         let mut short = [0i16; 10];
         assert_eq!(
@@ -1008,6 +1054,7 @@ mod tests {
                 &mut f,
                 &cfg,
                 Gradients::PerWindow,
+                Borders::None,
                 &mut short
             ),
             Err(Error::BufferTooSmall("scratch"))
@@ -1020,6 +1067,7 @@ mod tests {
                 &mut f,
                 &cfg,
                 Gradients::PerWindow,
+                Borders::None,
                 &mut s
             ),
             Err(Error::LengthMismatch)
@@ -1040,6 +1088,7 @@ mod tests {
             &mut g,
             &cfg,
             Gradients::PerWindow,
+            Borders::None,
             &mut s,
         )
         .unwrap();
@@ -1071,7 +1120,17 @@ mod tests {
         let mut f = [Flow::<f32>::default(); 2];
         let mut back = [Flow::<f32>::default(); 2];
         let mut s = std::vec![0i16; scratch_len(11)];
-        calc_flow::<f32>(&pa, &pb, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        calc_flow::<f32>(
+            &pa,
+            &pb,
+            &pts,
+            &mut f,
+            &cfg,
+            Gradients::PerWindow,
+            Borders::None,
+            &mut s,
+        )
+        .unwrap();
         forward_backward::<f32>(
             &pa,
             &pb,

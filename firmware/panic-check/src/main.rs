@@ -251,14 +251,14 @@ fn run_corners() {
 
 // ---------------------------------------------------------------- klt
 
-/// `calc_flow`, `calc_flow_bordered` and `forward_backward` with fixed-point and `f32`
-/// arithmetic, both gradient modes, and the multi-frame tracker.
+/// `calc_flow` (without and with bordered copies) and `forward_backward` with fixed-point and
+/// `f32` arithmetic, every gradient mode, and the multi-frame tracker.
 #[cfg(feature = "klt")]
 fn run_klt() {
     use camgeom::corners::Corner;
     use camgeom::klt::{
-        Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Tracker, TrackerConfig,
-        calc_flow, calc_flow_bordered, forward_backward,
+        Borders, Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Tracker,
+        TrackerConfig, calc_flow, forward_backward,
     };
     fn flows<A: FlowArith>(pa: &Pyramid<'_>, pb: &Pyramid<'_>, cfg: &LkParams, pt: A::Coord)
     where
@@ -278,6 +278,7 @@ fn run_klt() {
                 &mut fw,
                 cfg,
                 Gradients::PerWindow,
+                Borders::None,
                 &mut scratch,
             )
             .ok(),
@@ -290,20 +291,21 @@ fn run_klt() {
                 &mut fw,
                 cfg,
                 Gradients::PerLevel(black_box(&mut grad[..])),
+                Borders::None,
                 &mut scratch,
             )
             .ok(),
         );
         let mut borders = black_box([0u8; 8192]);
         black_box(
-            calc_flow_bordered::<A>(
+            calc_flow::<A>(
                 pa,
                 pb,
                 &pts,
                 &mut fw,
                 cfg,
                 Gradients::Auto(black_box(&mut grad[..])),
-                black_box(&mut borders[..]),
+                Borders::Copy(black_box(&mut borders[..])),
                 &mut scratch,
             )
             .ok(),

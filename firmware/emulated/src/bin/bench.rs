@@ -236,7 +236,7 @@ mod klt_bench {
     use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
     use camgeom::image::{ImageMut, ImageView};
     use camgeom::klt::{
-        Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow,
+        Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow,
         level_gradient_len, pipeline_ram, scratch_len,
     };
     use camgeom::nalgebra::{Point2, Vector2, Vector3};
@@ -350,7 +350,18 @@ mod klt_bench {
             Ok(c) => black_box(c),
             Err(e) => fail(name, e),
         };
-        let (r, cost) = measure(|| calc_flow::<A>(pa, pb, &pts, &mut flows, &cfg, grads, scratch));
+        let (r, cost) = measure(|| {
+            calc_flow::<A>(
+                pa,
+                pb,
+                &pts,
+                &mut flows,
+                &cfg,
+                grads,
+                Borders::None,
+                scratch,
+            )
+        });
         if let Err(e) = r {
             fail(name, e)
         }
