@@ -4,8 +4,8 @@
 use camgeom::corners::{Corner, CornerConfig};
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Tracker,
-    TrackerConfig, bordered_len, calc_flow, forward_backward, scratch_len,
+    Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Templates,
+    Tracker, TrackerConfig, bordered_len, calc_flow, forward_backward, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 
@@ -278,7 +278,7 @@ pub fn track_sequence(
             if k > 0 {
                 let pview = frames[k - 1].view().ok_or(camgeom::Error::InvalidImage)?;
                 let prev = Pyramid::from_buffer(pview, old, l)?;
-                tracker.update(&prev, &next, &mut scratch)?;
+                tracker.update(&prev, &next, Templates::Compute, &mut scratch)?;
             }
             cs.resize(camgeom::corners::scratch_len(img.width), 0);
             tracker.replenish(&view, &mut cands, &mut cs)?;

@@ -34,11 +34,11 @@
 //! With the forward-backward check, [`FlowBuffers`] (and so [`Tracker`] and
 //! [`crate::target::PlanarTarget`]) can keep the backward pass's templates for the next
 //! frame's forward pass, which needs the same ones again (the new frame at the tracked
-//! positions): give it [`kept_scratch_len`]`(win, max_level, N)` of scratch. A kept template is
-//! used only when the pixels it was made from are equal byte for byte, so the flows are the
-//! same to the bit; on the Cortex-M7 main job with the check on, the flow costs 6 % less
-//! (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level (15x15 windows, the
-//! boards' kernel).
+//! positions): give it [`Templates::Keep`] with [`templates_len`]`(win, max_level, N)`
+//! elements. A kept template is used only when the pixels it was made from are equal byte for
+//! byte, so the flows are the same to the bit; on the Cortex-M7 main job with the check on,
+//! the flow costs 6 % less (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level
+//! (15x15 windows, the boards' kernel).
 //!
 //! ```
 //! use camgeom::image::ImageView;
@@ -82,7 +82,8 @@ mod tracker;
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
-pub use flow::{FlowBuffers, FlowItem, kept_scratch_len};
+pub use cache::templates_len;
+pub use flow::{FlowBuffers, FlowBuffersView, FlowItem};
 pub use kernel::{bordered_len, scratch_len};
 pub use lk::{calc_flow, forward_backward};
 pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
@@ -265,6 +266,23 @@ pub enum Borders<'a> {
     /// vector kernel of targets with 128-bit SIMD; the boards' kernel reads the level alone,
     /// so there the buffer is checked and left unused).
     Copy(&'a mut [u8]),
+}
+
+/// Whether [`FlowBuffersView::run`] keeps the templates its forward-backward check
+/// interpolates (the new frame at the tracked positions) for the next call's forward pass,
+/// which starts from those positions in that frame. A kept template is used only when the key
+/// of its window (level, integer corner, bilinear weights) and the `(win + 3)²` pixels it was
+/// made from are equal, so the flows are the same to the bit either way.
+#[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Templates<'a> {
+    /// Every template computed.
+    Compute,
+    /// Kept in this buffer, at least [`templates_len`]`(win, max_level, N)` elements for
+    /// buffers of capacity `N` ([`Error::BufferTooSmall`]`("templates")` otherwise). Give the
+    /// same buffer from call to call: it carries the templates over (whatever else it holds is
+    /// never matched, so never used). Nothing is kept without the forward-backward check.
+    Keep(&'a mut [i16]),
 }
 
 /// Where the window derivatives come from (same numbers either way, see [`crate::gradient`]).

@@ -10,10 +10,10 @@ use heapless::Vec;
 #[cfg(doc)]
 use super::FlowStatus;
 use super::arith::{Coordinate, FlowArith};
-use super::flow::{FlowBuffers, FlowItem};
 #[cfg(doc)]
-use super::lk::calc_flow;
-use super::{Flow, LkConfig, LkParams};
+use super::flow::FlowBuffersView;
+use super::flow::{FlowBuffers, FlowItem};
+use super::{Flow, LkConfig, LkParams, Templates};
 use crate::Result;
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::image::ImageView;
@@ -124,17 +124,19 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     }
 
     /// Moves every track from `prev` to `next`; removes those not [`FlowStatus::Tracked`].
-    /// `scratch`: as [`FlowBuffers::run`]. Errors as [`calc_flow`].
+    /// `templates` and `scratch`: as [`FlowBuffersView::run`] (for `N` points). Errors as
+    /// [`FlowBuffersView::run`].
     pub fn update(
         &mut self,
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
+        templates: Templates<'_>,
         scratch: &mut [i16],
     ) -> Result<TrackerStats> {
         let n = self.tracks.len();
-        let tracked = self
-            .buffers
-            .track(prev, next, &mut self.tracks, &self.lk, scratch)?;
+        let tracks = self.tracks.as_mut_view();
+        let (lk, mut buffers) = (&self.lk, self.buffers.as_mut_view());
+        let tracked = buffers.track(prev, next, tracks, lk, templates, scratch)?;
         Ok(TrackerStats {
             tracked,
             lost: n - tracked,
@@ -251,7 +253,7 @@ mod tests {
         let p1 = Pyramid::build(ImageView::packed(&f1, w, h).unwrap(), &mut b1, 2).unwrap();
         let p0 = Pyramid::from_buffer(v0, &b0, 2).unwrap();
         let mut s = std::vec![0i16; super::super::scratch_len(11)];
-        let st = t.update(&p0, &p1, &mut s).unwrap();
+        let st = t.update(&p0, &p1, Templates::Compute, &mut s).unwrap();
         assert_eq!(st.tracked + st.lost, before.len());
         assert!(st.tracked * 10 >= before.len() * 8, "{st:?}");
         for tr in t.tracks() {

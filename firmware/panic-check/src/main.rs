@@ -257,7 +257,7 @@ fn run_corners() {
 fn run_klt() {
     use camgeom::corners::Corner;
     use camgeom::klt::{
-        Borders, Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Tracker,
+        Borders, Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Templates, Tracker,
         TrackerConfig, calc_flow, forward_backward,
     };
     fn flows<A: FlowArith>(pa: &Pyramid<'_>, pb: &Pyramid<'_>, cfg: &LkParams, pt: A::Coord)
@@ -351,12 +351,18 @@ fn run_klt() {
     let mut fscratch = black_box([0i16; 4096]);
     if let Ok(mut t) = Tracker::<Fixed, 32>::new(&tcfg) {
         black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(t.update(&pa, &pb, &mut fscratch).ok());
+        black_box(
+            t.update(&pa, &pb, black_box(Templates::Compute), &mut fscratch)
+                .ok(),
+        );
         black_box(t.tracks());
     }
     if let Ok(mut t) = Tracker::<f32, 32>::new(&tcfg) {
         black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(t.update(&pa, &pb, &mut fscratch).ok());
+        black_box(
+            t.update(&pa, &pb, black_box(Templates::Compute), &mut fscratch)
+                .ok(),
+        );
         black_box(t.tracks());
     }
 }
