@@ -3,7 +3,7 @@
 //! The tracker holds no image. Each frame the caller builds the new pyramid into one of two
 //! buffers and re-wraps the previous frame's (already built) pyramid with
 //! [`Pyramid::from_buffer`](crate::pyramid::Pyramid::from_buffer), swapping the two buffers
-//! after the update: nothing is copied or recomputed. [`pipeline_ram`] gives the whole memory.
+//! after the update: nothing is copied or recomputed.
 
 use heapless::Vec;
 
@@ -87,8 +87,8 @@ pub struct TrackerStats {
     pub added: usize,
 }
 
-/// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is in
-/// [`pipeline_ram`]), and the checked configuration they are tracked with.
+/// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is all of its
+/// RAM), and the checked configuration they are tracked with.
 #[derive(Debug, Clone)]
 pub struct Tracker<A: FlowArith, const N: usize> {
     tracks: Vec<Track<A::Coord>, N>,
@@ -185,25 +185,6 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     }
 }
 
-/// Bytes of RAM a two-frame tracking pipeline needs for `width x height` frames: both frames,
-/// both pyramid buffers (`levels` levels), the flow scratch for `win`, the corner scratch and
-/// `candidates` candidates, and a [`Tracker`] of `N` tracks with arithmetic `A`.
-/// (Stack frames of the calls are not included; they are small and fixed.)
-pub const fn pipeline_ram<A: FlowArith, const N: usize>(
-    width: usize,
-    height: usize,
-    levels: usize,
-    win: usize,
-    candidates: usize,
-) -> usize {
-    2 * width * height
-        + 2 * crate::pyramid::buffer_len(width, height, levels)
-        + 2 * super::scratch_len(win)
-        + 4 * crate::corners::scratch_len(width)
-        + candidates * core::mem::size_of::<Corner>()
-        + core::mem::size_of::<Tracker<A, N>>()
-}
-
 #[cfg(test)]
 mod tests {
     use super::super::Fixed;
@@ -267,32 +248,5 @@ mod tests {
                 assert!((dx - 1.5).abs() < 0.1 && dy.abs() < 0.1, "{b:?}: {dx} {dy}");
             }
         }
-        assert!(pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) < 512 * 1024);
-    }
-}
-
-#[cfg(test)]
-mod ram {
-    use super::super::Fixed;
-    use super::*;
-
-    /// The 320x240 two-frame pipeline of the board (4 levels, 21x21, 200 tracks, 512
-    /// candidates): the number quoted in BENCHMARKS.md. The KLT scratch of a 21x21 window is
-    /// 2 775 `i16` on a board and 3 234 on a SIMD host (rows padded to 24 lanes, the
-    /// template's to 22 rows).
-    #[test]
-    fn ram_of_the_320x240_pipeline() {
-        let n = pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512);
-        std::println!("pipeline_ram 320x240 fixed N=200: {n} bytes");
-        std::println!("tracker: {}", core::mem::size_of::<Tracker<Fixed, 200>>());
-        let scratch = if super::super::kernel::LANES {
-            3_234
-        } else {
-            2_775
-        };
-        assert_eq!(
-            n,
-            2 * 76_800 + 2 * 25_200 + 2 * scratch + 4 * 3_840 + 512 * 8 + 12_128
-        );
     }
 }
