@@ -257,7 +257,8 @@ pub fn track_sequence(
         cfg: &TrackerConfig,
         on_frame: &mut dyn FnMut(usize, &[TrackRow]),
     ) -> camgeom::Result<Vec<TrackRow>> {
-        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new(cfg)?);
+        let params = cfg.check()?;
+        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new());
         let l = levels(&cfg.lk);
         let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
         let mut cands = vec![Corner::default(); 8192];
@@ -278,10 +279,10 @@ pub fn track_sequence(
             if k > 0 {
                 let pview = frames[k - 1].view().ok_or(camgeom::Error::InvalidImage)?;
                 let prev = Pyramid::from_buffer(pview, old, l)?;
-                tracker.update(&prev, &next, Templates::Compute, &mut scratch)?;
+                tracker.update(&params, &prev, &next, Templates::Compute, &mut scratch)?;
             }
             cs.resize(camgeom::corners::scratch_len(img.width), 0);
-            tracker.replenish(&view, &mut cands, &mut cs)?;
+            tracker.replenish(&params, &view, &mut cands, &mut cs)?;
             let start = rows.len();
             for t in tracker.tracks() {
                 rows.push(TrackRow {

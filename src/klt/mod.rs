@@ -86,7 +86,7 @@ pub use cache::templates_len;
 pub use flow::{FlowBuffers, FlowBuffersView, FlowItem};
 pub use kernel::{bordered_len, scratch_len};
 pub use lk::{calc_flow, forward_backward};
-pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats};
+pub use tracker::{Track, Tracker, TrackerConfig, TrackerParams, TrackerStats};
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;

@@ -345,26 +345,26 @@ fn run_klt() {
     flows::<Fixed>(&pa, &pb, &cfg, black_box(Q16::from_int(10)));
     flows::<f32>(&pa, &pb, &cfg, black_box(10.5));
 
-    let tcfg = black_box(TrackerConfig::default());
+    let Ok(tp) = black_box(TrackerConfig::default()).check() else {
+        return;
+    };
     let mut candidates = black_box([Corner::default(); 64]);
     let mut cscratch = black_box([0u32; 6 * W]);
     let mut fscratch = black_box([0i16; 4096]);
-    if let Ok(mut t) = Tracker::<Fixed, 32>::new(&tcfg) {
-        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(
-            t.update(&pa, &pb, black_box(Templates::Compute), &mut fscratch)
-                .ok(),
-        );
-        black_box(t.tracks());
-    }
-    if let Ok(mut t) = Tracker::<f32, 32>::new(&tcfg) {
-        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(
-            t.update(&pa, &pb, black_box(Templates::Compute), &mut fscratch)
-                .ok(),
-        );
-        black_box(t.tracks());
-    }
+    let mut t = Tracker::<Fixed, 32>::new();
+    black_box(t.replenish(&tp, &va, &mut candidates, &mut cscratch).ok());
+    black_box(
+        t.update(&tp, &pa, &pb, black_box(Templates::Compute), &mut fscratch)
+            .ok(),
+    );
+    black_box(t.tracks());
+    let mut t = Tracker::<f32, 32>::new();
+    black_box(t.replenish(&tp, &va, &mut candidates, &mut cscratch).ok());
+    black_box(
+        t.update(&tp, &pa, &pb, black_box(Templates::Compute), &mut fscratch)
+            .ok(),
+    );
+    black_box(t.tracks());
 }
 
 // ---------------------------------------------------------------- homography
