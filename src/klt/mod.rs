@@ -83,9 +83,8 @@ pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
 pub use cache::templates_len;
-pub use flow::{FlowBuffers, FlowBuffersView, FlowItem};
+pub use flow::{FlowBuffers, FlowBuffersView, FlowItem, calc_flow, forward_backward};
 pub use kernel::{bordered_len, scratch_len};
-pub use lk::{calc_flow, forward_backward};
 pub use tracker::{Track, Tracker, TrackerConfig, TrackerParams, TrackerStats};
 
 /// Largest window side accepted.
