@@ -9,7 +9,9 @@ mod common;
 use camgeom::corners::{Corner, CornerConfig, good_features, scratch_len as corner_scratch_len};
 use camgeom::heapless::Vec as FixedVec;
 use camgeom::image::ImageView;
-use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len};
+use camgeom::klt::{
+    Borders, Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len,
+};
 use camgeom::pyramid::{Pyramid, buffer_len};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -60,6 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &mut fixed_out,
         &params,
         Gradients::PerWindow,
+        Borders::None,
         &mut scratch,
     )?;
     let float: Vec<[f32; 2]> = corners
@@ -74,6 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         &mut float_out,
         &params,
         Gradients::PerWindow,
+        Borders::None,
         &mut scratch,
     )?;
     let mut tracked = 0;

@@ -74,7 +74,9 @@ use crate::corners::{Corner, CornerConfig, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
 use crate::klt::Fixed;
-use crate::klt::{Coordinate, Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams};
+use crate::klt::{
+    Coordinate, Flow, FlowArith, FlowBuffers, FlowItem, LkConfig, LkParams, Templates,
+};
 use crate::pose::{
     MAX_PLANAR_POINTS, PlanarConfig, PlanarPoint, PlanarPose, PoseEstimate, solve_planar,
     solve_planar_integer,
@@ -90,10 +92,11 @@ pub const fn flow_scratch_len(win: usize) -> usize {
 
 /// `i16` elements of a [`PlanarTarget`]'s flow scratch that also keeps the templates of each
 /// frame's forward-backward check for the next frame's forward pass
-/// ([`crate::klt::kept_scratch_len`]; `N` tracks, windows `win x win` up to level
-/// `max_level`). The same flows to the bit; with `lk.fb_threshold` off nothing is kept.
+/// ([`crate::klt::templates_len`] after the kernel's part; `N` tracks, windows `win x win` up
+/// to level `max_level`). The same flows to the bit; with `lk.fb_threshold` off nothing is
+/// kept.
 pub const fn kept_flow_scratch_len(win: usize, max_level: usize, n: usize) -> usize {
-    crate::klt::kept_scratch_len(win, max_level, n)
+    crate::klt::scratch_len(win) + crate::klt::templates_len(win, max_level, n)
 }
 
 /// `u32` elements of a [`PlanarTarget`]'s corner-detector scratch for frames up to `width`
@@ -797,13 +800,21 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
     ) -> Result<usize> {
-        self.buffers.track(
-            prev,
-            next,
-            &mut self.features,
-            &params.lk,
-            &mut self.flow_scratch,
-        )
+        // The scratch beyond the kernel's keeps the templates when it holds them all
+        // (`kept_flow_scratch_len`).
+        let cfg = params.lk.config();
+        let (scratch, rest) = self
+            .flow_scratch
+            .split_at_mut(flow_scratch_len(cfg.win).min(S));
+        let templates = if S >= kept_flow_scratch_len(cfg.win, cfg.max_level, N) {
+            Templates::Keep(rest)
+        } else {
+            Templates::Compute
+        };
+        let features = self.features.as_mut_view();
+        let lk = &params.lk;
+        let mut buffers = self.buffers.as_mut_view();
+        buffers.track(prev, next, features, lk, templates, scratch)
     }
 
     /// The live features into the model/pixel arrays.

@@ -2,17 +2,19 @@
 //! derivatives) on small arbitrary images, arbitrary points (NaN, inf, far outside) and
 //! arbitrary configurations. Contract: no panic; on `Ok`, every tracked point is finite and
 //! its error is finite and non-negative. And `FlowBuffers` over three frames (there and back
-//! twice) with and without kept templates (`kept_scratch_len`, with slack either way): the
-//! same result, flow for flow, to the bit. And `calc_flow_bordered` with a border buffer of
-//! arbitrary length: the same result as `calc_flow`, to the bit.
+//! twice) with `Templates::Compute` and `Templates::Keep` (a buffer of `templates_len` with
+//! slack either way; a short one is `BufferTooSmall("templates")`, then the exact length
+//! runs): the same result, flow for flow, to the bit. And `calc_flow` with `Borders::Copy` of a buffer
+//! of arbitrary length: the same result as with `Borders::None`, to the bit, or (only when the
+//! buffer is shorter than the level-1 copies) `BufferTooSmall("borders")`.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Coordinate, Fixed, Flow, FlowArith, FlowBuffers, FlowStatus, Gradients, LkConfig, LkParams,
-    Q16, bordered_len, calc_flow, calc_flow_bordered, kept_scratch_len, level_gradient_len,
-    scratch_len,
+    Borders, Coordinate, Fixed, Flow, FlowArith, FlowBuffers, FlowStatus, Gradients, LkConfig,
+    LkParams, Q16, Templates, bordered_len, calc_flow, level_gradient_len, scratch_len,
+    templates_len,
 };
 use camgeom::pyramid::{Pyramid, buffer_len};
 use libfuzzer_sys::fuzz_target;
@@ -42,10 +44,10 @@ struct Input {
     /// `derivs / 3 % 4` times).
     derivs: u8,
     scratch_slack: i8,
-    /// Length of the border buffer of `calc_flow_bordered`: the level-0 copies' halved
-    /// `borders % 4` times, less `borders / 4 % 3` bytes.
+    /// Length of the `Borders::Copy` buffer: the level-0 copies' halved `borders % 4` times,
+    /// less `borders / 4 % 3` bytes.
     borders: u8,
-    /// Slack of the kept-template scratch of the `FlowBuffers` run.
+    /// Slack of the `Templates::Keep` buffer of the `FlowBuffers` run.
     kept_slack: i16,
     points: std::vec::Vec<(Num, Num)>,
     fixed_points: std::vec::Vec<(i32, i32)>,
@@ -101,9 +103,10 @@ struct Run<'a, 'p> {
 }
 
 impl Run<'_, '_> {
-    /// `calc_flow` and `calc_flow_bordered` of `pts`: every tracked point of the first
-    /// finite ([`check`]), the same outcome from both, and on `Ok` the same flows to the bit
-    /// (each coordinate's `bits`).
+    /// `calc_flow` of `pts` without and with bordered copies: every tracked point of the first
+    /// finite ([`check`]); the second the same outcome, and on `Ok` the same flows to the bit
+    /// (each coordinate's `bits`), unless its buffer is shorter than the level-1 copies and
+    /// it says so.
     fn both<A: FlowArith>(&mut self, pts: &[[A::Coord; 2]], bits: impl Fn(A::Coord) -> u32) {
         let (pa, pb) = self.pyramids;
         let mut initial = std::vec![Flow::<A::Coord>::default(); pts.len()];
@@ -114,15 +117,29 @@ impl Run<'_, '_> {
         }
         let mut flows = initial.clone();
         let g = grads(self.derivs, self.grad);
-        let plain = calc_flow::<A>(pa, pb, pts, &mut flows, self.params, g, self.scratch);
+        let none = Borders::None;
+        let plain = calc_flow::<A>(pa, pb, pts, &mut flows, self.params, g, none, self.scratch);
         if plain.is_ok() {
             check(&flows, A::Coord::to_f32, self.what);
         }
         let mut bordered = initial;
         let g = grads(self.derivs, self.grad);
-        let (b, s) = (&mut *self.borders, &mut *self.scratch);
-        let with = calc_flow_bordered::<A>(pa, pb, pts, &mut bordered, self.params, g, b, s);
+        let (b, s) = (Borders::Copy(&mut *self.borders), &mut *self.scratch);
+        let with = calc_flow::<A>(pa, pb, pts, &mut bordered, self.params, g, b, s);
         let what = self.what;
+        if with == Err(camgeom::Error::BufferTooSmall("borders")) {
+            // Only a buffer shorter than level 1's copies is refused.
+            let win = self.params.config().win;
+            let level1 = pa
+                .level(1)
+                .map(|l| bordered_len(l.width(), l.height(), win));
+            assert!(
+                level1.is_some_and(|n| self.borders.len() < n),
+                "{what}: a border buffer of {} bytes refused",
+                self.borders.len()
+            );
+            return;
+        }
         assert_eq!(
             plain.is_ok(),
             with.is_ok(),
@@ -238,21 +255,30 @@ fuzz_target!(|inp: Input| {
         return;
     }
     let win = cfg.win.min(63);
-    let plain_len = scratch_len(win);
-    // At least the kernel's part (shorter is `BufferTooSmall`, as `calc_flow`); the slack
-    // makes the template slots short (then none are kept) or long.
-    let kept = kept_scratch_len(win, cfg.max_level, 16) as i64 + i64::from(inp.kept_slack);
-    let kept_len = kept.max(plain_len as i64) as usize;
-    let mut plain = std::vec![0i16; plain_len];
+    let mut s = std::vec![0i16; scratch_len(win)];
+    // The slack makes the templates' buffer short (an error, checked once) or long.
+    let need = templates_len(win, cfg.max_level, 16);
+    let kept_len = (need as i64 + i64::from(inp.kept_slack)).max(0) as usize;
     let mut kept = std::vec![0i16; kept_len];
-    let mut b1 = FlowBuffers::<f32, 16>::new();
-    let mut b2 = FlowBuffers::<f32, 16>::new();
+    let (mut b1, mut b2) = (FlowBuffers::<f32, 16>::new(), FlowBuffers::<f32, 16>::new());
+    let (mut v1, mut v2) = (b1.as_mut_view(), b2.as_mut_view());
     let mut p1 = pts.clone();
     let mut p2 = pts.clone();
+    if kept_len < need {
+        let t = Templates::Keep(&mut kept);
+        let r = v2.run(&pa, &pb, p2.iter().copied(), &params, t, &mut s);
+        assert_eq!(
+            r.err(),
+            Some(camgeom::Error::BufferTooSmall("templates")),
+            "a templates buffer of {kept_len} elements for {need}"
+        );
+        kept = std::vec![0i16; need];
+    }
     for (prev, next) in [(&pa, &pb), (&pb, &pa), (&pa, &pb)] {
-        let n = p1.len();
-        let r1 = b1.run(prev, next, n, p1.iter().copied(), &params, &mut plain);
-        let r2 = b2.run(prev, next, n, p2.iter().copied(), &params, &mut kept);
+        let t = Templates::Compute;
+        let r1 = v1.run(prev, next, p1.iter().copied(), &params, t, &mut s);
+        let t = Templates::Keep(&mut kept);
+        let r2 = v2.run(prev, next, p2.iter().copied(), &params, t, &mut s);
         match (r1, r2) {
             (Ok(f1), Ok(f2)) => {
                 let bits = |f: &[Flow<f32>]| -> std::vec::Vec<_> {

@@ -4,8 +4,8 @@
 use camgeom::corners::{Corner, CornerConfig};
 use camgeom::image::ImageView;
 use camgeom::klt::{
-    Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Tracker,
-    TrackerConfig, bordered_len, calc_flow_bordered, forward_backward, scratch_len,
+    Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Q16, Templates,
+    Tracker, TrackerConfig, bordered_len, calc_flow, forward_backward, scratch_len,
 };
 use camgeom::pyramid::{Pyramid, PyramidPair, buffer_len};
 
@@ -46,8 +46,8 @@ pub fn pyramid<'a>(img: &'a GrayImage, buf: &'a mut Vec<u8>, levels: usize) -> P
 }
 
 /// Where [`flow_pyramids`] takes the window derivatives from ([`Gradients`]; a level-0 sized
-/// buffer for `Level`, a level-1 sized one for `Auto`, which also gets the bordered copies of
-/// [`calc_flow_bordered`] for the level-1 size: the host's fastest configuration).
+/// buffer for `Level`, a level-1 sized one for `Auto`, which also gets the bordered copies
+/// ([`Borders::Copy`]) for the level-1 size: the host's fastest configuration).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Derivatives {
     /// [`Gradients::PerWindow`].
@@ -129,14 +129,18 @@ pub fn flow_pyramids_in(
                 Derivatives::Auto => Gradients::Auto(grad),
             }
         }
-        calc_flow_bordered::<A>(
+        let borders = match derivs {
+            Derivatives::Auto => Borders::Copy(&mut s.borders),
+            Derivatives::Window | Derivatives::Level => Borders::None,
+        };
+        calc_flow::<A>(
             prev,
             next,
             &pts,
             &mut flows,
             &params,
             g(&mut s.grad, derivs),
-            &mut s.borders,
+            borders,
             &mut s.scratch,
         )?;
         if cfg.fb_threshold.is_some() {
@@ -253,7 +257,8 @@ pub fn track_sequence(
         cfg: &TrackerConfig,
         on_frame: &mut dyn FnMut(usize, &[TrackRow]),
     ) -> camgeom::Result<Vec<TrackRow>> {
-        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new(cfg)?);
+        let params = cfg.check()?;
+        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new());
         let l = levels(&cfg.lk);
         let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
         let mut cands = vec![Corner::default(); 8192];
@@ -275,10 +280,16 @@ pub fn track_sequence(
             pair.capture()?.copy_from(&view)?;
             let pyramids = pair.advance()?;
             if let Some(prev) = &pyramids.previous {
-                tracker.update(prev, &pyramids.next, &mut scratch)?;
+                tracker.update(
+                    &params,
+                    prev,
+                    &pyramids.next,
+                    Templates::Compute,
+                    &mut scratch,
+                )?;
             }
             cs.resize(camgeom::corners::scratch_len(img.width), 0);
-            tracker.replenish(&view, &mut cands, &mut cs)?;
+            tracker.replenish(&params, &view, &mut cands, &mut cs)?;
             let start = rows.len();
             for t in tracker.tracks() {
                 rows.push(TrackRow {

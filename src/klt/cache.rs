@@ -45,6 +45,14 @@ pub const fn cache_len(win: usize, levels: usize, points: usize) -> usize {
     2 * slot_words(win) * levels * points + 1
 }
 
+/// `i16` elements of a [`Templates::Keep`](super::Templates::Keep) buffer for `points` points
+/// tracked up to level `max_level` with `win x win` windows: one slot a point and level, each
+/// the template the kernel computes, the `(win + 3)²` pixels it was made from and its key
+/// (`cache_len` of `max_level + 1` levels).
+pub const fn templates_len(win: usize, max_level: usize, points: usize) -> usize {
+    cache_len(win, max_level + 1, points)
+}
+
 /// A template and its `G` sums `(Σ Ix², Σ Ix Iy, Σ Iy²)`.
 pub(super) type Kept<'a> = (&'a [i16], (i64, i64, i64));
 

@@ -22,8 +22,9 @@
 //!
 //! Scratch: [`scratch_len`]`(win)` `i16` per call, whatever the number of points.
 //!
-//! Where RAM allows, [`calc_flow_bordered`] first copies each coarse level of both pyramids
-//! with a reflected border ([`bordered_len`] bytes for the level-1 size), as OpenCV keeps its
+//! Where RAM allows, [`calc_flow`] given [`Borders::Copy`] first copies the coarse levels of
+//! both pyramids with a reflected border ([`bordered_len`] bytes for the level-1 size; which
+//! levels, by the windows' work, is [`Borders::Copy`]'s rule), as OpenCV keeps its
 //! pyramids: a window that crosses a level's edge then reads the copy instead of copying out
 //! its own reflected block at its template and at each mismatch that moves it. The flows are
 //! the same to the bit; on the host the copies cost less than the blocks they save once many
@@ -33,15 +34,15 @@
 //! With the forward-backward check, [`FlowBuffers`] (and so [`Tracker`] and
 //! [`crate::target::PlanarTarget`]) can keep the backward pass's templates for the next
 //! frame's forward pass, which needs the same ones again (the new frame at the tracked
-//! positions): give it [`kept_scratch_len`]`(win, max_level, N)` of scratch. A kept template is
-//! used only when the pixels it was made from are equal byte for byte, so the flows are the
-//! same to the bit; on the Cortex-M7 main job with the check on, the flow costs 6 % less
-//! (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level (15x15 windows, the
-//! boards' kernel).
+//! positions): give it [`Templates::Keep`] with [`templates_len`]`(win, max_level, N)`
+//! elements. A kept template is used only when the pixels it was made from are equal byte for
+//! byte, so the flows are the same to the bit; on the Cortex-M7 main job with the check on,
+//! the flow costs 6 % less (BENCHMARKS.md, "Kept templates"), for 1,728 B a point and level
+//! (15x15 windows, the boards' kernel).
 //!
 //! ```
 //! use camgeom::image::ImageView;
-//! use camgeom::klt::{Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
+//! use camgeom::klt::{Borders, Flow, FlowStatus, Gradients, LkConfig, calc_flow, scratch_len};
 //! use camgeom::pyramid::{Pyramid, buffer_len};
 //!
 //! // A smooth texture, and the same texture moved by (+3, +2) pixels.
@@ -59,7 +60,8 @@
 //! let pts = [[30.0f32, 30.0], [24.5, 36.0], [40.0, 27.25]];
 //! let mut flows = [Flow::default(); 3];
 //! let mut scratch = [0i16; scratch_len(21)];
-//! calc_flow::<f32>(&pa, &pb, &pts, &mut flows, &params, Gradients::PerWindow, &mut scratch)?;
+//! let (grads, borders) = (Gradients::PerWindow, Borders::None);
+//! calc_flow::<f32>(&pa, &pb, &pts, &mut flows, &params, grads, borders, &mut scratch)?;
 //! for (p, f) in pts.iter().zip(&flows) {
 //!     assert_eq!(f.status, FlowStatus::Tracked);
 //!     // Within the stopping step (epsilon = 0.01 px): the texture moves without change.
@@ -80,10 +82,10 @@ mod tracker;
 pub use arith::{
     Bilinear, Coordinate, Fixed, FixedGram, FixedParams, FloatGram, FloatParams, FlowArith, Q16,
 };
-pub use flow::{FlowBuffers, FlowItem, kept_scratch_len};
+pub use cache::templates_len;
+pub use flow::{FlowBuffers, FlowBuffersView, FlowItem, calc_flow, forward_backward};
 pub use kernel::{bordered_len, scratch_len};
-pub use lk::{calc_flow, calc_flow_bordered, forward_backward};
-pub use tracker::{Track, Tracker, TrackerConfig, TrackerStats, pipeline_ram};
+pub use tracker::{Track, Tracker, TrackerConfig, TrackerParams, TrackerStats};
 
 /// Largest window side accepted.
 pub const MAX_WIN: usize = 63;
@@ -241,6 +243,45 @@ pub struct Flow<C> {
     pub status: FlowStatus,
     /// Mean absolute difference of the two windows.
     pub err: C,
+}
+
+/// Whether [`calc_flow`] copies the coarse levels of both pyramids with a reflected border
+/// first, as OpenCV keeps its pyramids. A window that leaves a level but not the border then
+/// reads the copy's rows where it would otherwise copy out its own reflected block, at its
+/// template and at every mismatch that moves it; the flows are the same to the bit either way.
+#[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Borders<'a> {
+    /// No copies: each window that leaves a level copies out its own block.
+    None,
+    /// The copies go into this buffer, which must hold [`bordered_len`]`(w, h, win)` bytes for
+    /// the level-1 size `w x h` of the pyramids whenever the flow runs on level 1 or above
+    /// ([`Error::BufferTooSmall`]`("borders")` otherwise; with only level 0 any length does).
+    ///
+    /// Which levels are copied is a rule of the flow's own, not of the buffer's length: levels
+    /// 1 and up (level 0 is the frame itself, too large to be worth a copy), each where the
+    /// windows' work outweighs a pass over the level, `w h <= n (win + 1)²` for `n` points (the
+    /// rule of [`Gradients::Auto`]), and only where the target's kernel reads copies (the
+    /// vector kernel of targets with 128-bit SIMD; the boards' kernel reads the level alone,
+    /// so there the buffer is checked and left unused).
+    Copy(&'a mut [u8]),
+}
+
+/// Whether [`FlowBuffersView::run`] keeps the templates its forward-backward check
+/// interpolates (the new frame at the tracked positions) for the next call's forward pass,
+/// which starts from those positions in that frame. A kept template is used only when the key
+/// of its window (level, integer corner, bilinear weights) and the `(win + 3)²` pixels it was
+/// made from are equal, so the flows are the same to the bit either way.
+#[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Templates<'a> {
+    /// Every template computed.
+    Compute,
+    /// Kept in this buffer, at least [`templates_len`]`(win, max_level, N)` elements for
+    /// buffers of capacity `N` ([`Error::BufferTooSmall`]`("templates")` otherwise). Give the
+    /// same buffer from call to call: it carries the templates over (whatever else it holds is
+    /// never matched, so never used). Nothing is kept without the forward-backward check.
+    Keep(&'a mut [i16]),
 }
 
 /// Where the window derivatives come from (same numbers either way, see [`crate::gradient`]).

@@ -3,21 +3,22 @@
 //! The tracker holds no image. Each frame the caller builds the new pyramid into one of two
 //! buffers and re-wraps the previous frame's (already built) pyramid with
 //! [`Pyramid::from_buffer`](crate::pyramid::Pyramid::from_buffer), swapping the two buffers
-//! after the update: nothing is copied or recomputed. [`pipeline_ram`] gives the whole memory.
+//! after the update: nothing is copied or recomputed. Nor does it hold its configuration:
+//! [`TrackerConfig::check`] gives the [`TrackerParams`] that every call takes.
 
 use heapless::Vec;
 
 #[cfg(doc)]
 use super::FlowStatus;
 use super::arith::{Coordinate, FlowArith};
-use super::flow::{FlowBuffers, FlowItem};
 #[cfg(doc)]
-use super::lk::calc_flow;
-use super::{Flow, LkConfig, LkParams};
-use crate::Result;
+use super::flow::FlowBuffersView;
+use super::flow::{FlowBuffers, FlowItem};
+use super::{Flow, LkConfig, LkParams, Templates};
 use crate::corners::{Corner, CornerConfig, good_features};
 use crate::image::ImageView;
 use crate::pyramid::Pyramid;
+use crate::{Error, Result};
 
 /// One tracked feature.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -64,6 +65,58 @@ pub struct TrackerConfig {
     pub max_tracks: usize,
 }
 
+impl TrackerConfig {
+    /// Checks every field once: the tracker's calls take the checked [`TrackerParams`].
+    ///
+    /// Errors: as [`LkConfig::check`] and [`CornerConfig::check`].
+    pub fn check(&self) -> Result<TrackerParams> {
+        self.lk.check()?;
+        self.corners.check()?;
+        Ok(TrackerParams(*self))
+    }
+}
+
+/// A [`TrackerConfig`] that passed [`TrackerConfig::check`]: what [`Tracker::update`] and
+/// [`Tracker::replenish`] take, kept beside the tracker's state rather than in it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackerParams(TrackerConfig);
+
+impl TrackerParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &TrackerConfig {
+        &self.0
+    }
+
+    /// The checked flow parameters ([`TrackerConfig::lk`]).
+    pub const fn lk(&self) -> LkParams {
+        // Checked with the rest by `TrackerConfig::check`.
+        LkParams(self.0.lk)
+    }
+
+    /// The most tracks held: `max_tracks`, at most (and when 0) the capacity `n`.
+    fn cap(&self, n: usize) -> usize {
+        match self.0.max_tracks {
+            0 => n,
+            m => m.min(n),
+        }
+    }
+}
+
+impl Default for TrackerParams {
+    /// The checked [`TrackerConfig::default`].
+    fn default() -> Self {
+        Self(TrackerConfig::default())
+    }
+}
+
+impl TryFrom<TrackerConfig> for TrackerParams {
+    type Error = Error;
+    fn try_from(c: TrackerConfig) -> Result<Self> {
+        c.check()
+    }
+}
+
 impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
@@ -87,30 +140,29 @@ pub struct TrackerStats {
     pub added: usize,
 }
 
-/// Up to `N` tracks, with per-point work buffers (no allocation; `size_of` is in
-/// [`pipeline_ram`]), and the checked configuration they are tracked with.
+/// Up to `N` tracks and their per-point work buffers (no allocation; `size_of` is all of its
+/// RAM). The configuration is apart: each call takes the [`TrackerParams`].
 #[derive(Debug, Clone)]
 pub struct Tracker<A: FlowArith, const N: usize> {
     tracks: Vec<Track<A::Coord>, N>,
     buffers: FlowBuffers<A, N>,
-    lk: LkParams,
-    cfg: TrackerConfig,
     next_id: u32,
 }
 
+impl<A: FlowArith, const N: usize> Default for Tracker<A, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl<A: FlowArith, const N: usize> Tracker<A, N> {
-    /// An empty tracker with `cfg`, checked once here. Errors: as [`LkConfig::check`] and
-    /// [`CornerConfig::check`].
-    pub fn new(cfg: &TrackerConfig) -> Result<Self> {
-        let lk = cfg.lk.check()?;
-        cfg.corners.check()?;
-        Ok(Self {
+    /// An empty tracker (`const`: it can live in a zero-initialised `static`).
+    pub const fn new() -> Self {
+        Self {
             tracks: Vec::new(),
             buffers: FlowBuffers::new(),
-            lk,
-            cfg: *cfg,
             next_id: 0,
-        })
+        }
     }
 
     /// The live tracks.
@@ -124,17 +176,20 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     }
 
     /// Moves every track from `prev` to `next`; removes those not [`FlowStatus::Tracked`].
-    /// `scratch`: as [`FlowBuffers::run`]. Errors as [`calc_flow`].
+    /// `templates` and `scratch`: as [`FlowBuffersView::run`] (for `N` points). Errors as
+    /// [`FlowBuffersView::run`].
     pub fn update(
         &mut self,
+        params: &TrackerParams,
         prev: &Pyramid<'_>,
         next: &Pyramid<'_>,
+        templates: Templates<'_>,
         scratch: &mut [i16],
     ) -> Result<TrackerStats> {
         let n = self.tracks.len();
-        let tracked = self
-            .buffers
-            .track(prev, next, &mut self.tracks, &self.lk, scratch)?;
+        let tracks = self.tracks.as_mut_view();
+        let (lk, mut buffers) = (params.lk(), self.buffers.as_mut_view());
+        let tracked = buffers.track(prev, next, tracks, &lk, templates, scratch)?;
         Ok(TrackerStats {
             tracked,
             lost: n - tracked,
@@ -148,20 +203,17 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
     /// `scratch` as [`good_features`]. Returns the number added.
     pub fn replenish(
         &mut self,
+        params: &TrackerParams,
         frame: &ImageView<'_, u8>,
         candidates: &mut [Corner],
         scratch: &mut [u32],
     ) -> Result<usize> {
-        let cap = if self.cfg.max_tracks == 0 {
-            N
-        } else {
-            self.cfg.max_tracks.min(N)
-        };
-        if self.tracks.len() >= self.cfg.replenish_below.min(cap) {
+        let (cfg, cap) = (params.config(), params.cap(N));
+        if self.tracks.len() >= cfg.replenish_below.min(cap) {
             return Ok(0);
         }
         let mut found: Vec<Corner, N> = Vec::new();
-        let ccfg = self.cfg.corners.up_to(cap - self.tracks.len());
+        let ccfg = cfg.corners.up_to(cap - self.tracks.len());
         let existing = self.tracks.iter().map(|t| [t.x.round(), t.y.round()]);
         good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
         let mut added = 0;
@@ -181,25 +233,6 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
         }
         Ok(added)
     }
-}
-
-/// Bytes of RAM a two-frame tracking pipeline needs for `width x height` frames: both frames,
-/// both pyramid buffers (`levels` levels), the flow scratch for `win`, the corner scratch and
-/// `candidates` candidates, and a [`Tracker`] of `N` tracks with arithmetic `A`.
-/// (Stack frames of the calls are not included; they are small and fixed.)
-pub const fn pipeline_ram<A: FlowArith, const N: usize>(
-    width: usize,
-    height: usize,
-    levels: usize,
-    win: usize,
-    candidates: usize,
-) -> usize {
-    2 * width * height
-        + 2 * crate::pyramid::buffer_len(width, height, levels)
-        + 2 * super::scratch_len(win)
-        + 4 * crate::corners::scratch_len(width)
-        + candidates * core::mem::size_of::<Corner>()
-        + core::mem::size_of::<Tracker<A, N>>()
 }
 
 #[cfg(test)]
@@ -238,11 +271,12 @@ mod tests {
             replenish_below: 20,
             max_tracks: 0,
         };
-        let mut t: Tracker<Fixed, 32> = Tracker::new(&cfg).unwrap();
+        let params = cfg.check().unwrap();
+        let mut t: Tracker<Fixed, 32> = Tracker::new();
         let mut cands = [Corner::default(); 256];
         let mut cs = std::vec![0u32; crate::corners::scratch_len(w)];
         let v0 = ImageView::packed(&f0, w, h).unwrap();
-        let added = t.replenish(&v0, &mut cands, &mut cs).unwrap();
+        let added = t.replenish(&params, &v0, &mut cands, &mut cs).unwrap();
         assert!(added >= 20, "{added}");
         let before: std::vec::Vec<_> = t.tracks().to_vec();
         let mut b0 = std::vec![0u8; crate::pyramid::buffer_len(w, h, 2)];
@@ -251,7 +285,9 @@ mod tests {
         let p1 = Pyramid::build(ImageView::packed(&f1, w, h).unwrap(), &mut b1, 2).unwrap();
         let p0 = Pyramid::from_buffer(v0, &b0, 2).unwrap();
         let mut s = std::vec![0i16; super::super::scratch_len(11)];
-        let st = t.update(&p0, &p1, &mut s).unwrap();
+        let st = t
+            .update(&params, &p0, &p1, Templates::Compute, &mut s)
+            .unwrap();
         assert_eq!(st.tracked + st.lost, before.len());
         assert!(st.tracked * 10 >= before.len() * 8, "{st:?}");
         for tr in t.tracks() {
@@ -265,32 +301,25 @@ mod tests {
                 assert!((dx - 1.5).abs() < 0.1 && dy.abs() < 0.1, "{b:?}: {dx} {dy}");
             }
         }
-        assert!(pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) < 512 * 1024);
     }
 }
 
 #[cfg(test)]
-mod ram {
-    use super::super::Fixed;
+mod params {
     use super::*;
 
-    /// The 320x240 two-frame pipeline of the board (4 levels, 21x21, 200 tracks, 512
-    /// candidates): the number quoted in BENCHMARKS.md. The KLT scratch of a 21x21 window is
-    /// 2 775 `i16` on a board and 3 234 on a SIMD host (rows padded to 24 lanes, the
-    /// template's to 22 rows).
+    /// The default configuration passes its check; a bad field fails it, named.
     #[test]
-    fn ram_of_the_320x240_pipeline() {
-        let n = pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512);
-        std::println!("pipeline_ram 320x240 fixed N=200: {n} bytes");
-        std::println!("tracker: {}", core::mem::size_of::<Tracker<Fixed, 200>>());
-        let scratch = if super::super::kernel::LANES {
-            3_234
-        } else {
-            2_775
-        };
-        assert_eq!(
-            n,
-            2 * 76_800 + 2 * 25_200 + 2 * scratch + 4 * 3_840 + 512 * 8 + 12_128
-        );
+    fn checked_once_into_params() {
+        let cfg = TrackerConfig::default();
+        assert_eq!(cfg.check(), Ok(TrackerParams::default()));
+        assert_eq!(TrackerParams::try_from(cfg), Ok(TrackerParams::default()));
+        assert_eq!(TrackerParams::default().lk(), LkParams::default());
+        let mut bad = cfg;
+        bad.lk.win = 2;
+        assert_eq!(bad.check(), Err(Error::InvalidParameter("lk.win")));
+        let mut bad = cfg;
+        bad.corners.quality = 0.0;
+        assert_eq!(bad.check(), Err(Error::InvalidParameter("corners.quality")));
     }
 }

@@ -78,7 +78,7 @@ pub const AREAS: [Area; 19] = [
     area(
         "klt",
         false,
-        "`calc_flow`, `calc_flow_bordered` and `forward_backward`, `Fixed` and `f32`, per-window, per-level and `Auto` gradients; `Tracker::replenish`, `update` (both arithmetics)",
+        "`calc_flow` (without and with `Borders::Copy`) and `forward_backward`, `Fixed` and `f32`, per-window, per-level and `Auto` gradients; `Tracker::replenish`, `update` (both arithmetics)",
     ),
     area(
         "homography",

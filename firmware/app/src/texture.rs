@@ -32,7 +32,9 @@ pub fn textured_frame(frame: &mut ImageMut<'_, u8>, dx: i32, dy: i32) {
 mod tests {
     use super::*;
     use camgeom::image::ImageView;
-    use camgeom::klt::{Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len};
+    use camgeom::klt::{
+        Borders, Fixed, Flow, FlowStatus, Gradients, LkConfig, Q16, calc_flow, scratch_len,
+    };
     use camgeom::pyramid::{Pyramid, buffer_len};
 
     #[test]
@@ -56,7 +58,17 @@ mod tests {
         }
         .check()
         .unwrap();
-        calc_flow::<Fixed>(&p0, &p1, &pts, &mut f, &cfg, Gradients::PerWindow, &mut s).unwrap();
+        calc_flow::<Fixed>(
+            &p0,
+            &p1,
+            &pts,
+            &mut f,
+            &cfg,
+            Gradients::PerWindow,
+            Borders::None,
+            &mut s,
+        )
+        .unwrap();
         for (p, r) in pts.iter().zip(&f) {
             assert_eq!(r.status, FlowStatus::Tracked);
             let dx = Q16::to_f32(r.x - p[0]);

@@ -268,14 +268,14 @@ fn run_corners() {
 
 // ---------------------------------------------------------------- klt
 
-/// `calc_flow`, `calc_flow_bordered` and `forward_backward` with fixed-point and `f32`
-/// arithmetic, both gradient modes, and the multi-frame tracker.
+/// `calc_flow` (without and with bordered copies) and `forward_backward` with fixed-point and
+/// `f32` arithmetic, every gradient mode, and the multi-frame tracker.
 #[cfg(feature = "klt")]
 fn run_klt() {
     use camgeom::corners::Corner;
     use camgeom::klt::{
-        Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Tracker, TrackerConfig,
-        calc_flow, calc_flow_bordered, forward_backward,
+        Borders, Fixed, Flow, FlowArith, Gradients, LkConfig, LkParams, Q16, Templates, Tracker,
+        TrackerConfig, calc_flow, forward_backward,
     };
     fn flows<A: FlowArith>(pa: &Pyramid<'_>, pb: &Pyramid<'_>, cfg: &LkParams, pt: A::Coord)
     where
@@ -295,6 +295,7 @@ fn run_klt() {
                 &mut fw,
                 cfg,
                 Gradients::PerWindow,
+                Borders::None,
                 &mut scratch,
             )
             .ok(),
@@ -307,20 +308,21 @@ fn run_klt() {
                 &mut fw,
                 cfg,
                 Gradients::PerLevel(black_box(&mut grad[..])),
+                Borders::None,
                 &mut scratch,
             )
             .ok(),
         );
         let mut borders = black_box([0u8; 8192]);
         black_box(
-            calc_flow_bordered::<A>(
+            calc_flow::<A>(
                 pa,
                 pb,
                 &pts,
                 &mut fw,
                 cfg,
                 Gradients::Auto(black_box(&mut grad[..])),
-                black_box(&mut borders[..]),
+                Borders::Copy(black_box(&mut borders[..])),
                 &mut scratch,
             )
             .ok(),
@@ -360,20 +362,26 @@ fn run_klt() {
     flows::<Fixed>(&pa, &pb, &cfg, black_box(Q16::from_int(10)));
     flows::<f32>(&pa, &pb, &cfg, black_box(10.5));
 
-    let tcfg = black_box(TrackerConfig::default());
+    let Ok(tp) = black_box(TrackerConfig::default()).check() else {
+        return;
+    };
     let mut candidates = black_box([Corner::default(); 64]);
     let mut cscratch = black_box([0u32; 6 * W]);
     let mut fscratch = black_box([0i16; 4096]);
-    if let Ok(mut t) = Tracker::<Fixed, 32>::new(&tcfg) {
-        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(t.update(&pa, &pb, &mut fscratch).ok());
-        black_box(t.tracks());
-    }
-    if let Ok(mut t) = Tracker::<f32, 32>::new(&tcfg) {
-        black_box(t.replenish(&va, &mut candidates, &mut cscratch).ok());
-        black_box(t.update(&pa, &pb, &mut fscratch).ok());
-        black_box(t.tracks());
-    }
+    let mut t = Tracker::<Fixed, 32>::new();
+    black_box(t.replenish(&tp, &va, &mut candidates, &mut cscratch).ok());
+    black_box(
+        t.update(&tp, &pa, &pb, black_box(Templates::Compute), &mut fscratch)
+            .ok(),
+    );
+    black_box(t.tracks());
+    let mut t = Tracker::<f32, 32>::new();
+    black_box(t.replenish(&tp, &va, &mut candidates, &mut cscratch).ok());
+    black_box(
+        t.update(&tp, &pa, &pb, black_box(Templates::Compute), &mut fscratch)
+            .ok(),
+    );
+    black_box(t.tracks());
 }
 
 // ---------------------------------------------------------------- homography

@@ -64,10 +64,11 @@ pub(in crate::klt) const fn border_width(win: usize) -> usize {
     win / 2 + 8
 }
 
-/// Bytes of the bordered copies [`calc_flow_bordered`](crate::klt::calc_flow_bordered) makes
-/// of a `w x h` level of both pyramids (`I`'s and `J`'s) for `win x win` windows:
-/// `2 (w + 2b)(h + 2b)` with the border `b = ⌊win / 2⌋ + 8` (`border_width`: every block a
-/// window centred in the level reads lies inside it).
+/// Bytes of the bordered copies [`calc_flow`](crate::klt::calc_flow) makes
+/// ([`Borders::Copy`](crate::klt::Borders::Copy)) of a `w x h` level of both pyramids (`I`'s
+/// and `J`'s) for `win x win` windows: `2 (w + 2b)(h + 2b)` with the border
+/// `b = ⌊win / 2⌋ + 8` (`border_width`: every block a window centred in the level reads lies
+/// inside it).
 pub const fn bordered_len(w: usize, h: usize, win: usize) -> usize {
     let b = 2 * border_width(win);
     2 * (w + b) * (h + b)

@@ -233,11 +233,12 @@ mod klt_bench {
     use core::hint::black_box;
 
     use camgeom::camera::{Camera, Intrinsics};
+    use camgeom::corners::Corner;
     use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
     use camgeom::image::{ImageMut, ImageView};
     use camgeom::klt::{
-        Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, calc_flow,
-        level_gradient_len, pipeline_ram, scratch_len,
+        Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Tracker,
+        calc_flow, level_gradient_len, scratch_len,
     };
     use camgeom::nalgebra::{Point2, Vector2, Vector3};
     use camgeom::pyramid::{Pyramid, buffer_len};
@@ -273,6 +274,19 @@ mod klt_bench {
     const CY: f32 = 119.5;
 
     const PYR_LEN: usize = buffer_len(W, H, LEVELS);
+    /// Bytes of RAM of a two-frame tracking pipeline on these frames (BENCHMARKS.md, "Emulated
+    /// board"): both frames, both pyramid buffers, the flow scratch, the corner scratch, the
+    /// candidates and a `Tracker<Fixed, 200>` (not the calls' stack frames: small, fixed).
+    const PIPELINE_RAM: usize = 2 * W * H
+        + 2 * PYR_LEN
+        + size_of::<i16>() * scratch_len(WIN)
+        + size_of::<u32>() * camgeom::corners::scratch_len(W)
+        + CANDIDATES * size_of::<Corner>()
+        + size_of::<Tracker<Fixed, 200>>();
+    const _: () = assert!(
+        PIPELINE_RAM < 512 * 1024,
+        "the pipeline fits the board's RAM"
+    );
     static FRAME_A: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
     static FRAME_B: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
     static PYR_A: ConstStaticCell<[u8; PYR_LEN]> = ConstStaticCell::new([0; PYR_LEN]);
@@ -350,7 +364,18 @@ mod klt_bench {
             Ok(c) => black_box(c),
             Err(e) => fail(name, e),
         };
-        let (r, cost) = measure(|| calc_flow::<A>(pa, pb, &pts, &mut flows, &cfg, grads, scratch));
+        let (r, cost) = measure(|| {
+            calc_flow::<A>(
+                pa,
+                pb,
+                &pts,
+                &mut flows,
+                &cfg,
+                grads,
+                Borders::None,
+                scratch,
+            )
+        });
         if let Err(e) = r {
             fail(name, e)
         }
@@ -422,13 +447,14 @@ mod klt_bench {
         let grad = GRAD.take();
         let target = TARGET.take();
         defmt::info!(
-            "klt bench: {=usize}x{=usize}, {=usize} levels, shift ({=i32}, {=i32})/256 px; pipeline_ram::<Fixed, 200>(320, 240, 4, 21, 512) = {=usize} bytes",
+            "klt bench: {=usize}x{=usize}, {=usize} levels, shift ({=i32}, {=i32})/256 px; two-frame pipeline RAM (Tracker<Fixed, 200>, {=usize} candidates) = {=usize} bytes",
             W,
             H,
             LEVELS,
             SHIFT.0,
             SHIFT.1,
-            pipeline_ram::<Fixed, 200>(W, H, LEVELS, WIN, CANDIDATES)
+            CANDIDATES,
+            PIPELINE_RAM
         );
 
         let frames = ImageMut::packed(&mut frame_a[..], W, H)

@@ -28,7 +28,7 @@ use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
 use camgeom::homography::{dlt, find_homography};
 use camgeom::image::{ImageMut, ImageView};
-use camgeom::klt::{Fixed, Flow, Gradients, LkConfig, Q16, calc_flow, scratch_len};
+use camgeom::klt::{Borders, Fixed, Flow, Gradients, LkConfig, Q16, calc_flow, scratch_len};
 use camgeom::nalgebra::{ComplexField, Point2, Point3, Vector3};
 use camgeom::pose::{
     PlanarConfig, PlanarPoint, solve_planar, solve_planar_integer, solve_pnp_ransac,
@@ -359,6 +359,7 @@ fn main() -> ! {
             &mut ffl[..],
             &cfg,
             Gradients::PerWindow,
+            Borders::None,
             &mut fscr[..],
         )
     });
@@ -374,6 +375,7 @@ fn main() -> ! {
             &mut gfl[..],
             &cfg,
             Gradients::PerWindow,
+            Borders::None,
             &mut fscr[..],
         )
     });
