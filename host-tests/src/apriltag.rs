@@ -148,20 +148,21 @@ pub fn detect(
             camgeom::Error::InvalidImage,
         )
     })?;
-    det.detect(&view, ws).map_err(|e| match e {
-        camgeom::Error::BufferTooSmall(_) => Error::camgeom(
-            format!(
-                "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE} \
+    det.detect(&view, &mut ws.as_mut_view())
+        .map_err(|e| match e {
+            camgeom::Error::BufferTooSmall(_) => Error::camgeom(
+                format!(
+                    "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE} \
                  after decimation: try --decimate {})",
-                path.display(),
-                img.width,
-                img.height,
-                img.width.max(img.height).div_ceil(MAX_SIDE).max(2)
+                    path.display(),
+                    img.width,
+                    img.height,
+                    img.width.max(img.height).div_ceil(MAX_SIDE).max(2)
+                ),
+                e,
             ),
-            e,
-        ),
-        e => Error::camgeom(format!("{}: detection failed", path.display()), e),
-    })
+            e => Error::camgeom(format!("{}: detection failed", path.display()), e),
+        })
 }
 
 /// Which pixel coordinates the output uses.

@@ -16,7 +16,8 @@
 //!    ([`decode`], [`family`]);
 //! 7. duplicates (overlapping detections of one id) reduced to the best.
 //!
-//! [`Detector`] holds the validated [`DetectorConfig`] and families; [`Workspace`] the memory;
+//! [`Detector`] holds the validated [`DetectorConfig`] and families; [`Workspace`] the memory
+//! (a board's `static`), which the detector takes as a [`WorkspaceView`];
 //! [`Detector::detect`] returns the [`Detection`]s in a `heapless::Vec`; [`tag_pose`] gives the
 //! metric pose; [`Detector::find_target`] the four corners of one tag in a planar target's
 //! corner order, and [`TagTarget`] makes that the AR loop's acquisition step
@@ -62,7 +63,7 @@
 //! let frame = ImageView::packed(&px, 320, 240)?;
 //! let detector = Detector::new(DetectorConfig::default(), &[&families::TAG36H11])?;
 //! let mut ws = Box::new(Workspace320x240::new());
-//! let tags: heapless::Vec<Detection, 8> = detector.detect(&frame, &mut ws)?;
+//! let tags: heapless::Vec<Detection, 8> = detector.detect(&frame, &mut ws.as_mut_view())?;
 //! assert_eq!(tags.len(), 1);
 //! assert_eq!(tags[0].id, 7);
 //! // Corner 3 is the top-left of the border's outer edge, pixels 120..184 (edges at -0.5).
@@ -92,7 +93,7 @@ pub use detector::{
 pub use family::{Decoded, Family, LayoutBit, rotate90};
 pub use pose::tag_pose;
 pub use workspace::{
-    Stats, Workspace, Workspace320x240, Workspace640x480, max_cluster_points, tiles,
+    Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, max_cluster_points, tiles,
     workspace_bytes,
 };
 

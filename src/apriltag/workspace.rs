@@ -1,4 +1,7 @@
-//! The detector's working memory: fixed-size buffers the caller owns (a `static` on a board).
+//! The detector's working memory: [`Workspace`], fixed-size buffers a board owns (in a
+//! `static`), and [`WorkspaceView`], the same buffers as slices, which is what the detector
+//! takes (so that its functions carry no buffer sizes, and buffers sized at run time serve as
+//! well).
 
 use super::quad::Cluster;
 use super::segment::{MAX_LABELS, Run, TILE};
@@ -60,6 +63,8 @@ pub struct Stats {
 /// many candidates a frame gets (counted in [`Stats`]). [`tiles`] and
 /// [`max_cluster_points`] give the first and last for a frame size; [`Workspace320x240`] and
 /// [`Workspace640x480`] are measured choices.
+///
+/// The detector takes the buffers as a [`WorkspaceView`] ([`Workspace::as_mut_view`]).
 pub struct Workspace<
     const W: usize,
     const TILES: usize,
@@ -160,10 +165,10 @@ impl<
         &self.stats
     }
 
-    /// Every buffer as a slice, for the non-generic detector.
-    pub(crate) fn parts(&mut self) -> Parts<'_> {
+    /// Every buffer as a slice: what the detector takes.
+    pub fn as_mut_view(&mut self) -> WorkspaceView<'_> {
         let [r0, r1] = &mut self.runs;
-        Parts {
+        WorkspaceView {
             tiles: &mut self.tiles,
             ring_min: &mut self.ring_min,
             ring_max: &mut self.ring_max,
@@ -174,7 +179,6 @@ impl<
             points: &mut self.points,
             keys: &mut self.keys,
             stats: &mut self.stats,
-            labels_cap: LABELS.min(MAX_LABELS),
         }
     }
 }
@@ -193,8 +197,12 @@ impl<
     }
 }
 
-/// The buffers of a [`Workspace`] as slices.
-pub(crate) struct Parts<'a> {
+/// The detector's working memory as slices (the buffers of the [`Workspace`] table, of any
+/// lengths): what [`super::Detector::detect`], [`super::Detector::detect_into`] and
+/// [`super::Detector::find_target`] take. A board gets one from its `static` [`Workspace`]
+/// ([`Workspace::as_mut_view`]); [`WorkspaceView::new`] makes one of buffers sized at run time
+/// (a host's `Vec`s).
+pub struct WorkspaceView<'a> {
     pub(crate) tiles: &'a mut [u8],
     pub(crate) ring_min: &'a mut [u8],
     pub(crate) ring_max: &'a mut [u8],
@@ -205,7 +213,50 @@ pub(crate) struct Parts<'a> {
     pub(crate) points: &'a mut [u32],
     pub(crate) keys: &'a mut [u16],
     pub(crate) stats: &'a mut Stats,
-    pub(crate) labels_cap: usize,
+}
+
+impl<'a> WorkspaceView<'a> {
+    /// A view of caller buffers, one per row of the [`Workspace`] table: `tiles`
+    /// (`TILES`), `ring_min` and `ring_max` (`W` each), the two rows of `runs` (`W` each),
+    /// `parent` and `size` (`LABELS`: the shorter, at most 65533, is the label capacity),
+    /// `clusters`, `points`, `keys` (`SORT`), and the counts `stats`. The lengths are checked
+    /// against each frame ([`crate::Error::BufferTooSmall`]), as a [`Workspace`]'s are.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        tiles: &'a mut [u8],
+        ring_min: &'a mut [u8],
+        ring_max: &'a mut [u8],
+        runs: [&'a mut [Run]; 2],
+        parent: &'a mut [u16],
+        size: &'a mut [u8],
+        clusters: &'a mut [Cluster],
+        points: &'a mut [u32],
+        keys: &'a mut [u16],
+        stats: &'a mut Stats,
+    ) -> Self {
+        Self {
+            tiles,
+            ring_min,
+            ring_max,
+            runs,
+            parent,
+            size,
+            clusters,
+            points,
+            keys,
+            stats,
+        }
+    }
+
+    /// The counts of the last detection.
+    pub fn stats(&self) -> &Stats {
+        self.stats
+    }
+
+    /// Provisional labels a frame may use: `min(parent, size, 65533)`.
+    pub(crate) fn labels_len(&self) -> usize {
+        self.parent.len().min(self.size.len()).min(MAX_LABELS)
+    }
 }
 
 /// For 320x240 frames at decimation 1 (and 640x480 at 2): 4800 tiles, 8192 labels, 512

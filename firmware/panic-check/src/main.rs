@@ -458,7 +458,12 @@ fn run_target() {
         return;
     };
     let mut ws = black_box(SmallWorkspace::new());
-    let mut tag = TagTarget::new(&detector, &mut ws, &families::TAG36H11, black_box(3));
+    let mut tag = TagTarget::new(
+        &detector,
+        ws.as_mut_view(),
+        &families::TAG36H11,
+        black_box(3),
+    );
     two_frames(&params, &mut tag);
 }
 
@@ -700,7 +705,7 @@ fn run_apriltag() {
         return;
     };
     let mut ws = black_box(SmallWorkspace::new());
-    let Ok(found) = detector.detect::<4, _, _, _, _, _, _>(&v, &mut ws) else {
+    let Ok(found) = detector.detect::<4>(&v, &mut ws.as_mut_view()) else {
         return;
     };
     let Some(cam) = camera::<f32>() else { return };
@@ -710,7 +715,7 @@ fn run_apriltag() {
     }
     black_box(
         detector
-            .find_target(&v, &mut ws, &families::TAG25H9, black_box(2))
+            .find_target(&v, &mut ws.as_mut_view(), &families::TAG25H9, black_box(2))
             .ok(),
     );
     for f in families::ALL {

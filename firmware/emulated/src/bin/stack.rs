@@ -631,7 +631,7 @@ fn main() -> ! {
     let Some(half) = pa.level(1) else {
         fail("pyramid level 1", camgeom::Error::InvalidImage)
     };
-    let (r, s) = measure(|| detector.detect::<8, _, _, _, _, _, _>(&half, tag_ws));
+    let (r, s) = measure(|| detector.detect::<8>(&half, &mut tag_ws.as_mut_view()));
     row(
         "apriltag Detector::detect 160x120, 4 families",
         s,
