@@ -4,7 +4,7 @@
 
 use camgeom::apriltag::{
     APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, Workspace, families,
-    max_cluster_points, tag_pose, tiles,
+    sort_len, tag_pose, tiles_len,
 };
 use camgeom::camera::Camera;
 use camgeom::draw::draw_line;
@@ -25,11 +25,11 @@ pub const MAX_SIDE: usize = 1024;
 /// `docs/notes/apriltag.md`), so nothing is cut on photos of that size. About 1.6 MB: box it.
 pub type HostWorkspace = Workspace<
     MAX_SIDE,
-    { tiles(MAX_SIDE, MAX_SIDE, 1) },
+    { tiles_len(MAX_SIDE, MAX_SIDE, 1) },
     65533,
     8192,
     262_144,
-    { max_cluster_points(MAX_SIDE, MAX_SIDE, 1) },
+    { sort_len(MAX_SIDE, MAX_SIDE, 1) },
 >;
 
 /// Most detections reported per frame.

@@ -93,8 +93,7 @@ pub use detector::{
 pub use family::{Decoded, Family, LayoutBit, rotate90};
 pub use pose::tag_pose;
 pub use workspace::{
-    Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, max_cluster_points, tiles,
-    workspace_bytes,
+    Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, sort_len, tiles_len,
 };
 
 #[cfg(test)]

@@ -215,8 +215,7 @@ fn draw(
     }
 }
 
-type Small =
-    Workspace<160, { tiles(160, 120, 1) }, 4096, 256, 4096, { max_cluster_points(160, 120, 1) }>;
+type Small = Workspace<160, { tiles_len(160, 120, 1) }, 4096, 256, 4096, { sort_len(160, 120, 1) }>;
 
 fn detect_all(
     px: &[u8],
@@ -322,11 +321,12 @@ fn a_view_of_run_time_buffers_detects_as_a_workspace_does() {
     let mut ws = std::boxed::Box::new(Small::new());
     let want: heapless::Vec<Detection, 8> = det.detect(&frame, &mut ws.as_mut_view()).unwrap();
     let (labels, clusters, points) = (4096, 256, 4096);
-    let (mut tiles, mut ring_min, mut ring_max) = (vec![0; tiles(w, h, 1)], vec![0; w], vec![0; w]);
+    let (mut tiles, mut ring_min, mut ring_max) =
+        (vec![0; tiles_len(w, h, 1)], vec![0; w], vec![0; w]);
     let (mut run0, mut run1) = (vec![Run::EMPTY; w], vec![Run::EMPTY; w]);
     let (mut parent, mut size) = (vec![0; labels], vec![0; labels]);
     let mut slots = vec![quad::Cluster::EMPTY; clusters];
-    let (mut pts, mut keys) = (vec![0; points], vec![0; max_cluster_points(w, h, 1)]);
+    let (mut pts, mut keys) = (vec![0; points], vec![0; sort_len(w, h, 1)]);
     let mut stats = Stats::default();
     let mut view = WorkspaceView::new(
         &mut tiles,
@@ -630,11 +630,11 @@ proptest! {
         let (sw, sh) = (w.div_ceil(usize::from(d)), h.div_ceil(usize::from(d)));
         match r {
             Ok(_) => prop_assert!(
-                sw < 8 || sh < 8 || (sw <= 160 && tiles(sw, sh, 1) <= tiles(160, 120, 1))
+                sw < 8 || sh < 8 || (sw <= 160 && tiles_len(sw, sh, 1) <= tiles_len(160, 120, 1))
             ),
             Err(crate::Error::BufferTooSmall("workspace.width")) => prop_assert!(sw > 160),
             Err(crate::Error::BufferTooSmall("workspace.tiles")) => {
-                prop_assert!(sw <= 160 && tiles(sw, sh, 1) > tiles(160, 120, 1));
+                prop_assert!(sw <= 160 && tiles_len(sw, sh, 1) > tiles_len(160, 120, 1));
             }
             Err(e) => prop_assert!(false, "unexpected error {:?}", e),
         }
@@ -650,7 +650,7 @@ fn capacities_cut_work_without_failing() {
     let det = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
     // 64 labels for a frame of noise: most of it is skipped, counted, no panic.
     let mut tiny =
-        std::boxed::Box::new(Workspace::<160, { tiles(160, 120, 1) }, 64, 8, 256, 256>::new());
+        std::boxed::Box::new(Workspace::<160, { tiles_len(160, 120, 1) }, 64, 8, 256, 256>::new());
     let frame = ImageView::packed(&px, w, h).unwrap();
     let _: heapless::Vec<Detection, 2> = det.detect(&frame, &mut tiny.as_mut_view()).unwrap();
     let s = *tiny.stats();
@@ -778,7 +778,7 @@ fn bad_configuration_and_buffers_are_named_errors() {
     );
     assert!(r.unwrap().is_empty());
     let mut no_sort =
-        std::boxed::Box::new(Workspace::<160, { tiles(160, 120, 1) }, 64, 8, 256, 8>::new());
+        std::boxed::Box::new(Workspace::<160, { tiles_len(160, 120, 1) }, 64, 8, 256, 8>::new());
     let r: crate::Result<heapless::Vec<Detection, 1>> = det.detect(
         &ImageView::packed(&px, 150, 26).unwrap(),
         &mut no_sort.as_mut_view(),
@@ -834,14 +834,19 @@ fn tag_pose_is_apriltags_tag_frame() {
 
 #[test]
 fn workspace_bytes_match_the_table() {
-    // The const fn counts the buffers; the struct adds its counters and padding.
-    let est = workspace_bytes(
+    // The table of the type's docs counts the buffers' bytes; the struct adds its counters and
+    // padding.
+    let table =
+        |w: usize, tiles: usize, labels: usize, clusters: usize, points: usize, sort: usize| {
+            tiles + 2 * w + 16 * w + 3 * labels + 32 * clusters + 4 * points + 2 * sort
+        };
+    let est = table(
         320,
-        tiles(320, 240, 1),
+        tiles_len(320, 240, 1),
         8192,
         512,
         16384,
-        max_cluster_points(320, 240, 1),
+        sort_len(320, 240, 1),
     );
     assert!(Workspace320x240::BYTES >= est && Workspace320x240::BYTES < est + 256);
     let bytes = Workspace320x240::BYTES;
@@ -854,4 +859,4 @@ fn workspace_bytes_match_the_table() {
 }
 
 /// The workspace is built in a `static` (what a board does with it): `new` is `const`.
-static _WORKSPACE: Workspace<64, { tiles(64, 64, 1) }, 256, 32, 256, 256> = Workspace::new();
+static _WORKSPACE: Workspace<64, { tiles_len(64, 64, 1) }, 256, 32, 256, 256> = Workspace::new();

@@ -4,7 +4,7 @@
 //! well).
 
 use super::quad::Cluster;
-use super::segment::{MAX_LABELS, Run, TILE};
+use super::segment::{MAX_LABELS, Run, tile_count};
 
 /// Per-frame counts of a detection: what each stage found and what a capacity cut off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -58,11 +58,11 @@ pub struct Stats {
 /// | boundary points (one batch) | `POINTS` | 4 |
 /// | sort keys (largest cluster) | `SORT` (≤ 65534) | 2 |
 ///
-/// [`Workspace::BYTES`] is the total. `W`, `TILES`, `LABELS` and `SORT` must hold the frame
-/// (checked per frame: [`crate::Error::BufferTooSmall`]); `CLUSTERS` and `POINTS` only limit how
-/// many candidates a frame gets (counted in [`Stats`]). [`tiles`] and
-/// [`max_cluster_points`] give the first and last for a frame size; [`Workspace320x240`] and
-/// [`Workspace640x480`] are measured choices.
+/// [`Workspace::BYTES`] is the total (the table's sum plus a few bytes of counts and padding).
+/// `W`, `TILES`, `LABELS` and `SORT` must hold the frame (checked per frame:
+/// [`crate::Error::BufferTooSmall`]); `CLUSTERS` and `POINTS` only limit how many candidates a
+/// frame gets (counted in [`Stats`]). [`tiles_len`] and [`sort_len`] give `TILES` and `SORT`
+/// for a frame size; [`Workspace320x240`] and [`Workspace640x480`] are measured choices.
 ///
 /// The detector takes the buffers as a [`WorkspaceView`] ([`Workspace::as_mut_view`]).
 pub struct Workspace<
@@ -87,31 +87,19 @@ pub struct Workspace<
 
 /// Tile count of a `width x height` frame at `decimate`: `⌊w/4⌋ ⌊h/4⌋` with
 /// `w = ⌈width / decimate⌉` (the `TILES` a [`Workspace`] needs).
-pub const fn tiles(width: usize, height: usize, decimate: usize) -> usize {
+pub const fn tiles_len(width: usize, height: usize, decimate: usize) -> usize {
     let d = if decimate == 0 { 1 } else { decimate };
-    (width.div_ceil(d) / TILE) * (height.div_ceil(d) / TILE)
+    tile_count(width.div_ceil(d), height.div_ceil(d))
 }
 
-/// Most points one cluster may have for a `width x height` frame at `decimate`: twice the
-/// frame's perimeter, `2 (2w + 2h)` (AprilTag's bound: a boundary point is counted about twice
-/// along an edge), at most 65534 (the `SORT` a [`Workspace`] needs to fit the largest quads).
-pub const fn max_cluster_points(width: usize, height: usize, decimate: usize) -> usize {
+/// Sort keys for a `width x height` frame at `decimate` (the `SORT` a [`Workspace`] needs to
+/// fit the largest quads): the most points one cluster may have, twice the frame's perimeter,
+/// `2 (2w + 2h)` (AprilTag's bound: a boundary point is counted about twice along an edge),
+/// at most 65534.
+pub const fn sort_len(width: usize, height: usize, decimate: usize) -> usize {
     let d = if decimate == 0 { 1 } else { decimate };
     let n = 4 * (width.div_ceil(d) + height.div_ceil(d));
     if n > 65534 { 65534 } else { n }
-}
-
-/// Bytes of a [`Workspace`] with these parameters (its buffers, as the table of the type's
-/// docs; the struct adds a few bytes of counts and padding).
-pub const fn workspace_bytes(
-    w: usize,
-    tiles: usize,
-    labels: usize,
-    clusters: usize,
-    points: usize,
-    sort: usize,
-) -> usize {
-    tiles + 2 * w + 16 * w + 3 * labels + 32 * clusters + 4 * points + 2 * sort
 }
 
 impl<
@@ -264,9 +252,9 @@ impl<'a> WorkspaceView<'a> {
 /// 320x240 recordings and the rendered stills (at most 4230 labels, 151 clusters and 17300
 /// kept points a frame, textured and noisy ones included).
 pub type Workspace320x240 =
-    Workspace<320, { tiles(320, 240, 1) }, 8192, 512, 16384, { max_cluster_points(320, 240, 1) }>;
+    Workspace<320, { tiles_len(320, 240, 1) }, 8192, 512, 16384, { sort_len(320, 240, 1) }>;
 
 /// For 640x480 frames at decimation 1: 19200 tiles, 24576 labels, 1024 cluster slots,
 /// 32768 points a batch, clusters of up to 4480 points.
 pub type Workspace640x480 =
-    Workspace<640, { tiles(640, 480, 1) }, 24576, 1024, 32768, { max_cluster_points(640, 480, 1) }>;
+    Workspace<640, { tiles_len(640, 480, 1) }, 24576, 1024, 32768, { sort_len(640, 480, 1) }>;

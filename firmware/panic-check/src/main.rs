@@ -471,11 +471,11 @@ fn run_target() {
 #[cfg(any(feature = "target", feature = "apriltag"))]
 type SmallWorkspace = camgeom::apriltag::Workspace<
     W,
-    { camgeom::apriltag::tiles(W, H, 1) },
+    { camgeom::apriltag::tiles_len(W, H, 1) },
     1024,
     64,
     2048,
-    { camgeom::apriltag::max_cluster_points(W, H, 1) },
+    { camgeom::apriltag::sort_len(W, H, 1) },
 >;
 
 // ---------------------------------------------------------------- draw

@@ -4,20 +4,14 @@
 
 use camgeom::apriltag::{
     APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Stats, Workspace, families,
-    max_cluster_points, tag_pose, tiles,
+    sort_len, tag_pose, tiles_len,
 };
 use camgeom::pose::PlanarConfig;
 use camgeom_host::images::load_gray;
 
 /// A workspace for the 799x533 photos at decimation 1.
-type PhotoWorkspace = Workspace<
-    800,
-    { tiles(800, 536, 1) },
-    32768,
-    4096,
-    262144,
-    { max_cluster_points(800, 536, 1) },
->;
+type PhotoWorkspace =
+    Workspace<800, { tiles_len(800, 536, 1) }, 32768, 4096, 262144, { sort_len(800, 536, 1) }>;
 
 pub(crate) fn data(sub: &str) -> std::path::PathBuf {
     camgeom_host::data_dir().join("apriltag").join(sub)

@@ -184,11 +184,11 @@ static CALIBRATOR: StaticCell<Calibrator<f32, 16, 64>> = StaticCell::new();
 /// workspace (119 KB) does not fit beside this binary's frames and pyramids.
 type TagWorkspace = camgeom::apriltag::Workspace<
     160,
-    { camgeom::apriltag::tiles(160, 120, 1) },
+    { camgeom::apriltag::tiles_len(160, 120, 1) },
     2048,
     128,
     4096,
-    { camgeom::apriltag::max_cluster_points(160, 120, 1) },
+    { camgeom::apriltag::sort_len(160, 120, 1) },
 >;
 static TAG_WORKSPACE: ConstStaticCell<TagWorkspace> = ConstStaticCell::new(TagWorkspace::new());
 /// Grid undistortion map, nodes every 2^3 px.
