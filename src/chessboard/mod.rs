@@ -74,32 +74,25 @@
 //! ```
 
 mod config;
+mod grid;
+mod response;
+mod ring;
 pub mod subpix;
 
 pub use config::{BoardSize, DetectConfig, Refinement};
+pub use response::scratch_len;
 pub use subpix::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
 
 use heapless::Vec;
 use heapless::binary_heap::{BinaryHeap, Min};
 use nalgebra::{Point2, Vector2};
 
+use grid::{Grid, Side, insert};
+use response::{Maximum, collect_maxima};
+use ring::corner_lines;
+
 use crate::image::ImageView;
 use crate::{Error, Result};
-
-/// Rows of the smoothing, smoothed and response ring buffers.
-const RING_ROWS: usize = 5 + 3 + 3;
-
-/// `i32` words of scratch [`ChessboardDetector::detect`] needs for a frame `width` pixels wide.
-pub const fn scratch_len(width: usize) -> usize {
-    RING_ROWS * width
-}
-
-/// Pixels at the frame's border where no corner is looked for (smoothing, second differences
-/// and the 3x3 maximum reach that far).
-const MARGIN: usize = 4;
-
-/// Ring samples of the corner test.
-const RING: usize = 32;
 
 /// The found board: `rows · cols` corners, row-major, OpenCV's order.
 #[derive(Debug, Clone, PartialEq)]
@@ -135,38 +128,13 @@ const EMPTY: Candidate = Candidate {
 pub struct ChessboardDetector<const K: usize> {
     cands: [Candidate; K],
     count: usize,
-    heap: BinaryHeap<(i32, u16, u16, i8, i8), Min, K>,
+    heap: BinaryHeap<Maximum, Min, K>,
 }
 
 impl<const K: usize> Default for ChessboardDetector<K> {
     fn default() -> Self {
         Self::new()
     }
-}
-
-/// Rows and columns of the grid being grown.
-#[derive(Debug, Clone, Copy)]
-struct Grid<const N: usize> {
-    idx: [u16; N],
-    w: usize,
-    h: usize,
-}
-
-impl<const N: usize> Grid<N> {
-    fn at(&self, c: usize, r: usize) -> Option<usize> {
-        if c >= self.w || r >= self.h {
-            return None;
-        }
-        self.idx.get(r * self.w + c).map(|&i| i as usize)
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Right,
-    Left,
-    Bottom,
-    Top,
 }
 
 impl<const K: usize> ChessboardDetector<K> {
@@ -215,7 +183,13 @@ impl<const K: usize> ChessboardDetector<K> {
         }
         self.collect(image, cfg, scratch);
         for c in self.cands.iter_mut().take(self.count) {
-            test_corner(image, c, cfg.min_contrast);
+            match corner_lines(image, &c.p, cfg.min_contrast) {
+                Some(lines) => {
+                    c.lines = lines;
+                    c.ok = true;
+                }
+                None => c.ok = false,
+            }
         }
         let mut seeds = 0u8;
         for s in 0..self.count {
@@ -252,105 +226,7 @@ impl<const K: usize> ChessboardDetector<K> {
 
     /// Step 1: the `K` strongest 3x3 maxima of the saddle response, strongest first.
     fn collect(&mut self, image: &ImageView<'_, u8>, cfg: &DetectConfig, scratch: &mut [i32]) {
-        let (w, h) = (image.width(), image.height());
-        self.heap.clear();
-        let (hring, rest) = scratch.split_at_mut(5 * w);
-        let (sring, rring) = rest.split_at_mut(3 * w);
-        let rring = rring.get_mut(..3 * w).unwrap_or_default();
-        let hrow = |ring: &mut [i32], logical: isize| {
-            let slot = ((logical + 2) as usize) % 5;
-            if let Some(out) = ring.get_mut(slot * w..(slot + 1) * w) {
-                hblur(image.row_clamped(logical), out);
-            }
-        };
-        for r in -2..=1isize {
-            hrow(hring, r);
-        }
-        for ys in 0..h {
-            hrow(hring, ys as isize + 2);
-            // Vertical smoothing of rows ys-2 ..= ys+2 into the smoothed ring.
-            let slot = ys % 3;
-            if let Some(out) = sring.get_mut(slot * w..(slot + 1) * w) {
-                let row = |k: usize| {
-                    let s = (ys + k) % 5; // logical ys - 2 + k sits in slot (ys + k) % 5
-                    hring.get(s * w..(s + 1) * w).unwrap_or_default()
-                };
-                let (a, b, c, d, e) = (row(0), row(1), row(2), row(3), row(4));
-                let taps = a.iter().zip(b).zip(c).zip(d).zip(e);
-                for (o, ((((a, b), c), d), e)) in out.iter_mut().zip(taps) {
-                    *o = a + 4 * (b + d) + 6 * c + e;
-                }
-            }
-            if ys < 2 {
-                continue;
-            }
-            // Response of row yr = ys - 1 from smoothed rows yr-1, yr, yr+1.
-            let yr = ys - 1;
-            let slot = yr % 3;
-            let s = |k: usize| {
-                let k = k % 3;
-                sring.get(k * w..(k + 1) * w).unwrap_or_default()
-            };
-            let (up, mid, dn) = (s(yr + 2), s(yr), s(yr + 1));
-            if let Some(out) = rring.get_mut(slot * w..(slot + 1) * w) {
-                out.fill(0);
-                if yr >= MARGIN - 1 && yr + MARGIN - 1 < h {
-                    saddle_row(up, mid, dn, out);
-                    for x in 0..MARGIN - 1 {
-                        if let Some(v) = out.get_mut(x) {
-                            *v = 0;
-                        }
-                        if let Some(v) = out.get_mut(w - 1 - x) {
-                            *v = 0;
-                        }
-                    }
-                }
-            }
-            if yr < 2 {
-                continue;
-            }
-            // Maxima of row yn = yr - 1.
-            let yn = yr - 1;
-            if yn < MARGIN || yn + MARGIN >= h {
-                continue;
-            }
-            let r = |k: usize| {
-                let k = k % 3;
-                rring.get(k * w..(k + 1) * w).unwrap_or_default()
-            };
-            let (ru, rm, rd) = (r(yn + 2), r(yn), r(yn + 1));
-            for x in MARGIN..w - MARGIN {
-                let g = |row: &[i32], x: usize| row.get(x).copied().unwrap_or(0);
-                let v = g(rm, x);
-                if v < cfg.min_response {
-                    continue;
-                }
-                // Maximum of the 3x3 block: ≥ the earlier neighbours, > the later ones.
-                let earlier = [g(ru, x - 1), g(ru, x), g(ru, x + 1), g(rm, x - 1)];
-                let later = [g(rm, x + 1), g(rd, x - 1), g(rd, x), g(rd, x + 1)];
-                if earlier.iter().any(|&e| e > v) || later.iter().any(|&l| l >= v) {
-                    continue;
-                }
-                // Parabola vertex through the three values each way, in 1/64 px.
-                let vertex = |a: i32, c: i32| -> i8 {
-                    let den = (a as i64) - 2 * (v as i64) + (c as i64);
-                    if den >= 0 {
-                        return 0;
-                    }
-                    let off = 32 * ((a as i64) - (c as i64)) / den;
-                    off.clamp(-32, 32) as i8
-                };
-                let dx = vertex(g(rm, x - 1), g(rm, x + 1));
-                let dy = vertex(g(ru, x), g(rd, x));
-                let item = (v, x as u16, yn as u16, dx, dy);
-                if self.heap.len() < K {
-                    let _ = self.heap.push(item);
-                } else if self.heap.peek().is_some_and(|m| m.0 < v) {
-                    let _ = self.heap.pop();
-                    let _ = self.heap.push(item);
-                }
-            }
-        }
+        collect_maxima(image, cfg.min_response, scratch, &mut self.heap);
         // Drain weakest first into the array from its end: strongest first.
         self.count = self.heap.len().min(K);
         let mut i = self.count;
@@ -702,141 +578,3 @@ fn refine_adaptive(
 
 const SIN_20: f32 = 0.342_020_14;
 const SIN_25: f32 = 0.422_618_26;
-
-/// `grid` with the new row or column `new` added on `side`.
-fn insert<const N: usize>(g: &Grid<N>, side: Side, new: &[u16]) -> Option<Grid<N>> {
-    let (w, h) = match side {
-        Side::Right | Side::Left => (g.w + 1, g.h),
-        Side::Bottom | Side::Top => (g.w, g.h + 1),
-    };
-    if w * h > N {
-        return None;
-    }
-    let mut out = Grid::<N> { idx: [0; N], w, h };
-    for r in 0..h {
-        for c in 0..w {
-            let v = match side {
-                Side::Right if c == g.w => *new.get(r)?,
-                Side::Left if c == 0 => *new.get(r)?,
-                Side::Left => g.at(c - 1, r)? as u16,
-                Side::Bottom if r == g.h => *new.get(c)?,
-                Side::Top if r == 0 => *new.get(c)?,
-                Side::Top => g.at(c, r - 1)? as u16,
-                _ => g.at(c, r)? as u16,
-            };
-            *out.idx.get_mut(r * w + c)? = v;
-        }
-    }
-    Some(out)
-}
-
-/// `[1 4 6 4 1]` along a row, border replicated.
-fn hblur(row: &[u8], out: &mut [i32]) {
-    let n = row.len().min(out.len());
-    let g = |i: isize| {
-        row.get(i.min(n as isize - 1).max(0) as usize)
-            .copied()
-            .unwrap_or(0) as i32
-    };
-    let edge = |i: usize| {
-        let i = i as isize;
-        g(i - 2) + 4 * g(i - 1) + 6 * g(i) + 4 * g(i + 1) + g(i + 2)
-    };
-    for (i, o) in out.iter_mut().enumerate().take(n.min(2)) {
-        *o = edge(i);
-    }
-    // Interior: no clamping.
-    if let Some(inner) = out.get_mut(2..n.saturating_sub(2)) {
-        for (o, w) in inner.iter_mut().zip(row.windows(5)) {
-            if let [a, b, c, d, e] = *w {
-                *o = a as i32 + 4 * (b as i32 + d as i32) + 6 * c as i32 + e as i32;
-            }
-        }
-    }
-    for i in n.saturating_sub(2).max(2)..n {
-        if let Some(o) = out.get_mut(i) {
-            *o = edge(i);
-        }
-    }
-}
-
-/// The saddle response `(I_xy² - I_xx I_yy)`, scaled by `2⁻²⁰` and clamped at zero, of the
-/// middle of three smoothed rows.
-fn saddle_row(up: &[i32], mid: &[i32], dn: &[i32], out: &mut [i32]) {
-    let rows = up.windows(3).zip(mid.windows(3)).zip(dn.windows(3));
-    for (o, ((u, m), d)) in out.iter_mut().skip(1).zip(rows) {
-        if let (&[u0, u1, u2], &[m0, m1, m2], &[d0, d1, d2]) = (u, m, d) {
-            let c = m1 as i64;
-            let ixx = m0 as i64 - 2 * c + m2 as i64;
-            let iyy = u1 as i64 - 2 * c + d1 as i64;
-            let ixy4 = u0 as i64 + d2 as i64 - u2 as i64 - d0 as i64;
-            let r = (ixy4 * ixy4 - 16 * ixx * iyy) >> 24;
-            *o = r.clamp(0, i32::MAX as i64) as i32;
-        }
-    }
-}
-
-/// Step 2: the ring test; sets `c.ok` and `c.lines`.
-fn test_corner(image: &ImageView<'_, u8>, c: &mut Candidate, min_contrast: u8) {
-    for radius in [5.0f32, 3.0] {
-        if let Some(lines) = ring_lines(image, &c.p, radius, min_contrast) {
-            c.lines = lines;
-            c.ok = true;
-            return;
-        }
-    }
-    c.ok = false;
-}
-
-/// The two edge lines through an x-corner at `p` from the dark/bright transitions on a ring.
-fn ring_lines(
-    image: &ImageView<'_, u8>,
-    p: &Point2<f32>,
-    radius: f32,
-    min_contrast: u8,
-) -> Option<[Vector2<f32>; 2]> {
-    let step = core::f32::consts::TAU / RING as f32;
-    let mut raw = [0.0f32; RING];
-    for (k, v) in raw.iter_mut().enumerate() {
-        let a = k as f32 * step;
-        *v = image.sample_bilinear(p.x + radius * libm::cosf(a), p.y + radius * libm::sinf(a))?;
-    }
-    // Circular [1 2 1] smoothing against noise.
-    let mut v = [0.0f32; RING];
-    for (k, o) in v.iter_mut().enumerate() {
-        let g = |i: usize| raw.get(i % RING).copied().unwrap_or(0.0);
-        *o = 0.25 * (g(k + RING - 1) + 2.0 * g(k) + g(k + 1));
-    }
-    let (lo, hi) = v
-        .iter()
-        .fold((f32::MAX, f32::MIN), |(l, h), &x| (l.min(x), h.max(x)));
-    if hi - lo < min_contrast as f32 {
-        return None;
-    }
-    let t = 0.5 * (lo + hi);
-    let mut angles = [0.0f32; 4];
-    let mut n = 0usize;
-    for k in 0..RING {
-        let a = v.get(k).copied().unwrap_or(0.0) - t;
-        let b = v.get((k + 1) % RING).copied().unwrap_or(0.0) - t;
-        if (a > 0.0) != (b > 0.0) {
-            let slot = angles.get_mut(n)?;
-            *slot = (k as f32 + a / (a - b)) * step;
-            n += 1;
-        }
-    }
-    if n != 4 {
-        return None;
-    }
-    let pi = core::f32::consts::PI;
-    let [a1, a2, a3, a4] = angles;
-    let tol = 0.6;
-    if ((a3 - a1) - pi).abs() > tol || ((a4 - a2) - pi).abs() > tol {
-        return None;
-    }
-    let dir = |x: f32, y: f32| {
-        let m = 0.5 * (x + (y - pi));
-        Vector2::new(libm::cosf(m), libm::sinf(m))
-    };
-    Some([dir(a1, a3), dir(a2, a4)])
-}
