@@ -92,8 +92,13 @@ impl Default for DetectConfig {
 }
 
 impl DetectConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every field once, the refinement's included: [`super::ChessboardDetector::detect`]
+    /// takes the checked [`DetectParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `min_response` below 1,
+    /// `min_contrast` 0, `max_seeds` outside 1 ..= 64, and the refinement's fields
+    /// ([`SubPixConfig::check`], [`SaddleConfig::check`]).
+    pub fn check(&self) -> Result<DetectParams> {
         if self.min_response < 1 {
             return Err(Error::InvalidParameter("min_response"));
         }
@@ -104,10 +109,60 @@ impl DetectConfig {
             return Err(Error::InvalidParameter("max_seeds"));
         }
         match &self.refine {
-            Refinement::CornerSubPix(s) | Refinement::AdaptiveCornerSubPix(s) => s.validate()?,
-            Refinement::Saddle(s) => s.validate()?,
+            Refinement::CornerSubPix(s) | Refinement::AdaptiveCornerSubPix(s) => {
+                s.check()?;
+            }
+            Refinement::Saddle(s) => {
+                s.check()?;
+            }
             Refinement::None => {}
         }
-        Ok(())
+        Ok(DetectParams(*self))
+    }
+}
+
+/// A [`DetectConfig`] that passed [`DetectConfig::check`]: what
+/// [`super::ChessboardDetector::detect`] takes, so that no frame validates it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DetectParams(DetectConfig);
+
+impl DetectParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &DetectConfig {
+        &self.0
+    }
+}
+
+impl Default for DetectParams {
+    /// The checked [`DetectConfig::default`].
+    fn default() -> Self {
+        Self(DetectConfig::default())
+    }
+}
+
+impl TryFrom<DetectConfig> for DetectParams {
+    type Error = Error;
+    fn try_from(c: DetectConfig) -> Result<Self> {
+        c.check()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Each `Default` of a checked type is its configuration's default, checked.
+    #[test]
+    fn the_defaults_pass_their_checks() {
+        assert_eq!(DetectConfig::default().check(), Ok(DetectParams::default()));
+        assert_eq!(
+            SubPixConfig::default().check(),
+            Ok(super::super::SubPixParams::default())
+        );
+        assert_eq!(
+            SaddleConfig::default().check(),
+            Ok(super::super::SaddleParams::default())
+        );
     }
 }

@@ -48,7 +48,7 @@
 //! frame itself is the caller's).
 //!
 //! ```
-//! use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig, scratch_len};
+//! use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams, scratch_len};
 //! use camgeom::image::ImageView;
 //!
 //! // A 4x3 inner-corner board: 5x4 squares of 12 px, dark where (i + j) is even.
@@ -66,7 +66,7 @@
 //! let mut scratch = [0i32; scratch_len(96)];
 //! let mut det = ChessboardDetector::<64>::new();
 //! let board = BoardSize::new(4, 3)?;
-//! let found = det.detect::<12>(&img, board, &DetectConfig::default(), &mut scratch)?;
+//! let found = det.detect::<12>(&img, board, &DetectParams::default(), &mut scratch)?;
 //! let corners = found.expect("the board is in view");
 //! // The first inner corner sits between the first dark square and its neighbours.
 //! assert!((corners.corners[0].x - 29.5).abs() < 0.2 && (corners.corners[0].y - 27.5).abs() < 0.2);
@@ -79,9 +79,11 @@ mod response;
 mod ring;
 pub mod subpix;
 
-pub use config::{BoardSize, DetectConfig, Refinement};
+pub use config::{BoardSize, DetectConfig, DetectParams, Refinement};
 pub use response::scratch_len;
-pub use subpix::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
+pub use subpix::{
+    SaddleConfig, SaddleParams, SubPixConfig, SubPixParams, corner_subpix, saddle_subpix,
+};
 
 use heapless::Vec;
 use heapless::binary_heap::{BinaryHeap, Min};
@@ -90,6 +92,7 @@ use nalgebra::{Point2, Vector2};
 use grid::{Grid, Side, insert};
 use response::{Maximum, collect_maxima};
 use ring::corner_lines;
+use subpix::corner_subpix_adaptive;
 
 use crate::image::ImageView;
 use crate::{Error, Result};
@@ -162,15 +165,15 @@ impl<const K: usize> ChessboardDetector<K> {
     /// Returns `Ok(None)` when the board is absent or not entirely in view. Errors:
     /// `BufferTooSmall("corners")` when `N < board.corners()`, `BufferTooSmall("scratch")`
     /// when `scratch.len() < scratch_len(width)`, `InvalidImage` for a frame smaller than
-    /// 16x16 or wider than 65,535, `InvalidParameter` for a bad `cfg`.
+    /// 16x16 or wider than 65,535.
     pub fn detect<const N: usize>(
         &mut self,
         image: &ImageView<'_, u8>,
         board: BoardSize,
-        cfg: &DetectConfig,
+        params: &DetectParams,
         scratch: &mut [i32],
     ) -> Result<Option<Chessboard<N>>> {
-        cfg.validate()?;
+        let cfg = params.config();
         if N < board.corners() {
             return Err(Error::BufferTooSmall("corners"));
         }
@@ -181,7 +184,7 @@ impl<const K: usize> ChessboardDetector<K> {
         if scratch.len() < scratch_len(w) {
             return Err(Error::BufferTooSmall("scratch"));
         }
-        self.collect(image, cfg, scratch);
+        self.collect(image, cfg.min_response, scratch);
         for c in self.cands.iter_mut().take(self.count) {
             match corner_lines(image, &c.p, cfg.min_contrast) {
                 Some(lines) => {
@@ -209,14 +212,23 @@ impl<const K: usize> ChessboardDetector<K> {
                 }
             }
             let Some(grid) = grid else { continue };
-            if let Some(mut found) = self.verify_and_order::<N>(image, &grid, board, cfg) {
-                match &cfg.refine {
+            if let Some(mut found) =
+                self.verify_and_order::<N>(image, &grid, board, cfg.min_contrast)
+            {
+                // The refinement's configuration was checked with `params`.
+                match cfg.refine {
                     Refinement::None => {}
-                    Refinement::CornerSubPix(sp) => corner_subpix(image, &mut found.corners, sp)?,
-                    Refinement::AdaptiveCornerSubPix(sp) => {
-                        refine_adaptive(image, &mut found.corners, board.cols(), sp)?
+                    Refinement::CornerSubPix(sp) => {
+                        let sp = SubPixParams::from_checked(sp);
+                        corner_subpix(image, &mut found.corners, &sp)?
                     }
-                    Refinement::Saddle(sc) => saddle_subpix(image, &mut found.corners, sc)?,
+                    Refinement::AdaptiveCornerSubPix(sp) => {
+                        let sp = SubPixParams::from_checked(sp);
+                        corner_subpix_adaptive(image, &mut found.corners, board.cols(), &sp)?
+                    }
+                    Refinement::Saddle(sc) => {
+                        saddle_subpix(image, &mut found.corners, &SaddleParams::from_checked(sc))?
+                    }
                 }
                 return Ok(Some(found));
             }
@@ -225,8 +237,8 @@ impl<const K: usize> ChessboardDetector<K> {
     }
 
     /// Step 1: the `K` strongest 3x3 maxima of the saddle response, strongest first.
-    fn collect(&mut self, image: &ImageView<'_, u8>, cfg: &DetectConfig, scratch: &mut [i32]) {
-        collect_maxima(image, cfg.min_response, scratch, &mut self.heap);
+    fn collect(&mut self, image: &ImageView<'_, u8>, min_response: i32, scratch: &mut [i32]) {
+        collect_maxima(image, min_response, scratch, &mut self.heap);
         // Drain weakest first into the array from its end: strongest first.
         self.count = self.heap.len().min(K);
         let mut i = self.count;
@@ -420,7 +432,7 @@ impl<const K: usize> ChessboardDetector<K> {
         image: &ImageView<'_, u8>,
         g: &Grid<N>,
         board: BoardSize,
-        cfg: &DetectConfig,
+        min_contrast: u8,
     ) -> Option<Chessboard<N>> {
         let (bc, br) = (board.cols(), board.rows());
         if !((g.w == bc && g.h == br) || (g.w == br && g.h == bc)) {
@@ -474,7 +486,7 @@ impl<const K: usize> ChessboardDetector<K> {
                 }
             }
         }
-        if pairs == 0 || total < cfg.min_contrast as i64 * pairs {
+        if pairs == 0 || total < min_contrast as i64 * pairs {
             return None;
         }
         // Cell (c, r) is dark when its parity-signed difference is negative.
@@ -529,51 +541,6 @@ impl<const K: usize> ChessboardDetector<K> {
             corners,
         })
     }
-}
-
-/// [`corner_subpix`] of each corner with its window shrunk to its squares (see
-/// [`Refinement::AdaptiveCornerSubPix`]).
-fn refine_adaptive(
-    image: &ImageView<'_, u8>,
-    corners: &mut [Point2<f32>],
-    cols: usize,
-    sp: &SubPixConfig,
-) -> Result<()> {
-    let n = corners.len();
-    let mut windows = [0u8; 4096];
-    for (k, w) in windows.iter_mut().enumerate().take(n) {
-        let p = corners.get(k).copied().unwrap_or(Point2::origin());
-        let (i, j) = (k % cols.max(1), k / cols.max(1));
-        let mut d = f32::MAX;
-        let mut near = |q: Option<&Point2<f32>>| {
-            if let Some(q) = q {
-                d = d.min((q - p).norm());
-            }
-        };
-        if i > 0 {
-            near(corners.get(k - 1));
-        }
-        if i + 1 < cols {
-            near(corners.get(k + 1));
-        }
-        if j > 0 {
-            near(corners.get(k - cols));
-        }
-        near(corners.get(k + cols));
-        // `max` then `min`: `clamp` would panic for a half window below 2.
-        let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
-        // As `clamp(1, half_window)` for the validated `half_window >= 1`, without its
-        // assertion.
-        *w = (fit as u8).max(1).min(sp.half_window);
-    }
-    for (c, w) in corners.iter_mut().zip(windows.iter()) {
-        let cfg = SubPixConfig {
-            half_window: *w,
-            ..*sp
-        };
-        corner_subpix(image, core::slice::from_mut(c), &cfg)?;
-    }
-    Ok(())
 }
 
 const SIN_20: f32 = 0.342_020_14;

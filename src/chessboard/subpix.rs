@@ -50,8 +50,12 @@ impl Default for SubPixConfig {
 }
 
 impl SubPixConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every field once: [`corner_subpix`] takes the checked [`SubPixParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `subpix.half_window` outside
+    /// 1 ..= [`MAX_HALF_WINDOW`], `subpix.max_iterations` outside 1 ..= 100, `subpix.epsilon`
+    /// negative or not finite.
+    pub fn check(&self) -> Result<SubPixParams> {
         if self.half_window == 0 || self.half_window > MAX_HALF_WINDOW {
             return Err(Error::InvalidParameter("subpix.half_window"));
         }
@@ -61,7 +65,49 @@ impl SubPixConfig {
         if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
             return Err(Error::InvalidParameter("subpix.epsilon"));
         }
-        Ok(())
+        Ok(SubPixParams(*self))
+    }
+}
+
+/// A [`SubPixConfig`] that passed [`SubPixConfig::check`]: what [`corner_subpix`] takes, so
+/// that no call validates it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SubPixParams(SubPixConfig);
+
+impl SubPixParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &SubPixConfig {
+        &self.0
+    }
+
+    /// A configuration already checked with the one that holds it
+    /// ([`super::DetectConfig::check`] checks its refinement's).
+    pub(super) const fn from_checked(c: SubPixConfig) -> Self {
+        Self(c)
+    }
+
+    /// The same parameters with the half window `half_window` clamped to
+    /// `1 ..= self.half_window` (still checked).
+    fn with_smaller_window(self, half_window: u8) -> Self {
+        Self(SubPixConfig {
+            half_window: half_window.max(1).min(self.0.half_window),
+            ..self.0
+        })
+    }
+}
+
+impl Default for SubPixParams {
+    /// The checked [`SubPixConfig::default`].
+    fn default() -> Self {
+        Self(SubPixConfig::default())
+    }
+}
+
+impl TryFrom<SubPixConfig> for SubPixParams {
+    type Error = Error;
+    fn try_from(c: SubPixConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -95,13 +141,13 @@ fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
 /// than `h` from its start keeps its start (OpenCV's rule for poor convergence), as does one
 /// whose window has no gradient (a flat patch).
 ///
-/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+/// Errors: [`Error::NonFinite`] for a non-finite corner.
 pub fn corner_subpix(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],
-    cfg: &SubPixConfig,
+    params: &SubPixParams,
 ) -> Result<()> {
-    cfg.validate()?;
+    let cfg = params.config();
     if corners
         .iter()
         .any(|c| !(c.x.is_finite() && c.y.is_finite()))
@@ -179,6 +225,48 @@ pub fn corner_subpix(
     Ok(())
 }
 
+/// [`corner_subpix`] of each corner of a board with rows of `cols` corners, its window shrunk
+/// to its squares (see [`super::Refinement::AdaptiveCornerSubPix`]).
+pub(super) fn corner_subpix_adaptive(
+    image: &ImageView<'_, u8>,
+    corners: &mut [Point2<f32>],
+    cols: usize,
+    params: &SubPixParams,
+) -> Result<()> {
+    let sp = params.config();
+    let n = corners.len();
+    let mut windows = [0u8; 4096];
+    for (k, w) in windows.iter_mut().enumerate().take(n) {
+        let p = corners.get(k).copied().unwrap_or(Point2::origin());
+        let (i, j) = (k % cols.max(1), k / cols.max(1));
+        let mut d = f32::MAX;
+        let mut near = |q: Option<&Point2<f32>>| {
+            if let Some(q) = q {
+                d = d.min((q - p).norm());
+            }
+        };
+        if i > 0 {
+            near(corners.get(k - 1));
+        }
+        if i + 1 < cols {
+            near(corners.get(k + 1));
+        }
+        if j > 0 {
+            near(corners.get(k - cols));
+        }
+        near(corners.get(k + cols));
+        // `max` then `min`: `clamp` would panic for a half window below 2.
+        let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
+        // `with_smaller_window` clamps it to `1 ..= half_window`.
+        *w = fit as u8;
+    }
+    for (c, w) in corners.iter_mut().zip(windows.iter()) {
+        let fitted = params.with_smaller_window(*w);
+        corner_subpix(image, core::slice::from_mut(c), &fitted)?;
+    }
+    Ok(())
+}
+
 /// Parameters of [`saddle_subpix`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -213,8 +301,12 @@ const SADDLE_KERNEL: usize = 9;
 const SADDLE_PATCH: usize = 2 * (4 + SADDLE_KERNEL) + 1;
 
 impl SaddleConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every field once: [`saddle_subpix`] takes the checked [`SaddleParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `saddle.half_window` outside
+    /// 1 ..= 4, `saddle.sigma` outside 0.5 ..= 3 (or NaN), `saddle.max_iterations` outside
+    /// 1 ..= 100, `saddle.epsilon` negative or not finite.
+    pub fn check(&self) -> Result<SaddleParams> {
         if !(1..=4).contains(&self.half_window) {
             return Err(Error::InvalidParameter("saddle.half_window"));
         }
@@ -227,7 +319,40 @@ impl SaddleConfig {
         if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
             return Err(Error::InvalidParameter("saddle.epsilon"));
         }
-        Ok(())
+        Ok(SaddleParams(*self))
+    }
+}
+
+/// A [`SaddleConfig`] that passed [`SaddleConfig::check`]: what [`saddle_subpix`] takes, so
+/// that no call validates it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SaddleParams(SaddleConfig);
+
+impl SaddleParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &SaddleConfig {
+        &self.0
+    }
+
+    /// A configuration already checked with the one that holds it
+    /// ([`super::DetectConfig::check`] checks its refinement's).
+    pub(super) const fn from_checked(c: SaddleConfig) -> Self {
+        Self(c)
+    }
+}
+
+impl Default for SaddleParams {
+    /// The checked [`SaddleConfig::default`].
+    fn default() -> Self {
+        Self(SaddleConfig::default())
+    }
+}
+
+impl TryFrom<SaddleConfig> for SaddleParams {
+    type Error = Error;
+    fn try_from(c: SaddleConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -240,13 +365,13 @@ impl SaddleConfig {
 /// crossing for any angle between the edges. A corner whose fit is not a saddle
 /// (`4 d f - e² ≥ 0`), or that moves more than the window, keeps its start.
 ///
-/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+/// Errors: [`Error::NonFinite`] for a non-finite corner.
 pub fn saddle_subpix(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],
-    cfg: &SaddleConfig,
+    params: &SaddleParams,
 ) -> Result<()> {
-    cfg.validate()?;
+    let cfg = params.config();
     if corners
         .iter()
         .any(|c| !(c.x.is_finite() && c.y.is_finite()))

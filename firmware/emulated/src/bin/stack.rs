@@ -22,7 +22,7 @@ use core::hint::black_box;
 use camgeom::apriltag::{Detector, DetectorConfig, families};
 use camgeom::calib::{CalibrationConfig, Calibrator};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
+use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
 use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
@@ -679,8 +679,8 @@ fn main() -> ! {
     };
     let bdet = BOARD_DETECTOR.take();
     let bscr = BOARD_SCRATCH.take();
-    let dcfg = black_box(DetectConfig::default());
-    let (r, s) = measure(|| bdet.detect::<BOARD_CORNERS>(&vc, bsize, &dcfg, &mut bscr[..]));
+    let dparams = black_box(DetectParams::default());
+    let (r, s) = measure(|| bdet.detect::<BOARD_CORNERS>(&vc, bsize, &dparams, &mut bscr[..]));
     row(
         "ChessboardDetector::<512>::detect 160x120, 9x6 board",
         s,
