@@ -41,7 +41,7 @@
 //!
 //! A board that is absent or only partly visible is `Ok(None)`, never a guess.
 //!
-//! Memory: [`ChessboardDetector::MEMORY`] bytes of state (candidates and the heap, fixed by
+//! Memory: [`ChessboardDetector::BYTES`] bytes of state (candidates and the heap, fixed by
 //! `K`) plus [`scratch_len`]`(width)` `i32` words of scratch. With `K = 512`: 20,496 bytes of
 //! state, and 7,040 words (28 KB) of scratch at 640 px width, 3,520 words (14 KB) at 320 px:
 //! [`ChessboardDetector::memory`] gives 48,656 bytes at 640x480 and 34,576 at 320x240 (the
@@ -142,7 +142,7 @@ impl<const K: usize> Default for ChessboardDetector<K> {
 
 impl<const K: usize> ChessboardDetector<K> {
     /// Bytes of the detector's own state (without the caller's scratch).
-    pub const MEMORY: usize = core::mem::size_of::<Self>();
+    pub const BYTES: usize = core::mem::size_of::<Self>();
 
     /// An empty detector. `K` is at most 65,535 (candidates are indexed by `u16`), checked at
     /// compile time.
@@ -157,7 +157,7 @@ impl<const K: usize> ChessboardDetector<K> {
 
     /// Bytes a detection of a `width`-pixel-wide frame uses: the state and the scratch.
     pub const fn memory(width: usize) -> usize {
-        Self::MEMORY + 4 * scratch_len(width)
+        Self::BYTES + 4 * scratch_len(width)
     }
 
     /// Finds the `board` in `image`; see the module documentation for the method.
