@@ -121,12 +121,50 @@ fn window_origin(f: f32) -> isize {
     f.clamp(-LIMIT, LIMIT) as isize
 }
 
-/// Bilinear sample with a replicated border (OpenCV's `getRectSubPix` border).
+/// Pixel `(x, y)` with a replicated border (OpenCV's `getRectSubPix` border).
 #[inline]
 fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
     let w = img.width() as isize;
     let xc = x.min(w - 1).max(0) as usize;
     img.row_clamped(y).get(xc).copied().unwrap_or(0) as f32
+}
+
+/// OpenCV's `getRectSubPix`: the `side x side` samples at `q + (j - half, i - half)`,
+/// `i, j < side`, bilinear with a replicated border, into the first `side` rows of `out`
+/// (rows `stride` apart). All samples share `q`'s sub-pixel offset `(ax, ay)`:
+/// `(1 - ay) ((1 - ax) I₀₀ + ax I₁₀) + ay ((1 - ax) I₀₁ + ax I₁₁)`.
+#[inline]
+fn resample_window(
+    image: &ImageView<'_, u8>,
+    q: &Point2<f32>,
+    half: isize,
+    side: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
+    let (ax, ay) = (q.x - fx, q.y - fy);
+    let (ix, iy) = (window_origin(fx), window_origin(fy));
+    for (i, row) in out.chunks_exact_mut(stride).take(side).enumerate() {
+        let y = iy + i as isize - half;
+        for (j, v) in row.iter_mut().take(side).enumerate() {
+            let x = ix + j as isize - half;
+            let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
+            let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
+            *v = t * (1.0 - ay) + u * ay;
+        }
+    }
+}
+
+/// [`Error::NonFinite`] when a corner is not finite (the refiners' input check).
+fn check_finite(corners: &[Point2<f32>]) -> Result<()> {
+    if corners
+        .iter()
+        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
+    {
+        return Err(Error::NonFinite);
+    }
+    Ok(())
 }
 
 /// Refines each corner in place by the gradient-orthogonality condition of OpenCV's
@@ -148,12 +186,7 @@ pub fn corner_subpix(
     params: &SubPixParams,
 ) -> Result<()> {
     let cfg = params.config();
-    if corners
-        .iter()
-        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
-    {
-        return Err(Error::NonFinite);
-    }
+    check_finite(corners)?;
     let h = cfg.half_window as isize;
     let n = (2 * h + 1) as usize;
     // Gaussian weights as OpenCV: exp(-((i - h)/h)²) per axis.
@@ -167,22 +200,9 @@ pub fn corner_subpix(
         let start = *c;
         let mut q = start;
         for _ in 0..cfg.max_iterations {
-            // Window of (2h + 3)² samples at q + (j - h - 1, i - h - 1), bilinear.
-            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
-            let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (window_origin(fx), window_origin(fy));
-            // The resampled window, (2h + 3)² values: OpenCV's `getRectSubPix`.
-            let side = n + 2;
+            // The window and a pixel around it, (2h + 3)² samples at q + (j - h - 1, i - h - 1).
             let mut patch = [0.0f32; PATCH * PATCH];
-            for (i, row) in patch.chunks_exact_mut(PATCH).take(side).enumerate() {
-                let y = iy + i as isize - h - 1;
-                for (j, v) in row.iter_mut().take(side).enumerate() {
-                    let x = ix + j as isize - h - 1;
-                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
-                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
-                    *v = t * (1.0 - ay) + u * ay;
-                }
-            }
+            resample_window(image, &q, h + 1, n + 2, &mut patch, PATCH);
             let p = |j: usize, i: usize| patch.get(i * PATCH + j).copied().unwrap_or(0.0);
             let (mut a, mut b, mut cc, mut bb1, mut bb2) = (0.0f64, 0.0f64, 0.0f64, 0.0, 0.0);
             for (i, my) in mask.iter().take(n).enumerate() {
@@ -372,12 +392,7 @@ pub fn saddle_subpix(
     params: &SaddleParams,
 ) -> Result<()> {
     let cfg = params.config();
-    if corners
-        .iter()
-        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
-    {
-        return Err(Error::NonFinite);
-    }
+    check_finite(corners)?;
     let r = cfg.half_window as usize;
     let kr = (libm::ceilf(3.0 * cfg.sigma) as usize).min(SADDLE_KERNEL);
     let mut kernel = [0.0f32; 2 * SADDLE_KERNEL + 1];
@@ -410,19 +425,8 @@ pub fn saddle_subpix(
         let start = *c;
         let mut q = start;
         for _ in 0..cfg.max_iterations {
-            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
-            let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (window_origin(fx), window_origin(fy));
             let mut raw = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
-            for (i, row) in raw.chunks_exact_mut(SADDLE_PATCH).take(side).enumerate() {
-                let y = iy + i as isize - half;
-                for (j, v) in row.iter_mut().take(side).enumerate() {
-                    let x = ix + j as isize - half;
-                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
-                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
-                    *v = t * (1.0 - ay) + u * ay;
-                }
-            }
+            resample_window(image, &q, half, side, &mut raw, SADDLE_PATCH);
             let px = |j: usize, i: usize| raw.get(i * SADDLE_PATCH + j).copied().unwrap_or(0.0);
             // Horizontal then vertical smoothing, only where the fit needs it.
             let mut hs = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
