@@ -36,11 +36,10 @@ pub(super) fn collect_maxima<const K: usize>(
     let (hring, rest) = scratch.split_at_mut(5 * w);
     let (sring, rring) = rest.split_at_mut(3 * w);
     let rring = rring.get_mut(..3 * w).unwrap_or_default();
+    // Logical row `y` of the frame sits in slot `(y + 2) % 5` of the first ring.
     let hrow = |ring: &mut [i32], logical: isize| {
-        let slot = ((logical + 2) as usize) % 5;
-        if let Some(out) = ring.get_mut(slot * w..(slot + 1) * w) {
-            hblur(image.row_clamped(logical), out);
-        }
+        let out = ring_row_mut(ring, 5, (logical + 2) as usize, w);
+        hblur(image.row_clamped(logical), out);
     };
     for r in -2..=1isize {
         hrow(hring, r);
@@ -48,12 +47,9 @@ pub(super) fn collect_maxima<const K: usize>(
     for ys in 0..h {
         hrow(hring, ys as isize + 2);
         // Vertical smoothing of rows ys-2 ..= ys+2 into the smoothed ring.
-        let slot = ys % 3;
-        if let Some(out) = sring.get_mut(slot * w..(slot + 1) * w) {
-            let row = |k: usize| {
-                let s = (ys + k) % 5; // logical ys - 2 + k sits in slot (ys + k) % 5
-                hring.get(s * w..(s + 1) * w).unwrap_or_default()
-            };
+        {
+            let out = ring_row_mut(sring, 3, ys, w);
+            let row = |k: usize| ring_row(hring, 5, ys + k, w);
             let (a, b, c, d, e) = (row(0), row(1), row(2), row(3), row(4));
             let taps = a.iter().zip(b).zip(c).zip(d).zip(e);
             for (o, ((((a, b), c), d), e)) in out.iter_mut().zip(taps) {
@@ -65,13 +61,10 @@ pub(super) fn collect_maxima<const K: usize>(
         }
         // Response of row yr = ys - 1 from smoothed rows yr-1, yr, yr+1.
         let yr = ys - 1;
-        let slot = yr % 3;
-        let s = |k: usize| {
-            let k = k % 3;
-            sring.get(k * w..(k + 1) * w).unwrap_or_default()
-        };
+        let s = |k: usize| ring_row(sring, 3, k, w);
         let (up, mid, dn) = (s(yr + 2), s(yr), s(yr + 1));
-        if let Some(out) = rring.get_mut(slot * w..(slot + 1) * w) {
+        {
+            let out = ring_row_mut(rring, 3, yr, w);
             out.fill(0);
             if yr >= MARGIN - 1 && yr + MARGIN - 1 < h {
                 saddle_row(up, mid, dn, out);
@@ -93,10 +86,7 @@ pub(super) fn collect_maxima<const K: usize>(
         if yn < MARGIN || yn + MARGIN >= h {
             continue;
         }
-        let r = |k: usize| {
-            let k = k % 3;
-            rring.get(k * w..(k + 1) * w).unwrap_or_default()
-        };
+        let r = |k: usize| ring_row(rring, 3, k, w);
         let (ru, rm, rd) = (r(yn + 2), r(yn), r(yn + 1));
         for x in MARGIN..w - MARGIN {
             let g = |row: &[i32], x: usize| row.get(x).copied().unwrap_or(0);
@@ -130,6 +120,18 @@ pub(super) fn collect_maxima<const K: usize>(
             }
         }
     }
+}
+
+/// Row `k mod rows` of a ring buffer of `rows` rows `w` long (empty when the ring is short).
+fn ring_row(ring: &[i32], rows: usize, k: usize, w: usize) -> &[i32] {
+    let slot = k % rows;
+    ring.get(slot * w..(slot + 1) * w).unwrap_or_default()
+}
+
+/// [`ring_row`], to write.
+fn ring_row_mut(ring: &mut [i32], rows: usize, k: usize, w: usize) -> &mut [i32] {
+    let slot = k % rows;
+    ring.get_mut(slot * w..(slot + 1) * w).unwrap_or_default()
 }
 
 /// `[1 4 6 4 1]` along a row, border replicated.
