@@ -118,6 +118,13 @@ struct Candidate {
     mark: u8,
 }
 
+impl Candidate {
+    /// Passed the corner test and belongs to no grid yet: may seed or join a grid.
+    fn is_free(&self) -> bool {
+        self.ok && self.mark == 0
+    }
+}
+
 const EMPTY: Candidate = Candidate {
     p: Point2::new(0.0, 0.0),
     lines: [Vector2::new(1.0, 0.0), Vector2::new(0.0, 1.0)],
@@ -200,7 +207,7 @@ impl<const K: usize> ChessboardDetector<K> {
                 break;
             }
             let Some(c) = self.cands.get(s) else { break };
-            if !c.ok || c.mark != 0 {
+            if !c.is_free() {
                 continue;
             }
             seeds += 1;
@@ -263,14 +270,21 @@ impl<const K: usize> ChessboardDetector<K> {
         self.cands.get(i).map_or(Point2::origin(), |c| c.p)
     }
 
+    /// The candidates that passed the corner test and belong to no grid yet, with their
+    /// indices.
+    fn free(&self) -> impl Iterator<Item = (usize, &Candidate)> + '_ {
+        self.cands
+            .iter()
+            .take(self.count)
+            .enumerate()
+            .filter(|(_, c)| c.is_free())
+    }
+
     /// The nearest free, tested candidate within `radius` of `p`.
     fn nearest(&self, p: &Point2<f32>, radius: f32) -> Option<usize> {
         let r2 = radius * radius;
         let mut best: Option<(f32, usize)> = None;
-        for (i, c) in self.cands.iter().take(self.count).enumerate() {
-            if !c.ok || c.mark != 0 {
-                continue;
-            }
+        for (i, c) in self.free() {
             let d = (c.p - p).norm_squared();
             if d <= r2 && best.is_none_or(|(b, _)| d < b) {
                 best = Some((d, i));
@@ -306,10 +320,7 @@ impl<const K: usize> ChessboardDetector<K> {
         let mut nb = [None; 2];
         for (k, l) in seed.lines.iter().enumerate() {
             let mut best: Option<(f32, usize)> = None;
-            for (i, c) in self.cands.iter().take(self.count).enumerate() {
-                if !c.ok || c.mark != 0 {
-                    continue;
-                }
+            for (i, c) in self.free() {
                 let v = c.p - seed.p;
                 let d = v.norm();
                 if d < 4.0 || (l.x * v.y - l.y * v.x).abs() > SIN_20 * d {
