@@ -217,13 +217,25 @@ fn draw(
 
 type Small = Workspace<160, { tiles_len(160, 120, 1) }, 4096, 256, 4096, { sort_len(160, 120, 1) }>;
 
+/// The tags of `fams` in a packed `w x h` frame, with the default configuration.
 fn detect_all(
     px: &[u8],
     w: usize,
     h: usize,
     fams: &[&'static Family],
 ) -> heapless::Vec<Detection, 8> {
-    let det = Detector::new(DetectorConfig::default(), fams).unwrap();
+    detect_with(DetectorConfig::default(), px, w, h, fams)
+}
+
+/// The tags of `fams` in a packed `w x h` frame, with `cfg` and a [`Small`] workspace.
+fn detect_with<const N: usize>(
+    cfg: DetectorConfig,
+    px: &[u8],
+    w: usize,
+    h: usize,
+    fams: &[&'static Family],
+) -> heapless::Vec<Detection, N> {
+    let det = Detector::new(cfg, fams).unwrap();
     let mut ws = std::boxed::Box::new(Small::new());
     det.detect(&ImageView::packed(px, w, h).unwrap(), &mut ws.as_mut_view())
         .unwrap()
@@ -357,14 +369,7 @@ fn a_tag_cut_by_the_frame_edge_is_dropped_unless_asked_for() {
         reject_clipped: false,
         ..DetectorConfig::default()
     };
-    let det = Detector::new(cfg, &[&TAG36H11]).unwrap();
-    let mut ws = std::boxed::Box::new(Small::new());
-    let got: heapless::Vec<Detection, 4> = det
-        .detect(
-            &ImageView::packed(&px, w, h).unwrap(),
-            &mut ws.as_mut_view(),
-        )
-        .unwrap();
+    let got: heapless::Vec<Detection, 4> = detect_with(cfg, &px, w, h, &[&TAG36H11]);
     assert_eq!(got.iter().map(|d| d.id).collect::<Vec<_>>(), [9]);
 }
 
@@ -379,12 +384,8 @@ fn decimation_finds_large_tags_with_refined_corners() {
     };
     let det = Detector::new(cfg, &[&TAG36H11]).unwrap();
     let mut ws = std::boxed::Box::new(Small::new());
-    let got: heapless::Vec<Detection, 4> = det
-        .detect(
-            &ImageView::packed(&px, w, h).unwrap(),
-            &mut ws.as_mut_view(),
-        )
-        .unwrap();
+    let frame = ImageView::packed(&px, w, h).unwrap();
+    let got: heapless::Vec<Detection, 4> = det.detect(&frame, &mut ws.as_mut_view()).unwrap();
     assert_eq!(got.len(), 1);
     // Edge refinement at full resolution undoes the decimated fit's error (AprilTag's purpose
     // for it): within 0.1 px again.
@@ -401,10 +402,8 @@ fn overlapping_duplicates_keep_the_better_one() {
     let (w, h) = (160, 120);
     let mut px = vec![140u8; w * h];
     draw(&mut px, w, &TAG36H11, 42, (40, 30), 6, 0);
-    let det = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
-    let mut ws = std::boxed::Box::new(Small::new());
-    let frame = ImageView::packed(&px, w, h).unwrap();
-    let got: heapless::Vec<Detection, 4> = det.detect(&frame, &mut ws.as_mut_view()).unwrap();
+    let got: heapless::Vec<Detection, 4> =
+        detect_with(DetectorConfig::default(), &px, w, h, &[&TAG36H11]);
     let mut a = got[0];
     let mut b = a;
     b.hamming = 1;
