@@ -245,6 +245,7 @@ impl Detector {
     /// Errors: [`Error::BufferTooSmall`] naming the workspace buffer that cannot hold this frame
     /// (`"workspace.width"`, `"workspace.tiles"`, `"workspace.labels"`: at least one,
     /// `"workspace.sort"`). Frames smaller than 8x8 after decimation give no detection.
+    #[doc(alias = "detectMarkers")]
     pub fn detect<const N: usize>(
         &self,
         frame: &ImageView<'_, u8>,

@@ -173,6 +173,8 @@ impl<const K: usize> ChessboardDetector<K> {
     /// `BufferTooSmall("corners")` when `N < board.corners()`, `BufferTooSmall("scratch")`
     /// when `scratch.len() < scratch_len(width)`, `InvalidImage` for a frame smaller than
     /// 16x16 or wider than 65,535.
+    #[doc(alias = "findChessboardCorners")]
+    #[doc(alias = "findChessboardCornersSB")]
     pub fn detect<const N: usize>(
         &mut self,
         image: &ImageView<'_, u8>,

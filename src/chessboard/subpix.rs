@@ -180,6 +180,7 @@ fn check_finite(corners: &[Point2<f32>]) -> Result<()> {
 /// whose window has no gradient (a flat patch).
 ///
 /// Errors: [`Error::NonFinite`] for a non-finite corner.
+#[doc(alias = "cornerSubPix")]
 pub fn corner_subpix(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],
