@@ -35,10 +35,8 @@
 //! beyond reading the row), at most `3/4 CLUSTERS` clusters, `max_batches · POINTS` boundary
 //! points, `max_quads` quads decoded, each cluster's fit linear in its points (radix sort,
 //! sliding sums) plus `k²` line fits and `C(k, 4)` splits of its `k ≤ max_nmaxima` corner
-//! candidates, each quad's refinement and decoding a constant. Counted with callgrind (x86-64,
-//! release): a 320x240 frame of the rendered tag sequence takes 14.2M instructions on average
-//! (AprilTag 3: 26.7M), a textured, noisy one 19.5M (40.6M); 320x240 at decimation 2 about
-//! 6M.
+//! candidates, each quad's refinement and decoding a constant. Instruction counts per
+//! frame, against AprilTag 3's: BENCHMARKS.md, "AprilTag".
 //!
 //! Coordinates are camgeom's: pixel `(i, j)` is centred at `(i, j)` (OpenCV's convention);
 //! AprilTag's are these plus [`APRILTAG_PIXEL_OFFSET`].

@@ -74,9 +74,9 @@ pub enum Refinement {
     /// neighbour, so a large window never reaches the next corner where perspective makes
     /// the squares small.
     AdaptiveCornerSubPix(SubPixConfig),
-    /// The saddle point of the smoothed image ([`super::saddle_subpix`]): the most accurate on the
-    /// rendered boards (3x lower median error than `cornerSubPix` and OpenCV's
-    /// `findChessboardCornersSB`, see `docs/notes/calibration.md`).
+    /// The saddle point of the smoothed image ([`super::saddle_subpix`]): the most accurate on
+    /// the rendered boards, ahead of `cornerSubPix` and OpenCV's `findChessboardCornersSB`
+    /// (BENCHMARKS.md, "Corner error against rendered truth").
     Saddle(SaddleConfig),
 }
 

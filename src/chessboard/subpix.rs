@@ -4,12 +4,12 @@
 //! Both are unbiased for an ideal corner at any angle between its edges. `cornerSubPix` is
 //! here so that results compare one to one with OpenCV's (on OpenCV's corners camgeom's
 //! calibration equals OpenCV's). The saddle fit is camgeom's default because it measured more
-//! accurate: on 38 boards rendered by OpenCV with exact truth (rotation, perspective, lens
-//! distortion, blur, noise, uneven light) its median corner error is 0.005..0.03 px against
-//! 0.02..0.11 px for `cornerSubPix` (fixed or adaptive window) and 0.02..0.27 px for OpenCV's
-//! `findChessboardCornersSB`: the fit uses every sample of a small smoothed window, where
-//! gradient orthogonality leans on the few pixels with a strong gradient and a Gaussian
-//! weight that spans the corner's neighbourhood (`docs/notes/calibration.md`).
+//! accurate on boards rendered by OpenCV with exact truth (rotation, perspective, lens
+//! distortion, blur, noise, uneven light) than `cornerSubPix` (fixed or adaptive window) and
+//! OpenCV's `findChessboardCornersSB` (BENCHMARKS.md, "Corner error against rendered
+//! truth"): the fit uses every sample of a small smoothed window, where gradient
+//! orthogonality leans on the few pixels with a strong gradient and a Gaussian weight that
+//! spans the corner's neighbourhood (`docs/notes/calibration.md`).
 
 use nalgebra::Point2;
 
