@@ -15,7 +15,7 @@ use arbitrary::Arbitrary;
 use camgeom::Error;
 use camgeom::apriltag::family::MAX_CORRECTABLE;
 use camgeom::apriltag::{
-    Detection, Detector, DetectorConfig, Family, Workspace, families, rotate90,
+    Detection, Detector, DetectorConfig, Family, Workspace, WorkspaceView, families, rotate90,
 };
 use camgeom::image::ImageView;
 use libfuzzer_sys::fuzz_target;
@@ -166,20 +166,9 @@ fn check(dets: &[Detection], det: &Detector, w: usize, h: usize) {
     );
 }
 
-fn detect<
-    const W: usize,
-    const T: usize,
-    const L: usize,
-    const C: usize,
-    const P: usize,
-    const S: usize,
->(
-    det: &Detector,
-    view: &ImageView<'_, u8>,
-    ws: &mut Workspace<W, T, L, C, P, S>,
-) {
+fn detect(det: &Detector, view: &ImageView<'_, u8>, ws: &mut WorkspaceView<'_>) {
     let (w, h) = (view.width(), view.height());
-    match det.detect::<8, W, T, L, C, P, S>(view, ws) {
+    match det.detect::<8>(view, ws) {
         Ok(d) => check(&d, det, w, h),
         Err(Error::BufferTooSmall(b)) => assert!(b.starts_with("workspace."), "buffer {b}"),
         Err(e) => panic!("detect: undocumented error {e:?}"),
@@ -199,9 +188,11 @@ fuzz_target!(|inp: Input| {
         let data = render(&inp, s, len);
         if let Ok(view) = ImageView::new(&data[..], w, h, s) {
             if inp.small_workspace {
-                detect(&det, &view, &mut std::boxed::Box::new(Small::new()));
+                let mut ws = std::boxed::Box::new(Small::new());
+                detect(&det, &view, &mut ws.as_mut_view());
             } else {
-                detect(&det, &view, &mut std::boxed::Box::new(Full::new()));
+                let mut ws = std::boxed::Box::new(Full::new());
+                detect(&det, &view, &mut ws.as_mut_view());
             }
         }
     }

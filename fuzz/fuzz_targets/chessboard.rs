@@ -183,7 +183,10 @@ fuzz_target!(|inp: Input| {
     ) {
         let scratch_n = (scratch_len(w) as i64 + i64::from(inp.scratch_slack)).max(0) as usize;
         let mut scratch = std::vec![0i32; scratch_n];
-        match det.detect::<N>(&view, board, &cfg, &mut scratch) {
+        let detected = cfg
+            .check()
+            .and_then(|params| det.detect::<N>(&view, board, &params, &mut scratch));
+        match detected {
             Ok(Some(found)) => {
                 let cols = board.cols();
                 assert_eq!(found.size, board, "board size");
@@ -208,7 +211,8 @@ fuzz_target!(|inp: Input| {
             Err(Error::InvalidImage) => assert!(w < 16 || h < 16, "InvalidImage for {w}x{h}"),
             Err(Error::BufferTooSmall("scratch")) => assert!(scratch_n < scratch_len(w)),
             Err(Error::BufferTooSmall("corners")) => assert!(board.corners() > N),
-            Err(Error::InvalidParameter(_)) => assert!(cfg.validate().is_err()),
+            // Only the check names a parameter; detect takes it checked.
+            Err(Error::InvalidParameter(_)) => assert!(cfg.check().is_err()),
             Err(e) => panic!("detect: undocumented error {e:?}"),
         }
 
@@ -221,6 +225,7 @@ fuzz_target!(|inp: Input| {
             .collect();
         let mut pts2 = pts.clone();
         if let Refinement::CornerSubPix(sp) | Refinement::AdaptiveCornerSubPix(sp) = cfg.refine
+            && let Ok(sp) = sp.check()
             && corner_subpix(&view, &mut pts, &sp).is_ok()
         {
             assert!(common::finite(&flat(&pts)), "corner_subpix: not finite");
@@ -229,7 +234,9 @@ fuzz_target!(|inp: Input| {
             Refinement::Saddle(sc) => sc,
             _ => SaddleConfig::default(),
         };
-        if saddle_subpix(&view, &mut pts2, &sc).is_ok() {
+        if let Ok(sc) = sc.check()
+            && saddle_subpix(&view, &mut pts2, &sc).is_ok()
+        {
             assert!(common::finite(&flat(&pts2)), "saddle_subpix: not finite");
         }
     }

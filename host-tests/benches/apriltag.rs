@@ -40,9 +40,9 @@ fn bench(c: &mut Criterion) {
             let big = img.width.div_ceil(usize::from(d)) > 320;
             let mut run = || -> camgeom::heapless::Vec<Detection, 16> {
                 if big {
-                    det.detect(&view, &mut large).unwrap()
+                    det.detect(&view, &mut large.as_mut_view()).unwrap()
                 } else {
-                    det.detect(&view, &mut small).unwrap()
+                    det.detect(&view, &mut small.as_mut_view()).unwrap()
                 }
             };
             // The bench times what it should: the frame's tags are found.

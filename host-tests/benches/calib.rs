@@ -92,17 +92,19 @@ fn calib(c: &mut Criterion) {
         ("saddle", DetectConfig::default().refine),
         ("cornersubpix5", Refinement::CornerSubPix(sp5)),
     ] {
-        let cfg = DetectConfig {
+        let params = DetectConfig {
             refine,
             ..DetectConfig::default()
-        };
+        }
+        .check()
+        .expect("config");
         let found = det
-            .detect::<54>(&view, board, &cfg, &mut scratch)
+            .detect::<54>(&view, board, &params, &mut scratch)
             .expect("detect");
         assert!(found.is_some(), "left01: board not found");
         c.bench_function(&format!("calib/detect_left01/{name}"), |b| {
             b.iter(|| {
-                black_box(det.detect::<54>(black_box(&view), board, &cfg, &mut scratch))
+                black_box(det.detect::<54>(black_box(&view), board, &params, &mut scratch))
                     .is_ok_and(|f| f.is_some())
             })
         });

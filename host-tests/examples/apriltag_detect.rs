@@ -74,10 +74,10 @@ fn main() {
         let mut found: HVec<Detection, 64> = HVec::new();
         for _ in 0..repeat {
             found = if fits {
-                det.detect(&view, &mut small).expect("detect")
+                det.detect(&view, &mut small.as_mut_view()).expect("detect")
             } else {
                 let ws = large.get_or_insert_with(|| Box::new(Large::new()));
-                det.detect(&view, ws).expect("detect")
+                det.detect(&view, &mut ws.as_mut_view()).expect("detect")
             };
         }
         if stats {

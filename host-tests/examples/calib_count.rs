@@ -33,12 +33,14 @@ fn main() {
         } else {
             Refinement::Saddle(SaddleConfig::default())
         };
-        let cfg = DetectConfig {
+        let params = DetectConfig {
             refine,
             ..DetectConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let found = det
-            .detect::<54>(&img.view().unwrap(), board, &cfg, &mut scratch)
+            .detect::<54>(&img.view().unwrap(), board, &params, &mut scratch)
             .unwrap();
         println!("found: {}", found.is_some());
     } else {

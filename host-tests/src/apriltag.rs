@@ -4,7 +4,7 @@
 
 use camgeom::apriltag::{
     APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, Workspace, families,
-    max_cluster_points, tag_pose, tiles,
+    sort_len, tag_pose, tiles_len,
 };
 use camgeom::camera::Camera;
 use camgeom::draw::draw_line;
@@ -25,11 +25,11 @@ pub const MAX_SIDE: usize = 1024;
 /// `docs/notes/apriltag.md`), so nothing is cut on photos of that size. About 1.6 MB: box it.
 pub type HostWorkspace = Workspace<
     MAX_SIDE,
-    { tiles(MAX_SIDE, MAX_SIDE, 1) },
+    { tiles_len(MAX_SIDE, MAX_SIDE, 1) },
     65533,
     8192,
     262_144,
-    { max_cluster_points(MAX_SIDE, MAX_SIDE, 1) },
+    { sort_len(MAX_SIDE, MAX_SIDE, 1) },
 >;
 
 /// Most detections reported per frame.
@@ -148,20 +148,21 @@ pub fn detect(
             camgeom::Error::InvalidImage,
         )
     })?;
-    det.detect(&view, ws).map_err(|e| match e {
-        camgeom::Error::BufferTooSmall(_) => Error::camgeom(
-            format!(
-                "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE} \
+    det.detect(&view, &mut ws.as_mut_view())
+        .map_err(|e| match e {
+            camgeom::Error::BufferTooSmall(_) => Error::camgeom(
+                format!(
+                    "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE} \
                  after decimation: try --decimate {})",
-                path.display(),
-                img.width,
-                img.height,
-                img.width.max(img.height).div_ceil(MAX_SIDE).max(2)
+                    path.display(),
+                    img.width,
+                    img.height,
+                    img.width.max(img.height).div_ceil(MAX_SIDE).max(2)
+                ),
+                e,
             ),
-            e,
-        ),
-        e => Error::camgeom(format!("{}: detection failed", path.display()), e),
-    })
+            e => Error::camgeom(format!("{}: detection failed", path.display()), e),
+        })
 }
 
 /// Which pixel coordinates the output uses.

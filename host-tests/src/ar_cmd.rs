@@ -278,7 +278,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
         }
         Acquisition::Tag(det, family, id) => {
             ws = Box::default();
-            tag_target = TagTarget::new(det, &mut ws, family, *id);
+            tag_target = TagTarget::new(det, ws.as_mut_view(), family, *id);
             &mut tag_target
         }
     };

@@ -12,7 +12,7 @@ use camgeom::calib::{
     CalibrationConfig, CalibrationFlags, CalibrationReport, CalibrationWarning, Calibrator,
 };
 use camgeom::camera::{Lens, LensModel};
-use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectConfig, scratch_len};
+use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectParams, scratch_len};
 use camgeom::draw::draw_line;
 use camgeom::nalgebra::Point2;
 use camgeom_host::cli::files::{create_dir, write_file};
@@ -411,7 +411,7 @@ fn detect_all(
     bar: &indicatif::ProgressBar,
 ) -> Result<Vec<View>> {
     let mut det = Box::new(ChessboardDetector::<CANDIDATES>::new());
-    let detect_cfg = DetectConfig::default();
+    let detect_params = DetectParams::default();
     let mut views: Vec<View> = Vec::with_capacity(images.len());
     for path in images {
         let image = load_gray(path)?;
@@ -435,7 +435,7 @@ fn detect_all(
             .ok_or_else(|| Error::new(path, ErrorKind::Shape("image size not supported".into())))?;
         let mut scratch = vec![0i32; scratch_len(image.width)];
         let corners = det
-            .detect::<MAX_CORNERS>(&view, board, &detect_cfg, &mut scratch)
+            .detect::<MAX_CORNERS>(&view, board, &detect_params, &mut scratch)
             .map_err(|e| {
                 Error::camgeom(
                     format!("{}: chessboard detection failed", path.display()),

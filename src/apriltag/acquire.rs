@@ -3,7 +3,9 @@
 
 use nalgebra::Point2;
 
-use super::{Detector, Family, Workspace};
+use super::detector::Detector;
+use super::family::Family;
+use super::workspace::WorkspaceView;
 use crate::Result;
 use crate::image::ImageView;
 use crate::target::Acquire;
@@ -16,35 +18,19 @@ use crate::target::Acquire;
 ///
 /// With [`crate::target::TargetConfig::reacquire_every`] set, the loop asks again while
 /// tracking, so the detection bounds the tracks' drift; after a loss it asks on every frame.
-pub struct TagTarget<
-    'a,
-    const W: usize,
-    const T: usize,
-    const L: usize,
-    const C: usize,
-    const P: usize,
-    const S: usize,
-> {
+pub struct TagTarget<'a> {
     detector: &'a Detector,
-    workspace: &'a mut Workspace<W, T, L, C, P, S>,
+    workspace: WorkspaceView<'a>,
     family: &'static Family,
     id: u16,
 }
 
-impl<
-    'a,
-    const W: usize,
-    const T: usize,
-    const L: usize,
-    const C: usize,
-    const P: usize,
-    const S: usize,
-> TagTarget<'a, W, T, L, C, P, S>
-{
-    /// Tag `id` of `family` (one of `detector`'s families), found with `workspace`.
+impl<'a> TagTarget<'a> {
+    /// Tag `id` of `family` (one of `detector`'s families), found with `workspace` (a
+    /// [`super::Workspace`]'s [`super::Workspace::as_mut_view`]).
     pub fn new(
         detector: &'a Detector,
-        workspace: &'a mut Workspace<W, T, L, C, P, S>,
+        workspace: WorkspaceView<'a>,
         family: &'static Family,
         id: u16,
     ) -> Self {
@@ -57,20 +43,18 @@ impl<
     }
 
     /// The workspace (its [`super::Stats`] after the last detection).
-    pub fn workspace(&self) -> &Workspace<W, T, L, C, P, S> {
-        self.workspace
+    pub fn workspace(&self) -> &WorkspaceView<'a> {
+        &self.workspace
     }
 }
 
-impl<const W: usize, const T: usize, const L: usize, const C: usize, const P: usize, const S: usize>
-    Acquire for TagTarget<'_, W, T, L, C, P, S>
-{
+impl Acquire for TagTarget<'_> {
     fn acquire(
         &mut self,
         frame: &ImageView<'_, u8>,
         _lost: u32,
     ) -> Result<Option<[Point2<f32>; 4]>> {
         self.detector
-            .find_target(frame, self.workspace, self.family, self.id)
+            .find_target(frame, &mut self.workspace, self.family, self.id)
     }
 }

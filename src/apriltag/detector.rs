@@ -11,7 +11,7 @@ use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit
 use super::segment::{
     Rows, Sampled, Sink, boundary_scan, build_tiles, label_pass, pack, tile_count,
 };
-use super::workspace::{Parts, Stats, Workspace};
+use super::workspace::{Stats, WorkspaceView};
 use crate::homography::Homography;
 use crate::image::ImageView;
 use crate::probe::StageProbe;
@@ -162,7 +162,7 @@ pub enum Stage {
 }
 
 /// A validated detector: configuration and families. Keeps no per-frame state (that is the
-/// [`Workspace`]'s), so one detector serves any number of workspaces.
+/// [`WorkspaceView`]'s), so one detector serves any number of workspaces.
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Detector {
@@ -245,18 +245,11 @@ impl Detector {
     /// Errors: [`Error::BufferTooSmall`] naming the workspace buffer that cannot hold this frame
     /// (`"workspace.width"`, `"workspace.tiles"`, `"workspace.labels"`: at least one,
     /// `"workspace.sort"`). Frames smaller than 8x8 after decimation give no detection.
-    pub fn detect<
-        const N: usize,
-        const W: usize,
-        const T: usize,
-        const L: usize,
-        const C: usize,
-        const P: usize,
-        const S: usize,
-    >(
+    #[doc(alias = "detectMarkers")]
+    pub fn detect<const N: usize>(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut Workspace<W, T, L, C, P, S>,
+        ws: &mut WorkspaceView<'_>,
     ) -> Result<Vec<Detection, N>> {
         let mut out = Vec::new();
         self.detect_into(frame, ws, &mut (), |_, _| true, &mut out)?;
@@ -266,25 +259,16 @@ impl Detector {
     /// [`Self::detect`] into `out` (cleared first), keeping only tags for which
     /// `keep(family, id)` holds (the others are decoded but never compete for `out`), with
     /// `probe` told as each stage ends.
-    pub fn detect_into<
-        const N: usize,
-        const W: usize,
-        const T: usize,
-        const L: usize,
-        const C: usize,
-        const P: usize,
-        const S: usize,
-    >(
+    pub fn detect_into<const N: usize>(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut Workspace<W, T, L, C, P, S>,
+        ws: &mut WorkspaceView<'_>,
         probe: &mut impl StageProbe<Stage>,
         keep: impl Fn(&Family, u16) -> bool,
         out: &mut Vec<Detection, N>,
     ) -> Result<()> {
         out.clear();
-        let mut parts = ws.parts();
-        self.run(frame, &mut parts, probe, &keep, &mut |det, stats| {
+        self.run(frame, ws, probe, &keep, &mut |det, stats| {
             merge(out, det, stats)
         })?;
         probe.stage_done(Stage::Reconcile);
@@ -299,17 +283,10 @@ impl Detector {
     /// The four corners of tag `id` of `family` in a planar target's order (see
     /// [`Detection::target_corners`]): the acquisition of a target from a frame. `None` when
     /// the tag is not found (the best of several copies is taken).
-    pub fn find_target<
-        const W: usize,
-        const T: usize,
-        const L: usize,
-        const C: usize,
-        const P: usize,
-        const S: usize,
-    >(
+    pub fn find_target(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut Workspace<W, T, L, C, P, S>,
+        ws: &mut WorkspaceView<'_>,
         family: &Family,
         id: u16,
     ) -> Result<Option<[Point2<f32>; 4]>> {
@@ -321,7 +298,7 @@ impl Detector {
     fn run(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut Parts<'_>,
+        ws: &mut WorkspaceView<'_>,
         probe: &mut impl StageProbe<Stage>,
         keep: &impl Fn(&Family, u16) -> bool,
         sink: &mut impl FnMut(Detection, &mut Stats),
@@ -336,13 +313,17 @@ impl Detector {
         if src.w < 8 || src.h < 8 {
             return Ok(());
         }
-        if ws.runs[0].len() < src.w || ws.runs[1].len() < src.w || ws.ring_min.len() < src.w {
+        if ws.runs.iter().any(|r| r.len() < src.w)
+            || ws.ring_min.len() < src.w
+            || ws.ring_max.len() < src.w
+        {
             return Err(Error::BufferTooSmall("workspace.width"));
         }
         if ws.tiles.len() < tile_count(src.w, src.h) {
             return Err(Error::BufferTooSmall("workspace.tiles"));
         }
-        if ws.labels_cap == 0 {
+        let labels = ws.labels_len();
+        if labels == 0 {
             return Err(Error::BufferTooSmall("workspace.labels"));
         }
         if ws.keys.len() < usize::from(self.cfg.min_cluster_pixels).max(24) {
@@ -360,8 +341,8 @@ impl Detector {
         let mut rows = Rows {
             runs: [&mut **r0, &mut **r1],
         };
-        let parent = ws.parent.get_mut(..ws.labels_cap).unwrap_or(&mut []);
-        let size = ws.size.get_mut(..ws.labels_cap).unwrap_or(&mut []);
+        let parent = ws.parent.get_mut(..labels).unwrap_or(&mut []);
+        let size = ws.size.get_mut(..labels).unwrap_or(&mut []);
         let lab = label_pass(&src, &tiles, &mut rows, parent, size);
         ws.stats.labels = lab.labels as u32;
         ws.stats.label_overflow = lab.exhausted;

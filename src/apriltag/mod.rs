@@ -16,7 +16,8 @@
 //!    ([`decode`], [`family`]);
 //! 7. duplicates (overlapping detections of one id) reduced to the best.
 //!
-//! [`Detector`] holds the validated [`DetectorConfig`] and families; [`Workspace`] the memory;
+//! [`Detector`] holds the validated [`DetectorConfig`] and families; [`Workspace`] the memory
+//! (a board's `static`), which the detector takes as a [`WorkspaceView`];
 //! [`Detector::detect`] returns the [`Detection`]s in a `heapless::Vec`; [`tag_pose`] gives the
 //! metric pose; [`Detector::find_target`] the four corners of one tag in a planar target's
 //! corner order, and [`TagTarget`] makes that the AR loop's acquisition step
@@ -34,10 +35,8 @@
 //! beyond reading the row), at most `3/4 CLUSTERS` clusters, `max_batches · POINTS` boundary
 //! points, `max_quads` quads decoded, each cluster's fit linear in its points (radix sort,
 //! sliding sums) plus `k²` line fits and `C(k, 4)` splits of its `k ≤ max_nmaxima` corner
-//! candidates, each quad's refinement and decoding a constant. Counted with callgrind (x86-64,
-//! release): a 320x240 frame of the rendered tag sequence takes 14.2M instructions on average
-//! (AprilTag 3: 26.7M), a textured, noisy one 19.5M (40.6M); 320x240 at decimation 2 about
-//! 6M.
+//! candidates, each quad's refinement and decoding a constant. Instruction counts per
+//! frame, against AprilTag 3's: BENCHMARKS.md, "AprilTag".
 //!
 //! Coordinates are camgeom's: pixel `(i, j)` is centred at `(i, j)` (OpenCV's convention);
 //! AprilTag's are these plus [`APRILTAG_PIXEL_OFFSET`].
@@ -62,7 +61,7 @@
 //! let frame = ImageView::packed(&px, 320, 240)?;
 //! let detector = Detector::new(DetectorConfig::default(), &[&families::TAG36H11])?;
 //! let mut ws = Box::new(Workspace320x240::new());
-//! let tags: heapless::Vec<Detection, 8> = detector.detect(&frame, &mut ws)?;
+//! let tags: heapless::Vec<Detection, 8> = detector.detect(&frame, &mut ws.as_mut_view())?;
 //! assert_eq!(tags.len(), 1);
 //! assert_eq!(tags[0].id, 7);
 //! // Corner 3 is the top-left of the border's outer edge, pixels 120..184 (edges at -0.5).
@@ -92,8 +91,7 @@ pub use detector::{
 pub use family::{Decoded, Family, LayoutBit, rotate90};
 pub use pose::tag_pose;
 pub use workspace::{
-    Stats, Workspace, Workspace320x240, Workspace640x480, max_cluster_points, tiles,
-    workspace_bytes,
+    Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, sort_len, tiles_len,
 };
 
 #[cfg(test)]

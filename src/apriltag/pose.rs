@@ -20,6 +20,7 @@ use crate::{Error, Result};
 ///
 /// Errors: [`Error::InvalidParameter`]`("tag_size")` for a size that is not finite and
 /// positive; as [`solve_planar`] otherwise.
+#[doc(alias = "estimatePoseSingleMarkers")]
 pub fn tag_pose(
     detection: &Detection,
     tag_size: f32,

@@ -215,18 +215,29 @@ fn draw(
     }
 }
 
-type Small =
-    Workspace<160, { tiles(160, 120, 1) }, 4096, 256, 4096, { max_cluster_points(160, 120, 1) }>;
+type Small = Workspace<160, { tiles_len(160, 120, 1) }, 4096, 256, 4096, { sort_len(160, 120, 1) }>;
 
+/// The tags of `fams` in a packed `w x h` frame, with the default configuration.
 fn detect_all(
     px: &[u8],
     w: usize,
     h: usize,
     fams: &[&'static Family],
 ) -> heapless::Vec<Detection, 8> {
-    let det = Detector::new(DetectorConfig::default(), fams).unwrap();
+    detect_with(DetectorConfig::default(), px, w, h, fams)
+}
+
+/// The tags of `fams` in a packed `w x h` frame, with `cfg` and a [`Small`] workspace.
+fn detect_with<const N: usize>(
+    cfg: DetectorConfig,
+    px: &[u8],
+    w: usize,
+    h: usize,
+    fams: &[&'static Family],
+) -> heapless::Vec<Detection, N> {
+    let det = Detector::new(cfg, fams).unwrap();
     let mut ws = std::boxed::Box::new(Small::new());
-    det.detect(&ImageView::packed(px, w, h).unwrap(), &mut ws)
+    det.detect(&ImageView::packed(px, w, h).unwrap(), &mut ws.as_mut_view())
         .unwrap()
 }
 
@@ -283,7 +294,7 @@ fn two_tags_are_both_found_sorted_by_id_and_the_target_corners_follow_the_target
     let mut ws = std::boxed::Box::new(Small::new());
     let frame = ImageView::packed(&px, w, h).unwrap();
     let t = det
-        .find_target(&frame, &mut ws, &TAG36H11, 200)
+        .find_target(&frame, &mut ws.as_mut_view(), &TAG36H11, 200)
         .unwrap()
         .unwrap();
     // Target (0, 0), (w, 0), (w, h), (0, h): the upright tag's top-left, top-right,
@@ -299,10 +310,52 @@ fn two_tags_are_both_found_sorted_by_id_and_the_target_corners_follow_the_target
         assert!((p.x - x).abs() < 0.1 && (p.y - y).abs() < 0.1, "{t:?}");
     }
     assert_eq!(
-        det.find_target(&frame, &mut ws, &TAG36H11, 201).unwrap(),
+        det.find_target(&frame, &mut ws.as_mut_view(), &TAG36H11, 201)
+            .unwrap(),
         None
     );
-    assert_eq!(det.find_target(&frame, &mut ws, &TAG25H9, 5).unwrap(), None);
+    assert_eq!(
+        det.find_target(&frame, &mut ws.as_mut_view(), &TAG25H9, 5)
+            .unwrap(),
+        None
+    );
+}
+
+/// A view of buffers sized at run time (a host's `Vec`s) detects as the owner does.
+#[test]
+fn a_view_of_run_time_buffers_detects_as_a_workspace_does() {
+    let (w, h) = (160, 120);
+    let mut px = vec![140u8; w * h];
+    draw(&mut px, w, &TAG36H11, 200, (10, 20), 5, 0);
+    draw(&mut px, w, &TAG36H11, 5, (90, 40), 6, 1);
+    let frame = ImageView::packed(&px, w, h).unwrap();
+    let det = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
+    let mut ws = std::boxed::Box::new(Small::new());
+    let want: heapless::Vec<Detection, 8> = det.detect(&frame, &mut ws.as_mut_view()).unwrap();
+    let (labels, clusters, points) = (4096, 256, 4096);
+    let (mut tiles, mut ring_min, mut ring_max) =
+        (vec![0; tiles_len(w, h, 1)], vec![0; w], vec![0; w]);
+    let (mut run0, mut run1) = (vec![Run::EMPTY; w], vec![Run::EMPTY; w]);
+    let (mut parent, mut size) = (vec![0; labels], vec![0; labels]);
+    let mut slots = vec![quad::Cluster::EMPTY; clusters];
+    let (mut pts, mut keys) = (vec![0; points], vec![0; sort_len(w, h, 1)]);
+    let mut stats = Stats::default();
+    let mut view = WorkspaceView::new(
+        &mut tiles,
+        &mut ring_min,
+        &mut ring_max,
+        [&mut run0, &mut run1],
+        &mut parent,
+        &mut size,
+        &mut slots,
+        &mut pts,
+        &mut keys,
+        &mut stats,
+    );
+    let got: heapless::Vec<Detection, 8> = det.detect(&frame, &mut view).unwrap();
+    assert_eq!(got, want);
+    assert_eq!(view.stats(), ws.stats());
+    assert_eq!(got.len(), 2);
 }
 
 #[test]
@@ -316,11 +369,7 @@ fn a_tag_cut_by_the_frame_edge_is_dropped_unless_asked_for() {
         reject_clipped: false,
         ..DetectorConfig::default()
     };
-    let det = Detector::new(cfg, &[&TAG36H11]).unwrap();
-    let mut ws = std::boxed::Box::new(Small::new());
-    let got: heapless::Vec<Detection, 4> = det
-        .detect(&ImageView::packed(&px, w, h).unwrap(), &mut ws)
-        .unwrap();
+    let got: heapless::Vec<Detection, 4> = detect_with(cfg, &px, w, h, &[&TAG36H11]);
     assert_eq!(got.iter().map(|d| d.id).collect::<Vec<_>>(), [9]);
 }
 
@@ -335,9 +384,8 @@ fn decimation_finds_large_tags_with_refined_corners() {
     };
     let det = Detector::new(cfg, &[&TAG36H11]).unwrap();
     let mut ws = std::boxed::Box::new(Small::new());
-    let got: heapless::Vec<Detection, 4> = det
-        .detect(&ImageView::packed(&px, w, h).unwrap(), &mut ws)
-        .unwrap();
+    let frame = ImageView::packed(&px, w, h).unwrap();
+    let got: heapless::Vec<Detection, 4> = det.detect(&frame, &mut ws.as_mut_view()).unwrap();
     assert_eq!(got.len(), 1);
     // Edge refinement at full resolution undoes the decimated fit's error (AprilTag's purpose
     // for it): within 0.1 px again.
@@ -354,10 +402,8 @@ fn overlapping_duplicates_keep_the_better_one() {
     let (w, h) = (160, 120);
     let mut px = vec![140u8; w * h];
     draw(&mut px, w, &TAG36H11, 42, (40, 30), 6, 0);
-    let det = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
-    let mut ws = std::boxed::Box::new(Small::new());
-    let frame = ImageView::packed(&px, w, h).unwrap();
-    let got: heapless::Vec<Detection, 4> = det.detect(&frame, &mut ws).unwrap();
+    let got: heapless::Vec<Detection, 4> =
+        detect_with(DetectorConfig::default(), &px, w, h, &[&TAG36H11]);
     let mut a = got[0];
     let mut b = a;
     b.hamming = 1;
@@ -576,15 +622,18 @@ proptest! {
         let det = Detector::new(cfg, &[&TAG36H11, &TAG_STANDARD41H12]).unwrap();
         let mut ws = std::boxed::Box::new(Small::new());
         let frame = ImageView::packed(&px, w, h).unwrap();
-        let r: crate::Result<heapless::Vec<Detection, 4>> = det.detect(&frame, &mut ws);
+        let r: crate::Result<heapless::Vec<Detection, 4>> =
+            det.detect(&frame, &mut ws.as_mut_view());
         // The workspace holds 160 columns and 160x120 worth of tiles: a wider frame is a
         // width error, a taller one (of at most 160 columns) a tiles error; nothing else.
         let (sw, sh) = (w.div_ceil(usize::from(d)), h.div_ceil(usize::from(d)));
         match r {
-            Ok(_) => prop_assert!(sw < 8 || sh < 8 || (sw <= 160 && tiles(sw, sh, 1) <= tiles(160, 120, 1))),
+            Ok(_) => prop_assert!(
+                sw < 8 || sh < 8 || (sw <= 160 && tiles_len(sw, sh, 1) <= tiles_len(160, 120, 1))
+            ),
             Err(crate::Error::BufferTooSmall("workspace.width")) => prop_assert!(sw > 160),
             Err(crate::Error::BufferTooSmall("workspace.tiles")) => {
-                prop_assert!(sw <= 160 && tiles(sw, sh, 1) > tiles(160, 120, 1));
+                prop_assert!(sw <= 160 && tiles_len(sw, sh, 1) > tiles_len(160, 120, 1));
             }
             Err(e) => prop_assert!(false, "unexpected error {:?}", e),
         }
@@ -600,9 +649,9 @@ fn capacities_cut_work_without_failing() {
     let det = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
     // 64 labels for a frame of noise: most of it is skipped, counted, no panic.
     let mut tiny =
-        std::boxed::Box::new(Workspace::<160, { tiles(160, 120, 1) }, 64, 8, 256, 256>::new());
+        std::boxed::Box::new(Workspace::<160, { tiles_len(160, 120, 1) }, 64, 8, 256, 256>::new());
     let frame = ImageView::packed(&px, w, h).unwrap();
-    let _: heapless::Vec<Detection, 2> = det.detect(&frame, &mut tiny).unwrap();
+    let _: heapless::Vec<Detection, 2> = det.detect(&frame, &mut tiny.as_mut_view()).unwrap();
     let s = *tiny.stats();
     assert_eq!(s.labels, 64);
     assert!(s.label_overflow > 0, "{s:?}");
@@ -612,7 +661,10 @@ fn capacities_cut_work_without_failing() {
     draw(&mut px2, w, &TAG36H11, 1, (10, 10), 5, 0);
     draw(&mut px2, w, &TAG36H11, 2, (90, 50), 5, 0);
     let one: heapless::Vec<Detection, 1> = det
-        .detect(&ImageView::packed(&px2, w, h).unwrap(), &mut ws)
+        .detect(
+            &ImageView::packed(&px2, w, h).unwrap(),
+            &mut ws.as_mut_view(),
+        )
         .unwrap();
     assert_eq!(one.len(), 1);
     assert_eq!(ws.stats().dropped, 1);
@@ -705,23 +757,31 @@ fn bad_configuration_and_buffers_are_named_errors() {
     let det = Detector::new(d, &[&TAG36H11]).unwrap();
     let px = vec![0u8; 400 * 10];
     let mut ws = std::boxed::Box::new(Small::new());
-    let r: crate::Result<heapless::Vec<Detection, 1>> =
-        det.detect(&ImageView::packed(&px, 400, 10).unwrap(), &mut ws);
+    let r: crate::Result<heapless::Vec<Detection, 1>> = det.detect(
+        &ImageView::packed(&px, 400, 10).unwrap(),
+        &mut ws.as_mut_view(),
+    );
     assert_eq!(
         r.err(),
         Some(crate::Error::BufferTooSmall("workspace.width"))
     );
-    let r: crate::Result<heapless::Vec<Detection, 1>> =
-        det.detect(&ImageView::packed(&px, 150, 26).unwrap(), &mut ws);
+    let r: crate::Result<heapless::Vec<Detection, 1>> = det.detect(
+        &ImageView::packed(&px, 150, 26).unwrap(),
+        &mut ws.as_mut_view(),
+    );
     assert!(r.unwrap().is_empty());
     // Tiny frames give nothing, no error.
-    let r: crate::Result<heapless::Vec<Detection, 1>> =
-        det.detect(&ImageView::packed(&px, 7, 7).unwrap(), &mut ws);
+    let r: crate::Result<heapless::Vec<Detection, 1>> = det.detect(
+        &ImageView::packed(&px, 7, 7).unwrap(),
+        &mut ws.as_mut_view(),
+    );
     assert!(r.unwrap().is_empty());
     let mut no_sort =
-        std::boxed::Box::new(Workspace::<160, { tiles(160, 120, 1) }, 64, 8, 256, 8>::new());
-    let r: crate::Result<heapless::Vec<Detection, 1>> =
-        det.detect(&ImageView::packed(&px, 150, 26).unwrap(), &mut no_sort);
+        std::boxed::Box::new(Workspace::<160, { tiles_len(160, 120, 1) }, 64, 8, 256, 8>::new());
+    let r: crate::Result<heapless::Vec<Detection, 1>> = det.detect(
+        &ImageView::packed(&px, 150, 26).unwrap(),
+        &mut no_sort.as_mut_view(),
+    );
     assert_eq!(
         r.err(),
         Some(crate::Error::BufferTooSmall("workspace.sort"))
@@ -773,14 +833,19 @@ fn tag_pose_is_apriltags_tag_frame() {
 
 #[test]
 fn workspace_bytes_match_the_table() {
-    // The const fn counts the buffers; the struct adds its counters and padding.
-    let est = workspace_bytes(
+    // The table of the type's docs counts the buffers' bytes; the struct adds its counters and
+    // padding.
+    let table =
+        |w: usize, tiles: usize, labels: usize, clusters: usize, points: usize, sort: usize| {
+            tiles + 2 * w + 16 * w + 3 * labels + 32 * clusters + 4 * points + 2 * sort
+        };
+    let est = table(
         320,
-        tiles(320, 240, 1),
+        tiles_len(320, 240, 1),
         8192,
         512,
         16384,
-        max_cluster_points(320, 240, 1),
+        sort_len(320, 240, 1),
     );
     assert!(Workspace320x240::BYTES >= est && Workspace320x240::BYTES < est + 256);
     let bytes = Workspace320x240::BYTES;
@@ -793,4 +858,4 @@ fn workspace_bytes_match_the_table() {
 }
 
 /// The workspace is built in a `static` (what a board does with it): `new` is `const`.
-static _WORKSPACE: Workspace<64, { tiles(64, 64, 1) }, 256, 32, 256, 256> = Workspace::new();
+static _WORKSPACE: Workspace<64, { tiles_len(64, 64, 1) }, 256, 32, 256, 256> = Workspace::new();

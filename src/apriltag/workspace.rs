@@ -1,7 +1,10 @@
-//! The detector's working memory: fixed-size buffers the caller owns (a `static` on a board).
+//! The detector's working memory: [`Workspace`], fixed-size buffers a board owns (in a
+//! `static`), and [`WorkspaceView`], the same buffers as slices, which is what the detector
+//! takes (so that its functions carry no buffer sizes, and buffers sized at run time serve as
+//! well).
 
 use super::quad::Cluster;
-use super::segment::{MAX_LABELS, Run, TILE};
+use super::segment::{MAX_LABELS, Run, tile_count};
 
 /// Per-frame counts of a detection: what each stage found and what a capacity cut off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -55,11 +58,13 @@ pub struct Stats {
 /// | boundary points (one batch) | `POINTS` | 4 |
 /// | sort keys (largest cluster) | `SORT` (≤ 65534) | 2 |
 ///
-/// [`Workspace::BYTES`] is the total. `W`, `TILES`, `LABELS` and `SORT` must hold the frame
-/// (checked per frame: [`crate::Error::BufferTooSmall`]); `CLUSTERS` and `POINTS` only limit how
-/// many candidates a frame gets (counted in [`Stats`]). [`tiles`] and
-/// [`max_cluster_points`] give the first and last for a frame size; [`Workspace320x240`] and
-/// [`Workspace640x480`] are measured choices.
+/// [`Workspace::BYTES`] is the total (the table's sum plus a few bytes of counts and padding).
+/// `W`, `TILES`, `LABELS` and `SORT` must hold the frame (checked per frame:
+/// [`crate::Error::BufferTooSmall`]); `CLUSTERS` and `POINTS` only limit how many candidates a
+/// frame gets (counted in [`Stats`]). [`tiles_len`] and [`sort_len`] give `TILES` and `SORT`
+/// for a frame size; [`Workspace320x240`] and [`Workspace640x480`] are measured choices.
+///
+/// The detector takes the buffers as a [`WorkspaceView`] ([`Workspace::as_mut_view`]).
 pub struct Workspace<
     const W: usize,
     const TILES: usize,
@@ -82,31 +87,19 @@ pub struct Workspace<
 
 /// Tile count of a `width x height` frame at `decimate`: `⌊w/4⌋ ⌊h/4⌋` with
 /// `w = ⌈width / decimate⌉` (the `TILES` a [`Workspace`] needs).
-pub const fn tiles(width: usize, height: usize, decimate: usize) -> usize {
+pub const fn tiles_len(width: usize, height: usize, decimate: usize) -> usize {
     let d = if decimate == 0 { 1 } else { decimate };
-    (width.div_ceil(d) / TILE) * (height.div_ceil(d) / TILE)
+    tile_count(width.div_ceil(d), height.div_ceil(d))
 }
 
-/// Most points one cluster may have for a `width x height` frame at `decimate`: twice the
-/// frame's perimeter, `2 (2w + 2h)` (AprilTag's bound: a boundary point is counted about twice
-/// along an edge), at most 65534 (the `SORT` a [`Workspace`] needs to fit the largest quads).
-pub const fn max_cluster_points(width: usize, height: usize, decimate: usize) -> usize {
+/// Sort keys for a `width x height` frame at `decimate` (the `SORT` a [`Workspace`] needs to
+/// fit the largest quads): the most points one cluster may have, twice the frame's perimeter,
+/// `2 (2w + 2h)` (AprilTag's bound: a boundary point is counted about twice along an edge),
+/// at most 65534.
+pub const fn sort_len(width: usize, height: usize, decimate: usize) -> usize {
     let d = if decimate == 0 { 1 } else { decimate };
     let n = 4 * (width.div_ceil(d) + height.div_ceil(d));
     if n > 65534 { 65534 } else { n }
-}
-
-/// Bytes of a [`Workspace`] with these parameters (its buffers, as the table of the type's
-/// docs; the struct adds a few bytes of counts and padding).
-pub const fn workspace_bytes(
-    w: usize,
-    tiles: usize,
-    labels: usize,
-    clusters: usize,
-    points: usize,
-    sort: usize,
-) -> usize {
-    tiles + 2 * w + 16 * w + 3 * labels + 32 * clusters + 4 * points + 2 * sort
 }
 
 impl<
@@ -160,10 +153,10 @@ impl<
         &self.stats
     }
 
-    /// Every buffer as a slice, for the non-generic detector.
-    pub(crate) fn parts(&mut self) -> Parts<'_> {
+    /// Every buffer as a slice: what the detector takes.
+    pub fn as_mut_view(&mut self) -> WorkspaceView<'_> {
         let [r0, r1] = &mut self.runs;
-        Parts {
+        WorkspaceView {
             tiles: &mut self.tiles,
             ring_min: &mut self.ring_min,
             ring_max: &mut self.ring_max,
@@ -174,7 +167,6 @@ impl<
             points: &mut self.points,
             keys: &mut self.keys,
             stats: &mut self.stats,
-            labels_cap: LABELS.min(MAX_LABELS),
         }
     }
 }
@@ -193,8 +185,12 @@ impl<
     }
 }
 
-/// The buffers of a [`Workspace`] as slices.
-pub(crate) struct Parts<'a> {
+/// The detector's working memory as slices (the buffers of the [`Workspace`] table, of any
+/// lengths): what [`super::Detector::detect`], [`super::Detector::detect_into`] and
+/// [`super::Detector::find_target`] take. A board gets one from its `static` [`Workspace`]
+/// ([`Workspace::as_mut_view`]); [`WorkspaceView::new`] makes one of buffers sized at run time
+/// (a host's `Vec`s).
+pub struct WorkspaceView<'a> {
     pub(crate) tiles: &'a mut [u8],
     pub(crate) ring_min: &'a mut [u8],
     pub(crate) ring_max: &'a mut [u8],
@@ -205,7 +201,50 @@ pub(crate) struct Parts<'a> {
     pub(crate) points: &'a mut [u32],
     pub(crate) keys: &'a mut [u16],
     pub(crate) stats: &'a mut Stats,
-    pub(crate) labels_cap: usize,
+}
+
+impl<'a> WorkspaceView<'a> {
+    /// A view of caller buffers, one per row of the [`Workspace`] table: `tiles`
+    /// (`TILES`), `ring_min` and `ring_max` (`W` each), the two rows of `runs` (`W` each),
+    /// `parent` and `size` (`LABELS`: the shorter, at most 65533, is the label capacity),
+    /// `clusters`, `points`, `keys` (`SORT`), and the counts `stats`. The lengths are checked
+    /// against each frame ([`crate::Error::BufferTooSmall`]), as a [`Workspace`]'s are.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        tiles: &'a mut [u8],
+        ring_min: &'a mut [u8],
+        ring_max: &'a mut [u8],
+        runs: [&'a mut [Run]; 2],
+        parent: &'a mut [u16],
+        size: &'a mut [u8],
+        clusters: &'a mut [Cluster],
+        points: &'a mut [u32],
+        keys: &'a mut [u16],
+        stats: &'a mut Stats,
+    ) -> Self {
+        Self {
+            tiles,
+            ring_min,
+            ring_max,
+            runs,
+            parent,
+            size,
+            clusters,
+            points,
+            keys,
+            stats,
+        }
+    }
+
+    /// The counts of the last detection.
+    pub fn stats(&self) -> &Stats {
+        self.stats
+    }
+
+    /// Provisional labels a frame may use: `min(parent, size, 65533)`.
+    pub(crate) fn labels_len(&self) -> usize {
+        self.parent.len().min(self.size.len()).min(MAX_LABELS)
+    }
 }
 
 /// For 320x240 frames at decimation 1 (and 640x480 at 2): 4800 tiles, 8192 labels, 512
@@ -213,9 +252,9 @@ pub(crate) struct Parts<'a> {
 /// 320x240 recordings and the rendered stills (at most 4230 labels, 151 clusters and 17300
 /// kept points a frame, textured and noisy ones included).
 pub type Workspace320x240 =
-    Workspace<320, { tiles(320, 240, 1) }, 8192, 512, 16384, { max_cluster_points(320, 240, 1) }>;
+    Workspace<320, { tiles_len(320, 240, 1) }, 8192, 512, 16384, { sort_len(320, 240, 1) }>;
 
 /// For 640x480 frames at decimation 1: 19200 tiles, 24576 labels, 1024 cluster slots,
 /// 32768 points a batch, clusters of up to 4480 points.
 pub type Workspace640x480 =
-    Workspace<640, { tiles(640, 480, 1) }, 24576, 1024, 32768, { max_cluster_points(640, 480, 1) }>;
+    Workspace<640, { tiles_len(640, 480, 1) }, 24576, 1024, 32768, { sort_len(640, 480, 1) }>;

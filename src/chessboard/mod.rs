@@ -41,14 +41,14 @@
 //!
 //! A board that is absent or only partly visible is `Ok(None)`, never a guess.
 //!
-//! Memory: [`ChessboardDetector::MEMORY`] bytes of state (candidates and the heap, fixed by
+//! Memory: [`ChessboardDetector::BYTES`] bytes of state (candidates and the heap, fixed by
 //! `K`) plus [`scratch_len`]`(width)` `i32` words of scratch. With `K = 512`: 20,496 bytes of
 //! state, and 7,040 words (28 KB) of scratch at 640 px width, 3,520 words (14 KB) at 320 px:
 //! [`ChessboardDetector::memory`] gives 48,656 bytes at 640x480 and 34,576 at 320x240 (the
 //! frame itself is the caller's).
 //!
 //! ```
-//! use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig, scratch_len};
+//! use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams, scratch_len};
 //! use camgeom::image::ImageView;
 //!
 //! // A 4x3 inner-corner board: 5x4 squares of 12 px, dark where (i + j) is even.
@@ -66,146 +66,36 @@
 //! let mut scratch = [0i32; scratch_len(96)];
 //! let mut det = ChessboardDetector::<64>::new();
 //! let board = BoardSize::new(4, 3)?;
-//! let found = det.detect::<12>(&img, board, &DetectConfig::default(), &mut scratch)?;
+//! let found = det.detect::<12>(&img, board, &DetectParams::default(), &mut scratch)?;
 //! let corners = found.expect("the board is in view");
 //! // The first inner corner sits between the first dark square and its neighbours.
 //! assert!((corners.corners[0].x - 29.5).abs() < 0.2 && (corners.corners[0].y - 27.5).abs() < 0.2);
 //! # Ok::<(), camgeom::Error>(())
 //! ```
 
+mod config;
+mod grid;
+mod response;
+mod ring;
 pub mod subpix;
 
-pub use subpix::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
+pub use config::{BoardSize, DetectConfig, DetectParams, Refinement};
+pub use response::scratch_len;
+pub use subpix::{
+    SaddleConfig, SaddleParams, SubPixConfig, SubPixParams, corner_subpix, saddle_subpix,
+};
 
 use heapless::Vec;
 use heapless::binary_heap::{BinaryHeap, Min};
 use nalgebra::{Point2, Vector2};
 
+use grid::{Grid, Side, insert};
+use response::{Maximum, collect_maxima};
+use ring::corner_lines;
+use subpix::corner_subpix_adaptive;
+
 use crate::image::ImageView;
 use crate::{Error, Result};
-
-/// Rows of the smoothing, smoothed and response ring buffers.
-const RING_ROWS: usize = 5 + 3 + 3;
-
-/// `i32` words of scratch [`ChessboardDetector::detect`] needs for a frame `width` pixels wide.
-pub const fn scratch_len(width: usize) -> usize {
-    RING_ROWS * width
-}
-
-/// Pixels at the frame's border where no corner is looked for (smoothing, second differences
-/// and the 3x3 maximum reach that far).
-const MARGIN: usize = 4;
-
-/// Ring samples of the corner test.
-const RING: usize = 32;
-
-/// The inner-corner count of a chessboard: `cols` corners per row (OpenCV's
-/// `patternSize.width`), `rows` rows (`patternSize.height`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct BoardSize {
-    cols: u8,
-    rows: u8,
-}
-
-impl BoardSize {
-    /// At least 3 corners each way (OpenCV's minimum), at most 64. Errors with
-    /// `InvalidParameter("board.cols")` / `("board.rows")`.
-    pub fn new(cols: usize, rows: usize) -> Result<Self> {
-        if !(3..=64).contains(&cols) {
-            return Err(Error::InvalidParameter("board.cols"));
-        }
-        if !(3..=64).contains(&rows) {
-            return Err(Error::InvalidParameter("board.rows"));
-        }
-        Ok(Self {
-            cols: cols as u8,
-            rows: rows as u8,
-        })
-    }
-    /// Corners per row.
-    pub fn cols(&self) -> usize {
-        self.cols as usize
-    }
-    /// Rows.
-    pub fn rows(&self) -> usize {
-        self.rows as usize
-    }
-    /// `cols · rows`.
-    pub fn corners(&self) -> usize {
-        self.cols() * self.rows()
-    }
-}
-
-/// Detection parameters.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct DetectConfig {
-    /// Smallest saddle response kept, `(I_xy² - I_xx I_yy) / 2²⁰` with the derivatives of the
-    /// smoothed image in 1/256 grey levels. It falls with the square of the contrast and the
-    /// fourth power of the blur: the weakest corners of the bundled 640x480 views (a thin,
-    /// blurred row of squares seen at a grazing angle) reach 14..15, so the default `6` keeps
-    /// them with a margin of two. `>= 1`.
-    pub min_response: i32,
-    /// Smallest mean grey-level difference between neighbouring cells (`>= 1`).
-    pub min_contrast: u8,
-    /// Seeds tried before giving up (`1..=64`).
-    pub max_seeds: u8,
-    /// Sub-pixel refinement of the found corners.
-    pub refine: Refinement,
-}
-
-/// How [`ChessboardDetector::detect`] refines the corners it found.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Refinement {
-    /// The detector's own estimate (the response maximum with a parabola fit, about 0.2 px).
-    None,
-    /// OpenCV's `cornerSubPix` ([`corner_subpix`]) with one window for every corner: for
-    /// results that compare one to one with OpenCV's.
-    CornerSubPix(SubPixConfig),
-    /// [`corner_subpix`] with the window shrunk per corner to fit its squares: half window
-    /// `min(half_window, max(2, ⌊d / 2⌋))`, `d` the distance to the corner's nearest grid
-    /// neighbour, so a large window never reaches the next corner where perspective makes
-    /// the squares small.
-    AdaptiveCornerSubPix(SubPixConfig),
-    /// The saddle point of the smoothed image ([`saddle_subpix`]): the most accurate on the
-    /// rendered boards (3x lower median error than `cornerSubPix` and OpenCV's
-    /// `findChessboardCornersSB`, see `docs/notes/calibration.md`).
-    Saddle(SaddleConfig),
-}
-
-impl Default for DetectConfig {
-    fn default() -> Self {
-        Self {
-            min_response: 6,
-            min_contrast: 20,
-            max_seeds: 16,
-            refine: Refinement::Saddle(SaddleConfig::default()),
-        }
-    }
-}
-
-impl DetectConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
-        if self.min_response < 1 {
-            return Err(Error::InvalidParameter("min_response"));
-        }
-        if self.min_contrast == 0 {
-            return Err(Error::InvalidParameter("min_contrast"));
-        }
-        if self.max_seeds == 0 || self.max_seeds > 64 {
-            return Err(Error::InvalidParameter("max_seeds"));
-        }
-        match &self.refine {
-            Refinement::CornerSubPix(s) | Refinement::AdaptiveCornerSubPix(s) => s.validate()?,
-            Refinement::Saddle(s) => s.validate()?,
-            Refinement::None => {}
-        }
-        Ok(())
-    }
-}
 
 /// The found board: `rows · cols` corners, row-major, OpenCV's order.
 #[derive(Debug, Clone, PartialEq)]
@@ -228,6 +118,13 @@ struct Candidate {
     mark: u8,
 }
 
+impl Candidate {
+    /// Passed the corner test and belongs to no grid yet: may seed or join a grid.
+    fn is_free(&self) -> bool {
+        self.ok && self.mark == 0
+    }
+}
+
 const EMPTY: Candidate = Candidate {
     p: Point2::new(0.0, 0.0),
     lines: [Vector2::new(1.0, 0.0), Vector2::new(0.0, 1.0)],
@@ -241,7 +138,7 @@ const EMPTY: Candidate = Candidate {
 pub struct ChessboardDetector<const K: usize> {
     cands: [Candidate; K],
     count: usize,
-    heap: BinaryHeap<(i32, u16, u16, i8, i8), Min, K>,
+    heap: BinaryHeap<Maximum, Min, K>,
 }
 
 impl<const K: usize> Default for ChessboardDetector<K> {
@@ -250,34 +147,9 @@ impl<const K: usize> Default for ChessboardDetector<K> {
     }
 }
 
-/// Rows and columns of the grid being grown.
-#[derive(Debug, Clone, Copy)]
-struct Grid<const N: usize> {
-    idx: [u16; N],
-    w: usize,
-    h: usize,
-}
-
-impl<const N: usize> Grid<N> {
-    fn at(&self, c: usize, r: usize) -> Option<usize> {
-        if c >= self.w || r >= self.h {
-            return None;
-        }
-        self.idx.get(r * self.w + c).map(|&i| i as usize)
-    }
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Side {
-    Right,
-    Left,
-    Bottom,
-    Top,
-}
-
 impl<const K: usize> ChessboardDetector<K> {
     /// Bytes of the detector's own state (without the caller's scratch).
-    pub const MEMORY: usize = core::mem::size_of::<Self>();
+    pub const BYTES: usize = core::mem::size_of::<Self>();
 
     /// An empty detector. `K` is at most 65,535 (candidates are indexed by `u16`), checked at
     /// compile time.
@@ -292,7 +164,7 @@ impl<const K: usize> ChessboardDetector<K> {
 
     /// Bytes a detection of a `width`-pixel-wide frame uses: the state and the scratch.
     pub const fn memory(width: usize) -> usize {
-        Self::MEMORY + 4 * scratch_len(width)
+        Self::BYTES + 4 * scratch_len(width)
     }
 
     /// Finds the `board` in `image`; see the module documentation for the method.
@@ -300,15 +172,17 @@ impl<const K: usize> ChessboardDetector<K> {
     /// Returns `Ok(None)` when the board is absent or not entirely in view. Errors:
     /// `BufferTooSmall("corners")` when `N < board.corners()`, `BufferTooSmall("scratch")`
     /// when `scratch.len() < scratch_len(width)`, `InvalidImage` for a frame smaller than
-    /// 16x16 or wider than 65,535, `InvalidParameter` for a bad `cfg`.
+    /// 16x16 or wider than 65,535.
+    #[doc(alias = "findChessboardCorners")]
+    #[doc(alias = "findChessboardCornersSB")]
     pub fn detect<const N: usize>(
         &mut self,
         image: &ImageView<'_, u8>,
         board: BoardSize,
-        cfg: &DetectConfig,
+        params: &DetectParams,
         scratch: &mut [i32],
     ) -> Result<Option<Chessboard<N>>> {
-        cfg.validate()?;
+        let cfg = params.config();
         if N < board.corners() {
             return Err(Error::BufferTooSmall("corners"));
         }
@@ -319,9 +193,15 @@ impl<const K: usize> ChessboardDetector<K> {
         if scratch.len() < scratch_len(w) {
             return Err(Error::BufferTooSmall("scratch"));
         }
-        self.collect(image, cfg, scratch);
+        self.collect(image, cfg.min_response, scratch);
         for c in self.cands.iter_mut().take(self.count) {
-            test_corner(image, c, cfg.min_contrast);
+            match corner_lines(image, &c.p, cfg.min_contrast) {
+                Some(lines) => {
+                    c.lines = lines;
+                    c.ok = true;
+                }
+                None => c.ok = false,
+            }
         }
         let mut seeds = 0u8;
         for s in 0..self.count {
@@ -329,7 +209,7 @@ impl<const K: usize> ChessboardDetector<K> {
                 break;
             }
             let Some(c) = self.cands.get(s) else { break };
-            if !c.ok || c.mark != 0 {
+            if !c.is_free() {
                 continue;
             }
             seeds += 1;
@@ -341,14 +221,23 @@ impl<const K: usize> ChessboardDetector<K> {
                 }
             }
             let Some(grid) = grid else { continue };
-            if let Some(mut found) = self.verify_and_order::<N>(image, &grid, board, cfg) {
-                match &cfg.refine {
+            if let Some(mut found) =
+                self.verify_and_order::<N>(image, &grid, board, cfg.min_contrast)
+            {
+                // The refinement's configuration was checked with `params`.
+                match cfg.refine {
                     Refinement::None => {}
-                    Refinement::CornerSubPix(sp) => corner_subpix(image, &mut found.corners, sp)?,
-                    Refinement::AdaptiveCornerSubPix(sp) => {
-                        refine_adaptive(image, &mut found.corners, board.cols(), sp)?
+                    Refinement::CornerSubPix(sp) => {
+                        let sp = SubPixParams::from_checked(sp);
+                        corner_subpix(image, &mut found.corners, &sp)?
                     }
-                    Refinement::Saddle(sc) => saddle_subpix(image, &mut found.corners, sc)?,
+                    Refinement::AdaptiveCornerSubPix(sp) => {
+                        let sp = SubPixParams::from_checked(sp);
+                        corner_subpix_adaptive(image, &mut found.corners, board.cols(), &sp)?
+                    }
+                    Refinement::Saddle(sc) => {
+                        saddle_subpix(image, &mut found.corners, &SaddleParams::from_checked(sc))?
+                    }
                 }
                 return Ok(Some(found));
             }
@@ -357,106 +246,8 @@ impl<const K: usize> ChessboardDetector<K> {
     }
 
     /// Step 1: the `K` strongest 3x3 maxima of the saddle response, strongest first.
-    fn collect(&mut self, image: &ImageView<'_, u8>, cfg: &DetectConfig, scratch: &mut [i32]) {
-        let (w, h) = (image.width(), image.height());
-        self.heap.clear();
-        let (hring, rest) = scratch.split_at_mut(5 * w);
-        let (sring, rring) = rest.split_at_mut(3 * w);
-        let rring = rring.get_mut(..3 * w).unwrap_or_default();
-        let hrow = |ring: &mut [i32], logical: isize| {
-            let slot = ((logical + 2) as usize) % 5;
-            if let Some(out) = ring.get_mut(slot * w..(slot + 1) * w) {
-                hblur(image.row_clamped(logical), out);
-            }
-        };
-        for r in -2..=1isize {
-            hrow(hring, r);
-        }
-        for ys in 0..h {
-            hrow(hring, ys as isize + 2);
-            // Vertical smoothing of rows ys-2 ..= ys+2 into the smoothed ring.
-            let slot = ys % 3;
-            if let Some(out) = sring.get_mut(slot * w..(slot + 1) * w) {
-                let row = |k: usize| {
-                    let s = (ys + k) % 5; // logical ys - 2 + k sits in slot (ys + k) % 5
-                    hring.get(s * w..(s + 1) * w).unwrap_or_default()
-                };
-                let (a, b, c, d, e) = (row(0), row(1), row(2), row(3), row(4));
-                let taps = a.iter().zip(b).zip(c).zip(d).zip(e);
-                for (o, ((((a, b), c), d), e)) in out.iter_mut().zip(taps) {
-                    *o = a + 4 * (b + d) + 6 * c + e;
-                }
-            }
-            if ys < 2 {
-                continue;
-            }
-            // Response of row yr = ys - 1 from smoothed rows yr-1, yr, yr+1.
-            let yr = ys - 1;
-            let slot = yr % 3;
-            let s = |k: usize| {
-                let k = k % 3;
-                sring.get(k * w..(k + 1) * w).unwrap_or_default()
-            };
-            let (up, mid, dn) = (s(yr + 2), s(yr), s(yr + 1));
-            if let Some(out) = rring.get_mut(slot * w..(slot + 1) * w) {
-                out.fill(0);
-                if yr >= MARGIN - 1 && yr + MARGIN - 1 < h {
-                    saddle_row(up, mid, dn, out);
-                    for x in 0..MARGIN - 1 {
-                        if let Some(v) = out.get_mut(x) {
-                            *v = 0;
-                        }
-                        if let Some(v) = out.get_mut(w - 1 - x) {
-                            *v = 0;
-                        }
-                    }
-                }
-            }
-            if yr < 2 {
-                continue;
-            }
-            // Maxima of row yn = yr - 1.
-            let yn = yr - 1;
-            if yn < MARGIN || yn + MARGIN >= h {
-                continue;
-            }
-            let r = |k: usize| {
-                let k = k % 3;
-                rring.get(k * w..(k + 1) * w).unwrap_or_default()
-            };
-            let (ru, rm, rd) = (r(yn + 2), r(yn), r(yn + 1));
-            for x in MARGIN..w - MARGIN {
-                let g = |row: &[i32], x: usize| row.get(x).copied().unwrap_or(0);
-                let v = g(rm, x);
-                if v < cfg.min_response {
-                    continue;
-                }
-                // Maximum of the 3x3 block: ≥ the earlier neighbours, > the later ones.
-                let earlier = [g(ru, x - 1), g(ru, x), g(ru, x + 1), g(rm, x - 1)];
-                let later = [g(rm, x + 1), g(rd, x - 1), g(rd, x), g(rd, x + 1)];
-                if earlier.iter().any(|&e| e > v) || later.iter().any(|&l| l >= v) {
-                    continue;
-                }
-                // Parabola vertex through the three values each way, in 1/64 px.
-                let vertex = |a: i32, c: i32| -> i8 {
-                    let den = (a as i64) - 2 * (v as i64) + (c as i64);
-                    if den >= 0 {
-                        return 0;
-                    }
-                    let off = 32 * ((a as i64) - (c as i64)) / den;
-                    off.clamp(-32, 32) as i8
-                };
-                let dx = vertex(g(rm, x - 1), g(rm, x + 1));
-                let dy = vertex(g(ru, x), g(rd, x));
-                let item = (v, x as u16, yn as u16, dx, dy);
-                if self.heap.len() < K {
-                    let _ = self.heap.push(item);
-                } else if self.heap.peek().is_some_and(|m| m.0 < v) {
-                    let _ = self.heap.pop();
-                    let _ = self.heap.push(item);
-                }
-            }
-        }
+    fn collect(&mut self, image: &ImageView<'_, u8>, min_response: i32, scratch: &mut [i32]) {
+        collect_maxima(image, min_response, scratch, &mut self.heap);
         // Drain weakest first into the array from its end: strongest first.
         self.count = self.heap.len().min(K);
         let mut i = self.count;
@@ -481,14 +272,21 @@ impl<const K: usize> ChessboardDetector<K> {
         self.cands.get(i).map_or(Point2::origin(), |c| c.p)
     }
 
+    /// The candidates that passed the corner test and belong to no grid yet, with their
+    /// indices.
+    fn free(&self) -> impl Iterator<Item = (usize, &Candidate)> + '_ {
+        self.cands
+            .iter()
+            .take(self.count)
+            .enumerate()
+            .filter(|(_, c)| c.is_free())
+    }
+
     /// The nearest free, tested candidate within `radius` of `p`.
     fn nearest(&self, p: &Point2<f32>, radius: f32) -> Option<usize> {
         let r2 = radius * radius;
         let mut best: Option<(f32, usize)> = None;
-        for (i, c) in self.cands.iter().take(self.count).enumerate() {
-            if !c.ok || c.mark != 0 {
-                continue;
-            }
+        for (i, c) in self.free() {
             let d = (c.p - p).norm_squared();
             if d <= r2 && best.is_none_or(|(b, _)| d < b) {
                 best = Some((d, i));
@@ -524,10 +322,7 @@ impl<const K: usize> ChessboardDetector<K> {
         let mut nb = [None; 2];
         for (k, l) in seed.lines.iter().enumerate() {
             let mut best: Option<(f32, usize)> = None;
-            for (i, c) in self.cands.iter().take(self.count).enumerate() {
-                if !c.ok || c.mark != 0 {
-                    continue;
-                }
+            for (i, c) in self.free() {
                 let v = c.p - seed.p;
                 let d = v.norm();
                 if d < 4.0 || (l.x * v.y - l.y * v.x).abs() > SIN_20 * d {
@@ -650,7 +445,7 @@ impl<const K: usize> ChessboardDetector<K> {
         image: &ImageView<'_, u8>,
         g: &Grid<N>,
         board: BoardSize,
-        cfg: &DetectConfig,
+        min_contrast: u8,
     ) -> Option<Chessboard<N>> {
         let (bc, br) = (board.cols(), board.rows());
         if !((g.w == bc && g.h == br) || (g.w == br && g.h == bc)) {
@@ -704,7 +499,7 @@ impl<const K: usize> ChessboardDetector<K> {
                 }
             }
         }
-        if pairs == 0 || total < cfg.min_contrast as i64 * pairs {
+        if pairs == 0 || total < min_contrast as i64 * pairs {
             return None;
         }
         // Cell (c, r) is dark when its parity-signed difference is negative.
@@ -761,188 +556,5 @@ impl<const K: usize> ChessboardDetector<K> {
     }
 }
 
-/// [`corner_subpix`] of each corner with its window shrunk to its squares (see
-/// [`Refinement::AdaptiveCornerSubPix`]).
-fn refine_adaptive(
-    image: &ImageView<'_, u8>,
-    corners: &mut [Point2<f32>],
-    cols: usize,
-    sp: &SubPixConfig,
-) -> Result<()> {
-    let n = corners.len();
-    let mut windows = [0u8; 4096];
-    for (k, w) in windows.iter_mut().enumerate().take(n) {
-        let p = corners.get(k).copied().unwrap_or(Point2::origin());
-        let (i, j) = (k % cols.max(1), k / cols.max(1));
-        let mut d = f32::MAX;
-        let mut near = |q: Option<&Point2<f32>>| {
-            if let Some(q) = q {
-                d = d.min((q - p).norm());
-            }
-        };
-        if i > 0 {
-            near(corners.get(k - 1));
-        }
-        if i + 1 < cols {
-            near(corners.get(k + 1));
-        }
-        if j > 0 {
-            near(corners.get(k - cols));
-        }
-        near(corners.get(k + cols));
-        // `max` then `min`: `clamp` would panic for a half window below 2.
-        let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
-        // As `clamp(1, half_window)` for the validated `half_window >= 1`, without its
-        // assertion.
-        *w = (fit as u8).max(1).min(sp.half_window);
-    }
-    for (c, w) in corners.iter_mut().zip(windows.iter()) {
-        let cfg = SubPixConfig {
-            half_window: *w,
-            ..*sp
-        };
-        corner_subpix(image, core::slice::from_mut(c), &cfg)?;
-    }
-    Ok(())
-}
-
 const SIN_20: f32 = 0.342_020_14;
 const SIN_25: f32 = 0.422_618_26;
-
-/// `grid` with the new row or column `new` added on `side`.
-fn insert<const N: usize>(g: &Grid<N>, side: Side, new: &[u16]) -> Option<Grid<N>> {
-    let (w, h) = match side {
-        Side::Right | Side::Left => (g.w + 1, g.h),
-        Side::Bottom | Side::Top => (g.w, g.h + 1),
-    };
-    if w * h > N {
-        return None;
-    }
-    let mut out = Grid::<N> { idx: [0; N], w, h };
-    for r in 0..h {
-        for c in 0..w {
-            let v = match side {
-                Side::Right if c == g.w => *new.get(r)?,
-                Side::Left if c == 0 => *new.get(r)?,
-                Side::Left => g.at(c - 1, r)? as u16,
-                Side::Bottom if r == g.h => *new.get(c)?,
-                Side::Top if r == 0 => *new.get(c)?,
-                Side::Top => g.at(c, r - 1)? as u16,
-                _ => g.at(c, r)? as u16,
-            };
-            *out.idx.get_mut(r * w + c)? = v;
-        }
-    }
-    Some(out)
-}
-
-/// `[1 4 6 4 1]` along a row, border replicated.
-fn hblur(row: &[u8], out: &mut [i32]) {
-    let n = row.len().min(out.len());
-    let g = |i: isize| {
-        row.get(i.min(n as isize - 1).max(0) as usize)
-            .copied()
-            .unwrap_or(0) as i32
-    };
-    let edge = |i: usize| {
-        let i = i as isize;
-        g(i - 2) + 4 * g(i - 1) + 6 * g(i) + 4 * g(i + 1) + g(i + 2)
-    };
-    for (i, o) in out.iter_mut().enumerate().take(n.min(2)) {
-        *o = edge(i);
-    }
-    // Interior: no clamping.
-    if let Some(inner) = out.get_mut(2..n.saturating_sub(2)) {
-        for (o, w) in inner.iter_mut().zip(row.windows(5)) {
-            if let [a, b, c, d, e] = *w {
-                *o = a as i32 + 4 * (b as i32 + d as i32) + 6 * c as i32 + e as i32;
-            }
-        }
-    }
-    for i in n.saturating_sub(2).max(2)..n {
-        if let Some(o) = out.get_mut(i) {
-            *o = edge(i);
-        }
-    }
-}
-
-/// The saddle response `(I_xy² - I_xx I_yy)`, scaled by `2⁻²⁰` and clamped at zero, of the
-/// middle of three smoothed rows.
-fn saddle_row(up: &[i32], mid: &[i32], dn: &[i32], out: &mut [i32]) {
-    let rows = up.windows(3).zip(mid.windows(3)).zip(dn.windows(3));
-    for (o, ((u, m), d)) in out.iter_mut().skip(1).zip(rows) {
-        if let (&[u0, u1, u2], &[m0, m1, m2], &[d0, d1, d2]) = (u, m, d) {
-            let c = m1 as i64;
-            let ixx = m0 as i64 - 2 * c + m2 as i64;
-            let iyy = u1 as i64 - 2 * c + d1 as i64;
-            let ixy4 = u0 as i64 + d2 as i64 - u2 as i64 - d0 as i64;
-            let r = (ixy4 * ixy4 - 16 * ixx * iyy) >> 24;
-            *o = r.clamp(0, i32::MAX as i64) as i32;
-        }
-    }
-}
-
-/// Step 2: the ring test; sets `c.ok` and `c.lines`.
-fn test_corner(image: &ImageView<'_, u8>, c: &mut Candidate, min_contrast: u8) {
-    for radius in [5.0f32, 3.0] {
-        if let Some(lines) = ring_lines(image, &c.p, radius, min_contrast) {
-            c.lines = lines;
-            c.ok = true;
-            return;
-        }
-    }
-    c.ok = false;
-}
-
-/// The two edge lines through an x-corner at `p` from the dark/bright transitions on a ring.
-fn ring_lines(
-    image: &ImageView<'_, u8>,
-    p: &Point2<f32>,
-    radius: f32,
-    min_contrast: u8,
-) -> Option<[Vector2<f32>; 2]> {
-    let step = core::f32::consts::TAU / RING as f32;
-    let mut raw = [0.0f32; RING];
-    for (k, v) in raw.iter_mut().enumerate() {
-        let a = k as f32 * step;
-        *v = image.sample_bilinear(p.x + radius * libm::cosf(a), p.y + radius * libm::sinf(a))?;
-    }
-    // Circular [1 2 1] smoothing against noise.
-    let mut v = [0.0f32; RING];
-    for (k, o) in v.iter_mut().enumerate() {
-        let g = |i: usize| raw.get(i % RING).copied().unwrap_or(0.0);
-        *o = 0.25 * (g(k + RING - 1) + 2.0 * g(k) + g(k + 1));
-    }
-    let (lo, hi) = v
-        .iter()
-        .fold((f32::MAX, f32::MIN), |(l, h), &x| (l.min(x), h.max(x)));
-    if hi - lo < min_contrast as f32 {
-        return None;
-    }
-    let t = 0.5 * (lo + hi);
-    let mut angles = [0.0f32; 4];
-    let mut n = 0usize;
-    for k in 0..RING {
-        let a = v.get(k).copied().unwrap_or(0.0) - t;
-        let b = v.get((k + 1) % RING).copied().unwrap_or(0.0) - t;
-        if (a > 0.0) != (b > 0.0) {
-            let slot = angles.get_mut(n)?;
-            *slot = (k as f32 + a / (a - b)) * step;
-            n += 1;
-        }
-    }
-    if n != 4 {
-        return None;
-    }
-    let pi = core::f32::consts::PI;
-    let [a1, a2, a3, a4] = angles;
-    let tol = 0.6;
-    if ((a3 - a1) - pi).abs() > tol || ((a4 - a2) - pi).abs() > tol {
-        return None;
-    }
-    let dir = |x: f32, y: f32| {
-        let m = 0.5 * (x + (y - pi));
-        Vector2::new(libm::cosf(m), libm::sinf(m))
-    };
-    Some([dir(a1, a3), dir(a2, a4)])
-}

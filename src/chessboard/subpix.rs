@@ -4,12 +4,12 @@
 //! Both are unbiased for an ideal corner at any angle between its edges. `cornerSubPix` is
 //! here so that results compare one to one with OpenCV's (on OpenCV's corners camgeom's
 //! calibration equals OpenCV's). The saddle fit is camgeom's default because it measured more
-//! accurate: on 38 boards rendered by OpenCV with exact truth (rotation, perspective, lens
-//! distortion, blur, noise, uneven light) its median corner error is 0.005..0.03 px against
-//! 0.02..0.11 px for `cornerSubPix` (fixed or adaptive window) and 0.02..0.27 px for OpenCV's
-//! `findChessboardCornersSB`: the fit uses every sample of a small smoothed window, where
-//! gradient orthogonality leans on the few pixels with a strong gradient and a Gaussian
-//! weight that spans the corner's neighbourhood (`docs/notes/calibration.md`).
+//! accurate on boards rendered by OpenCV with exact truth (rotation, perspective, lens
+//! distortion, blur, noise, uneven light) than `cornerSubPix` (fixed or adaptive window) and
+//! OpenCV's `findChessboardCornersSB` (BENCHMARKS.md, "Corner error against rendered
+//! truth"): the fit uses every sample of a small smoothed window, where gradient
+//! orthogonality leans on the few pixels with a strong gradient and a Gaussian weight that
+//! spans the corner's neighbourhood (`docs/notes/calibration.md`).
 
 use nalgebra::Point2;
 
@@ -50,8 +50,12 @@ impl Default for SubPixConfig {
 }
 
 impl SubPixConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every field once: [`corner_subpix`] takes the checked [`SubPixParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `subpix.half_window` outside
+    /// 1 ..= [`MAX_HALF_WINDOW`], `subpix.max_iterations` outside 1 ..= 100, `subpix.epsilon`
+    /// negative or not finite.
+    pub fn check(&self) -> Result<SubPixParams> {
         if self.half_window == 0 || self.half_window > MAX_HALF_WINDOW {
             return Err(Error::InvalidParameter("subpix.half_window"));
         }
@@ -61,7 +65,49 @@ impl SubPixConfig {
         if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
             return Err(Error::InvalidParameter("subpix.epsilon"));
         }
-        Ok(())
+        Ok(SubPixParams(*self))
+    }
+}
+
+/// A [`SubPixConfig`] that passed [`SubPixConfig::check`]: what [`corner_subpix`] takes, so
+/// that no call validates it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SubPixParams(SubPixConfig);
+
+impl SubPixParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &SubPixConfig {
+        &self.0
+    }
+
+    /// A configuration already checked with the one that holds it
+    /// ([`super::DetectConfig::check`] checks its refinement's).
+    pub(super) const fn from_checked(c: SubPixConfig) -> Self {
+        Self(c)
+    }
+
+    /// The same parameters with the half window `half_window` clamped to
+    /// `1 ..= self.half_window` (still checked).
+    fn with_smaller_window(self, half_window: u8) -> Self {
+        Self(SubPixConfig {
+            half_window: half_window.max(1).min(self.0.half_window),
+            ..self.0
+        })
+    }
+}
+
+impl Default for SubPixParams {
+    /// The checked [`SubPixConfig::default`].
+    fn default() -> Self {
+        Self(SubPixConfig::default())
+    }
+}
+
+impl TryFrom<SubPixConfig> for SubPixParams {
+    type Error = Error;
+    fn try_from(c: SubPixConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -75,12 +121,50 @@ fn window_origin(f: f32) -> isize {
     f.clamp(-LIMIT, LIMIT) as isize
 }
 
-/// Bilinear sample with a replicated border (OpenCV's `getRectSubPix` border).
+/// Pixel `(x, y)` with a replicated border (OpenCV's `getRectSubPix` border).
 #[inline]
 fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
     let w = img.width() as isize;
     let xc = x.min(w - 1).max(0) as usize;
     img.row_clamped(y).get(xc).copied().unwrap_or(0) as f32
+}
+
+/// OpenCV's `getRectSubPix`: the `side x side` samples at `q + (j - half, i - half)`,
+/// `i, j < side`, bilinear with a replicated border, into the first `side` rows of `out`
+/// (rows `stride` apart). All samples share `q`'s sub-pixel offset `(ax, ay)`:
+/// `(1 - ay) ((1 - ax) I₀₀ + ax I₁₀) + ay ((1 - ax) I₀₁ + ax I₁₁)`.
+#[inline]
+fn resample_window(
+    image: &ImageView<'_, u8>,
+    q: &Point2<f32>,
+    half: isize,
+    side: usize,
+    out: &mut [f32],
+    stride: usize,
+) {
+    let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
+    let (ax, ay) = (q.x - fx, q.y - fy);
+    let (ix, iy) = (window_origin(fx), window_origin(fy));
+    for (i, row) in out.chunks_exact_mut(stride).take(side).enumerate() {
+        let y = iy + i as isize - half;
+        for (j, v) in row.iter_mut().take(side).enumerate() {
+            let x = ix + j as isize - half;
+            let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
+            let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
+            *v = t * (1.0 - ay) + u * ay;
+        }
+    }
+}
+
+/// [`Error::NonFinite`] when a corner is not finite (the refiners' input check).
+fn check_finite(corners: &[Point2<f32>]) -> Result<()> {
+    if corners
+        .iter()
+        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
+    {
+        return Err(Error::NonFinite);
+    }
+    Ok(())
 }
 
 /// Refines each corner in place by the gradient-orthogonality condition of OpenCV's
@@ -95,19 +179,15 @@ fn at(img: &ImageView<'_, u8>, x: isize, y: isize) -> f32 {
 /// than `h` from its start keeps its start (OpenCV's rule for poor convergence), as does one
 /// whose window has no gradient (a flat patch).
 ///
-/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+/// Errors: [`Error::NonFinite`] for a non-finite corner.
+#[doc(alias = "cornerSubPix")]
 pub fn corner_subpix(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],
-    cfg: &SubPixConfig,
+    params: &SubPixParams,
 ) -> Result<()> {
-    cfg.validate()?;
-    if corners
-        .iter()
-        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
-    {
-        return Err(Error::NonFinite);
-    }
+    let cfg = params.config();
+    check_finite(corners)?;
     let h = cfg.half_window as isize;
     let n = (2 * h + 1) as usize;
     // Gaussian weights as OpenCV: exp(-((i - h)/h)²) per axis.
@@ -121,22 +201,9 @@ pub fn corner_subpix(
         let start = *c;
         let mut q = start;
         for _ in 0..cfg.max_iterations {
-            // Window of (2h + 3)² samples at q + (j - h - 1, i - h - 1), bilinear.
-            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
-            let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (window_origin(fx), window_origin(fy));
-            // The resampled window, (2h + 3)² values: OpenCV's `getRectSubPix`.
-            let side = n + 2;
+            // The window and a pixel around it, (2h + 3)² samples at q + (j - h - 1, i - h - 1).
             let mut patch = [0.0f32; PATCH * PATCH];
-            for (i, row) in patch.chunks_exact_mut(PATCH).take(side).enumerate() {
-                let y = iy + i as isize - h - 1;
-                for (j, v) in row.iter_mut().take(side).enumerate() {
-                    let x = ix + j as isize - h - 1;
-                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
-                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
-                    *v = t * (1.0 - ay) + u * ay;
-                }
-            }
+            resample_window(image, &q, h + 1, n + 2, &mut patch, PATCH);
             let p = |j: usize, i: usize| patch.get(i * PATCH + j).copied().unwrap_or(0.0);
             let (mut a, mut b, mut cc, mut bb1, mut bb2) = (0.0f64, 0.0f64, 0.0f64, 0.0, 0.0);
             for (i, my) in mask.iter().take(n).enumerate() {
@@ -179,6 +246,48 @@ pub fn corner_subpix(
     Ok(())
 }
 
+/// [`corner_subpix`] of each corner of a board with rows of `cols` corners, its window shrunk
+/// to its squares (see [`super::Refinement::AdaptiveCornerSubPix`]).
+pub(super) fn corner_subpix_adaptive(
+    image: &ImageView<'_, u8>,
+    corners: &mut [Point2<f32>],
+    cols: usize,
+    params: &SubPixParams,
+) -> Result<()> {
+    let sp = params.config();
+    let n = corners.len();
+    let mut windows = [0u8; 4096];
+    for (k, w) in windows.iter_mut().enumerate().take(n) {
+        let p = corners.get(k).copied().unwrap_or(Point2::origin());
+        let (i, j) = (k % cols.max(1), k / cols.max(1));
+        let mut d = f32::MAX;
+        let mut near = |q: Option<&Point2<f32>>| {
+            if let Some(q) = q {
+                d = d.min((q - p).norm());
+            }
+        };
+        if i > 0 {
+            near(corners.get(k - 1));
+        }
+        if i + 1 < cols {
+            near(corners.get(k + 1));
+        }
+        if j > 0 {
+            near(corners.get(k - cols));
+        }
+        near(corners.get(k + cols));
+        // `max` then `min`: `clamp` would panic for a half window below 2.
+        let fit = libm::floorf(0.5 * d).max(2.0).min(sp.half_window as f32);
+        // `with_smaller_window` clamps it to `1 ..= half_window`.
+        *w = fit as u8;
+    }
+    for (c, w) in corners.iter_mut().zip(windows.iter()) {
+        let fitted = params.with_smaller_window(*w);
+        corner_subpix(image, core::slice::from_mut(c), &fitted)?;
+    }
+    Ok(())
+}
+
 /// Parameters of [`saddle_subpix`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -213,8 +322,12 @@ const SADDLE_KERNEL: usize = 9;
 const SADDLE_PATCH: usize = 2 * (4 + SADDLE_KERNEL) + 1;
 
 impl SaddleConfig {
-    /// Errors with `InvalidParameter` naming the field out of range.
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every field once: [`saddle_subpix`] takes the checked [`SaddleParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field: `saddle.half_window` outside
+    /// 1 ..= 4, `saddle.sigma` outside 0.5 ..= 3 (or NaN), `saddle.max_iterations` outside
+    /// 1 ..= 100, `saddle.epsilon` negative or not finite.
+    pub fn check(&self) -> Result<SaddleParams> {
         if !(1..=4).contains(&self.half_window) {
             return Err(Error::InvalidParameter("saddle.half_window"));
         }
@@ -227,7 +340,40 @@ impl SaddleConfig {
         if !(self.epsilon >= 0.0 && self.epsilon.is_finite()) {
             return Err(Error::InvalidParameter("saddle.epsilon"));
         }
-        Ok(())
+        Ok(SaddleParams(*self))
+    }
+}
+
+/// A [`SaddleConfig`] that passed [`SaddleConfig::check`]: what [`saddle_subpix`] takes, so
+/// that no call validates it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SaddleParams(SaddleConfig);
+
+impl SaddleParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &SaddleConfig {
+        &self.0
+    }
+
+    /// A configuration already checked with the one that holds it
+    /// ([`super::DetectConfig::check`] checks its refinement's).
+    pub(super) const fn from_checked(c: SaddleConfig) -> Self {
+        Self(c)
+    }
+}
+
+impl Default for SaddleParams {
+    /// The checked [`SaddleConfig::default`].
+    fn default() -> Self {
+        Self(SaddleConfig::default())
+    }
+}
+
+impl TryFrom<SaddleConfig> for SaddleParams {
+    type Error = Error;
+    fn try_from(c: SaddleConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -240,19 +386,14 @@ impl SaddleConfig {
 /// crossing for any angle between the edges. A corner whose fit is not a saddle
 /// (`4 d f - e² ≥ 0`), or that moves more than the window, keeps its start.
 ///
-/// Errors: `InvalidParameter` for a bad `cfg`, [`Error::NonFinite`] for a non-finite corner.
+/// Errors: [`Error::NonFinite`] for a non-finite corner.
 pub fn saddle_subpix(
     image: &ImageView<'_, u8>,
     corners: &mut [Point2<f32>],
-    cfg: &SaddleConfig,
+    params: &SaddleParams,
 ) -> Result<()> {
-    cfg.validate()?;
-    if corners
-        .iter()
-        .any(|c| !(c.x.is_finite() && c.y.is_finite()))
-    {
-        return Err(Error::NonFinite);
-    }
+    let cfg = params.config();
+    check_finite(corners)?;
     let r = cfg.half_window as usize;
     let kr = (libm::ceilf(3.0 * cfg.sigma) as usize).min(SADDLE_KERNEL);
     let mut kernel = [0.0f32; 2 * SADDLE_KERNEL + 1];
@@ -285,19 +426,8 @@ pub fn saddle_subpix(
         let start = *c;
         let mut q = start;
         for _ in 0..cfg.max_iterations {
-            let (fx, fy) = (libm::floorf(q.x), libm::floorf(q.y));
-            let (ax, ay) = (q.x - fx, q.y - fy);
-            let (ix, iy) = (window_origin(fx), window_origin(fy));
             let mut raw = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
-            for (i, row) in raw.chunks_exact_mut(SADDLE_PATCH).take(side).enumerate() {
-                let y = iy + i as isize - half;
-                for (j, v) in row.iter_mut().take(side).enumerate() {
-                    let x = ix + j as isize - half;
-                    let t = at(image, x, y) * (1.0 - ax) + at(image, x + 1, y) * ax;
-                    let u = at(image, x, y + 1) * (1.0 - ax) + at(image, x + 1, y + 1) * ax;
-                    *v = t * (1.0 - ay) + u * ay;
-                }
-            }
+            resample_window(image, &q, half, side, &mut raw, SADDLE_PATCH);
             let px = |j: usize, i: usize| raw.get(i * SADDLE_PATCH + j).copied().unwrap_or(0.0);
             // Horizontal then vertical smoothing, only where the fit needs it.
             let mut hs = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];

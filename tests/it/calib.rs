@@ -7,8 +7,8 @@ use camgeom::Error;
 use camgeom::calib::{CalibrationConfig, CalibrationParams, CalibrationWarning, Calibrator};
 use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics, Lens, LensModel};
 use camgeom::chessboard::{
-    BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, saddle_subpix,
-    scratch_len,
+    BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SaddleParams,
+    saddle_subpix, scratch_len,
 };
 use camgeom::image::ImageView;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
@@ -215,18 +215,20 @@ fn detector_errors_and_negatives() {
     let mut det = Box::new(ChessboardDetector::<64>::new());
     let mut scratch = vec![0i32; scratch_len(64)];
     let cfg = DetectConfig::default();
+    let params = cfg.check().unwrap();
     let b = BoardSize::new(4, 3).unwrap();
     assert_eq!(
-        det.detect::<11>(&img, b, &cfg, &mut scratch).err(),
+        det.detect::<11>(&img, b, &params, &mut scratch).err(),
         Some(Error::BufferTooSmall("corners"))
     );
     assert_eq!(
-        det.detect::<12>(&img, b, &cfg, &mut scratch[..100]).err(),
+        det.detect::<12>(&img, b, &params, &mut scratch[..100])
+            .err(),
         Some(Error::BufferTooSmall("scratch"))
     );
     let tiny = ImageView::packed(&px[..15 * 15], 15, 15).unwrap();
     assert_eq!(
-        det.detect::<12>(&tiny, b, &cfg, &mut scratch).err(),
+        det.detect::<12>(&tiny, b, &params, &mut scratch).err(),
         Some(Error::InvalidImage)
     );
     let bad = DetectConfig {
@@ -234,7 +236,7 @@ fn detector_errors_and_negatives() {
         ..cfg
     };
     assert_eq!(
-        det.detect::<12>(&img, b, &bad, &mut scratch).err(),
+        bad.check().err(),
         Some(Error::InvalidParameter("max_seeds"))
     );
     assert_eq!(
@@ -249,20 +251,20 @@ fn detector_errors_and_negatives() {
         ..cfg
     };
     assert_eq!(
-        det.detect::<12>(&img, b, &bad, &mut scratch).err(),
+        bad.check().err(),
         Some(Error::InvalidParameter("saddle.sigma"))
     );
     let mut nan = [Point2::new(f32::NAN, 1.0)];
     assert_eq!(
-        saddle_subpix(&img, &mut nan, &SaddleConfig::default()),
+        saddle_subpix(&img, &mut nan, &SaddleParams::default()),
         Err(Error::NonFinite)
     );
     // A flat frame and a noise frame hold no board.
-    assert_eq!(det.detect::<12>(&img, b, &cfg, &mut scratch), Ok(None));
+    assert_eq!(det.detect::<12>(&img, b, &params, &mut scratch), Ok(None));
     let mut g = Pcg32::new(1);
     let noise: Vec<u8> = (0..64 * 48).map(|_| g.uniform(0.0, 255.0) as u8).collect();
     let img = ImageView::packed(&noise, 64, 48).unwrap();
-    assert_eq!(det.detect::<12>(&img, b, &cfg, &mut scratch), Ok(None));
+    assert_eq!(det.detect::<12>(&img, b, &params, &mut scratch), Ok(None));
 }
 
 proptest! {

@@ -238,7 +238,7 @@ fn calibrate_with_an_extreme_aspect_ratio_is_a_parameter_error() {
 /// the corner keeps its start, as for any flat patch.
 #[test]
 fn subpix_refiners_on_corners_near_f32_max_keep_them() {
-    use camgeom::chessboard::{SaddleConfig, SubPixConfig, corner_subpix, saddle_subpix};
+    use camgeom::chessboard::{SaddleParams, SubPixParams, corner_subpix, saddle_subpix};
     use camgeom::image::ImageView;
     // A 32x32 frame with a corner in the middle: not flat, so the border pixels differ.
     let px: Vec<u8> = (0..32 * 32)
@@ -258,10 +258,10 @@ fn subpix_refiners_on_corners_near_f32_max_keep_them() {
         Point2::new(16.0, f32::MAX),
     ];
     let mut a = far;
-    saddle_subpix(&img, &mut a, &SaddleConfig::default()).unwrap();
+    saddle_subpix(&img, &mut a, &SaddleParams::default()).unwrap();
     assert_eq!(a, far);
     let mut b = far;
-    corner_subpix(&img, &mut b, &SubPixConfig::default()).unwrap();
+    corner_subpix(&img, &mut b, &SubPixParams::default()).unwrap();
     assert_eq!(b, far);
 }
 

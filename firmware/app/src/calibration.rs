@@ -18,7 +18,7 @@
 
 use camgeom::Error;
 use camgeom::calib::{CalibrationParams, CalibrationReport, CalibrationWarning, Calibrator};
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
+use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams};
 use camgeom::image::ImageMut;
 use camgeom::image::ImageView;
 
@@ -335,7 +335,7 @@ pub fn calibrate<Src: FrameSource>(
 ) -> Result<CalibRecord, CalibError<Src::Error>> {
     let (w, h) = (spec.width as usize, spec.height as usize);
     let board = BoardSize::new(spec.cols as usize, spec.rows as usize)?;
-    let cfg = DetectConfig::default();
+    let params = DetectParams::default();
     calibrator.clear();
     for index in 0..spec.frames {
         {
@@ -346,7 +346,7 @@ pub fn calibrate<Src: FrameSource>(
         }
         let view = ImageView::packed(&*frame, w, h)?;
         let t0 = clock.now();
-        let found = detector.detect::<CORNERS>(&view, board, &cfg, scratch)?;
+        let found = detector.detect::<CORNERS>(&view, board, &params, scratch)?;
         let cost = u32::try_from(clock.now().saturating_sub(t0)).unwrap_or(u32::MAX);
         if let Some(b) = &found
             && calibrator.views() < VIEWS

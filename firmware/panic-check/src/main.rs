@@ -483,7 +483,12 @@ fn run_target() {
         return;
     };
     let mut ws = black_box(SmallWorkspace::new());
-    let mut tag = TagTarget::new(&detector, &mut ws, &families::TAG36H11, black_box(3));
+    let mut tag = TagTarget::new(
+        &detector,
+        ws.as_mut_view(),
+        &families::TAG36H11,
+        black_box(3),
+    );
     two_frames(&params, &mut tag);
 }
 
@@ -491,11 +496,11 @@ fn run_target() {
 #[cfg(any(feature = "target", feature = "apriltag"))]
 type SmallWorkspace = camgeom::apriltag::Workspace<
     W,
-    { camgeom::apriltag::tiles(W, H, 1) },
+    { camgeom::apriltag::tiles_len(W, H, 1) },
     1024,
     64,
     2048,
-    { camgeom::apriltag::max_cluster_points(W, H, 1) },
+    { camgeom::apriltag::sort_len(W, H, 1) },
 >;
 
 // ---------------------------------------------------------------- draw
@@ -710,15 +715,22 @@ fn run_chessboard() {
         Refinement::AdaptiveCornerSubPix(SubPixConfig::default()),
         Refinement::Saddle(SaddleConfig::default()),
     ] {
-        let cfg = black_box(DetectConfig {
+        let Ok(params) = black_box(DetectConfig {
             refine,
             ..DetectConfig::default()
-        });
-        black_box(det.detect::<12>(&v, board, &cfg, &mut scratch).ok());
+        })
+        .check() else {
+            continue;
+        };
+        black_box(det.detect::<12>(&v, board, &params, &mut scratch).ok());
     }
     let mut corners = points2::<f32, 12>();
-    black_box(corner_subpix(&v, &mut corners, &black_box(SubPixConfig::default())).ok());
-    black_box(saddle_subpix(&v, &mut corners, &black_box(SaddleConfig::default())).ok());
+    if let Ok(sp) = black_box(SubPixConfig::default()).check() {
+        black_box(corner_subpix(&v, &mut corners, &sp).ok());
+    }
+    if let Ok(sc) = black_box(SaddleConfig::default()).check() {
+        black_box(saddle_subpix(&v, &mut corners, &sc).ok());
+    }
     black_box(&corners);
 }
 
@@ -735,7 +747,7 @@ fn run_apriltag() {
         return;
     };
     let mut ws = black_box(SmallWorkspace::new());
-    let Ok(found) = detector.detect::<4, _, _, _, _, _, _>(&v, &mut ws) else {
+    let Ok(found) = detector.detect::<4>(&v, &mut ws.as_mut_view()) else {
         return;
     };
     let Some(cam) = camera::<f32>() else { return };
@@ -745,7 +757,7 @@ fn run_apriltag() {
     }
     black_box(
         detector
-            .find_target(&v, &mut ws, &families::TAG25H9, black_box(2))
+            .find_target(&v, &mut ws.as_mut_view(), &families::TAG25H9, black_box(2))
             .ok(),
     );
     for f in families::ALL {

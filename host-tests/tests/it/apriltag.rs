@@ -4,20 +4,14 @@
 
 use camgeom::apriltag::{
     APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Stats, Workspace, families,
-    max_cluster_points, tag_pose, tiles,
+    sort_len, tag_pose, tiles_len,
 };
 use camgeom::pose::PlanarConfig;
 use camgeom_host::images::load_gray;
 
 /// A workspace for the 799x533 photos at decimation 1.
-type PhotoWorkspace = Workspace<
-    800,
-    { tiles(800, 536, 1) },
-    32768,
-    4096,
-    262144,
-    { max_cluster_points(800, 536, 1) },
->;
+type PhotoWorkspace =
+    Workspace<800, { tiles_len(800, 536, 1) }, 32768, 4096, 262144, { sort_len(800, 536, 1) }>;
 
 pub(crate) fn data(sub: &str) -> std::path::PathBuf {
     camgeom_host::data_dir().join("apriltag").join(sub)
@@ -82,8 +76,9 @@ fn apriltag_test_photos_give_the_expected_tags() {
     for name in TEST_PHOTOS {
         let img = load_gray(data(&format!("{name}.jpg"))).unwrap();
         let want = expected(&format!("{name}.txt"));
-        let found: camgeom::heapless::Vec<Detection, 64> =
-            det.detect(&img.view().unwrap(), &mut ws).unwrap();
+        let found: camgeom::heapless::Vec<Detection, 64> = det
+            .detect(&img.view().unwrap(), &mut ws.as_mut_view())
+            .unwrap();
         let mut used = vec![false; found.len()];
         for (id, corners) in &want {
             let best = found
@@ -195,8 +190,9 @@ fn rendered_stills_are_detected_as_well_as_apriltag_3_with_corners_as_close() {
         Default::default();
     for s in stills() {
         let img = load_gray(data(&format!("stills/{}", s.image))).unwrap();
-        let found: camgeom::heapless::Vec<Detection, 8> =
-            det.detect(&img.view().unwrap(), &mut ws).unwrap();
+        let found: camgeom::heapless::Vec<Detection, 8> = det
+            .detect(&img.view().unwrap(), &mut ws.as_mut_view())
+            .unwrap();
         let tol = (s.side / 4.0).max(2.0);
         let hit = found
             .iter()
@@ -303,8 +299,9 @@ fn no_false_positives_on_tag_free_images() {
     for (set, p) in tag_free_frames() {
         let img = load_gray(&p).unwrap();
         for det in [&strong, &weak] {
-            let found: camgeom::heapless::Vec<Detection, 16> =
-                det.detect(&img.view().unwrap(), &mut ws).unwrap();
+            let found: camgeom::heapless::Vec<Detection, 16> = det
+                .detect(&img.view().unwrap(), &mut ws.as_mut_view())
+                .unwrap();
             let e = counts.entry(set).or_default();
             e.0 += 1;
             worst(&mut e.1, ws.stats());
@@ -401,7 +398,8 @@ fn tag_sequence_poses_are_at_least_as_close_as_apriltag_3s() {
     for (k, fr) in frames.iter().enumerate() {
         let img = load_gray(dir.join(format!("{k:04}.png"))).unwrap();
         let view = img.view().unwrap();
-        let found: camgeom::heapless::Vec<Detection, 4> = det.detect(&view, &mut ws).unwrap();
+        let found: camgeom::heapless::Vec<Detection, 4> =
+            det.detect(&view, &mut ws.as_mut_view()).unwrap();
         assert!(found.iter().all(|d| d.id == 42), "frame {k}: {found:?}");
         let Some(d) = found.first() else {
             if fr.in_view && !fr.occluded {
@@ -426,7 +424,7 @@ fn tag_sequence_poses_are_at_least_as_close_as_apriltag_3s() {
         // The acquisition hook: target order (0, 0), (w, 0), (w, h), (0, h) is AprilTag's
         // corners 3, 2, 1, 0. Sub-pixel corners of a blurred, noisy 30..90 px tag: 0.5 px.
         let target = det
-            .find_target(&view, &mut ws, &families::TAG36H11, 42)
+            .find_target(&view, &mut ws.as_mut_view(), &families::TAG36H11, 42)
             .unwrap()
             .unwrap();
         for (p, i) in target.iter().zip([3, 2, 1, 0]) {

@@ -44,12 +44,14 @@ pub fn detect(name: &str, refine: Refinement) -> Option<Vec<Point2<f64>>> {
         camgeom_host::images::load_gray(crate::common::chessboard(&format!("{name}.jpg"))).unwrap();
     let mut det = Box::new(ChessboardDetector::<512>::new());
     let mut scratch = vec![0i32; scratch_len(img.width)];
-    let cfg = DetectConfig {
+    let params = DetectConfig {
         refine,
         ..DetectConfig::default()
-    };
+    }
+    .check()
+    .unwrap();
     let board = BoardSize::new(9, 6).unwrap();
-    det.detect::<54>(&img.view().unwrap(), board, &cfg, &mut scratch)
+    det.detect::<54>(&img.view().unwrap(), board, &params, &mut scratch)
         .unwrap()
         .map(|b| b.corners.iter().map(|p| p.cast::<f64>()).collect())
 }

@@ -127,13 +127,15 @@ fn run(variant: Variant) {
             Variant::Adaptive => Refinement::AdaptiveCornerSubPix(sp(7)),
             Variant::Saddle => Refinement::Saddle(SaddleConfig::default()),
         };
-        let cfg = DetectConfig {
+        let params = DetectConfig {
             refine,
             ..DetectConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let board = BoardSize::new(c.board.0, c.board.1).unwrap();
         let found = det
-            .detect::<100>(&img.view().unwrap(), board, &cfg, &mut scratch)
+            .detect::<100>(&img.view().unwrap(), board, &params, &mut scratch)
             .unwrap()
             .map(|b| {
                 b.corners

@@ -66,7 +66,7 @@ fn replay(
                 .ok_or_else(|| anyhow!("run.bin: no such tag family"))?;
             detector = Detector::new(DetectorConfig::default(), &[family])?;
             workspace = Box::new(Workspace320x240::new());
-            tag = TagTarget::new(&detector, &mut workspace, family, id);
+            tag = TagTarget::new(&detector, workspace.as_mut_view(), family, id);
             &mut tag
         }
     };

@@ -22,7 +22,7 @@ use core::hint::black_box;
 use camgeom::apriltag::{Detector, DetectorConfig, families};
 use camgeom::calib::{CalibrationParams, Calibrator};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
-use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectConfig};
+use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
 use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
 use camgeom::heapless::Vec;
@@ -184,11 +184,11 @@ static CALIBRATOR: StaticCell<Calibrator<f32, 16, 64>> = StaticCell::new();
 /// workspace (119 KB) does not fit beside this binary's frames and pyramids.
 type TagWorkspace = camgeom::apriltag::Workspace<
     160,
-    { camgeom::apriltag::tiles(160, 120, 1) },
+    { camgeom::apriltag::tiles_len(160, 120, 1) },
     2048,
     128,
     4096,
-    { camgeom::apriltag::max_cluster_points(160, 120, 1) },
+    { camgeom::apriltag::sort_len(160, 120, 1) },
 >;
 static TAG_WORKSPACE: ConstStaticCell<TagWorkspace> = ConstStaticCell::new(TagWorkspace::new());
 /// Grid undistortion map, nodes every 2^3 px.
@@ -633,7 +633,7 @@ fn main() -> ! {
     let Some(half) = pa.level(1) else {
         fail("pyramid level 1", camgeom::Error::InvalidImage)
     };
-    let (r, s) = measure(|| detector.detect::<8, _, _, _, _, _, _>(&half, tag_ws));
+    let (r, s) = measure(|| detector.detect::<8>(&half, &mut tag_ws.as_mut_view()));
     row(
         "apriltag Detector::detect 160x120, 4 families",
         s,
@@ -681,8 +681,8 @@ fn main() -> ! {
     };
     let bdet = BOARD_DETECTOR.take();
     let bscr = BOARD_SCRATCH.take();
-    let dcfg = black_box(DetectConfig::default());
-    let (r, s) = measure(|| bdet.detect::<BOARD_CORNERS>(&vc, bsize, &dcfg, &mut bscr[..]));
+    let dparams = black_box(DetectParams::default());
+    let (r, s) = measure(|| bdet.detect::<BOARD_CORNERS>(&vc, bsize, &dparams, &mut bscr[..]));
     row(
         "ChessboardDetector::<512>::detect 160x120, 9x6 board",
         s,

@@ -34,7 +34,12 @@ fn main() -> ! {
                     board::exit_failure()
                 }
             };
-            Some(TagTarget::new(detector, workspace, family, id))
+            Some(TagTarget::new(
+                detector,
+                workspace.as_mut_view(),
+                family,
+                id,
+            ))
         }
         Acquisition::Corners => None,
     })
