@@ -85,37 +85,26 @@ impl<T: Real> Distortion<T> {
         // make the error grow with the focal length.
         let tol = cfg.tolerance.max(T::lit(8.0) * T::EPSILON * scale);
         let floor = T::lit(2.0) * T::EPSILON * scale;
-        let mut x = target;
-        let mut best = (T::max_value().unwrap_or(T::one() / T::EPSILON), x);
-        for _ in 0..cfg.max_iterations {
-            let r = self.eval(x.x, x.y) - target;
-            if !(r.x.finite() && r.y.finite()) {
-                return Err(Error::NoConvergence);
-            }
-            let err = r.amax();
-            if err < best.0 {
-                best = (err, x);
-            } else if best.0 <= tol {
-                // No further progress at the rounding floor.
-                break;
-            }
-            if err <= floor {
-                break;
-            }
-            let j = self.jacobian(x.x, x.y);
-            let det = j.determinant();
-            // A non-positive determinant means the model has folded: no unique inverse here.
-            if !det.finite() || det <= T::EPSILON * j.amax() * j.amax() {
-                return Err(Error::NoConvergence);
-            }
-            let inv = Matrix2::new(j.m22, -j.m12, -j.m21, j.m11) / det;
-            x -= inv * r;
-        }
-        if best.0 <= tol {
-            Ok(Point2::new(best.1.x, best.1.y))
-        } else {
-            Err(Error::NoConvergence)
-        }
+        let x = params.newton(
+            tol,
+            floor,
+            target,
+            |x| {
+                let r = self.eval(x.x, x.y) - target;
+                (r.x.finite() && r.y.finite()).then(|| (r.amax(), r))
+            },
+            |x, r| {
+                let j = self.jacobian(x.x, x.y);
+                let det = j.determinant();
+                // A non-positive determinant means the model has folded: no unique inverse here.
+                if !det.finite() || det <= T::EPSILON * j.amax() * j.amax() {
+                    return Err(Error::NoConvergence);
+                }
+                let inv = Matrix2::new(j.m22, -j.m12, -j.m21, j.m11) / det;
+                Ok(x - inv * r)
+            },
+        )?;
+        Ok(Point2::new(x.x, x.y))
     }
 
     fn eval(&self, x: T, y: T) -> Vector2<T> {

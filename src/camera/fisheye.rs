@@ -140,35 +140,26 @@ impl<T: Real> Fisheye<T> {
             .max(T::lit(8.0) * T::EPSILON * T::one().max(td));
         let floor = T::lit(2.0) * T::EPSILON * T::one().max(td);
         let half_pi = T::frac_pi_2();
-        let mut th = td.min(half_pi * T::lit(0.999));
-        let mut best = (T::max_value().unwrap_or(T::one() / T::EPSILON), th);
-        for _ in 0..cfg.max_iterations {
-            let (f, df) = self.theta_d(th);
-            let r = f - td;
-            if !r.finite() {
-                return Err(Error::NoConvergence);
-            }
-            let err = r.abs();
-            if err < best.0 {
-                best = (err, th);
-            } else if best.0 <= tol {
-                break;
-            }
-            if err <= floor {
-                break;
-            }
-            if !above(df, T::EPSILON) {
-                return Err(Error::NoConvergence);
-            }
-            th -= r / df;
-            if !above(th, T::zero()) || th >= half_pi {
-                return Err(Error::NoConvergence);
-            }
-        }
-        if best.0 > tol {
-            return Err(Error::NoConvergence);
-        }
-        let th = best.1;
+        let th = params.newton(
+            tol,
+            floor,
+            td.min(half_pi * T::lit(0.999)),
+            |th| {
+                let (f, df) = self.theta_d(th);
+                let r = f - td;
+                r.finite().then_some((r.abs(), (r, df)))
+            },
+            |th, (r, df)| {
+                if !above(df, T::EPSILON) {
+                    return Err(Error::NoConvergence);
+                }
+                let next = th - r / df;
+                if !above(next, T::zero()) || next >= half_pi {
+                    return Err(Error::NoConvergence);
+                }
+                Ok(next)
+            },
+        )?;
         // The model must be increasing up to the solution for the inverse to be unique.
         if !above(self.theta_d(th).1, T::zero()) {
             return Err(Error::NoConvergence);

@@ -84,6 +84,47 @@ impl<T: Real> TryFrom<UndistortConfig<T>> for UndistortParams<T> {
     }
 }
 
+impl<T: Real> UndistortParams<T> {
+    /// The bounded Newton iteration both lens models invert with: from `x0`, at most
+    /// `max_iterations` steps; `residual(x)` gives the error norm at `x` and what `step` needs
+    /// (`None`: not finite); `step(x, r)` the next iterate (or why there is none: the model
+    /// folds). The best iterate is kept; the loop accepts it at the tolerance `tol` but steps
+    /// on while it still improves, down to the rounding floor `floor` (the pixel error is the
+    /// focal length times this residual, so stopping early would make it grow with `f`).
+    ///
+    /// Errors: [`Error::NoConvergence`] for a non-finite residual, a failed step, or when the
+    /// best error is above `tol` after the bound.
+    pub(crate) fn newton<X: Copy, R>(
+        &self,
+        tol: T,
+        floor: T,
+        x0: X,
+        mut residual: impl FnMut(X) -> Option<(T, R)>,
+        mut step: impl FnMut(X, R) -> Result<X>,
+    ) -> Result<X> {
+        let mut x = x0;
+        let mut best = (T::max_value().unwrap_or(T::one() / T::EPSILON), x);
+        for _ in 0..self.0.max_iterations {
+            let (err, r) = residual(x).ok_or(Error::NoConvergence)?;
+            if err < best.0 {
+                best = (err, x);
+            } else if best.0 <= tol {
+                // No further progress at the rounding floor.
+                break;
+            }
+            if err <= floor {
+                break;
+            }
+            x = step(x, r)?;
+        }
+        if best.0 <= tol {
+            Ok(best.1)
+        } else {
+            Err(Error::NoConvergence)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
