@@ -80,7 +80,7 @@ use crate::pose::{
     solve_planar_integer,
 };
 use crate::pyramid::Pyramid;
-use crate::ransac::RansacConfig;
+use crate::ransac::{RansacConfig, RansacParams};
 use crate::{Error, Result};
 
 /// `i16` elements of a [`PlanarTarget`]'s flow scratch for `win x win` windows (its `S`).
@@ -206,6 +206,7 @@ impl Default for TargetConfig {
 pub struct TargetParams {
     cfg: TargetConfig,
     lk: LkParams,
+    ransac: RansacParams<f32>,
     camera: Camera<f32>,
     size: [f32; 2],
 }
@@ -221,7 +222,7 @@ impl TargetParams {
     pub fn new(cfg: &TargetConfig, camera: Camera<f32>, size: [f32; 2]) -> Result<Self> {
         let lk = cfg.lk.check()?;
         cfg.corners.check()?;
-        cfg.ransac.check()?;
+        let ransac = cfg.ransac.check()?;
         if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
             return Err(Error::InvalidParameter("size"));
         }
@@ -239,6 +240,7 @@ impl TargetParams {
         Ok(Self {
             cfg: *cfg,
             lk,
+            ransac,
             camera,
             size,
         })
@@ -868,7 +870,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         let (h, report) = find_homography(
             self.model.get(..n)?,
             self.pixels.get(..n)?,
-            &params.cfg.ransac,
+            &params.ransac,
             mask,
         )
         .ok()?;

@@ -399,12 +399,17 @@ fn main() -> ! {
             Point2::new(g.uniform(0.0, 320.0) as f32, g.uniform(0.0, 240.0) as f32)
         };
     }
-    let rcfg = black_box(RansacConfig {
+    let rcfg = match black_box(RansacConfig {
         threshold: 2.0f32,
         confidence: 1.0,
         max_iterations: RANSAC_ITERATIONS,
         ..RansacConfig::default()
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
     let (r, s) = measure(|| find_homography(&src[..], &dst[..], &rcfg, &mut mask[..]));
     row("find_homography 200 points, 500 samples", s, &mut rows);
     if let Err(e) = r {
@@ -573,17 +578,26 @@ fn main() -> ! {
         max_iterations: RANSAC_ITERATIONS,
         ..RansacConfig::default()
     });
-    let (r, s) = measure(|| find_fundamental(&xa[..], &xb[..], &fcfg, &mut tmask[..]));
+    let fparams = match fcfg.check() {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
+    let (r, s) = measure(|| find_fundamental(&xa[..], &xb[..], &fparams, &mut tmask[..]));
     row("find_fundamental 100 pairs, 500 samples", s, &mut rows);
     if let Err(e) = r {
         fail("find_fundamental", e)
     }
     // E samples cost ~15M instructions each (f64 5-point in software): the depth does not
     // depend on the count.
-    let ecfg = black_box(RansacConfig {
+    let ecfg = match black_box(RansacConfig {
         max_iterations: E_RANSAC_ITERATIONS,
         ..fcfg
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
     let (r, s) = measure(|| find_essential(&kp, &kp, &xa[..], &xb[..], &ecfg, &mut tmask[..]));
     row("find_essential 100 pairs, 20 samples", s, &mut rows);
     let e = match r {
