@@ -70,7 +70,7 @@ use heapless::Vec;
 use nalgebra::{Point2, Point3, UnitQuaternion};
 
 use crate::camera::Camera;
-use crate::corners::{Corner, CornerConfig, good_features};
+use crate::corners::{Corner, CornerConfig, CornerParams, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
 use crate::klt::Fixed;
@@ -199,13 +199,15 @@ impl Default for TargetConfig {
     }
 }
 
-/// A [`TargetConfig`] checked once, with the camera and the target's size: everything
+/// A [`TargetConfig`] checked once (its flow, corner and RANSAC parts into the params the
+/// algorithms take), with the camera and the target's size: everything
 /// [`PlanarTarget::step`] is told. Small and `Copy`; keep it beside the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TargetParams {
     cfg: TargetConfig,
     lk: LkParams,
+    corners: CornerParams,
     ransac: RansacParams<f32>,
     camera: Camera<f32>,
     size: [f32; 2],
@@ -221,7 +223,7 @@ impl TargetParams {
     /// (`ambiguity_ratio`).
     pub fn new(cfg: &TargetConfig, camera: Camera<f32>, size: [f32; 2]) -> Result<Self> {
         let lk = cfg.lk.check()?;
-        cfg.corners.check()?;
+        let corners = cfg.corners.check()?;
         let ransac = cfg.ransac.check()?;
         if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
             return Err(Error::InvalidParameter("size"));
@@ -240,6 +242,7 @@ impl TargetParams {
         Ok(Self {
             cfg: *cfg,
             lk,
+            corners,
             ransac,
             camera,
             size,
@@ -929,10 +932,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         }
         let roi = frame.sub(x0, y0, x1 - x0 + 1, y1 - y0 + 1)?;
         let mut found: Vec<Corner, N> = Vec::new();
-        let ccfg = params
-            .cfg
-            .corners
-            .up_to(N.saturating_sub(self.features.len()));
+        let ccfg = params.corners.up_to(N.saturating_sub(self.features.len()));
         let existing = self
             .features
             .iter()

@@ -151,14 +151,16 @@ fuzz_target!(|inp: Input| {
     let mut scratch = std::vec![0u32; grow(camgeom::corners::scratch_len(w), inp.scratch_slack)];
     let existing = inp.existing.map(|(x, y)| [i32::from(x), i32::from(y)]);
     let mut out: Vec<Corner, 16> = Vec::new();
-    if let Ok(n) = good_features(
-        &view,
-        &cfg,
-        existing.iter().copied(),
-        &mut out,
-        &mut cand[..],
-        &mut scratch[..],
-    ) {
+    if let Ok(params) = cfg.check()
+        && let Ok(n) = good_features(
+            &view,
+            &params,
+            existing.iter().copied(),
+            &mut out,
+            &mut cand[..],
+            &mut scratch[..],
+        )
+    {
         assert_eq!(n, out.len(), "count returned");
         for c in &out {
             assert!(

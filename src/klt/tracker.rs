@@ -15,7 +15,7 @@ use super::flow::{FlowBuffers, FlowItem};
 use super::lk::calc_flow;
 use super::{Flow, LkConfig, LkParams};
 use crate::Result;
-use crate::corners::{Corner, CornerConfig, good_features};
+use crate::corners::{Corner, CornerConfig, CornerParams, good_features};
 use crate::image::ImageView;
 use crate::pyramid::Pyramid;
 
@@ -161,7 +161,8 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
             return Ok(0);
         }
         let mut found: Vec<Corner, N> = Vec::new();
-        let ccfg = self.cfg.corners.up_to(cap - self.tracks.len());
+        // Checked in `new`; the tracker keeps the plain config (its size is counted).
+        let ccfg = CornerParams::assume_checked(self.cfg.corners).up_to(cap - self.tracks.len());
         let existing = self.tracks.iter().map(|t| [t.x.round(), t.y.round()]);
         good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
         let mut added = 0;

@@ -254,7 +254,9 @@ fn run_corners() {
     let mut candidates = black_box([Corner::default(); 64]);
     let mut scratch = black_box([0u32; 6 * W]);
     let existing = black_box([[3i32, 4]; 4]);
-    let cfg = black_box(CornerConfig::default());
+    let cfg = black_box(CornerConfig::default())
+        .check()
+        .unwrap_or_default();
     let mut out: Vec<Corner, 32> = Vec::new();
     black_box(
         good_features(

@@ -307,11 +307,16 @@ fn main() -> ! {
     let cand = CANDIDATE_BUF.take();
     let cscr = CORNER_SCRATCH.take();
     let out = CORNERS_OUT.take();
-    let ccfg = black_box(CornerConfig {
+    let ccfg = match black_box(CornerConfig {
         quality: 0.01,
         min_distance: 8,
         max_corners: N_TRACK,
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("CornerConfig::check", e),
+    };
     let (n, s) = measure(|| {
         good_features(
             &va,
