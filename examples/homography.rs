@@ -9,7 +9,7 @@
 
 use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2};
-use camgeom::ransac::RansacConfig;
+use camgeom::ransac::RansacParams;
 use camgeom::rng::Pcg32;
 
 fn main() -> camgeom::Result<()> {
@@ -41,7 +41,7 @@ fn main() -> camgeom::Result<()> {
         dst.push(q);
     }
     let mut inliers = vec![false; src.len()];
-    let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut inliers)?;
+    let (h, report) = find_homography(&src, &dst, &RansacParams::default(), &mut inliers)?;
     println!(
         "{} inliers of {} after {} samples; MSAC cost {:.1}",
         report.inliers,

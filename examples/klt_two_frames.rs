@@ -26,7 +26,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ccfg = CornerConfig {
         min_distance: 8,
         ..CornerConfig::default()
-    };
+    }
+    .check()?;
     good_features(
         &va,
         &ccfg,

@@ -65,7 +65,9 @@ fn run<T: Real>(case: &str, repeats: usize) -> f64 {
         confidence: T::lit(0.999),
         seed: 0x5eed_ca4e_0000_0001,
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .expect("RANSAC parameters");
     let mut sum = 0.0;
     match case {
         "epnp_50" => {

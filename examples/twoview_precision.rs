@@ -84,7 +84,9 @@ fn run<T: Real>(x1: &[Point2<f64>], x2: &[Point2<f64>]) -> Option<((f64, f64), u
         threshold: T::lit(1.0),
         confidence: T::lit(0.999),
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .ok()?;
     let mut mask = vec![false; a.len()];
     let (e, report) = find_essential(&k, &k, &a, &b, &config, &mut mask).ok()?;
     let rp = recover_pose(&e, &k, &k, &a, &b, T::lit(50.0), &mut mask).ok()?;

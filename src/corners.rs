@@ -19,7 +19,7 @@
 //! have been kept).
 //!
 //! ```
-//! use camgeom::corners::{Corner, CornerConfig, good_features, scratch_len};
+//! use camgeom::corners::{Corner, CornerParams, good_features, scratch_len};
 //! use camgeom::heapless::Vec;
 //! use camgeom::image::ImageView;
 //!
@@ -29,7 +29,7 @@
 //!     img[y * 32 + 10..y * 32 + 22].fill(255);
 //! }
 //! let view = ImageView::packed(&img, 32, 32)?;
-//! let cfg = CornerConfig::default();
+//! let cfg = CornerParams::default();
 //! let (mut cands, mut scratch) = ([Corner::default(); 64], [0u32; scratch_len(32)]);
 //! let mut found: Vec<Corner, 16> = Vec::new();
 //! let none = core::iter::empty();
@@ -63,7 +63,8 @@ pub struct Corner {
     pub score: u32,
 }
 
-/// Parameters of [`good_features`] (OpenCV's `qualityLevel`, `minDistance`).
+/// Parameters of [`good_features`] (OpenCV's `qualityLevel`, `minDistance`), as the user
+/// writes them; checked by [`Self::check`] into the [`CornerParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CornerConfig {
@@ -76,11 +77,11 @@ pub struct CornerConfig {
 }
 
 impl CornerConfig {
-    /// Checks the configuration. Errors: [`Error::InvalidParameter`] (`corners.quality`) for a
-    /// quality outside `(0, 1]`.
-    pub fn check(&self) -> Result<()> {
+    /// Checks the configuration once: [`good_features`] takes the checked [`CornerParams`].
+    /// Errors: [`Error::InvalidParameter`] (`corners.quality`) for a quality outside `(0, 1]`.
+    pub fn check(&self) -> Result<CornerParams> {
         if self.quality > 0.0 && self.quality <= 1.0 {
-            Ok(())
+            Ok(CornerParams(*self))
         } else {
             Err(Error::InvalidParameter("corners.quality"))
         }
@@ -109,6 +110,46 @@ impl Default for CornerConfig {
             min_distance: 10,
             max_corners: 0,
         }
+    }
+}
+
+/// A [`CornerConfig`] that passed [`CornerConfig::check`] (a quality in `(0, 1]`): what
+/// [`good_features`] takes, so that no call checks it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CornerParams(CornerConfig);
+
+impl CornerParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &CornerConfig {
+        &self.0
+    }
+
+    /// [`CornerConfig::up_to`] of the checked configuration: at most `free` corners added. Still
+    /// checked: only [`CornerConfig::max_corners`] changes, and it has no range to keep.
+    pub const fn up_to(&self, free: usize) -> Self {
+        Self(self.0.up_to(free))
+    }
+
+    /// `config` taken as checked without checking it: only for a holder that checked it when
+    /// it was built and keeps the plain [`CornerConfig`] (the KLT tracker, whose size
+    /// [`pipeline_ram`](crate::klt::pipeline_ram) counts).
+    pub(crate) const fn assume_checked(config: CornerConfig) -> Self {
+        Self(config)
+    }
+}
+
+impl Default for CornerParams {
+    /// The checked [`CornerConfig::default`].
+    fn default() -> Self {
+        Self(CornerConfig::default())
+    }
+}
+
+impl TryFrom<CornerConfig> for CornerParams {
+    type Error = Error;
+    fn try_from(c: CornerConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -412,19 +453,18 @@ pub(crate) fn heapsort_by<T>(v: &mut [T], order: impl Fn(&T, &T) -> core::cmp::O
 ///
 /// `candidates` bounds the local maxima considered: when it fills up the weakest half is
 /// dropped, so the strongest `candidates.len() / 2` maxima are always exact (OpenCV keeps all).
-/// Returns the number of corners added. Errors: as [`CornerConfig::check`];
-/// [`Error::BufferTooSmall`] for fewer than 2 candidates or scratch shorter than
-/// [`scratch_len`].
+/// Returns the number of corners added. Errors: [`Error::BufferTooSmall`] for fewer than 2
+/// candidates or scratch shorter than [`scratch_len`].
 #[doc(alias = "goodFeaturesToTrack")]
 pub fn good_features<const K: usize>(
     img: &ImageView<'_, u8>,
-    cfg: &CornerConfig,
+    params: &CornerParams,
     existing: impl Iterator<Item = [i32; 2]> + Clone,
     out: &mut Vec<Corner, K>,
     candidates: &mut [Corner],
     scratch: &mut [u32],
 ) -> Result<usize> {
-    cfg.check()?;
+    let cfg = params.config();
     if candidates.len() < 2 {
         return Err(Error::BufferTooSmall("candidates"));
     }
@@ -579,7 +619,9 @@ mod tests {
             quality: 0.1,
             min_distance: 4,
             max_corners: 0,
-        };
+        }
+        .check()
+        .unwrap();
         let n = good_features(
             &v,
             &cfg,
@@ -727,6 +769,33 @@ mod tests {
                 assert_eq!(best, want_best);
             }
         }
+    }
+
+    #[test]
+    fn check_names_the_quality_and_capping_keeps_the_check() {
+        assert_eq!(CornerConfig::default().check(), Ok(CornerParams::default()));
+        for q in [0.0, -0.5, 1.5, f32::NAN] {
+            let c = CornerConfig {
+                quality: q,
+                ..CornerConfig::default()
+            };
+            assert_eq!(
+                CornerParams::try_from(c),
+                Err(Error::InvalidParameter("corners.quality"))
+            );
+        }
+        let p = CornerConfig {
+            max_corners: 5,
+            ..CornerConfig::default()
+        }
+        .check()
+        .unwrap();
+        for free in [0, 3, 5, 9] {
+            assert_eq!(p.up_to(free).config(), &p.config().up_to(free));
+        }
+        assert_eq!(p.up_to(3).config().max_corners, 3);
+        assert_eq!(p.up_to(9).config().max_corners, 5);
+        assert_eq!(CornerParams::default().up_to(7).config().max_corners, 7);
     }
 
     #[test]

@@ -22,7 +22,7 @@
 //! A line `y = a x + b` through points with outliers, as a minimal [`Estimator`]:
 //!
 //! ```
-//! use camgeom::ransac::{Estimator, RansacConfig, ransac};
+//! use camgeom::ransac::{Estimator, RansacParams, ransac};
 //!
 //! struct Line<'a>(&'a [[f32; 2]]);
 //! impl Estimator for Line<'_> {
@@ -49,7 +49,7 @@
 //!     [x, 2.0 * x + 1.0 + if i % 5 == 0 { 50.0 } else { 0.0 }]
 //! });
 //! let mut mask = [false; 20];
-//! let ([a, b], report) = ransac(&Line(&pts), &RansacConfig::default(), &mut mask)?;
+//! let ([a, b], report) = ransac(&Line(&pts), &RansacParams::default(), &mut mask)?;
 //! assert!((a - 2.0).abs() < 1e-5 && (b - 1.0).abs() < 1e-4);
 //! assert_eq!(report.inliers, 16);
 //! assert!(mask.iter().enumerate().all(|(i, &m)| m == (i % 5 != 0)));
@@ -152,7 +152,8 @@ pub trait Estimator {
     }
 }
 
-/// Parameters of [`ransac`].
+/// Parameters of [`ransac`], as the user writes them; checked by [`Self::check`] into the
+/// [`RansacParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct RansacConfig<T: Real = f32> {
@@ -192,10 +193,12 @@ impl<T: Real> Default for RansacConfig<T> {
 }
 
 impl<T: Real> RansacConfig<T> {
-    /// Checks the ranges documented on each field. Errors: [`Error::InvalidParameter`] naming
-    /// the field (`ransac.threshold`, `ransac.confidence`, `ransac.max_iterations`,
-    /// `ransac.lo_threshold_multiplier`).
-    pub fn check(&self) -> Result<()> {
+    /// Checks the ranges documented on each field once: [`ransac`] and the robust estimators
+    /// built on it take the checked [`RansacParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field (`ransac.threshold`,
+    /// `ransac.confidence`, `ransac.max_iterations`, `ransac.lo_threshold_multiplier`).
+    pub fn check(&self) -> Result<RansacParams<T>> {
         let (zero, one) = (T::zero(), T::one());
         let checks = [
             (
@@ -215,8 +218,45 @@ impl<T: Real> RansacConfig<T> {
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, name)) => Err(Error::InvalidParameter(name)),
-            None => Ok(()),
+            None => Ok(RansacParams(*self)),
         }
+    }
+}
+
+/// A [`RansacConfig`] that passed [`RansacConfig::check`]: a threshold `t > 0` with a finite
+/// `t²`, a confidence in `(0, 1]`, at least one sample, a finite local-optimisation multiplier
+/// `≥ 1`. What [`ransac`], [`find_homography`](crate::homography::find_homography), the
+/// [`twoview`](crate::twoview) estimators and
+/// [`solve_pnp_ransac`](crate::pose::solve_pnp_ransac) take, so that no call checks it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RansacParams<T: Real = f32>(RansacConfig<T>);
+
+impl<T: Real> RansacParams<T> {
+    /// The checked configuration.
+    pub const fn config(&self) -> &RansacConfig<T> {
+        &self.0
+    }
+
+    /// `config` taken as checked without checking it: only for the `Default` of a checked
+    /// configuration that embeds a RANSAC configuration other than [`RansacConfig::default`]
+    /// (a test of that configuration checks its default).
+    pub(crate) const fn assume_checked(config: RansacConfig<T>) -> Self {
+        Self(config)
+    }
+}
+
+impl<T: Real> Default for RansacParams<T> {
+    /// The checked [`RansacConfig::default`].
+    fn default() -> Self {
+        Self(RansacConfig::default())
+    }
+}
+
+impl<T: Real> TryFrom<RansacConfig<T>> for RansacParams<T> {
+    type Error = Error;
+    fn try_from(c: RansacConfig<T>) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -235,21 +275,20 @@ pub struct RansacReport<T: Real = f32> {
 /// Runs RANSAC (see the module docs) and writes the returned model's inlier mask into `mask`.
 ///
 /// Errors: [`Error::LengthMismatch`] if `mask.len() != num_points()`,
-/// [`Error::InvalidParameter`] as [`RansacConfig::check`] or for a sample size outside
-/// `1..=MAX_SAMPLE_SIZE`,
+/// [`Error::InvalidParameter`] for a sample size outside `1..=MAX_SAMPLE_SIZE`,
 /// [`Error::TooFewPoints`] with fewer points than a sample, [`Error::Degenerate`] when no
 /// sample produced a model.
 pub fn ransac<T: Real, E: Estimator<Scalar = T>>(
     estimator: &E,
-    config: &RansacConfig<T>,
+    params: &RansacParams<T>,
     mask: &mut [bool],
 ) -> Result<(E::Model, RansacReport<T>)> {
+    let config = params.config();
     let n = estimator.num_points();
     let s = estimator.sample_size();
     if mask.len() != n {
         return Err(Error::LengthMismatch);
     }
-    config.check()?;
     if s == 0 || s > MAX_SAMPLE_SIZE {
         return Err(Error::InvalidParameter("sample_size"));
     }
@@ -621,7 +660,9 @@ mod tests {
         let cfg = RansacConfig {
             threshold: 0.1,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (a, report) = ransac(&est, &cfg, &mut mask).unwrap();
         assert!((a - 2.5).abs() < 1e-3, "{a}");
         assert!(report.inliers >= 66 && report.inliers == mask.iter().filter(|m| **m).count());
@@ -716,7 +757,9 @@ mod tests {
             confidence: 1.0,
             max_iterations: 50,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let run = |scoring, exact| {
             let mut mask = [false; 7];
             let (m, rep) = ransac(&Table { scoring, exact }, &cfg, &mut mask).unwrap();
@@ -748,9 +791,11 @@ mod tests {
         let est = Slope { x: &x, y: &y };
         let mut mask = [false; 2];
         let ok = RansacConfig::<f64>::default();
-        assert!(ransac(&est, &ok, &mut mask).is_ok());
+        assert_eq!(ok.check(), Ok(RansacParams::default()));
+        let params = RansacParams::try_from(ok).unwrap();
+        assert!(ransac(&est, &params, &mut mask).is_ok());
         assert_eq!(
-            ransac(&est, &ok, &mut [false; 3]).unwrap_err(),
+            ransac(&est, &params, &mut [false; 3]).unwrap_err(),
             Error::LengthMismatch
         );
         for (bad, name) in [
@@ -797,9 +842,10 @@ mod tests {
                 "ransac.max_iterations",
             ),
         ] {
+            assert_eq!(bad.check(), Err(Error::InvalidParameter(name)));
             assert_eq!(
-                ransac(&est, &bad, &mut mask).unwrap_err(),
-                Error::InvalidParameter(name)
+                RansacParams::try_from(bad),
+                Err(Error::InvalidParameter(name))
             );
         }
         // Confidence 1 means "never stop early" once there is an outlier: exactly
@@ -810,15 +856,23 @@ mod tests {
             confidence: 1.0,
             max_iterations: 37,
             ..ok
-        };
+        }
+        .check()
+        .unwrap();
         let mut mask3 = [false; 3];
         assert_eq!(ransac(&est3, &all, &mut mask3).unwrap().1.iterations, 37);
         // Every sample degenerate.
         let zeros = [0.0, 0.0];
         let est = Slope { x: &zeros, y: &y };
-        assert_eq!(ransac(&est, &ok, &mut mask).unwrap_err(), Error::Degenerate);
+        assert_eq!(
+            ransac(&est, &params, &mut mask).unwrap_err(),
+            Error::Degenerate
+        );
         let est = Slope { x: &[], y: &[] };
-        assert_eq!(ransac(&est, &ok, &mut []).unwrap_err(), Error::TooFewPoints);
+        assert_eq!(
+            ransac(&est, &params, &mut []).unwrap_err(),
+            Error::TooFewPoints
+        );
     }
 
     #[test]

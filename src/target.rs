@@ -70,7 +70,7 @@ use heapless::Vec;
 use nalgebra::{Point2, Point3, UnitQuaternion};
 
 use crate::camera::Camera;
-use crate::corners::{Corner, CornerConfig, good_features};
+use crate::corners::{Corner, CornerConfig, CornerParams, good_features};
 use crate::homography::{Homography, find_homography};
 use crate::image::ImageView;
 use crate::klt::Fixed;
@@ -82,7 +82,7 @@ use crate::pose::{
     solve_planar_integer,
 };
 use crate::pyramid::Pyramid;
-use crate::ransac::RansacConfig;
+use crate::ransac::{RansacConfig, RansacParams};
 use crate::{Error, Result};
 
 /// `i16` elements of a [`PlanarTarget`]'s flow scratch for `win x win` windows (its `S`).
@@ -202,13 +202,16 @@ impl Default for TargetConfig {
     }
 }
 
-/// A [`TargetConfig`] checked once, with the camera and the target's size: everything
+/// A [`TargetConfig`] checked once (its flow, corner and RANSAC parts into the params the
+/// algorithms take), with the camera and the target's size: everything
 /// [`PlanarTarget::step`] is told. Small and `Copy`; keep it beside the state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TargetParams {
     cfg: TargetConfig,
     lk: LkParams,
+    corners: CornerParams,
+    ransac: RansacParams<f32>,
     camera: Camera<f32>,
     size: [f32; 2],
 }
@@ -223,8 +226,8 @@ impl TargetParams {
     /// (`ambiguity_ratio`).
     pub fn new(cfg: &TargetConfig, camera: Camera<f32>, size: [f32; 2]) -> Result<Self> {
         let lk = cfg.lk.check()?;
-        cfg.corners.check()?;
-        cfg.ransac.check()?;
+        let corners = cfg.corners.check()?;
+        let ransac = cfg.ransac.check()?;
         if !size.iter().all(|s| s.is_finite() && *s > 0.0) {
             return Err(Error::InvalidParameter("size"));
         }
@@ -242,6 +245,8 @@ impl TargetParams {
         Ok(Self {
             cfg: *cfg,
             lk,
+            corners,
+            ransac,
             camera,
             size,
         })
@@ -879,7 +884,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         let (h, report) = find_homography(
             self.model.get(..n)?,
             self.pixels.get(..n)?,
-            &params.cfg.ransac,
+            &params.ransac,
             mask,
         )
         .ok()?;
@@ -938,10 +943,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         }
         let roi = frame.sub(x0, y0, x1 - x0 + 1, y1 - y0 + 1)?;
         let mut found: Vec<Corner, N> = Vec::new();
-        let ccfg = params
-            .cfg
-            .corners
-            .up_to(N.saturating_sub(self.features.len()));
+        let ccfg = params.corners.up_to(N.saturating_sub(self.features.len()));
         let existing = self
             .features
             .iter()

@@ -120,6 +120,12 @@ impl Ransac {
             seed: self.seed,
         }
     }
+
+    /// [`Self::config`] checked (`None` when the check refuses it, as it does many fuzzer
+    /// values: the estimators only take checked parameters).
+    pub fn params(&self) -> Option<camgeom::ransac::RansacParams<f32>> {
+        self.config().check().ok()
+    }
 }
 
 pub fn finite(v: &[f32]) -> bool {

@@ -60,7 +60,9 @@ fuzz_target!(|inp: Input| {
     let cfg = inp.ransac.config();
     let mask_len = (n as i64 + i64::from(inp.mask_slack % 3)).max(0) as usize;
     let mut mask = std::vec![false; mask_len];
-    if let Ok((h, report)) = find_homography(&src, &dst, &cfg, &mut mask) {
+    if let Some(params) = inp.ransac.params()
+        && let Ok((h, report)) = find_homography(&src, &dst, &params, &mut mask)
+    {
         check(&h, &src, "find_homography");
         assert!(report.inliers <= n, "more inliers than points");
         assert_eq!(

@@ -13,6 +13,7 @@
 #![no_main]
 
 use arbitrary::Arbitrary;
+use camgeom::arith::Fixed;
 use camgeom::corners::{Corner, CornerConfig, good_features};
 use camgeom::features::{
     Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect, hamming,
@@ -23,7 +24,6 @@ use camgeom::homography::Homography;
 use camgeom::image::{ImageMut, ImageView, buffer_len};
 use camgeom::nalgebra::{Matrix3, Point2};
 use camgeom::pyramid::{self, Pyramid, PyramidPair};
-use camgeom::arith::Fixed;
 use camgeom::warp::{WarpConfig, warp_into_quad, warp_perspective_into};
 use libfuzzer_sys::fuzz_target;
 
@@ -125,10 +125,17 @@ fuzz_target!(|inp: Input| {
     let fits = (1..=pyramid::MAX_LEVELS).contains(&levels)
         && frame_len >= w * h
         && pyr_len >= pyramid::buffer_len(w, h, levels);
-    assert_eq!(pair.set_geometry(w, h, levels).is_ok(), fits, "pair geometry");
+    assert_eq!(
+        pair.set_geometry(w, h, levels).is_ok(),
+        fits,
+        "pair geometry"
+    );
     if fits {
         for k in 0..3 {
-            pair.capture().expect("capture").copy_from(&view).expect("copy");
+            pair.capture()
+                .expect("capture")
+                .copy_from(&view)
+                .expect("copy");
             let ps = pair.advance().expect("advance");
             assert_eq!(ps.previous.is_some(), k > 0);
             assert_eq!(ps.next.level(0).and_then(|l| l.get(0, 0)), view.get(0, 0));
@@ -151,14 +158,16 @@ fuzz_target!(|inp: Input| {
     let mut scratch = std::vec![0u32; grow(camgeom::corners::scratch_len(w), inp.scratch_slack)];
     let existing = inp.existing.map(|(x, y)| [i32::from(x), i32::from(y)]);
     let mut out: Vec<Corner, 16> = Vec::new();
-    if let Ok(n) = good_features(
-        &view,
-        &cfg,
-        existing.iter().copied(),
-        &mut out,
-        &mut cand[..],
-        &mut scratch[..],
-    ) {
+    if let Ok(params) = cfg.check()
+        && let Ok(n) = good_features(
+            &view,
+            &params,
+            existing.iter().copied(),
+            &mut out,
+            &mut cand[..],
+            &mut scratch[..],
+        )
+    {
         assert_eq!(n, out.len(), "count returned");
         for c in &out {
             assert!(

@@ -136,10 +136,10 @@ fuzz_target!(|inp: Input| {
     if let Ok(e) = solve_pnp(&camera, &world, &pixels, &mut scratch) {
         check_estimate(&e, "solve_pnp");
     }
-    let rc = inp.ransac.config();
     let mut mask = std::vec![false; n];
-    if let Ok((e, report)) =
-        solve_pnp_ransac(&camera, &world, &pixels, &mut scratch, &rc, &mut mask)
+    if let Some(rc) = inp.ransac.params()
+        && let Ok((e, report)) =
+            solve_pnp_ransac(&camera, &world, &pixels, &mut scratch, &rc, &mut mask)
     {
         check_estimate(&e, "solve_pnp_ransac");
         assert!(report.inliers <= n);

@@ -61,16 +61,21 @@ fuzz_target!(|inp: Input| {
     let mut x2: std::vec::Vec<Point2<f32>> = inp.pairs[..n].iter().map(|p| pt2(p.1)).collect();
     apply_edits(&mut x1, &inp.edits1[..inp.edits1.len().min(8)]);
     apply_edits(&mut x2, &inp.edits2[..inp.edits2.len().min(8)]);
-    let cfg = inp.ransac.config();
+    let cfg = inp.ransac.params();
     let mut mask = std::vec![false; n];
-    if let Ok((f, r)) = find_fundamental(&x1, &x2, &cfg, &mut mask) {
+    if let Some(cfg) = &cfg
+        && let Ok((f, r)) = find_fundamental(&x1, &x2, cfg, &mut mask)
+    {
         assert!(finite(f.matrix().as_slice()), "F not finite");
         assert!(r.inliers <= n);
     }
     let [a, b, c, d] = inp.k1.map(Num::get);
     let [e, f, g, h] = inp.k2.map(Num::get);
-    if let (Ok(k1), Ok(k2)) = (Intrinsics::new(a, b, c, d), Intrinsics::new(e, f, g, h))
-        && let Ok((e, r)) = find_essential(&k1, &k2, &x1, &x2, &cfg, &mut mask)
+    if let (Some(cfg), Ok(k1), Ok(k2)) = (
+        &cfg,
+        Intrinsics::new(a, b, c, d),
+        Intrinsics::new(e, f, g, h),
+    ) && let Ok((e, r)) = find_essential(&k1, &k2, &x1, &x2, cfg, &mut mask)
     {
         assert!(finite(e.matrix().as_slice()), "E not finite");
         assert!(r.inliers <= n);

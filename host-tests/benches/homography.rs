@@ -126,7 +126,9 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str, answers: &mut Answers) {
         threshold: T::lit(RANSAC_THRESHOLD),
         seed: RANSAC_SEED,
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .expect("RANSAC bench parameters");
     let mut mask = vec![false; s.len()];
     let (h, report) = find_homography(&s, &d, &config, &mut mask).expect("RANSAC bench input");
     eprintln!(

@@ -185,7 +185,9 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str, answers: &mut Answers) {
         confidence: T::lit(CONFIDENCE),
         seed: SEED,
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .expect("RANSAC bench parameters");
     let (e, report) = solve_pnp_ransac(&cam, &world, &px, &mut scratch, &config, &mut mask)
         .expect("PnP RANSAC bench input");
     eprintln!(

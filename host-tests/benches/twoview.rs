@@ -189,7 +189,9 @@ fn bench_type<T: Real>(c: &mut Criterion, ty: &str, answers: &mut Answers) {
         confidence: T::lit(CONFIDENCE),
         seed: SEED,
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .expect("RANSAC bench parameters");
     let mut mask = vec![false; a.len()];
     let (f, rf) = find_fundamental(&a, &b, &config, &mut mask).expect("F bench input");
     answers.record(

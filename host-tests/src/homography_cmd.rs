@@ -111,7 +111,9 @@ pub fn estimate<T: Real>(
             max_iterations: a.max_iters,
             seed: a.seed,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .map_err(|e| fail("find_homography", e))?;
         let mut mask = vec![false; src.len()];
         let (h, report) = find_homography(&src, &dst, &config, &mut mask)
             .map_err(|e| fail("find_homography", e))?;

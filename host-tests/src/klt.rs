@@ -215,8 +215,11 @@ pub fn corners(img: &GrayImage, cfg: &CornerConfig, max: usize) -> camgeom::Resu
     let mut out: camgeom::heapless::Vec<Corner, 4096> = camgeom::heapless::Vec::new();
     let mut cands = vec![Corner::default(); 16384];
     let mut scratch = vec![0u32; camgeom::corners::scratch_len(img.width)];
-    let mut c = *cfg;
-    c.max_corners = max.min(4096);
+    let c = CornerConfig {
+        max_corners: max.min(4096),
+        ..*cfg
+    }
+    .check()?;
     camgeom::corners::good_features(
         &view,
         &c,

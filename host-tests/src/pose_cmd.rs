@@ -168,7 +168,9 @@ fn solve<T: Real + Serialize>(
             threshold: T::lit(threshold),
             seed: a.seed,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .map_err(|e| no_pose(&src, e, false))?;
         let mut mask = vec![false; n];
         let (est, report) =
             solve_pnp_ransac(camera, &world, &pixels, &mut scratch, &cfg, &mut mask)

@@ -176,18 +176,26 @@ pub fn estimate<T: Real>(
         x2.push(u2);
     }
     let (k1, k2) = (c1.intrinsics, c2.intrinsics);
-    let config = |threshold: f64| RansacConfig {
-        threshold: T::lit(threshold),
-        confidence: T::lit(a.confidence),
-        max_iterations: a.max_iters,
-        seed: a.seed,
-        ..RansacConfig::default()
+    // Each checked just before the estimator that takes it, its error reported as that
+    // estimator's.
+    let params = |threshold: f64, what: &str| {
+        RansacConfig {
+            threshold: T::lit(threshold),
+            confidence: T::lit(a.confidence),
+            max_iterations: a.max_iters,
+            seed: a.seed,
+            ..RansacConfig::default()
+        }
+        .check()
+        .map_err(|e| fail(what, e))
     };
     let mut f_mask = vec![false; x1.len()];
-    let (f, f_report) = find_fundamental(&x1, &x2, &config(a.f_threshold), &mut f_mask)
+    let f_params = params(a.f_threshold, "find_fundamental")?;
+    let (f, f_report) = find_fundamental(&x1, &x2, &f_params, &mut f_mask)
         .map_err(|e| fail("find_fundamental", e))?;
     let mut mask = vec![false; x1.len()];
-    let (e, e_report) = find_essential(&k1, &k2, &x1, &x2, &config(a.threshold), &mut mask)
+    let e_params = params(a.threshold, "find_essential")?;
+    let (e, e_report) = find_essential(&k1, &k2, &x1, &x2, &e_params, &mut mask)
         .map_err(|e| fail("find_essential", e))?;
     let rp = recover_pose(&e, &k1, &k2, &x1, &x2, T::lit(a.max_distance), &mut mask)
         .map_err(|e| fail("recover_pose", e))?;

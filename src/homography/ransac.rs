@@ -6,7 +6,7 @@ use nalgebra::Point2;
 use super::refine::refine_masked;
 use super::{Homography, check_sample, dlt_masked};
 use crate::Result;
-use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
+use crate::ransac::{Estimator, RansacParams, RansacReport, ransac};
 use crate::scalar::Real;
 
 /// The four points of a minimal sample.
@@ -127,17 +127,18 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
 ///
 /// Minimal samples go through [`check_sample`] (collinear or folding samples are skipped
 /// without solving), models are scored by MSAC on the symmetric transfer error, every new best
-/// model is refitted by [`dlt_masked`] on its inliers (`config.local_optimization` rounds), and
-/// the winner is polished by [`super::refine_masked`] (10 Levenberg-Marquardt steps) when
-/// `config.refine`. The iteration count adapts to the inlier ratio and is capped by
-/// `config.max_iterations`; the same `config.seed` gives the same result everywhere.
+/// model is refitted by [`dlt_masked`] on its inliers (`local_optimization` rounds of the
+/// [`RansacConfig`](crate::ransac::RansacConfig) checked into `params`), and the winner is
+/// polished by [`super::refine_masked`] (10 Levenberg-Marquardt steps) when `refine`. The
+/// iteration count adapts to the inlier ratio and is capped by `max_iterations`; the same
+/// `seed` gives the same result everywhere.
 ///
 /// Errors: see [`ransac`] ([`crate::Error::Degenerate`] when no sample gave a model).
 ///
 /// ```
 /// use camgeom::homography::{Homography, find_homography};
 /// use camgeom::nalgebra::{Matrix3, Point2, Vector2};
-/// use camgeom::ransac::RansacConfig;
+/// use camgeom::ransac::RansacParams;
 ///
 /// let truth = Homography::from_matrix(&Matrix3::new(
 ///     0.9, 0.05, 30.0, -0.04, 1.1, 12.0, 1e-4, 2e-4, 1.0,
@@ -151,7 +152,7 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
 ///     dst.push(truth.transfer(s)? + off);
 /// }
 /// let mut inliers = [false; 30];
-/// let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut inliers)?;
+/// let (h, report) = find_homography(&src, &dst, &RansacParams::default(), &mut inliers)?;
 /// assert_eq!(report.inliers, 22);
 /// assert!(inliers.iter().enumerate().all(|(i, &ok)| ok == (i % 4 != 0)));
 /// // The inliers are exact: what is left is f32 rounding.
@@ -163,11 +164,11 @@ impl<T: Real> Estimator for HomographyEstimator<'_, T> {
 pub fn find_homography<T: Real>(
     src: &[Point2<T>],
     dst: &[Point2<T>],
-    config: &RansacConfig<T>,
+    params: &RansacParams<T>,
     inliers: &mut [bool],
 ) -> Result<(Homography<T>, RansacReport<T>)> {
     let est = HomographyEstimator::new(src, dst)?;
-    ransac(&est, config, inliers).map(|(m, r)| (m.h, r))
+    ransac(&est, params, inliers).map(|(m, r)| (m.h, r))
 }
 
 #[cfg(test)]
@@ -217,7 +218,7 @@ mod tests {
         // Every second point an outlier (50 %).
         let (src, dst) = data(&mut g, 2);
         let mut mask = [false; 100];
-        let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut mask).unwrap();
+        let (h, report) = find_homography(&src, &dst, &RansacParams::default(), &mut mask).unwrap();
         assert!(grid_gap(&h) < 1.0, "{}", grid_gap(&h));
         // The 50 true inliers are found (a random outlier may land within 3 px by chance).
         assert!((50..=53).contains(&report.inliers), "{}", report.inliers);
@@ -227,7 +228,7 @@ mod tests {
         let s32 = src.map(|p| p.cast::<f32>());
         let d32 = dst.map(|p| p.cast::<f32>());
         let mut mask32 = [false; 100];
-        let cfg32 = RansacConfig::<f32>::default();
+        let cfg32 = RansacParams::<f32>::default();
         let (h32, r32) = find_homography(&s32, &d32, &cfg32, &mut mask32).unwrap();
         assert_eq!(r32.inliers, report.inliers);
         assert_eq!(mask32, mask);
@@ -240,13 +241,15 @@ mod tests {
         let mut g = Pcg32::new(52);
         let (src, dst) = data(&mut g, 4);
         let mut mask = [false; 100];
-        let plain = RansacConfig {
+        let plain = crate::ransac::RansacConfig {
             local_optimization: 0,
             refine: false,
-            ..RansacConfig::default()
-        };
+            ..Default::default()
+        }
+        .check()
+        .unwrap();
         let (h0, r0) = find_homography(&src, &dst, &plain, &mut mask).unwrap();
-        let (h1, r1) = find_homography(&src, &dst, &RansacConfig::default(), &mut mask).unwrap();
+        let (h1, r1) = find_homography(&src, &dst, &RansacParams::default(), &mut mask).unwrap();
         assert!(r1.cost <= r0.cost);
         assert!(
             grid_gap(&h1) <= grid_gap(&h0) + 1e-9,
@@ -261,10 +264,12 @@ mod tests {
         let line: [Point2<f64>; 20] =
             core::array::from_fn(|i| Point2::new(i as f64, 2.0 * i as f64));
         let mut mask = [true; 20];
-        let cfg = RansacConfig {
+        let cfg = crate::ransac::RansacConfig {
             max_iterations: 50,
-            ..RansacConfig::default()
-        };
+            ..Default::default()
+        }
+        .check()
+        .unwrap();
         assert_eq!(
             find_homography(&line, &line, &cfg, &mut mask).unwrap_err(),
             Error::Degenerate

@@ -15,7 +15,7 @@ use super::arith::{Coordinate, FlowArith};
 use super::flow::FlowBuffersView;
 use super::flow::{FlowBuffers, FlowItem};
 use super::{Flow, LkConfig, LkParams, Templates};
-use crate::corners::{Corner, CornerConfig, good_features};
+use crate::corners::{Corner, CornerConfig, CornerParams, good_features};
 use crate::image::ImageView;
 use crate::pyramid::Pyramid;
 use crate::{Error, Result};
@@ -213,7 +213,8 @@ impl<A: FlowArith, const N: usize> Tracker<A, N> {
             return Ok(0);
         }
         let mut found: Vec<Corner, N> = Vec::new();
-        let ccfg = cfg.corners.up_to(cap - self.tracks.len());
+        // `params` holds the corner configuration checked (`TrackerConfig::check`).
+        let ccfg = CornerParams::assume_checked(cfg.corners).up_to(cap - self.tracks.len());
         let existing = self.tracks.iter().map(|t| [t.x.round(), t.y.round()]);
         good_features(frame, &ccfg, existing, &mut found, candidates, scratch)?;
         let mut added = 0;

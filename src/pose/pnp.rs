@@ -8,7 +8,7 @@ use super::epnp::{epnp, epnp_with};
 use super::p3p::p3p;
 use super::refine::{refine_pose, refine_pose_masked};
 use crate::camera::Camera;
-use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
+use crate::ransac::{Estimator, RansacParams, RansacReport, ransac};
 use crate::scalar::{Real, above};
 use crate::transform::Pose;
 use crate::{Error, Result};
@@ -191,7 +191,7 @@ impl<T: Real> Estimator for PnpEstimator<'_, T> {
 
 /// Robust pose from correspondences with outliers (OpenCV's `solvePnPRansac`), writing the
 /// inlier mask into `mask`: pixels are undistorted into `scratch` (`scratch.len() ≥ N`), then
-/// [`ransac`] runs [`PnpEstimator`] with the inlier threshold `config.threshold` in pixels. The
+/// [`ransac`] runs [`PnpEstimator`] with the inlier threshold of `params` in pixels. The
 /// returned RMS is over the inliers.
 ///
 /// Errors: [`Error::LengthMismatch`] (slices, `scratch` too short, `mask.len() != N`); as
@@ -203,7 +203,7 @@ pub fn solve_pnp_ransac<T: Real>(
     world: &[Point3<T>],
     pixels: &[Point2<T>],
     scratch: &mut [Point2<T>],
-    config: &RansacConfig<T>,
+    params: &RansacParams<T>,
     mask: &mut [bool],
 ) -> Result<(PoseEstimate<T>, RansacReport<T>)> {
     if world.len() != pixels.len() {
@@ -216,7 +216,7 @@ pub fn solve_pnp_ransac<T: Real>(
         *n = camera.undistort_to_normalized(u)?;
     }
     let est = PnpEstimator::new(camera, world, pixels, normalized)?;
-    let (pose, report) = ransac(&est, config, mask)?;
+    let (pose, report) = ransac(&est, params, mask)?;
     // The mean of the inliers' squared errors, each divided first: every one is below the
     // threshold's square (finite, `RansacConfig::check`), so the mean is too, where the sum of
     // many could overflow.
@@ -314,7 +314,7 @@ mod tests {
             &world,
             &px,
             &mut scratch,
-            &RansacConfig::default(),
+            &RansacParams::default(),
             &mut mask,
         )
         .unwrap();
@@ -337,7 +337,7 @@ mod tests {
             &w32,
             &p32,
             &mut s32,
-            &RansacConfig::default(),
+            &RansacParams::default(),
             &mut m32,
         )
         .unwrap();
@@ -356,10 +356,12 @@ mod tests {
         let px = [Point2::new(10.0, 10.0); 6];
         let mut scratch = [Point2::origin(); 6];
         let mut mask = [false; 6];
-        let cfg = RansacConfig {
+        let cfg = crate::ransac::RansacConfig {
             max_iterations: 20,
-            ..RansacConfig::default()
-        };
+            ..Default::default()
+        }
+        .check()
+        .unwrap();
         assert!(solve_pnp(&cam, &w, &px, &mut scratch).is_err());
         assert_eq!(
             solve_pnp(&cam, &w, &px, &mut scratch[..3]).unwrap_err(),

@@ -1,6 +1,6 @@
 //! The parameters of the three-view pipeline, checked once.
 
-use crate::ransac::RansacConfig;
+use crate::ransac::{RansacConfig, RansacParams};
 use crate::scalar::{Real, above};
 use crate::{Error, Result};
 
@@ -49,12 +49,13 @@ impl<T: Real> Default for SfmConfig<T> {
 }
 
 impl<T: Real> SfmConfig<T> {
-    /// Checks the ranges documented on each field. Errors: those of [`RansacConfig::check`]
+    /// Checks the ranges documented on each field once, the two RANSAC configurations into
+    /// the [`RansacParams`] the [`SfmParams`] keeps. Errors: those of [`RansacConfig::check`]
     /// for [`Self::essential`], then for [`Self::pnp`]; [`Error::InvalidParameter`] naming the
     /// field (`sfm.max_reprojection_px`, `sfm.max_depth`, `sfm.min_parallax`).
     pub fn check(&self) -> Result<SfmParams<T>> {
-        self.essential.check()?;
-        self.pnp.check()?;
+        let essential = self.essential.check()?;
+        let pnp = self.pnp.check()?;
         let checks = [
             (
                 above(self.max_reprojection_px, T::zero()),
@@ -68,28 +69,52 @@ impl<T: Real> SfmConfig<T> {
         ];
         match checks.iter().find(|(ok, _)| !ok) {
             Some((_, name)) => Err(Error::InvalidParameter(name)),
-            None => Ok(SfmParams(*self)),
+            None => Ok(SfmParams {
+                config: *self,
+                essential,
+                pnp,
+            }),
         }
     }
 }
 
-/// An [`SfmConfig`] that passed [`SfmConfig::check`]: what
+/// An [`SfmConfig`] that passed [`SfmConfig::check`], with its two RANSAC configurations
+/// checked into [`RansacParams`]: what
 /// [`reconstruct_three_views`](super::reconstruct_three_views) takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct SfmParams<T: Real = f32>(SfmConfig<T>);
+pub struct SfmParams<T: Real = f32> {
+    config: SfmConfig<T>,
+    essential: RansacParams<T>,
+    pnp: RansacParams<T>,
+}
 
 impl<T: Real> SfmParams<T> {
     /// The checked configuration.
     pub const fn config(&self) -> &SfmConfig<T> {
-        &self.0
+        &self.config
+    }
+
+    /// The checked [`SfmConfig::essential`].
+    pub const fn essential(&self) -> &RansacParams<T> {
+        &self.essential
+    }
+
+    /// The checked [`SfmConfig::pnp`].
+    pub const fn pnp(&self) -> &RansacParams<T> {
+        &self.pnp
     }
 }
 
 impl<T: Real> Default for SfmParams<T> {
-    /// The checked [`SfmConfig::default`].
+    /// The checked [`SfmConfig::default`] (the test below checks it).
     fn default() -> Self {
-        Self(SfmConfig::default())
+        let config = SfmConfig::default();
+        Self {
+            essential: RansacParams::assume_checked(config.essential),
+            pnp: RansacParams::assume_checked(config.pnp),
+            config,
+        }
     }
 }
 
@@ -110,7 +135,10 @@ mod tests {
             SfmConfig::<f64>::default().check(),
             Ok(SfmParams::default())
         );
-        assert!(SfmConfig::<f32>::default().check().is_ok());
+        assert_eq!(
+            SfmConfig::<f32>::default().check(),
+            Ok(SfmParams::default())
+        );
         fn with(f: impl Fn(&mut SfmConfig<f64>)) -> Result<SfmParams<f64>> {
             let mut c = SfmConfig::default();
             f(&mut c);

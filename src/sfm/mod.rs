@@ -179,7 +179,7 @@ pub fn reconstruct_three_views<T: Real, const N: usize>(
         ws.b.get(..m).ok_or(Error::LengthMismatch)?,
         ws.mask.get_mut(..m).ok_or(Error::LengthMismatch)?,
     );
-    let (e, _) = find_essential(&k, &k, a, b, &config.essential, mask)?;
+    let (e, _) = find_essential(&k, &k, a, b, params.essential(), mask)?;
     let rel = recover_pose(&e, &k, &k, a, b, config.max_depth, mask)?;
     let p1 = Pose::identity();
     let p2 = Pose::from_isometry(*rel.pose.isometry());
@@ -222,7 +222,7 @@ pub fn reconstruct_three_views<T: Real, const N: usize>(
         ws.b.get_mut(..m).ok_or(Error::LengthMismatch)?,
         ws.mask.get_mut(..m).ok_or(Error::LengthMismatch)?,
     );
-    let (est, report) = solve_pnp_ransac(camera, world, pixels, scratch, &config.pnp, mask)?;
+    let (est, report) = solve_pnp_ransac(camera, world, pixels, scratch, params.pnp(), mask)?;
     let p3 = est.pose;
     for idx in inliers(&ws.index, &ws.mask, m) {
         if let Some(used) = ws.used.get_mut(idx) {

@@ -7,7 +7,7 @@ use super::fundamental::solve as eight_point_iter;
 use super::refine::refine_essential_iter;
 use super::{Essential, Fundamental, oriented_consistent};
 use crate::camera::Intrinsics;
-use crate::ransac::{Estimator, RansacConfig, RansacReport, Scoring, ransac};
+use crate::ransac::{Estimator, RansacParams, RansacReport, Scoring, ransac};
 use crate::scalar::Real;
 use crate::{Error, Result};
 
@@ -179,7 +179,7 @@ impl<T: Real> Estimator for EssentialEstimator<'_, T> {
 /// `findEssentialMat(x1, x2, K, RANSAC)` counterpart, here with distinct `K₁`, `K₂`), writing
 /// the inlier mask. Pass undistorted pixels.
 ///
-/// 5-point samples scored on the Sampson distance in pixels (`config.threshold`; OpenCV's
+/// 5-point samples scored on the Sampson distance in pixels (the threshold of `params`; OpenCV's
 /// default for `E` is 1 px) and ranked by [`Scoring::Adaptive`] (MSAC while the noise is well
 /// inside the threshold, else inlier count; [`EssentialEstimator`] with [`ransac`] for another
 /// ranking), 8-point local optimisation, Sampson LM polish ([`super::refine_essential`]).
@@ -191,9 +191,9 @@ pub fn find_essential<T: Real>(
     k2: &Intrinsics<T>,
     x1: &[Point2<T>],
     x2: &[Point2<T>],
-    config: &RansacConfig<T>,
+    params: &RansacParams<T>,
     inliers: &mut [bool],
 ) -> Result<(Essential<T>, RansacReport<T>)> {
     let est = EssentialEstimator::new(k1, k2, x1, x2)?;
-    ransac(&est, config, inliers).map(|(m, r)| (m.essential, r))
+    ransac(&est, params, inliers).map(|(m, r)| (m.essential, r))
 }

@@ -8,7 +8,7 @@ use super::poly::real_roots;
 use super::refine::refine_fundamental_iter;
 use crate::homography::{Normalization, rank_tolerance};
 use crate::linalg::{StreamingQr, null_space};
-use crate::ransac::{Estimator, RansacConfig, RansacReport, ransac};
+use crate::ransac::{Estimator, RansacParams, RansacReport, ransac};
 use crate::scalar::{Real, check_finite};
 use crate::{Error, Result};
 
@@ -266,16 +266,16 @@ impl<T: Real> Estimator for FundamentalEstimator<'_, T> {
 /// Robust `F` from correspondences with outliers (OpenCV's
 /// `findFundamentalMat(x1, x2, FM_RANSAC)` counterpart), writing the inlier mask.
 ///
-/// 7-point samples, MSAC on the Sampson distance in pixels (`config.threshold`), 8-point
+/// 7-point samples, MSAC on the Sampson distance in pixels (the threshold of `params`), 8-point
 /// local optimisation, Sampson Levenberg-Marquardt polish ([`super::refine_fundamental`]),
 /// on the generic [`ransac`] loop. Errors: see [`ransac`].
 #[doc(alias = "findFundamentalMat")]
 pub fn find_fundamental<T: Real>(
     x1: &[Point2<T>],
     x2: &[Point2<T>],
-    config: &RansacConfig<T>,
+    params: &RansacParams<T>,
     inliers: &mut [bool],
 ) -> Result<(Fundamental<T>, RansacReport<T>)> {
     let est = FundamentalEstimator::new(x1, x2)?;
-    ransac(&est, config, inliers)
+    ransac(&est, params, inliers)
 }

@@ -27,7 +27,7 @@
 //! ```
 //! use camgeom::camera::Intrinsics;
 //! use camgeom::nalgebra::{Point2, Point3, Vector2, Vector3};
-//! use camgeom::ransac::RansacConfig;
+//! use camgeom::ransac::RansacParams;
 //! use camgeom::twoview::{RelativePose, find_essential, recover_pose};
 //!
 //! let k = Intrinsics::new(500.0f64, 500.0, 320.0, 240.0)?;
@@ -45,7 +45,7 @@
 //!     *q += Vector2::new(25.0, -18.0); // every fifth match is wrong
 //! }
 //! let mut inliers = [false; 40];
-//! let (e, _) = find_essential(&k, &k, &x1, &x2, &RansacConfig::default(), &mut inliers)?;
+//! let (e, _) = find_essential(&k, &k, &x1, &x2, &RansacParams::default(), &mut inliers)?;
 //! assert!(inliers.iter().enumerate().all(|(i, &ok)| ok == (i % 5 != 0)));
 //! let r = recover_pose(&e, &k, &k, &x1, &x2, 50.0, &mut inliers)?;
 //! assert_eq!(r.supporting, 32);

@@ -64,7 +64,9 @@ fn solve<T: camgeom::Real>(
         threshold: T::lit(1.0),
         confidence: T::lit(0.999),
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .unwrap();
     let mut mask = vec![false; a.len()];
     let (e, rep) = find_essential(&k, &k, &a, &b, &cfg, &mut mask).unwrap();
     let rp = recover_pose(&e, &k, &k, &a, &b, T::lit(50.0), &mut mask).unwrap();

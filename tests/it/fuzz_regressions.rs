@@ -322,14 +322,16 @@ fn a_ransac_threshold_whose_square_overflows_is_a_parameter_error() {
         ..RansacConfig::default()
     };
     assert_eq!(
-        solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &cfg, &mut mask).unwrap_err(),
+        cfg.check().unwrap_err(),
         Error::InvalidParameter("ransac.threshold")
     );
     // The largest threshold allowed, pixels far away: whatever comes back is finite.
     let cfg = RansacConfig {
         threshold: 1.8e19f32,
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .unwrap();
     if let Ok((est, _)) = solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &cfg, &mut mask) {
         assert!(est.rms_px.is_finite(), "{est:?}");
     }

@@ -3,7 +3,7 @@
 
 use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2};
-use camgeom::ransac::RansacConfig;
+use camgeom::ransac::RansacParams;
 
 use crate::fixtures::homography_dlt as fixture;
 
@@ -29,7 +29,7 @@ fn same_inliers_as_opencv() {
     let src: Vec<Point2<f64>> = c.src.iter().map(|p| Point2::new(p[0], p[1])).collect();
     let dst: Vec<Point2<f64>> = c.dst.iter().map(|p| Point2::new(p[0], p[1])).collect();
     let mut mask = vec![false; src.len()];
-    let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut mask).unwrap();
+    let (h, report) = find_homography(&src, &dst, &RansacParams::default(), &mut mask).unwrap();
     let differ = mask
         .iter()
         .zip(c.opencv_inliers.iter())
@@ -58,7 +58,7 @@ fn same_inliers_as_opencv() {
     let s32: Vec<Point2<f32>> = src.iter().map(|p| p.cast()).collect();
     let d32: Vec<Point2<f32>> = dst.iter().map(|p| p.cast()).collect();
     let mut mask32 = vec![false; src.len()];
-    let (h32, _) = find_homography(&s32, &d32, &RansacConfig::default(), &mut mask32).unwrap();
+    let (h32, _) = find_homography(&s32, &d32, &RansacParams::default(), &mut mask32).unwrap();
     assert_eq!(mask32, mask);
     let h32 = Homography::from_matrix(&h32.matrix().cast::<f64>()).unwrap();
     assert!(grid_gap(&h32, h.matrix()) < 0.01);

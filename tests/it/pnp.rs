@@ -48,7 +48,9 @@ fn accuracy_against_opencv() {
         let cfg = RansacConfig {
             threshold: c.ransac_threshold,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (robust, report) =
             solve_pnp_ransac(&cam, &world, &px, &mut scratch, &cfg, &mut mask).unwrap();
         let ours_r = errors(&robust.pose, &truth);
@@ -186,7 +188,9 @@ fn synthetic_sweep() {
                 let cfg = RansacConfig {
                     threshold: f64::max(3.0, 3.0 * noise),
                     ..RansacConfig::default()
-                };
+                }
+                .check()
+                .unwrap();
                 solve_pnp_ransac(&cam, &world, &px, &mut scratch, &cfg, &mut mask)
                     .unwrap()
                     .0

@@ -279,7 +279,7 @@ proptest! {
             prop_assert!(h.matrix().iter().all(|v| v.is_finite()));
         }
         let mut mask = vec![false; src.len()];
-        let cfg = RansacConfig { max_iterations: 50, ..RansacConfig::default() };
+        let cfg = RansacConfig { max_iterations: 50, ..RansacConfig::default() }.check().unwrap();
         if let Ok((h, _)) = find_homography(&src, &dst, &cfg, &mut mask) {
             prop_assert!(h.matrix().iter().all(|v| v.is_finite()));
         }

@@ -90,7 +90,9 @@ fn essential_and_pose_under_noise_and_outliers() {
             threshold: (2.0 * noise).max(1.0),
             confidence: 0.999,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (e, rep) = find_essential(&s.k, &s.k, &s.x1, &s.x2, &cfg, &mut mask).unwrap();
         let sv = e.matrix().singular_values();
         assert!((sv.max() - 1.0).abs() < 1e-9 && sv.min() < 1e-9);
@@ -154,7 +156,9 @@ fn fundamental_checks_and_f32() {
             threshold: (2.0 * noise).max(1.0),
             confidence: 0.999,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (f, rep64) = find_fundamental(&s.x1, &s.x2, &cfg, &mut mask).unwrap();
         // OpenCV's checks: det F = 0 and the epipolar residual of the clean points.
         assert!(f.matrix().determinant().abs() < 1e-12);
@@ -176,10 +180,12 @@ fn fundamental_checks_and_f32() {
         let b32: Vec<Point2<f32>> = s.x2.iter().map(|p| p.cast()).collect();
         let mut m32 = vec![false; a32.len()];
         let cfg32 = RansacConfig::<f32> {
-            threshold: cfg.threshold as f32,
+            threshold: cfg.config().threshold as f32,
             confidence: 0.999,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (f32m, rep32) = find_fundamental(&a32, &b32, &cfg32, &mut m32).unwrap();
         let f64m = f32m.matrix().cast::<f64>();
         let rms = |f: &camgeom::nalgebra::Matrix3<f64>| {
@@ -225,7 +231,9 @@ fn fundamental_f32_ransac_matches_f64_under_outliers() {
             threshold,
             confidence: 0.999,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let mut mask = vec![false; s.x1.len()];
         let (f, rep64) = find_fundamental(&s.x1, &s.x2, &cfg, &mut mask).unwrap();
         let a32: Vec<Point2<f32>> = s.x1.iter().map(|p| p.cast()).collect();
@@ -234,7 +242,9 @@ fn fundamental_f32_ransac_matches_f64_under_outliers() {
             threshold: threshold as f32,
             confidence: 0.999,
             ..Default::default()
-        };
+        }
+        .check()
+        .unwrap();
         let mut m32 = vec![false; a32.len()];
         let (f32m, rep32) = find_fundamental(&a32, &b32, &cfg32, &mut m32).unwrap();
         let cost = |m: &camgeom::nalgebra::Matrix3<f64>| -> f64 {
@@ -270,7 +280,9 @@ fn essential_f32_matches_f64() {
         threshold: 1.0,
         confidence: 0.999,
         ..Default::default()
-    };
+    }
+    .check()
+    .unwrap();
     let (e, _) = find_essential(&k32, &k32, &a32, &b32, &cfg, &mut m).unwrap();
     let rp = recover_pose(&e, &k32, &k32, &a32, &b32, 50.0, &mut m).unwrap();
     let pose64 = RelativePose::<f64>::from_rodrigues(

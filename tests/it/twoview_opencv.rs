@@ -147,7 +147,9 @@ fn fundamental_ransac_is_no_worse_than_opencv() {
             threshold: 1.0,
             confidence: 0.999,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (f, report) = find_fundamental(&x1, &x2, &cfg, &mut mask).unwrap();
         let (ours, cv) = (
             geometry_error(f.matrix()),
@@ -208,7 +210,9 @@ fn essential_ransac_and_pose_are_no_worse_than_opencv() {
             threshold: 1.0,
             confidence: 0.999,
             ..RansacConfig::default()
-        };
+        }
+        .check()
+        .unwrap();
         let (e, _) = find_essential(&k, &k, &x1, &x2, &cfg, &mut mask).unwrap();
         // Essential manifold: singular values (1, 1, 0).
         let sv = e.matrix().singular_values();

@@ -26,7 +26,7 @@ use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::pyramid::Pyramid;
-use camgeom::ransac::RansacConfig;
+use camgeom::ransac::{RansacConfig, RansacParams};
 use camgeom::transform::Pose;
 use cortex_m_rt::entry;
 
@@ -91,8 +91,12 @@ fn points3<T: Real, const M: usize>() -> [Point3<T>; M] {
     black_box([pt3(0.1, 0.2, 1.0); M])
 }
 
-fn ransac_config<T: Real>() -> RansacConfig<T> {
+/// RANSAC parameters checked from an opaque configuration (the default ones if it fails), so
+/// the check is linked too.
+fn ransac_params<T: Real>() -> RansacParams<T> {
     black_box(RansacConfig::default())
+        .check()
+        .unwrap_or_default()
 }
 
 /// A `W`x`H` frame over `buf`, the geometry opaque.
@@ -250,7 +254,9 @@ fn run_corners() {
     let mut candidates = black_box([Corner::default(); 64]);
     let mut scratch = black_box([0u32; 6 * W]);
     let existing = black_box([[3i32, 4]; 4]);
-    let cfg = black_box(CornerConfig::default());
+    let cfg = black_box(CornerConfig::default())
+        .check()
+        .unwrap_or_default();
     let mut out: Vec<Corner, 32> = Vec::new();
     black_box(
         good_features(
@@ -392,7 +398,7 @@ fn run_homography<T: Real>() {
     let src = points2::<T, N>();
     let dst = points2::<T, N>();
     let mut mask = black_box([false; N]);
-    let cfg = ransac_config::<T>();
+    let cfg = ransac_params::<T>();
     black_box(find_homography(&src, &dst, &cfg, &mut mask).ok());
     let s4 = points2::<T, 4>();
     let d4 = points2::<T, 4>();
@@ -425,7 +431,7 @@ fn run_pose<T: Real>() {
     let bearings = black_box([Vector3::new(lit::<T>(0.1), lit(0.2), lit(1.0)); 3]);
     black_box(p3p(&bearings, &points3::<T, 3>()).ok());
     black_box(solve_pnp(&cam, &world, &pixels, &mut scratch).ok());
-    let rc = ransac_config::<T>();
+    let rc = ransac_params::<T>();
     black_box(solve_pnp_ransac(&cam, &world, &pixels, &mut scratch, &rc, &mut mask).ok());
     if let Some(p) = pose::<T>() {
         black_box(refine_pose(&cam, &p, &world, &pixels, black_box(10)).ok());
@@ -605,7 +611,7 @@ fn run_twoview<T: Real>() {
     let x1 = points2::<T, N>();
     let x2 = points2::<T, N>();
     let mut mask = black_box([false; N]);
-    let cfg = ransac_config::<T>();
+    let cfg = ransac_params::<T>();
     black_box(eight_point(&x1, &x2).ok());
     black_box(seven_point(&points2::<T, 7>(), &points2::<T, 7>()).ok());
     black_box(five_point(&points2::<T, 5>(), &points2::<T, 5>()).ok());

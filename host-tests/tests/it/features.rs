@@ -11,7 +11,7 @@ use camgeom::features::orb::{self, Feature, OrbConfig};
 use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::homography::{Homography, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2};
-use camgeom::ransac::RansacConfig;
+use camgeom::ransac::RansacParams;
 use camgeom_host::images::{GrayImage, load_gray};
 
 const CAP: usize = 500;
@@ -193,7 +193,7 @@ fn graf_homography_from_features_and_ransac() {
         .map(|m| point(&f3[usize::from(m.train)]))
         .collect();
     let mut mask = vec![false; ms.len()];
-    let (h_est, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut mask).unwrap();
+    let (h_est, report) = find_homography(&src, &dst, &RansacParams::default(), &mut mask).unwrap();
     let h_true = h1to3();
     let truth = Homography::from_matrix(&h_true).unwrap();
     let (w, hgt) = (g1.width as f64, g1.height as f64);
@@ -245,7 +245,7 @@ fn box_found_in_scene() {
         .map(|m| point(&fb[usize::from(m.train)]))
         .collect();
     let mut mask = vec![false; ms.len()];
-    let (h, report) = find_homography(&src, &dst, &RansacConfig::default(), &mut mask).unwrap();
+    let (h, report) = find_homography(&src, &dst, &RansacParams::default(), &mut mask).unwrap();
     let (w, hh) = ((bx.width - 1) as f64, (bx.height - 1) as f64);
     let corners = [(0.0, 0.0), (w, 0.0), (w, hh), (0.0, hh)];
     let fig = &figures()["box_in_scene"];

@@ -64,7 +64,7 @@
 use camgeom::Real;
 use camgeom::homography::{Homography, check_sample, dlt, find_homography};
 use camgeom::nalgebra::{Matrix3, Point2, Rotation3, Vector3};
-use camgeom::ransac::RansacConfig;
+use camgeom::ransac::{RansacConfig, RansacParams};
 use camgeom::rng::Pcg32;
 
 const SIZES: [usize; 6] = [4, 8, 20, 50, 100, 300];
@@ -331,7 +331,7 @@ fn run<T: Real>(seed: u64, n: usize, frac: f64, sigma: f64, strict2: bool, stats
         let e = Homography::from_four_points(&s4, &d4);
         assert_eq!(e, Err(camgeom::Error::Degenerate), "{what}");
         let mut mask = [true; 4];
-        let r = find_homography(&s4, &d4, &RansacConfig::<T>::default(), &mut mask);
+        let r = find_homography(&s4, &d4, &RansacParams::<T>::default(), &mut mask);
         assert_eq!(r.err(), Some(camgeom::Error::Degenerate), "{what}");
         stats.folded += 1;
         return;
@@ -374,7 +374,9 @@ fn run<T: Real>(seed: u64, n: usize, frac: f64, sigma: f64, strict2: bool, stats
     let config = RansacConfig::<T> {
         threshold: T::lit(THRESHOLD),
         ..RansacConfig::default()
-    };
+    }
+    .check()
+    .unwrap();
     let mut mask = vec![false; n];
     let (h, report) = find_homography(&src_t, &dst_t, &config, &mut mask)
         .unwrap_or_else(|e| panic!("{what}: find_homography: {e:?}"));

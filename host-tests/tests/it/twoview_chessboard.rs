@@ -104,7 +104,9 @@ fn run_pair(camera: &Camera<f64>, a: usize, b: usize) -> PairResult {
         threshold: 1.0,
         confidence: 0.999,
         ..Default::default()
-    };
+    }
+    .check()
+    .unwrap();
     let mut mask = vec![false; x1.len()];
     let (e, _) = find_essential(&k, &k, &x1, &x2, &cfg, &mut mask).unwrap();
     let rp = recover_pose(&e, &k, &k, &x1, &x2, 50.0, &mut mask).unwrap();

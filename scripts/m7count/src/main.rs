@@ -74,11 +74,17 @@ fn main() -> ! {
     );
     let x1: [Point2<f32>; 200] = core::array::from_fn(|i| px(&data::RANSAC[i], 0));
     let x2: [Point2<f32>; 200] = core::array::from_fn(|i| px(&data::RANSAC[i], 2));
-    let cfg = RansacConfig::<f32> {
+    let checked = RansacConfig::<f32> {
         threshold: 1.0,
         confidence: 0.999,
         seed: 0x5eed_ca4e_0000_0001,
         ..RansacConfig::default()
+    }
+    .check();
+    let Ok(cfg) = checked else {
+        hprintln!("RansacConfig::check failed");
+        debug::exit(debug::EXIT_FAILURE);
+        loop {}
     };
     let mut mask = [false; 200];
     let mut report = (0, 0);

@@ -80,12 +80,19 @@ fn correspondences<const N: usize>(g: &mut Pcg32) -> ([Point2<f32>; N], [Point2<
 
 /// Exactly [`RANSAC_ITERATIONS`] samples: the cap, and confidence 1, which never stops early.
 #[cfg(not(feature = "size-baseline"))]
-fn ransac_config() -> camgeom::ransac::RansacConfig<f32> {
-    camgeom::ransac::RansacConfig {
+fn ransac_params() -> camgeom::ransac::RansacParams<f32> {
+    let config = camgeom::ransac::RansacConfig {
         threshold: 3.0,
         confidence: 1.0,
         max_iterations: RANSAC_ITERATIONS,
         ..camgeom::ransac::RansacConfig::default()
+    };
+    match black_box(config).check() {
+        Ok(p) => p,
+        Err(e) => {
+            defmt::error!("ransac config: {}", e);
+            board::exit_failure()
+        }
     }
 }
 
@@ -170,7 +177,7 @@ fn main() -> ! {
         }
 
         // ---- RANSAC, exactly RANSAC_ITERATIONS samples ----
-        let config = black_box(ransac_config());
+        let config = black_box(ransac_params());
         let mut mask = [false; RANSAC_N];
         let (result, ransac_cost) = measure(|| find_homography(&r_src, &r_dst, &config, &mut mask));
         costs.record("ransac_100_500it", ransac_cost, RANSAC_ITERATIONS);

@@ -201,6 +201,10 @@ fn main() -> ! {
         ..RansacConfig::default()
     };
     let (fcfg, ecfg) = black_box((exact(F_ITERATIONS), exact(E_ITERATIONS)));
+    let (fcfg, ecfg) = match (fcfg.check(), ecfg.check()) {
+        (Ok(f), Ok(e)) => (f, e),
+        (Err(e), _) | (_, Err(e)) => fail("RansacConfig::check", e),
+    };
     let mut mask = [false; RANSAC_N];
     let (fr, f_cost) = measure(|| find_fundamental(&ra, &rb, &fcfg, &mut mask));
     costs.record("f_ransac_100", f_cost, F_ITERATIONS);
@@ -238,11 +242,16 @@ fn main() -> ! {
         *q = Point2::new(g.uniform(0.0, 640.0), g.uniform(0.0, 480.0)).cast();
     }
     let (ea, eb) = black_box((ea, eb));
-    let acfg = black_box(RansacConfig::<f32> {
+    let acfg = match black_box(RansacConfig::<f32> {
         threshold: 1.0,
         confidence: 0.999,
         ..RansacConfig::default()
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
     let mut amask = [false; E_ADAPTIVE_N];
     let (ar, a_cost) = measure(|| find_essential(&k, &k, &ea, &eb, &acfg, &mut amask));
     match ar {

@@ -307,11 +307,16 @@ fn main() -> ! {
     let cand = CANDIDATE_BUF.take();
     let cscr = CORNER_SCRATCH.take();
     let out = CORNERS_OUT.take();
-    let ccfg = black_box(CornerConfig {
+    let ccfg = match black_box(CornerConfig {
         quality: 0.01,
         min_distance: 8,
         max_corners: N_TRACK,
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("CornerConfig::check", e),
+    };
     let (n, s) = measure(|| {
         good_features(
             &va,
@@ -401,12 +406,17 @@ fn main() -> ! {
             Point2::new(g.uniform(0.0, 320.0) as f32, g.uniform(0.0, 240.0) as f32)
         };
     }
-    let rcfg = black_box(RansacConfig {
+    let rcfg = match black_box(RansacConfig {
         threshold: 2.0f32,
         confidence: 1.0,
         max_iterations: RANSAC_ITERATIONS,
         ..RansacConfig::default()
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
     let (r, s) = measure(|| find_homography(&src[..], &dst[..], &rcfg, &mut mask[..]));
     row("find_homography 200 points, 500 samples", s, &mut rows);
     if let Err(e) = r {
@@ -575,17 +585,26 @@ fn main() -> ! {
         max_iterations: RANSAC_ITERATIONS,
         ..RansacConfig::default()
     });
-    let (r, s) = measure(|| find_fundamental(&xa[..], &xb[..], &fcfg, &mut tmask[..]));
+    let fparams = match fcfg.check() {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
+    let (r, s) = measure(|| find_fundamental(&xa[..], &xb[..], &fparams, &mut tmask[..]));
     row("find_fundamental 100 pairs, 500 samples", s, &mut rows);
     if let Err(e) = r {
         fail("find_fundamental", e)
     }
     // E samples cost ~15M instructions each (f64 5-point in software): the depth does not
     // depend on the count.
-    let ecfg = black_box(RansacConfig {
+    let ecfg = match black_box(RansacConfig {
         max_iterations: E_RANSAC_ITERATIONS,
         ..fcfg
-    });
+    })
+    .check()
+    {
+        Ok(p) => p,
+        Err(e) => fail("RansacConfig::check", e),
+    };
     let (r, s) = measure(|| find_essential(&kp, &kp, &xa[..], &xb[..], &ecfg, &mut tmask[..]));
     row("find_essential 100 pairs, 20 samples", s, &mut rows);
     let e = match r {
