@@ -132,8 +132,8 @@ impl CornerParams {
     }
 
     /// `config` taken as checked without checking it: only for a holder that checked it when
-    /// it was built and keeps the plain [`CornerConfig`] (the KLT tracker, whose size
-    /// [`pipeline_ram`](crate::klt::pipeline_ram) counts).
+    /// it was built and keeps the plain [`CornerConfig`] (the KLT tracker, whose size the
+    /// board's frame loop counts in its static RAM).
     pub(crate) const fn assume_checked(config: CornerConfig) -> Self {
         Self(config)
     }
