@@ -7,7 +7,7 @@
 //!
 //! ```
 //! use camgeom::camera::{Camera, Intrinsics};
-//! use camgeom::draw::{WireframeConfig, cube, draw_line_i32, draw_wireframe};
+//! use camgeom::draw::{WireframeParams, cube, draw_line_i32, draw_wireframe};
 //! use camgeom::image::ImageMut;
 //! use camgeom::nalgebra::Vector3;
 //! use camgeom::transform::Pose;
@@ -22,7 +22,7 @@
 //! let camera = Camera::pinhole(Intrinsics::new(100.0f32, 100.0, 32.0, 32.0)?);
 //! let pose = Pose::from_rodrigues(Vector3::zeros(), Vector3::new(0.0, 0.0, 5.0))?;
 //! let (vertices, edges) = cube(-0.5, -0.5, 1.0);
-//! draw_wireframe(&mut img, &camera, &pose, &vertices, &edges, &WireframeConfig::default())?;
+//! draw_wireframe(&mut img, &camera, &pose, &vertices, &edges, &WireframeParams::default())?;
 //! let on = |x: usize, y: usize| frame[y * 64 + x] == 255;
 //! assert!(on(22, 22) && on(42, 22) && on(42, 42) && on(32, 22) && on(20, 32));
 //! assert!(!on(32, 32) && !on(25, 32)); // inside the base, off every edge
@@ -228,11 +228,13 @@ fn draw_line_f64<T: Real>(
     draw_line_i32(img, r(p.0), r(p.1), r(q.0), r(q.1), value)
 }
 
-/// Options of [`draw_wireframe`].
+/// Options of [`draw_wireframe`], as the user writes them; checked by [`Self::check`] into the
+/// [`WireframeParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct WireframeConfig<T: Real = f32> {
-    /// Near clipping plane (camera `Z`, world units): edge parts closer are not drawn.
+    /// Near clipping plane (camera `Z`, world units), finite and `> 0`: edge parts closer are
+    /// not drawn.
     pub near: T,
     /// Segments per edge (1..=64): more follow the lens distortion's curvature better.
     pub segments: u8,
@@ -250,11 +252,54 @@ impl<T: Real> Default for WireframeConfig<T> {
     }
 }
 
+impl<T: Real> WireframeConfig<T> {
+    /// Checks the ranges documented on each field once: [`draw_wireframe`] takes the checked
+    /// [`WireframeParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field (`wireframe.near`,
+    /// `wireframe.segments`).
+    pub fn check(&self) -> Result<WireframeParams<T>> {
+        if !(self.near.finite() && self.near > T::zero()) {
+            return Err(Error::InvalidParameter("wireframe.near"));
+        }
+        if !(1..=64).contains(&self.segments) {
+            return Err(Error::InvalidParameter("wireframe.segments"));
+        }
+        Ok(WireframeParams(*self))
+    }
+}
+
+/// A [`WireframeConfig`] that passed [`WireframeConfig::check`]: a finite near plane `> 0` and
+/// `1..=64` segments an edge. What [`draw_wireframe`] takes, so that no call checks it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WireframeParams<T: Real = f32>(WireframeConfig<T>);
+
+impl<T: Real> WireframeParams<T> {
+    /// The checked configuration.
+    pub const fn config(&self) -> &WireframeConfig<T> {
+        &self.0
+    }
+}
+
+impl<T: Real> Default for WireframeParams<T> {
+    /// The checked [`WireframeConfig::default`].
+    fn default() -> Self {
+        Self(WireframeConfig::default())
+    }
+}
+
+impl<T: Real> TryFrom<WireframeConfig<T>> for WireframeParams<T> {
+    type Error = Error;
+    fn try_from(c: WireframeConfig<T>) -> Result<Self> {
+        c.check()
+    }
+}
+
 /// Projects the `edges` (index pairs into `vertices`, world frame) through `camera` at `pose`
 /// and draws them. Returns the number of pixels written.
 ///
-/// Errors: [`Error::InvalidParameter`] for an edge index out of range or `segments` outside
-/// `1..=64`; [`Error::NonFinite`].
+/// Errors: [`Error::InvalidParameter`] for an edge index out of range; [`Error::NonFinite`].
 #[doc(alias = "projectPoints")]
 #[doc(alias = "drawFrameAxes")]
 pub fn draw_wireframe<T: Real>(
@@ -263,11 +308,9 @@ pub fn draw_wireframe<T: Real>(
     pose: &Pose<T>,
     vertices: &[Point3<T>],
     edges: &[(u8, u8)],
-    cfg: &WireframeConfig<T>,
+    params: &WireframeParams<T>,
 ) -> Result<usize> {
-    if !(1..=64).contains(&cfg.segments) {
-        return Err(Error::InvalidParameter("segments"));
-    }
+    let cfg = params.config();
     let mut written = 0usize;
     for &(i, j) in edges {
         let a = vertices
@@ -469,7 +512,7 @@ mod tests {
             Pose::from_rodrigues(Vector3::new(0.3, 0.2, 0.0), Vector3::new(0.0, 0.0, 0.5)).unwrap();
         let mut buf = [0u8; 320 * 240];
         let mut img = ImageMut::packed(&mut buf, 320, 240).unwrap();
-        let n = draw_wireframe(&mut img, &cam, &pose, &v, &e, &WireframeConfig::default()).unwrap();
+        let n = draw_wireframe(&mut img, &cam, &pose, &v, &e, &WireframeParams::default()).unwrap();
         assert!(n > 200, "{n}");
         // Every projected vertex is lit.
         for p in &v {
@@ -482,7 +525,7 @@ mod tests {
         }
         // Camera inside the cube: parts behind are clipped, nothing panics or overflows.
         let inside = Pose::from_rodrigues(Vector3::zeros(), Vector3::new(0.0, 0.0, 0.01)).unwrap();
-        draw_wireframe(&mut img, &cam, &inside, &v, &e, &WireframeConfig::default()).unwrap();
+        draw_wireframe(&mut img, &cam, &inside, &v, &e, &WireframeParams::default()).unwrap();
         // Bad edges and segment counts are errors.
         assert_eq!(
             draw_wireframe(
@@ -491,17 +534,49 @@ mod tests {
                 &pose,
                 &v,
                 &[(0, 8)],
-                &WireframeConfig::default()
+                &WireframeParams::default()
             ),
             Err(Error::InvalidParameter("edges"))
         );
-        let bad = WireframeConfig {
-            segments: 0,
-            ..WireframeConfig::default()
-        };
-        assert_eq!(
-            draw_wireframe(&mut img, &cam, &pose, &v, &e, &bad),
-            Err(Error::InvalidParameter("segments"))
-        );
+        let config = WireframeConfig::<f32>::default();
+        for (bad, field) in [
+            (
+                WireframeConfig {
+                    segments: 0,
+                    ..config
+                },
+                "wireframe.segments",
+            ),
+            (
+                WireframeConfig {
+                    segments: 65,
+                    ..config
+                },
+                "wireframe.segments",
+            ),
+            (
+                WireframeConfig {
+                    near: 0.0,
+                    ..config
+                },
+                "wireframe.near",
+            ),
+            (
+                WireframeConfig {
+                    near: f32::NAN,
+                    ..config
+                },
+                "wireframe.near",
+            ),
+            (
+                WireframeConfig {
+                    near: f32::INFINITY,
+                    ..config
+                },
+                "wireframe.near",
+            ),
+        ] {
+            assert_eq!(bad.check(), Err(Error::InvalidParameter(field)));
+        }
     }
 }

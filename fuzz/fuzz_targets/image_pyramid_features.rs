@@ -221,7 +221,9 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
     let mut fscratch =
         std::vec![0u8; grow(camgeom::features::fast::scratch_len(w), inp.fast_slack)];
     let mut corners = std::vec::Vec::new();
-    if fast_detect(view, &fcfg, &mut fscratch[..], |c| corners.push(c)).is_ok() {
+    if let Ok(fparams) = fcfg.check()
+        && fast_detect(view, &fparams, &mut fscratch[..], |c| corners.push(c)).is_ok()
+    {
         let b = usize::from(inp.fast_border).max(3);
         for c in &corners {
             let (x, y) = (usize::from(c.x), usize::from(c.y));
@@ -263,7 +265,9 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
     let need = camgeom::features::orb::scratch_len(w, h, inp.orb_scale_q8.max(1));
     let mut oscratch = std::vec![0u8; grow(need.min(1 << 18), inp.orb_slack)];
     let mut features: Vec<Feature, 32> = Vec::new();
-    if orb_detect(view, &ocfg, &mut oscratch[..], &mut features).is_ok() {
+    if let Ok(oparams) = ocfg.check()
+        && orb_detect(view, &oparams, &mut oscratch[..], &mut features).is_ok()
+    {
         assert!(
             features.len() <= usize::from(inp.orb_max),
             "ORB over max_features"
@@ -295,7 +299,9 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
     );
     let mut mscratch = std::vec![0u32; mlen];
     let mut out = std::vec![Match::default(); grow(query.len(), inp.match_slack)];
-    if let Ok(n) = match_descriptors(&query, &train, &mcfg, &mut mscratch[..], &mut out[..]) {
+    if let Ok(mparams) = mcfg.check()
+        && let Ok(n) = match_descriptors(&query, &train, &mparams, &mut mscratch[..], &mut out[..])
+    {
         assert!(n <= query.len(), "more matches than queries");
         for m in &out[..n] {
             let (q, t) = (usize::from(m.query), usize::from(m.train));

@@ -8,8 +8,8 @@
 use std::hint::black_box;
 
 use camgeom::arith::{Arithmetic, Fixed};
-use camgeom::features::orb::{self, Feature, OrbConfig};
-use camgeom::features::{Descriptor, Match, MatchConfig, fast, match_descriptors, matching};
+use camgeom::features::orb::{self, Feature, OrbParams};
+use camgeom::features::{Descriptor, Match, MatchParams, fast, match_descriptors, matching};
 use camgeom::heapless::Vec as HVec;
 use camgeom::warp::{WarpConfig, warp_into_quad};
 use camgeom_host::bench::Answers;
@@ -27,7 +27,7 @@ fn bench_features(c: &mut Criterion) {
     let mut fscratch = vec![0u8; fast::scratch_len(img.width)];
     let mut answers = Answers::new(env!("CARGO_TARGET_TMPDIR"), "features");
     let mut found = Vec::new();
-    fast::fast_detect(&view, &fast::FastConfig::default(), &mut fscratch, |c| {
+    fast::fast_detect(&view, &fast::FastParams::default(), &mut fscratch, |c| {
         found.push([c.x, c.y])
     })
     .unwrap();
@@ -35,22 +35,23 @@ fn bench_features(c: &mut Criterion) {
     c.bench_function("fast_t20_nonmax_graf1_800x640", |b| {
         b.iter(|| {
             let mut n = 0usize;
-            fast::fast_detect(&view, &fast::FastConfig::default(), &mut fscratch, |_| {
+            fast::fast_detect(&view, &fast::FastParams::default(), &mut fscratch, |_| {
                 n += 1
             })
             .unwrap();
             black_box(n)
         })
     });
-    let config = OrbConfig::default();
-    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let params = OrbParams::default();
+    let scale_q8 = params.config().scale_q8;
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, scale_q8)];
     let mut out: Box<HVec<Feature, 500>> = Box::default();
-    orb::orb_detect(&view, &config, &mut scratch, &mut out).unwrap();
+    orb::orb_detect(&view, &params, &mut scratch, &mut out).unwrap();
     let keypoints: Vec<[f32; 2]> = out.iter().map(|f| [f.keypoint.x, f.keypoint.y]).collect();
     answers.record("orb/graf1", json!({ "keypoints": keypoints }));
     c.bench_function("orb_500_graf1_800x640", |b| {
         b.iter(|| {
-            orb::orb_detect(&view, &config, &mut scratch, &mut out).unwrap();
+            orb::orb_detect(&view, &params, &mut scratch, &mut out).unwrap();
             black_box(out.len())
         })
     });
@@ -67,7 +68,7 @@ fn bench_features(c: &mut Criterion) {
     c.bench_function("match_500x500_crosscheck", |b| {
         b.iter(|| {
             black_box(
-                match_descriptors(&a, &t, &MatchConfig::default(), &mut mscratch, &mut ms).unwrap(),
+                match_descriptors(&a, &t, &MatchParams::default(), &mut mscratch, &mut ms).unwrap(),
             )
         })
     });

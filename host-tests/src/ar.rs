@@ -3,7 +3,7 @@
 //! (for `camgeom ar` and the sequence tests).
 
 use camgeom::camera::Camera;
-use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
+use camgeom::draw::{WireframeParams, cube, draw_line, draw_wireframe};
 use camgeom::image::ImageMut;
 use camgeom::klt::Fixed;
 use camgeom::nalgebra::{Point2, Point3};
@@ -210,7 +210,7 @@ fn draw_cube(
         &pose.best.pose,
         vertices,
         edges,
-        &WireframeConfig::default(),
+        &WireframeParams::default(),
     )
 }
 

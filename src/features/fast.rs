@@ -49,11 +49,12 @@ pub const ARC: usize = 9;
 /// Radius of the circle: corners are never closer than this to the image border.
 pub const RADIUS: usize = 3;
 
-/// Parameters of [`fast_detect`].
+/// Parameters of [`fast_detect`], as the user writes them; checked by [`Self::check`] into the
+/// [`FastParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct FastConfig {
-    /// Intensity threshold `t` (OpenCV's `threshold`, default 20).
+    /// Intensity threshold `t`, `≥ 1` (OpenCV's `threshold`, default 20).
     pub threshold: u8,
     /// 3x3 non-maximum suppression on the score (default on).
     pub nonmax: bool,
@@ -68,6 +69,52 @@ impl Default for FastConfig {
             nonmax: true,
             border: RADIUS as u16,
         }
+    }
+}
+
+impl FastConfig {
+    /// Checks the threshold once: [`fast_detect`] takes the checked [`FastParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`]`("fast.threshold")` for a zero threshold (every
+    /// pixel of a flat image would be a corner).
+    pub const fn check(&self) -> Result<FastParams> {
+        if self.threshold == 0 {
+            return Err(Error::InvalidParameter("fast.threshold"));
+        }
+        Ok(FastParams(*self))
+    }
+}
+
+/// A [`FastConfig`] that passed [`FastConfig::check`]: a threshold `≥ 1`. What [`fast_detect`]
+/// takes, so that no call checks it again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FastParams(FastConfig);
+
+impl FastParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &FastConfig {
+        &self.0
+    }
+
+    /// `config` taken as checked without checking it: only for ORB, whose own checked
+    /// parameters hold a threshold `≥ 1`.
+    pub(crate) const fn assume_checked(config: FastConfig) -> Self {
+        Self(config)
+    }
+}
+
+impl Default for FastParams {
+    /// The checked [`FastConfig::default`].
+    fn default() -> Self {
+        Self(FastConfig::default())
+    }
+}
+
+impl TryFrom<FastConfig> for FastParams {
+    type Error = Error;
+    fn try_from(c: FastConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -445,20 +492,17 @@ fn chunk_corners(rows: &[&[u8]; 7], x: usize, t: u8) -> u16 {
 /// Corners lie in `b <= x < width - b`, `b <= y < height - b` with
 /// `b = max(config.border, 3)`. `scratch` must hold [`scratch_len`]`(width)` bytes.
 ///
-/// Errors: [`Error::InvalidParameter`] when `threshold == 0`; [`Error::BufferTooSmall`] when
-/// `scratch` is too short.
+/// Errors: [`Error::BufferTooSmall`] when `scratch` is too short.
 #[doc(alias = "FAST")]
 #[doc(alias = "FastFeatureDetector")]
 pub fn fast_detect(
     img: &ImageView<'_, u8>,
-    config: &FastConfig,
+    params: &FastParams,
     scratch: &mut [u8],
     mut emit: impl FnMut(Corner),
 ) -> Result<()> {
+    let config = params.config();
     let (w, h) = (img.width(), img.height());
-    if config.threshold == 0 {
-        return Err(Error::InvalidParameter("threshold"));
-    }
     if scratch.len() < scratch_len(w) {
         return Err(Error::BufferTooSmall("scratch"));
     }
@@ -654,7 +698,7 @@ mod tests {
     fn detect(img: &ImageView<'_, u8>, cfg: &FastConfig) -> Vec<Corner> {
         let mut scratch = std::vec![0u8; scratch_len(img.width())];
         let mut out = Vec::new();
-        fast_detect(img, cfg, &mut scratch, |c| out.push(c)).unwrap();
+        fast_detect(img, &cfg.check().unwrap(), &mut scratch, |c| out.push(c)).unwrap();
         out
     }
 
@@ -870,17 +914,17 @@ mod tests {
         assert!(detect(&tiny, &FastConfig::default()).is_empty());
         let mut short = [0u8; 10];
         assert_eq!(
-            fast_detect(&img, &FastConfig::default(), &mut short, |_| {}),
+            fast_detect(&img, &FastParams::default(), &mut short, |_| {}),
             Err(Error::BufferTooSmall("scratch"))
         );
-        let mut s = [0u8; 120];
         let zero = FastConfig {
             threshold: 0,
             ..Default::default()
         };
+        assert_eq!(zero.check(), Err(Error::InvalidParameter("fast.threshold")));
         assert_eq!(
-            fast_detect(&img, &zero, &mut s, |_| {}),
-            Err(Error::InvalidParameter("threshold"))
+            FastParams::try_from(FastConfig::default()),
+            Ok(FastParams::default())
         );
     }
 

@@ -34,11 +34,12 @@ pub fn hamming(a: &Descriptor, b: &Descriptor) -> u32 {
         .sum()
 }
 
-/// Parameters of [`match_descriptors`].
+/// Parameters of [`match_descriptors`], as the user writes them; checked by [`Self::check`]
+/// into the [`MatchParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MatchConfig {
-    /// Lowe's ratio `r`: keep when `d₁ < r d₂`; `>= 1` disables the test. Default 0.8.
+    /// Lowe's ratio `r > 0`: keep when `d₁ < r d₂`; `>= 1` disables the test. Default 0.8.
     pub ratio: f32,
     /// Keep only mutual nearest neighbours. Default `true`.
     pub cross_check: bool,
@@ -53,6 +54,47 @@ impl Default for MatchConfig {
             cross_check: true,
             max_distance: 256,
         }
+    }
+}
+
+impl MatchConfig {
+    /// Checks the ratio once: [`match_descriptors`] takes the checked [`MatchParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`]`("match.ratio")` for a ratio that is NaN or `≤ 0`
+    /// (it would reject every match).
+    pub fn check(&self) -> Result<MatchParams> {
+        if self.ratio > 0.0 {
+            Ok(MatchParams(*self))
+        } else {
+            Err(Error::InvalidParameter("match.ratio"))
+        }
+    }
+}
+
+/// A [`MatchConfig`] that passed [`MatchConfig::check`]: a ratio `> 0` (`∞` allowed: no test).
+/// What [`match_descriptors`] takes, so that no call checks it again.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MatchParams(MatchConfig);
+
+impl MatchParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &MatchConfig {
+        &self.0
+    }
+}
+
+impl Default for MatchParams {
+    /// The checked [`MatchConfig::default`].
+    fn default() -> Self {
+        Self(MatchConfig::default())
+    }
+}
+
+impl TryFrom<MatchConfig> for MatchParams {
+    type Error = Error;
+    fn try_from(c: MatchConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -83,23 +125,21 @@ pub const MAX_DESCRIPTORS: usize = u16::MAX as usize;
 /// `out` must hold `query.len()` matches (the most there can be); `scratch` must hold
 /// [`scratch_len`]`(train.len())` words when `config.cross_check`.
 ///
-/// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a side
-/// or a NaN ratio; [`Error::BufferTooSmall`] for a short `scratch`; [`Error::LengthMismatch`]
+/// Errors: [`Error::InvalidParameter`] for more than [`MAX_DESCRIPTORS`] descriptors on a
+/// side; [`Error::BufferTooSmall`] for a short `scratch`; [`Error::LengthMismatch`]
 /// when `out` is shorter than `query`.
 #[doc(alias = "BFMatcher")]
 #[doc(alias = "NORM_HAMMING")]
 pub fn match_descriptors(
     query: &[Descriptor],
     train: &[Descriptor],
-    config: &MatchConfig,
+    params: &MatchParams,
     scratch: &mut [u32],
     out: &mut [Match],
 ) -> Result<usize> {
+    let config = params.config();
     if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS {
         return Err(Error::InvalidParameter("descriptors"));
-    }
-    if config.ratio.is_nan() {
-        return Err(Error::InvalidParameter("ratio"));
     }
     if out.len() < query.len() {
         return Err(Error::LengthMismatch);
@@ -256,7 +296,8 @@ mod tests {
         ] {
             let mut out = std::vec![Match::default(); query.len()];
             let mut scratch = std::vec![0u32; scratch_len(train.len())];
-            let n = match_descriptors(&query, &train, &cfg, &mut scratch, &mut out).unwrap();
+            let params = cfg.check().unwrap();
+            let n = match_descriptors(&query, &train, &params, &mut scratch, &mut out).unwrap();
             assert_eq!(out[..n], reference(&query, &train, &cfg)[..], "{cfg:?}");
         }
         // The noisy copies all match their original with the defaults.
@@ -265,7 +306,7 @@ mod tests {
         let n = match_descriptors(
             &query,
             &train,
-            &MatchConfig::default(),
+            &MatchParams::default(),
             &mut scratch,
             &mut out,
         )
@@ -285,11 +326,11 @@ mod tests {
         let mut s = [0u32; 3];
         // Empty sides.
         assert_eq!(
-            match_descriptors(&[], &d, &MatchConfig::default(), &mut s, &mut out),
+            match_descriptors(&[], &d, &MatchParams::default(), &mut s, &mut out),
             Ok(0)
         );
         assert_eq!(
-            match_descriptors(&d, &[], &MatchConfig::default(), &mut s, &mut out),
+            match_descriptors(&d, &[], &MatchParams::default(), &mut s, &mut out),
             Ok(0)
         );
         // One train descriptor: the ratio test is skipped.
@@ -298,25 +339,29 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(
-            match_descriptors(&d, &d[..1], &cfg, &mut s, &mut out),
+            match_descriptors(&d, &d[..1], &cfg.check().unwrap(), &mut s, &mut out),
             Ok(3)
         );
         // Errors.
         assert_eq!(
-            match_descriptors(&d, &d, &MatchConfig::default(), &mut s, &mut out[..2]),
+            match_descriptors(&d, &d, &MatchParams::default(), &mut s, &mut out[..2]),
             Err(Error::LengthMismatch)
         );
         assert_eq!(
-            match_descriptors(&d, &d, &MatchConfig::default(), &mut s[..2], &mut out),
+            match_descriptors(&d, &d, &MatchParams::default(), &mut s[..2], &mut out),
             Err(Error::BufferTooSmall("scratch"))
         );
-        let nan = MatchConfig {
-            ratio: f32::NAN,
+        for ratio in [f32::NAN, 0.0, -1.0] {
+            let bad = MatchConfig {
+                ratio,
+                ..Default::default()
+            };
+            assert_eq!(bad.check(), Err(Error::InvalidParameter("match.ratio")));
+        }
+        let no_test = MatchConfig {
+            ratio: f32::INFINITY,
             ..Default::default()
         };
-        assert_eq!(
-            match_descriptors(&d, &d, &nan, &mut s, &mut out),
-            Err(Error::InvalidParameter("ratio"))
-        );
+        assert!(no_test.check().is_ok());
     }
 }

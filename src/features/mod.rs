@@ -15,7 +15,7 @@
 //! ORB features of a drawn scene and of the same scene moved by `(+5, +3)` pixels, matched:
 //!
 //! ```
-//! use camgeom::features::{Feature, Match, MatchConfig, OrbConfig};
+//! use camgeom::features::{Feature, Match, MatchParams, OrbConfig};
 //! use camgeom::features::{match_descriptors, orb, orb_detect};
 //! use camgeom::heapless::Vec;
 //! use camgeom::image::ImageView;
@@ -38,15 +38,15 @@
 //! #     })
 //! # };
 //! let (a, b) = (scene(0, 0), scene(5, 3));
-//! let cfg = OrbConfig { levels: 1, ..OrbConfig::default() };
+//! let params = OrbConfig { levels: 1, ..OrbConfig::default() }.check()?;
 //! let mut scratch = [0u8; orb::scratch_len(112, 112, 307)];
 //! let (mut fa, mut fb) = (Vec::<Feature, 64>::new(), Vec::<Feature, 64>::new());
-//! orb_detect(&ImageView::packed(&a, 112, 112)?, &cfg, &mut scratch, &mut fa)?;
-//! orb_detect(&ImageView::packed(&b, 112, 112)?, &cfg, &mut scratch, &mut fb)?;
+//! orb_detect(&ImageView::packed(&a, 112, 112)?, &params, &mut scratch, &mut fa)?;
+//! orb_detect(&ImageView::packed(&b, 112, 112)?, &params, &mut scratch, &mut fb)?;
 //! let da: Vec<_, 64> = fa.iter().map(|f| f.descriptor).collect();
 //! let db: Vec<_, 64> = fb.iter().map(|f| f.descriptor).collect();
 //! let (mut matches, mut ms) = ([Match::default(); 64], [0u32; 64]);
-//! let n = match_descriptors(&da, &db, &MatchConfig::default(), &mut ms, &mut matches)?;
+//! let n = match_descriptors(&da, &db, &MatchParams::default(), &mut ms, &mut matches)?;
 //! // Most features match (the ratio test drops corners congruent to another one), and every
 //! // match is the feature itself, moved by the shift.
 //! assert!(fa.len() >= 16 && n >= fa.len() * 3 / 4);
@@ -61,9 +61,9 @@ pub mod fast;
 pub mod matching;
 pub mod orb;
 
-pub use fast::{Corner, FastConfig, fast_detect, harris_response};
-pub use matching::{Descriptor, Match, MatchConfig, hamming, match_descriptors};
-pub use orb::{Feature, Keypoint, OrbConfig, orb_detect};
+pub use fast::{Corner, FastConfig, FastParams, fast_detect, harris_response};
+pub use matching::{Descriptor, Match, MatchConfig, MatchParams, hamming, match_descriptors};
+pub use orb::{Feature, Keypoint, OrbConfig, OrbParams, orb_detect};
 
 /// Keeps the `heap.len()`-bounded best items of a stream in a min-heap on `key` (the root is
 /// the worst kept item): `O(log n)` per offered item.

@@ -38,7 +38,7 @@
 
 use heapless::Vec;
 
-use super::fast::{self, Corner, FastConfig, harris_response};
+use super::fast::{self, Corner, FastConfig, FastParams, harris_response};
 use super::matching::Descriptor;
 use super::offer_best;
 use crate::image::{ImageMut, ImageView};
@@ -118,7 +118,8 @@ const fn make_pattern() -> [[i8; 4]; 256] {
 /// the module docs for how they are drawn.
 pub const PATTERN: [[i8; 4]; 256] = make_pattern();
 
-/// Parameters of [`orb_detect`].
+/// Parameters of [`orb_detect`], as the user writes them; checked by [`Self::check`] into the
+/// [`OrbParams`] it takes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct OrbConfig {
@@ -131,7 +132,7 @@ pub struct OrbConfig {
     /// bilinearly ([`crate::resize`]). 512 selects the Gaussian pyramid
     /// ([`crate::pyramid::pyr_down`], smoothed, 1/3 of the memory of the default).
     pub scale_q8: u16,
-    /// FAST threshold. Default 20 (OpenCV's `fastThreshold`).
+    /// FAST threshold, `≥ 1`. Default 20 (OpenCV's `fastThreshold`).
     pub fast_threshold: u8,
     /// Distance of keypoints to the border of their level, raised to [`MIN_BORDER`].
     /// Default [`MIN_BORDER`] (OpenCV's `edgeThreshold` is 31).
@@ -147,6 +148,54 @@ impl Default for OrbConfig {
             fast_threshold: 20,
             border: MIN_BORDER,
         }
+    }
+}
+
+impl OrbConfig {
+    /// Checks the ranges documented on each field once: [`orb_detect`] takes the checked
+    /// [`OrbParams`].
+    ///
+    /// Errors: [`Error::InvalidParameter`] naming the field (`orb.levels` outside
+    /// `1..=MAX_LEVELS`, `orb.scale_q8` outside `272..=512`, `orb.fast_threshold` zero).
+    pub const fn check(&self) -> Result<OrbParams> {
+        if self.levels == 0 || self.levels as usize > MAX_LEVELS {
+            return Err(Error::InvalidParameter("orb.levels"));
+        }
+        if self.fast_threshold == 0 {
+            return Err(Error::InvalidParameter("orb.fast_threshold"));
+        }
+        if self.scale_q8 < 272 || self.scale_q8 > 512 {
+            return Err(Error::InvalidParameter("orb.scale_q8"));
+        }
+        Ok(OrbParams(*self))
+    }
+}
+
+/// An [`OrbConfig`] that passed [`OrbConfig::check`]: `1..=MAX_LEVELS` levels, a scale step in
+/// `272..=512` (Q8), a FAST threshold `≥ 1`. What [`orb_detect`] takes, so that no call checks
+/// it again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OrbParams(OrbConfig);
+
+impl OrbParams {
+    /// The checked configuration.
+    pub const fn config(&self) -> &OrbConfig {
+        &self.0
+    }
+}
+
+impl Default for OrbParams {
+    /// The checked [`OrbConfig::default`].
+    fn default() -> Self {
+        Self(OrbConfig::default())
+    }
+}
+
+impl TryFrom<OrbConfig> for OrbParams {
+    type Error = Error;
+    fn try_from(c: OrbConfig) -> Result<Self> {
+        c.check()
     }
 }
 
@@ -250,29 +299,19 @@ impl LevelMap {
 /// `min(config.max_features, N)` features; levels get shares in proportion `s⁻ˡ` (OpenCV's
 /// split), what a level does not fill passes to the next.
 ///
-/// Errors: [`Error::InvalidParameter`] for `levels` outside `1..=MAX_LEVELS`, `scale_q8`
-/// outside `272..=512` or a zero FAST threshold; [`Error::BufferTooSmall`] for a short
-/// `scratch`.
+/// Errors: [`Error::BufferTooSmall`] for a short `scratch`.
 #[doc(alias = "ORB")]
 #[doc(alias = "detectAndCompute")]
 pub fn orb_detect<const N: usize>(
     frame: &ImageView<'_, u8>,
-    config: &OrbConfig,
+    params: &OrbParams,
     scratch: &mut [u8],
     out: &mut Vec<Feature, N>,
 ) -> Result<()> {
     out.clear();
+    let config = params.config();
     let levels = usize::from(config.levels);
     let q = config.scale_q8;
-    if levels == 0 || levels > MAX_LEVELS {
-        return Err(Error::InvalidParameter("levels"));
-    }
-    if config.fast_threshold == 0 {
-        return Err(Error::InvalidParameter("fast_threshold"));
-    }
-    if !(272..=512).contains(&q) {
-        return Err(Error::InvalidParameter("scale_q8"));
-    }
     let (w, h) = (frame.width(), frame.height());
     if scratch.len() < scratch_len(w, h, q) {
         return Err(Error::BufferTooSmall("scratch"));
@@ -285,17 +324,19 @@ pub fn orb_detect<const N: usize>(
     let (buf_odd, rest) = scratch.split_at_mut_checked(w1 * h1).ok_or(too_small)?;
     let (buf_even, rest) = rest.split_at_mut_checked(w2 * h2).ok_or(too_small)?;
     let (blur_buf, fast_buf) = rest.split_at_mut_checked(w * h).ok_or(too_small)?;
-    let fast_config = FastConfig {
+    // The threshold is ORB's, checked `≥ 1` with it.
+    let fast_params = FastParams::assume_checked(FastConfig {
         threshold: config.fast_threshold,
         nonmax: true,
         border: config.border.max(MIN_BORDER),
-    };
+    });
     // Level shares in proportion (256/q)^l, as Q16 weights.
     let mut weights = [0u64; MAX_LEVELS];
     let mut wl = 1u64 << 16;
     for weight in weights.iter_mut().take(levels) {
         *weight = wl.max(1);
-        wl = wl * 256 / u64::from(q);
+        // `q` was checked to be at least 272; `max` shows the optimiser it is not zero.
+        wl = wl * 256 / u64::from(q.max(1));
     }
     let mut weight_left: u64 = weights.iter().sum();
     let mut budget = usize::from(config.max_features).min(N);
@@ -348,7 +389,7 @@ pub fn orb_detect<const N: usize>(
         while out.len() < start + quota && out.push(Feature::default()).is_ok() {}
         let heap = out.get_mut(start..).unwrap_or(&mut []);
         let mut kept = 0usize;
-        fast::fast_detect(&level, &fast_config, fast_buf, |c: Corner| {
+        fast::fast_detect(&level, &fast_params, fast_buf, |c: Corner| {
             let (x, y) = (usize::from(c.x), usize::from(c.y));
             if let Some(response) = harris_response(&level, x, y) {
                 let keypoint = Keypoint {
@@ -676,7 +717,8 @@ mod tests {
         };
         let mut scratch = std::vec![0u8; scratch_len(w, h, cfg.scale_q8)];
         let mut out: Vec<Feature, 128> = Vec::new();
-        orb_detect(&img, &cfg, &mut scratch, &mut out).unwrap();
+        let params = cfg.check().unwrap();
+        orb_detect(&img, &params, &mut scratch, &mut out).unwrap();
         assert!(out.len() > 30 && out.len() <= 100, "{}", out.len());
         assert!(
             out.windows(2)
@@ -693,16 +735,38 @@ mod tests {
         }
         // The capacity caps the count.
         let mut small: Vec<Feature, 10> = Vec::new();
-        orb_detect(&img, &cfg, &mut scratch, &mut small).unwrap();
+        orb_detect(&img, &params, &mut scratch, &mut small).unwrap();
         assert_eq!(small.len(), 10);
         // Errors.
-        let bad = OrbConfig { levels: 0, ..cfg };
+        for (bad, field) in [
+            (OrbConfig { levels: 0, ..cfg }, "orb.levels"),
+            (OrbConfig { levels: 13, ..cfg }, "orb.levels"),
+            (
+                OrbConfig {
+                    fast_threshold: 0,
+                    ..cfg
+                },
+                "orb.fast_threshold",
+            ),
+            (
+                OrbConfig {
+                    scale_q8: 271,
+                    ..cfg
+                },
+                "orb.scale_q8",
+            ),
+            (
+                OrbConfig {
+                    scale_q8: 513,
+                    ..cfg
+                },
+                "orb.scale_q8",
+            ),
+        ] {
+            assert_eq!(bad.check(), Err(Error::InvalidParameter(field)));
+        }
         assert_eq!(
-            orb_detect(&img, &bad, &mut scratch, &mut out),
-            Err(Error::InvalidParameter("levels"))
-        );
-        assert_eq!(
-            orb_detect(&img, &cfg, &mut scratch[..100], &mut out),
+            orb_detect(&img, &params, &mut scratch[..100], &mut out),
             Err(Error::BufferTooSmall("scratch"))
         );
     }

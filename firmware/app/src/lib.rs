@@ -25,6 +25,6 @@ pub mod source;
 pub mod texture;
 
 pub use costs::{Cost, StageCosts};
-pub use pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameLoop, FrameReport, Pipeline};
+pub use pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop, FrameReport, Pipeline};
 pub use run::{RunSpec, drive};
 pub use source::FrameSource;

@@ -26,7 +26,7 @@
 //! pipeline takes it as a [`FrameLoop`], without the sizes.
 
 use camgeom::Error;
-use camgeom::draw::{WireframeConfig, cube, draw_line, draw_wireframe};
+use camgeom::draw::{WireframeParams, cube, draw_line, draw_wireframe};
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::klt::Fixed;
 use camgeom::nalgebra::Point2;
@@ -54,7 +54,7 @@ pub const fn pyramid_len(width: usize, height: usize, levels: usize) -> usize {
 /// Where the AR cube stands on the target plane: one corner at `(x, y, 0)`, side `size`
 /// (target units), its top towards the camera (see [`camgeom::draw::cube`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CubeConfig {
+pub struct CubePlacement {
     /// Target-plane `X` of the cube's first corner.
     pub x: f32,
     /// Target-plane `Y` of the cube's first corner.
@@ -77,9 +77,9 @@ pub struct AppConfig {
     /// The target, its camera and the tracking parameters, checked once.
     pub target: TargetParams,
     /// The AR cube.
-    pub cube: CubeConfig,
+    pub cube: CubePlacement,
     /// How the cube is drawn.
-    pub wire: WireframeConfig<f32>,
+    pub wire: WireframeParams<f32>,
     /// Pixel value of the target's outline.
     pub outline_value: u8,
 }

@@ -16,14 +16,14 @@
 
 use camgeom::Error;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
-use camgeom::draw::WireframeConfig;
+use camgeom::draw::WireframeParams;
 use camgeom::nalgebra::Point2;
 use camgeom::target::{TargetConfig, TargetParams};
 
 use camgeom::image::ImageView;
 use camgeom::target::Acquire;
 
-use crate::pipeline::{AppConfig, AppError, Clock, CubeConfig, FrameLoop};
+use crate::pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
 use crate::report::{ErrorCode, FrameRecord};
 
@@ -234,12 +234,12 @@ impl RunSpec {
             height: self.height as usize,
             levels: LEVELS,
             target: TargetParams::new(&target, camera, self.target_size)?,
-            cube: CubeConfig {
+            cube: CubePlacement {
                 x: 0.5 * (tw - size),
                 y: 0.5 * (th - size),
                 size,
             },
-            wire: WireframeConfig::default(),
+            wire: WireframeParams::default(),
             outline_value: 255,
         })
     }

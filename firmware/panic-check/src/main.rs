@@ -521,8 +521,10 @@ fn run_draw<T: Real>() {
         return;
     };
     let (vertices, edges) = black_box(cube(lit::<T>(0.05), lit(0.025), lit(0.1)));
-    let cfg = black_box(WireframeConfig::default());
-    black_box(draw_wireframe(&mut img, &cam, &pose, &vertices, &edges, &cfg).ok());
+    let Ok(params) = black_box(WireframeConfig::<T>::default()).check() else {
+        return;
+    };
+    black_box(draw_wireframe(&mut img, &cam, &pose, &vertices, &edges, &params).ok());
     let (a, b) = black_box((pt2::<T>(-5.0, 3.0), pt2::<T>(80.0, 30.0)));
     black_box(draw_line(&mut img, &a, &b, black_box(255)).ok());
     let [x0, y0, x1, y1] = black_box([-100i32, 5, 1000, 40]);
@@ -541,26 +543,32 @@ fn run_features() {
     use camgeom::heapless::Vec;
     let frame = black_box([0u8; W * H]);
     let Some(v) = view(&frame) else { return };
-    let fcfg = black_box(FastConfig::default());
+    let Ok(fparams) = black_box(FastConfig::default()).check() else {
+        return;
+    };
     let mut scratch = black_box([0u8; 16 * 1024]);
     let mut n = 0u32;
     black_box(
-        fast_detect(&v, &fcfg, black_box(&mut scratch[..]), |c| {
+        fast_detect(&v, &fparams, black_box(&mut scratch[..]), |c| {
             n = n.wrapping_add(u32::from(c.x));
         })
         .ok(),
     );
     black_box(n);
-    let ocfg = black_box(OrbConfig::default());
+    let Ok(oparams) = black_box(OrbConfig::default()).check() else {
+        return;
+    };
     let mut out: Vec<Feature, 32> = Vec::new();
-    black_box(orb_detect(&v, &ocfg, black_box(&mut scratch[..]), &mut out).ok());
+    black_box(orb_detect(&v, &oparams, black_box(&mut scratch[..]), &mut out).ok());
     black_box(&out);
     let q = black_box([Descriptor([1; 8]); 8]);
     let t = black_box([Descriptor([2; 8]); 12]);
-    let mcfg = black_box(MatchConfig::default());
+    let Ok(mparams) = black_box(MatchConfig::default()).check() else {
+        return;
+    };
     let mut ms = black_box([0u32; 64]);
     let mut matches = black_box([Match::default(); 8]);
-    black_box(match_descriptors(&q, &t, &mcfg, &mut ms, &mut matches).ok());
+    black_box(match_descriptors(&q, &t, &mparams, &mut ms, &mut matches).ok());
     black_box(&matches);
 }
 

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use camgeom::features::orb::{self, Feature, OrbConfig};
+use camgeom::features::orb::{self, Feature, OrbParams};
 use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::nalgebra::Point2;
 
@@ -39,10 +39,11 @@ pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
             ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
         )
     })?;
-    let config = OrbConfig::default();
-    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let params = OrbParams::default();
+    let scale_q8 = params.config().scale_q8;
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, scale_q8)];
     let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
-    orb::orb_detect(&view, &config, &mut scratch, &mut out)
+    orb::orb_detect(&view, &params, &mut scratch, &mut out)
         .map_err(|e| Error::camgeom(format!("{}: orb_detect failed", path.display()), e))?;
     Ok(out.to_vec())
 }
@@ -54,7 +55,10 @@ pub fn cross_check(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usiz
     let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
     let mut ms = vec![Match::default(); da.len()];
     let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let n = match_descriptors(&da, &db, &CROSS_CHECK, &mut scratch, &mut ms)
+    let params = CROSS_CHECK
+        .check()
+        .map_err(|e| Error::camgeom(format!("{what}: match configuration"), e))?;
+    let n = match_descriptors(&da, &db, &params, &mut scratch, &mut ms)
         .map_err(|e| Error::camgeom(format!("{what}: match_descriptors failed"), e))?;
     Ok(ms[..n]
         .iter()

@@ -37,7 +37,8 @@ fn apply(h: &Matrix3<f64>, p: Point2<f64>) -> Point2<f64> {
 fn orb_features(img: &GrayImage, config: &OrbConfig) -> camgeom::heapless::Vec<Feature, CAP> {
     let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
     let mut out = camgeom::heapless::Vec::new();
-    orb::orb_detect(&img.view().unwrap(), config, &mut scratch, &mut out).unwrap();
+    let params = config.check().unwrap();
+    orb::orb_detect(&img.view().unwrap(), &params, &mut scratch, &mut out).unwrap();
     out
 }
 
@@ -46,7 +47,8 @@ fn matches(a: &[Feature], b: &[Feature], config: &MatchConfig) -> Vec<Match> {
     let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
     let mut out = vec![Match::default(); da.len()];
     let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let n = match_descriptors(&da, &db, config, &mut scratch, &mut out).unwrap();
+    let params = config.check().unwrap();
+    let n = match_descriptors(&da, &db, &params, &mut scratch, &mut out).unwrap();
     out.truncate(n);
     out
 }
@@ -89,9 +91,12 @@ fn fast_agrees_with_opencv() {
         nonmax: true,
         border: 3,
     };
-    fast::fast_detect(&img.view().unwrap(), &config, &mut scratch, |c| {
-        ours.push((c.x, c.y, c.score))
-    })
+    fast::fast_detect(
+        &img.view().unwrap(),
+        &config.check().unwrap(),
+        &mut scratch,
+        |c| ours.push((c.x, c.y, c.score)),
+    )
     .unwrap();
     let a: HashSet<(u16, u16)> = ours.iter().map(|c| (c.0, c.1)).collect();
     let b: HashSet<(u16, u16)> = theirs.iter().map(|c| (c.0, c.1)).collect();

@@ -241,7 +241,7 @@ mod klt_bench {
 
     use camgeom::camera::{Camera, Intrinsics};
     use camgeom::corners::Corner;
-    use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
+    use camgeom::draw::{WireframeParams, cube, draw_wireframe};
     use camgeom::image::{ImageMut, ImageView};
     use camgeom::klt::{
         Borders, Coordinate, Fixed, Flow, FlowArith, FlowStatus, Gradients, LkConfig, Tracker,
@@ -525,7 +525,7 @@ mod klt_bench {
         }
         // A 0.1 m cube standing in the middle of the target.
         let (vertices, edges) = cube(0.05f32, 0.025, 0.1);
-        let wire = WireframeConfig::default();
+        let wire = WireframeParams::default();
         let ((out, drawn, pyr_b_cost, step_cost, draw_cost), total) = measure(|| {
             let view_b = match ImageView::packed(&frame_b[..], W, H) {
                 Ok(v) => v,

@@ -24,7 +24,7 @@ use camgeom::calib::{CalibrationParams, Calibrator};
 use camgeom::camera::{Camera, Distortion, Intrinsics};
 use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams};
 use camgeom::corners::{self, Corner, CornerConfig, good_features};
-use camgeom::draw::{WireframeConfig, cube, draw_wireframe};
+use camgeom::draw::{WireframeParams, cube, draw_wireframe};
 use camgeom::heapless::Vec;
 use camgeom::homography::{dlt, find_homography};
 use camgeom::image::{ImageMut, ImageView};
@@ -271,7 +271,7 @@ fn main() -> ! {
 
     // ---- the cube (drawn into frame B before its views exist) ----
     let (vertices, edges) = cube(0.05f32, 0.025, 0.1);
-    let wire = black_box(WireframeConfig::default());
+    let wire = black_box(WireframeParams::default());
     let (r, s) = measure(|| {
         let mut img = ImageMut::packed(&mut frame_b[..], W, H)?;
         draw_wireframe(&mut img, &camera, &pose, &vertices, &edges, &wire)
