@@ -13,7 +13,7 @@ use arbitrary::Arbitrary;
 use camgeom::Error;
 use camgeom::chessboard::{
     BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
-    corner_subpix, saddle_subpix, scratch_len,
+    corner_subpix, pyramid_len, saddle_subpix, scratch_len,
 };
 use camgeom::image::ImageView;
 use camgeom::nalgebra::Point2;
@@ -186,7 +186,7 @@ fuzz_target!(|inp: Input| {
         let detected = cfg
             .check()
             .and_then(|params| det.detect::<N>(&view, board, &params, &mut scratch));
-        match detected {
+        match &detected {
             Ok(Some(found)) => {
                 let cols = board.cols();
                 assert_eq!(found.size, board, "board size");
@@ -214,6 +214,32 @@ fuzz_target!(|inp: Input| {
             // Only the check names a parameter; detect takes it checked.
             Err(Error::InvalidParameter(_)) => assert!(cfg.check().is_err()),
             Err(e) => panic!("detect: undocumented error {e:?}"),
+        }
+
+        // The same frame at any scale: the same contract, and it finds whatever the
+        // one-scale search found (the frame itself is its last level).
+        let pyr_n = (pyramid_len(w, h) as i64 + i64::from(inp.scratch_slack)).max(0) as usize;
+        let mut pyramid = std::vec![0u8; pyr_n];
+        let any = cfg.check().and_then(|params| {
+            det.detect_any_scale::<N>(&view, board, &params, &mut pyramid, &mut scratch)
+        });
+        match any {
+            Ok(Some(found)) => {
+                assert_eq!(found.corners.len(), board.corners(), "any scale: corner count");
+                for p in &found.corners {
+                    assert!(p.x.is_finite() && p.y.is_finite(), "any scale: not finite");
+                }
+            }
+            Ok(None) => assert!(
+                !matches!(detected, Ok(Some(_))),
+                "any scale lost a board the one-scale search found"
+            ),
+            Err(Error::InvalidImage) => assert!(w < 16 || h < 16, "InvalidImage for {w}x{h}"),
+            Err(Error::BufferTooSmall("scratch")) => assert!(scratch_n < scratch_len(w)),
+            Err(Error::BufferTooSmall("pyramid")) => assert!(pyr_n < pyramid_len(w, h)),
+            Err(Error::BufferTooSmall("corners")) => assert!(board.corners() > N),
+            Err(Error::InvalidParameter(_)) => assert!(cfg.check().is_err()),
+            Err(e) => panic!("detect_any_scale: undocumented error {e:?}"),
         }
 
         // The refiners on arbitrary corners.

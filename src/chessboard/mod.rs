@@ -39,13 +39,23 @@
 //!    ([`saddle_subpix`]), or OpenCV's `cornerSubPix` ([`corner_subpix`]) with a fixed or an
 //!    adaptive window; see [`subpix`] for why and the measurements.
 //!
-//! A board that is absent or only partly visible is `Ok(None)`, never a guess.
+//! **Any resolution** ([`ChessboardDetector::detect_any_scale`]): the same steps on the levels
+//! of a Gaussian pyramid, from the coarsest that can show the board down to the frame, then
+//! the refinement carried down level by level (see [`scales`]). The detector's fixed scale
+//! (σ = 1 px, rings of 5 and 3 px) then no longer limits the frame size, the blur or the
+//! board's size in the view.
+//!
+//! A board that is absent or only partly visible is `Ok(None)`, never a guess;
+//! [`ChessboardDetector::seen`] says what was seen instead.
 //!
 //! Memory: [`ChessboardDetector::BYTES`] bytes of state (candidates and the heap, fixed by
 //! `K`) plus [`scratch_len`]`(width)` `i32` words of scratch. With `K = 512`: 20,496 bytes of
 //! state, and 7,040 words (28 KB) of scratch at 640 px width, 3,520 words (14 KB) at 320 px:
 //! [`ChessboardDetector::memory`] gives 48,656 bytes at 640x480 and 34,576 at 320x240 (the
-//! frame itself is the caller's).
+//! frame itself is the caller's). The search at any scale adds the pyramid,
+//! [`pyramid_len`]`(width, height)` bytes, at most a third of the frame: 409,580 bytes at
+//! 1280x960 (with 56 KB of scratch at that width), 4,064,142 at 4032x3024 (177 KB of scratch);
+//! the board keeps the one-scale search.
 //!
 //! ```
 //! use camgeom::chessboard::{BoardSize, ChessboardDetector, DetectParams, scratch_len};
@@ -77,10 +87,12 @@ mod config;
 mod grid;
 mod response;
 mod ring;
+pub mod scales;
 pub mod subpix;
 
 pub use config::{BoardSize, DetectConfig, DetectParams, Refinement};
 pub use response::scratch_len;
+pub use scales::pyramid_len;
 pub use subpix::{
     SaddleConfig, SaddleParams, SubPixConfig, SubPixParams, corner_subpix, saddle_subpix,
 };
@@ -95,6 +107,7 @@ use ring::corner_lines;
 use subpix::corner_subpix_adaptive;
 
 use crate::image::ImageView;
+use crate::pyramid::Pyramid;
 use crate::{Error, Result};
 
 /// The found board: `rows · cols` corners, row-major, OpenCV's order.
@@ -139,6 +152,33 @@ pub struct ChessboardDetector<const K: usize> {
     cands: [Candidate; K],
     count: usize,
     heap: BinaryHeap<Maximum, Min, K>,
+    seen: Seen,
+}
+
+/// What the last detection saw: the most of each over the levels searched. Says why a board
+/// was not found (no corner at all, x-corners but no grid, a grid smaller than the board: part
+/// of it out of view or too small to resolve, or another board size).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Seen {
+    /// Saddle-response maxima kept as candidates.
+    pub candidates: u16,
+    /// Candidates that passed the corner test (x-corners).
+    pub x_corners: u16,
+    /// The largest grid grown, `(columns, rows)` of corners as grown (either orientation);
+    /// `(0, 0)` when no 2x2 start was found.
+    pub largest_grid: (u8, u8),
+}
+
+impl Seen {
+    fn merge(&mut self, other: Self) {
+        self.candidates = self.candidates.max(other.candidates);
+        self.x_corners = self.x_corners.max(other.x_corners);
+        let area = |g: (u8, u8)| u16::from(g.0) * u16::from(g.1);
+        if area(other.largest_grid) > area(self.largest_grid) {
+            self.largest_grid = other.largest_grid;
+        }
+    }
 }
 
 impl<const K: usize> Default for ChessboardDetector<K> {
@@ -159,6 +199,11 @@ impl<const K: usize> ChessboardDetector<K> {
             cands: [EMPTY; K],
             count: 0,
             heap: BinaryHeap::new(),
+            seen: Seen {
+                candidates: 0,
+                x_corners: 0,
+                largest_grid: (0, 0),
+            },
         }
     }
 
@@ -167,7 +212,8 @@ impl<const K: usize> ChessboardDetector<K> {
         Self::BYTES + 4 * scratch_len(width)
     }
 
-    /// Finds the `board` in `image`; see the module documentation for the method.
+    /// Finds the `board` in `image` at the detector's own scale; see the module documentation
+    /// for the method, and [`Self::detect_any_scale`] for a frame of any resolution.
     ///
     /// Returns `Ok(None)` when the board is absent or not entirely in view. Errors:
     /// `BufferTooSmall("corners")` when `N < board.corners()`, `BufferTooSmall("scratch")`
@@ -182,27 +228,110 @@ impl<const K: usize> ChessboardDetector<K> {
         params: &DetectParams,
         scratch: &mut [i32],
     ) -> Result<Option<Chessboard<N>>> {
+        check_frame::<N>(image, board, scratch)?;
+        self.seen = Seen::default();
         let cfg = params.config();
-        if N < board.corners() {
-            return Err(Error::BufferTooSmall("corners"));
-        }
+        let Some(mut found) = self.find::<N>(image, board, cfg, scratch) else {
+            return Ok(None);
+        };
+        refine(image, &mut found, cfg.refine, 1)?;
+        Ok(Some(found))
+    }
+
+    /// Finds the `board` in a frame of any resolution: [`Self::detect`]'s search on the levels
+    /// of a Gaussian pyramid of `image`, from the coarsest that can show a board down to the
+    /// frame itself, the first level that shows the whole board with squares of at least
+    /// 10 px winning (the frame itself takes any). Its corners are then refined on every finer
+    /// level down to the frame, with a window and a smoothing that widen as the board does
+    /// (see [`scales`'s documentation] for why). Where [`Self::detect`] finds the board this
+    /// finds it too (the frame itself is the last level searched), usually on a coarser level
+    /// and for less work.
+    ///
+    /// `pyramid` must hold [`pyramid_len`]`(width, height)` bytes, `scratch`
+    /// [`scratch_len`]`(width)` words (the frame's width serves every level).
+    ///
+    /// Returns `Ok(None)` when no level shows the whole board. Errors: those of
+    /// [`Self::detect`], and `BufferTooSmall("pyramid")`.
+    ///
+    /// [`scales`'s documentation]: self::scales
+    #[doc(alias = "findChessboardCorners")]
+    pub fn detect_any_scale<const N: usize>(
+        &mut self,
+        image: &ImageView<'_, u8>,
+        board: BoardSize,
+        params: &DetectParams,
+        pyramid: &mut [u8],
+        scratch: &mut [i32],
+    ) -> Result<Option<Chessboard<N>>> {
+        check_frame::<N>(image, board, scratch)?;
         let (w, h) = (image.width(), image.height());
-        if w < 16 || h < 16 || w > u16::MAX as usize || h > u16::MAX as usize {
-            return Err(Error::InvalidImage);
+        if pyramid.len() < pyramid_len(w, h) {
+            return Err(Error::BufferTooSmall("pyramid"));
         }
-        if scratch.len() < scratch_len(w) {
-            return Err(Error::BufferTooSmall("scratch"));
+        self.seen = Seen::default();
+        let cfg = params.config();
+        let levels = scales::levels(w, h, board);
+        let pyr = Pyramid::build(*image, pyramid, levels)?;
+        for l in (0..levels).rev() {
+            let Some(level) = pyr.level(l) else { continue };
+            let Some(mut found) = self.find::<N>(&level, board, cfg, scratch) else {
+                continue;
+            };
+            if l > 0 && !scales::resolved(&found.corners, board.cols()) {
+                continue;
+            }
+            refine(&level, &mut found, cfg.refine, 1)?;
+            for finer in (0..l).rev() {
+                let Some(level) = pyr.level(finer) else { break };
+                for c in found.corners.iter_mut() {
+                    *c = Point2::new(scales::finer(c.x), scales::finer(c.y));
+                }
+                // The board is `2^(l - finer)` times larger here than where it was found, its
+                // edges as much wider: the refinement's window and smoothing widen with them.
+                refine(&level, &mut found, cfg.refine, 1 << (l - finer))?;
+            }
+            return Ok(Some(found));
         }
+        Ok(None)
+    }
+
+    /// Steps 1 to 5 on one frame (or pyramid level): the verified, ordered board at the
+    /// candidates' positions, unrefined.
+    fn find<const N: usize>(
+        &mut self,
+        image: &ImageView<'_, u8>,
+        board: BoardSize,
+        cfg: &DetectConfig,
+        scratch: &mut [i32],
+    ) -> Option<Chessboard<N>> {
         self.collect(image, cfg.min_response, scratch);
+        let mut seen = Seen {
+            candidates: self.count as u16,
+            ..Seen::default()
+        };
         for c in self.cands.iter_mut().take(self.count) {
             match corner_lines(image, &c.p, cfg.min_contrast) {
                 Some(lines) => {
                     c.lines = lines;
                     c.ok = true;
+                    seen.x_corners = seen.x_corners.saturating_add(1);
                 }
                 None => c.ok = false,
             }
         }
+        let found = self.search::<N>(image, board, cfg, &mut seen);
+        self.seen.merge(seen);
+        found
+    }
+
+    /// Steps 3 to 5: seeds, grids, verification; the largest grid goes into `seen`.
+    fn search<const N: usize>(
+        &mut self,
+        image: &ImageView<'_, u8>,
+        board: BoardSize,
+        cfg: &DetectConfig,
+        seen: &mut Seen,
+    ) -> Option<Chessboard<N>> {
         let mut seeds = 0u8;
         for s in 0..self.count {
             if seeds >= cfg.max_seeds {
@@ -221,28 +350,15 @@ impl<const K: usize> ChessboardDetector<K> {
                 }
             }
             let Some(grid) = grid else { continue };
-            if let Some(mut found) =
-                self.verify_and_order::<N>(image, &grid, board, cfg.min_contrast)
-            {
-                // The refinement's configuration was checked with `params`.
-                match cfg.refine {
-                    Refinement::None => {}
-                    Refinement::CornerSubPix(sp) => {
-                        let sp = SubPixParams::from_checked(sp);
-                        corner_subpix(image, &mut found.corners, &sp)?
-                    }
-                    Refinement::AdaptiveCornerSubPix(sp) => {
-                        let sp = SubPixParams::from_checked(sp);
-                        corner_subpix_adaptive(image, &mut found.corners, board.cols(), &sp)?
-                    }
-                    Refinement::Saddle(sc) => {
-                        saddle_subpix(image, &mut found.corners, &SaddleParams::from_checked(sc))?
-                    }
-                }
-                return Ok(Some(found));
+            seen.merge(Seen {
+                largest_grid: (grid.w as u8, grid.h as u8),
+                ..Seen::default()
+            });
+            if let Some(found) = self.verify_and_order::<N>(image, &grid, board, cfg.min_contrast) {
+                return Some(found);
             }
         }
-        Ok(None)
+        None
     }
 
     /// Step 1: the `K` strongest 3x3 maxima of the saddle response, strongest first.
@@ -260,6 +376,11 @@ impl<const K: usize> ChessboardDetector<K> {
                 };
             }
         }
+    }
+
+    /// What the last detection saw (for saying why a board was not found).
+    pub fn seen(&self) -> Seen {
+        self.seen
     }
 
     /// The last frame's candidates, strongest first: position and whether it passed the
@@ -553,6 +674,54 @@ impl<const K: usize> ChessboardDetector<K> {
             size: board,
             corners,
         })
+    }
+}
+
+/// The checks [`ChessboardDetector::detect`] and
+/// [`ChessboardDetector::detect_any_scale`] share: the output's capacity, the frame's size,
+/// the scratch's length.
+fn check_frame<const N: usize>(
+    image: &ImageView<'_, u8>,
+    board: BoardSize,
+    scratch: &[i32],
+) -> Result<()> {
+    if N < board.corners() {
+        return Err(Error::BufferTooSmall("corners"));
+    }
+    let (w, h) = (image.width(), image.height());
+    if w < 16 || h < 16 || w > u16::MAX as usize || h > u16::MAX as usize {
+        return Err(Error::InvalidImage);
+    }
+    if scratch.len() < scratch_len(w) {
+        return Err(Error::BufferTooSmall("scratch"));
+    }
+    Ok(())
+}
+
+/// Step 6: the configured sub-pixel refinement of `found`'s corners on `image`, its window
+/// (and smoothing) `scale` times the configured one: the board was found on a level `scale`
+/// times coarser than `image`.
+fn refine<const N: usize>(
+    image: &ImageView<'_, u8>,
+    found: &mut Chessboard<N>,
+    refinement: Refinement,
+    scale: u8,
+) -> Result<()> {
+    // The refinement's configuration was checked with the detection's parameters.
+    match refinement {
+        Refinement::None => Ok(()),
+        Refinement::CornerSubPix(sp) => {
+            let sp = SubPixParams::from_checked(sp).scaled(scale);
+            corner_subpix(image, &mut found.corners, &sp)
+        }
+        Refinement::AdaptiveCornerSubPix(sp) => {
+            let sp = SubPixParams::from_checked(sp).scaled(scale);
+            corner_subpix_adaptive(image, &mut found.corners, found.size.cols(), &sp)
+        }
+        Refinement::Saddle(sc) => {
+            let sc = SaddleParams::from_checked(sc).scaled(scale);
+            saddle_subpix(image, &mut found.corners, &sc)
+        }
     }
 }
 

@@ -24,7 +24,8 @@ pub(super) type Maximum = (i32, u16, u16, i8, i8);
 
 /// The `K` strongest 3x3 maxima of the saddle response of `image` that reach
 /// `min_response`, into `heap` (cleared first); `scratch` holds [`scratch_len`]`(width)`
-/// words (the caller's check).
+/// words (the callers check it for the frame, and a pyramid level is never wider); with less,
+/// no maximum.
 pub(super) fn collect_maxima<const K: usize>(
     image: &ImageView<'_, u8>,
     min_response: i32,
@@ -33,8 +34,12 @@ pub(super) fn collect_maxima<const K: usize>(
 ) {
     let (w, h) = (image.width(), image.height());
     heap.clear();
-    let (hring, rest) = scratch.split_at_mut(5 * w);
-    let (sring, rring) = rest.split_at_mut(3 * w);
+    let Some((hring, rest)) = scratch.split_at_mut_checked(5 * w) else {
+        return;
+    };
+    let Some((sring, rring)) = rest.split_at_mut_checked(3 * w) else {
+        return;
+    };
     let rring = rring.get_mut(..3 * w).unwrap_or_default();
     // Logical row `y` of the frame sits in slot `(y + 2) % 5` of the first ring.
     let hrow = |ring: &mut [i32], logical: isize| {

@@ -7,6 +7,13 @@ use crate::image::ImageView;
 /// Ring samples of the corner test.
 const RING: usize = 32;
 
+/// Radius of the corner test's outer ring (pixels): the test sees an x-corner best when the
+/// four squares around it are at least this wide.
+pub(super) const OUTER_RADIUS: f32 = 5.0;
+
+/// Radius of the inner ring, tried when the outer one meets other squares.
+const INNER_RADIUS: f32 = 3.0;
+
 /// The corner test of a candidate at `p`: the two edge lines through it from the ring of
 /// radius 5 px, else from the ring of 3 px (when the larger one meets other squares); `None`
 /// when neither shows an x-corner.
@@ -15,7 +22,7 @@ pub(super) fn corner_lines(
     p: &Point2<f32>,
     min_contrast: u8,
 ) -> Option<[Vector2<f32>; 2]> {
-    [5.0f32, 3.0]
+    [OUTER_RADIUS, INNER_RADIUS]
         .into_iter()
         .find_map(|radius| ring_lines(image, p, radius, min_contrast))
 }

@@ -89,6 +89,16 @@ impl SubPixParams {
 
     /// The same parameters with the half window `half_window` clamped to
     /// `1 ..= self.half_window` (still checked).
+    /// The same refinement for a view `scale` times larger (a finer pyramid level than the one
+    /// the corners were found on): the window `scale` times wider, within the checked range.
+    pub(super) fn scaled(self, scale: u8) -> Self {
+        let half_window = self.0.half_window.saturating_mul(scale);
+        Self(SubPixConfig {
+            half_window: half_window.min(MAX_HALF_WINDOW),
+            ..self.0
+        })
+    }
+
     fn with_smaller_window(self, half_window: u8) -> Self {
         Self(SubPixConfig {
             half_window: half_window.max(1).min(self.0.half_window),
@@ -317,6 +327,12 @@ impl Default for SaddleConfig {
 }
 
 /// Largest smoothing kernel radius of [`saddle_subpix`] (3σ at σ = 3).
+/// Largest [`SaddleConfig::half_window`].
+pub const MAX_SADDLE_HALF_WINDOW: u8 = 4;
+
+/// Largest [`SaddleConfig::sigma`] (its kernel's radius `⌈3σ⌉` fits the patch).
+pub const MAX_SADDLE_SIGMA: f32 = 3.0;
+
 const SADDLE_KERNEL: usize = 9;
 /// Side of its sample buffer.
 const SADDLE_PATCH: usize = 2 * (4 + SADDLE_KERNEL) + 1;
@@ -328,10 +344,10 @@ impl SaddleConfig {
     /// 1 ..= 4, `saddle.sigma` outside 0.5 ..= 3 (or NaN), `saddle.max_iterations` outside
     /// 1 ..= 100, `saddle.epsilon` negative or not finite.
     pub fn check(&self) -> Result<SaddleParams> {
-        if !(1..=4).contains(&self.half_window) {
+        if !(1..=MAX_SADDLE_HALF_WINDOW).contains(&self.half_window) {
             return Err(Error::InvalidParameter("saddle.half_window"));
         }
-        if !(self.sigma >= 0.5 && self.sigma <= 3.0) {
+        if !(self.sigma >= 0.5 && self.sigma <= MAX_SADDLE_SIGMA) {
             return Err(Error::InvalidParameter("saddle.sigma"));
         }
         if self.max_iterations == 0 || self.max_iterations > 100 {
@@ -360,6 +376,21 @@ impl SaddleParams {
     /// ([`super::DetectConfig::check`] checks its refinement's).
     pub(super) const fn from_checked(c: SaddleConfig) -> Self {
         Self(c)
+    }
+
+    /// The same refinement for a view `scale` times larger (a finer pyramid level than the one
+    /// the corners were found on, where the edges are `scale` times more blurred in pixels):
+    /// the window and the smoothing `scale` times wider, within the checked ranges.
+    pub(super) fn scaled(self, scale: u8) -> Self {
+        let c = self.0;
+        Self(SaddleConfig {
+            half_window: c
+                .half_window
+                .saturating_mul(scale)
+                .min(MAX_SADDLE_HALF_WINDOW),
+            sigma: (c.sigma * f32::from(scale)).min(MAX_SADDLE_SIGMA),
+            ..c
+        })
     }
 }
 

@@ -714,7 +714,7 @@ fn run_calib<T: Real>() {
 fn run_chessboard() {
     use camgeom::chessboard::{
         BoardSize, ChessboardDetector, DetectConfig, Refinement, SaddleConfig, SubPixConfig,
-        corner_subpix, saddle_subpix, scratch_len,
+        corner_subpix, pyramid_len, saddle_subpix, scratch_len,
     };
     let frame = black_box([0u8; W * H]);
     let Some(v) = view(&frame) else { return };
@@ -737,6 +737,11 @@ fn run_chessboard() {
             continue;
         };
         black_box(det.detect::<12>(&v, board, &params, &mut scratch).ok());
+        let mut pyramid = black_box([0u8; pyramid_len(W, H)]);
+        black_box(
+            det.detect_any_scale::<12>(&v, board, &params, &mut pyramid, &mut scratch)
+                .ok(),
+        );
     }
     let mut corners = points2::<f32, 12>();
     if let Ok(sp) = black_box(SubPixConfig::default()).check() {

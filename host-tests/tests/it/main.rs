@@ -11,6 +11,7 @@ mod calib_real;
 mod calib_rendered;
 mod calib_synthetic;
 mod calib_undistort;
+mod chessboard_scales;
 mod cli;
 mod common;
 mod features;
