@@ -3,8 +3,9 @@
 //! sample's output file).
 //!
 //! Everything is checked and computed before anything is written: a usage or input error
-//! (no board anywhere, too few views, degenerate views, images of different sizes, a bad
-//! `--board` or `--square`) exits 2 with one line and leaves no file behind.
+//! (no board anywhere, too few views, degenerate views, a bad `--board` or `--square`) exits 2
+//! with one line and leaves no file behind. Images of another size than most (another camera
+//! mode) are skipped with a warning, as OpenCV's users skip them.
 
 use std::path::{Path, PathBuf};
 
@@ -12,7 +13,9 @@ use camgeom::calib::{
     CalibrationConfig, CalibrationFlags, CalibrationReport, CalibrationWarning, Calibrator,
 };
 use camgeom::camera::{Lens, LensModel};
-use camgeom::chessboard::{BoardSize, Chessboard, ChessboardDetector, DetectParams, scratch_len};
+use camgeom::chessboard::{
+    BoardSize, Chessboard, ChessboardDetector, DetectParams, Seen, pyramid_len, scratch_len,
+};
 use camgeom::draw::draw_line;
 use camgeom::nalgebra::Point2;
 use camgeom_host::cli::files::{create_dir, write_file};
@@ -169,6 +172,32 @@ struct View {
     path: PathBuf,
     image: GrayImage,
     corners: Option<Chessboard<MAX_CORNERS>>,
+    /// What the detector saw (why a board was not found).
+    seen: Seen,
+}
+
+/// What the detector saw in a view without the board, in words.
+fn seen_text(s: &Seen, board: BoardSize) -> String {
+    let (gc, gr) = (usize::from(s.largest_grid.0), usize::from(s.largest_grid.1));
+    if s.x_corners == 0 {
+        format!("no chessboard corner among {} candidates", s.candidates)
+    } else if gc == 0 {
+        format!(
+            "{} chessboard corners, but no 2x2 grid of them",
+            s.x_corners
+        )
+    } else if gc * gr < board.corners() {
+        format!(
+            "a partial grid of {gc}x{gr} corners (part of the board out of view, or its squares \
+             too small to resolve)"
+        )
+    } else {
+        format!(
+            "a {gc}x{gr} grid that does not verify as a {}x{} board",
+            board.cols(),
+            board.rows()
+        )
+    }
 }
 
 /// The file name of a path, for messages and the JSON (the path itself when it has none).
@@ -201,6 +230,8 @@ struct StdDev {
 struct Summary {
     views_used: usize,
     views_rejected: Vec<String>,
+    /// Images of another size than most views' (another camera mode), not used.
+    views_skipped: Vec<String>,
     images_used: Vec<String>,
     rms_px: f64,
     #[serde(rename = "K")]
@@ -266,7 +297,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     bar.set_message("detecting");
     let views = detect_all(&a.images, board, &bar);
     bar.finish_and_clear();
-    let views = views?;
+    let (views, skipped) = views?;
 
     let board_text = format!("{}x{}", board.cols(), board.rows());
     let found: Vec<&View> = views.iter().filter(|v| v.corners.is_some()).collect();
@@ -276,9 +307,22 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
         .map(|v| file_name(&v.path))
         .collect();
     if found.is_empty() {
+        // The view that came closest says what was seen.
+        let area =
+            |v: &&View| usize::from(v.seen.largest_grid.0) * usize::from(v.seen.largest_grid.1);
+        let best = views
+            .iter()
+            .max_by_key(|v| (area(v), v.seen.x_corners))
+            .map(|v| {
+                format!(
+                    "; the most seen: {} in {}",
+                    seen_text(&v.seen, board),
+                    file_name(&v.path)
+                )
+            })
+            .unwrap_or_default();
         return Err(Error::usage(format!(
-            "no {board_text} chessboard found in any of the {} images (check --board: inner \
-             corners, COLSxROWS)",
+            "no {board_text} chessboard found in any of the {} images{best}",
             views.len()
         )));
     }
@@ -335,8 +379,9 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     for v in &views {
         if v.corners.is_none() {
             eprintln!(
-                "camgeom: note: {}: no {board_text} board found, view not used",
-                v.path.display()
+                "camgeom: note: {}: no {board_text} board found ({}), view not used",
+                v.path.display(),
+                seen_text(&v.seen, board)
             );
         }
     }
@@ -376,6 +421,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     Ok(to_json(&Summary {
         views_used: report.views_used,
         views_rejected: rejected,
+        views_skipped: skipped,
         images_used: used.iter().map(|v| file_name(&v.path)).collect(),
         rms_px: report.rms_px,
         k: [k.fx(), k.skew(), k.cx(), 0.0, k.fy(), k.cy(), 0.0, 0.0, 1.0],
@@ -403,39 +449,63 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     }))
 }
 
-/// Reads every image and looks for the board in it, advancing `bar` by one an image. Errors
-/// for an unreadable image, one of another size than the first, or a detector error.
+/// Reads every image and looks for the board in it at any scale, advancing `bar` by one an
+/// image. The calibration's image size is the size most images have (the first of them on a
+/// tie); images of another size are skipped with a warning and named in the second list.
+/// Errors for an unreadable image or a detector error.
 fn detect_all(
     images: &[PathBuf],
     board: BoardSize,
     bar: &indicatif::ProgressBar,
-) -> Result<Vec<View>> {
+) -> Result<(Vec<View>, Vec<String>)> {
+    let loaded = images
+        .iter()
+        .map(|p| Ok((p, load_gray(p)?)))
+        .collect::<Result<Vec<_>>>()?;
+    let size = |g: &GrayImage| (g.width, g.height);
+    let count = |s: (usize, usize)| loaded.iter().filter(|(_, g)| size(g) == s).count();
+    let Some(mode) = loaded
+        .iter()
+        .map(|(_, g)| size(g))
+        .fold(None::<(usize, usize)>, |best, s| match best {
+            Some(b) if count(b) >= count(s) => Some(b),
+            _ => Some(s),
+        })
+    else {
+        return Ok((Vec::new(), Vec::new()));
+    };
     let mut det = Box::new(ChessboardDetector::<CANDIDATES>::new());
     let detect_params = DetectParams::default();
+    let mut scratch = vec![0i32; scratch_len(mode.0)];
+    let mut pyramid = vec![0u8; pyramid_len(mode.0, mode.1)];
     let mut views: Vec<View> = Vec::with_capacity(images.len());
-    for path in images {
-        let image = load_gray(path)?;
-        if let Some(first) = views.first()
-            && (first.image.width, first.image.height) != (image.width, image.height)
-        {
-            return Err(Error::new(
-                path,
-                ErrorKind::Shape(format!(
-                    "image is {}x{} but {} is {}x{}: calibrate images of one camera mode only",
-                    image.width,
-                    image.height,
-                    file_name(&first.path),
-                    first.image.width,
-                    first.image.height
-                )),
-            ));
+    let mut skipped = Vec::new();
+    for (path, image) in loaded {
+        bar.inc(1);
+        if size(&image) != mode {
+            eprintln!(
+                "camgeom: warning: {}: {}x{}, not the {}x{} of most images (another camera \
+                 mode): skipped",
+                path.display(),
+                image.width,
+                image.height,
+                mode.0,
+                mode.1
+            );
+            skipped.push(file_name(path));
+            continue;
         }
         let view = image
             .view()
             .ok_or_else(|| Error::new(path, ErrorKind::Shape("image size not supported".into())))?;
-        let mut scratch = vec![0i32; scratch_len(image.width)];
         let corners = det
-            .detect::<MAX_CORNERS>(&view, board, &detect_params, &mut scratch)
+            .detect_any_scale::<MAX_CORNERS>(
+                &view,
+                board,
+                &detect_params,
+                &mut pyramid,
+                &mut scratch,
+            )
             .map_err(|e| {
                 Error::camgeom(
                     format!("{}: chessboard detection failed", path.display()),
@@ -446,10 +516,10 @@ fn detect_all(
             path: path.clone(),
             image,
             corners,
+            seen: det.seen(),
         });
-        bar.inc(1);
     }
-    Ok(views)
+    Ok((views, skipped))
 }
 
 /// The camera file as OpenCV's calibration sample (`samples/cpp/calibration.cpp`) writes it,

@@ -119,9 +119,12 @@ fn calibrates_the_bundled_views_as_well_as_opencv_and_opencv_reads_the_file() {
     let cv_rms = cv["rms"].as_f64().unwrap();
     println!("rms: camgeom {rms:.4}, OpenCV {cv_rms:.4}");
     assert!(rms <= cv_rms, "{rms} > OpenCV's {cv_rms}");
-    // Intrinsics against OpenCV's from its corners, with OpenCV's own acceptance tolerances
-    // (test_calibration.py: |K - K_test|₁ < 10, |d - d_test|₁ < 0.05): the two corner sets
-    // differ by 0.2 px median, which moves fx by about one standard deviation (0.44 px).
+    // Intrinsics against OpenCV's from its corners: K with OpenCV's own acceptance tolerance
+    // (test_calibration.py: |K - K_test|₁ < 10); the two corner sets differ by 0.2 px median,
+    // which moves fx by about one standard deviation (0.44 px). The distortion coefficients
+    // each within three standard deviations of the difference (both estimates' own, added in
+    // quadrature): OpenCV's |d - d_test|₁ < 0.05 is mostly k3, the least determined
+    // coefficient (σ 0.075 here), so an L1 bound says little about the others.
     let k = floats(&j["K"]);
     let d = floats(&j["distortion"]);
     let kl1: f64 = k
@@ -135,8 +138,16 @@ fn calibrates_the_bundled_views_as_well_as_opencv_and_opencv_reads_the_file() {
         .map(|(a, b)| (a - b).abs())
         .sum();
     println!("|K - K_opencv|₁ {kl1:.3}, |d - d_opencv|₁ {dl1:.4}");
-    // Measured 1.35 and 0.047 (k3, the least determined coefficient, takes most of it).
-    assert!(kl1 < 10.0 && dl1 < 0.05);
+    assert!(kl1 < 10.0, "{kl1}");
+    let ours_std = floats(&j["std"]["distortion"]);
+    let cv_std = floats(&cv["std_intrinsics"]);
+    for (i, (a, b)) in d.iter().zip(floats(&cv["dist"])).enumerate() {
+        let sigma = ours_std[i].hypot(cv_std[4 + i]);
+        assert!(
+            (a - b).abs() < 3.0 * sigma,
+            "distortion[{i}]: {a} against OpenCV's {b}, σ {sigma}"
+        );
+    }
     // Standard deviations of the same order as OpenCV's (fx: 0.38 against 0.44); a factor of
     // two either way would mean a different estimator.
     let sfx = j["std"]["fx"].as_f64().unwrap();
@@ -338,14 +349,8 @@ fn calibrate_rejects_bad_input_and_writes_nothing() {
     .map(|(i, &(s, x, y))| save(&format!("fronto{i}.png"), &fronto_board(s, x, y)))
     .collect();
     assert_rejected(&fronto, &[], "9x6", "25", "degenerate");
-    // Images of different sizes: a 320x240 frame among 640x480 ones.
-    assert_rejected(
-        &[views[0].clone(), rendered("rot135.png"), views[1].clone()],
-        &[],
-        "9x6",
-        "25",
-        "rot135.png: image is 320x240 but left01.jpg is 640x480",
-    );
+    // Images of another size are skipped with a warning, not rejected: see
+    // views_without_the_board_are_listed_and_left_out.
     // Square size.
     for sq in ["0", "-25", "nan", "inf"] {
         assert_rejected(&views, &[], "9x6", sq, "--square must be a positive length");
@@ -521,9 +526,11 @@ fn undistort_of_a_fisheye_file_equals_opencvs_fisheye_remap() {
         // As for Brown-Conrady: through the same new K, every pixel equal.
         assert_eq!(c.same_k, (307_200, 0));
         // OpenCV's own K: 0.015 px apart at balance 0 moves a third of the entries by
-        // 1/32 px (measured 92 % of the pixels equal, max 8), never by more than that.
+        // 1/32 px (measured 92 % of the pixels equal), never by more than that: one 1/32 px
+        // step at the steepest edge possible (255 grey levels a pixel) changes a pixel by at
+        // most ⌈255 / 32⌉ = 8, and the interpolation's rounding by one more.
         assert!(c.own_k.0 as f64 >= 0.85 * 307_200.0, "{:?}", c.own_k);
-        assert!(c.own_k.1 <= 8, "{:?}", c.own_k);
+        assert!(c.own_k.1 <= 9, "{:?}", c.own_k);
     }
 }
 
@@ -632,8 +639,11 @@ fn views_without_the_board_are_listed_and_left_out() {
     let dir = scratch_dir("calibreject");
     let blank = dir.join("blank.png");
     save_gray(&GrayImage::filled(640, 480, 128), &blank).unwrap();
+    let odd = dir.join("odd.png");
+    save_gray(&GrayImage::filled(641, 481, 128), &odd).unwrap();
     let mut images = bundled_views();
     images.insert(2, blank.display().to_string());
+    images.insert(5, odd.display().to_string());
     let pictures = dir.join("pictures");
     let out = dir.join("camera.yml");
     let o = run_calibrate(
@@ -644,14 +654,24 @@ fn views_without_the_board_are_listed_and_left_out() {
     let j = json(&o);
     assert_eq!(j["views_used"], 13);
     assert_eq!(j["views_rejected"], serde_json::json!(["blank.png"]));
+    assert_eq!(j["views_skipped"], serde_json::json!(["odd.png"]));
     let used = j["images_used"].as_array().unwrap();
     assert_eq!(used.len(), 13);
     assert!(!used.contains(&"blank.png".into()));
     assert_eq!(floats(&j["per_view_rms"]).len(), 13);
-    // One note on stderr for the view left out.
+    // One note on stderr for the view left out, saying what was seen, and one warning for
+    // the image of another size.
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("blank.png: no 9x6 board found, view not used"),
+        err.contains(
+            "blank.png: no 9x6 board found (no chessboard corner among 0 candidates), view not used"
+        ),
+        "{err}"
+    );
+    assert!(
+        err.contains(
+            "odd.png: 641x481, not the 640x480 of most images (another camera mode): skipped"
+        ),
         "{err}"
     );
     // The pictures go to --pictures: 14 tiles (4 rows of 4 columns), 13 bars.
