@@ -475,7 +475,9 @@ pub fn good_features<const K: usize>(
     let (prods, ring) = scratch
         .split_at_mut_checked(9 * w)
         .ok_or(Error::BufferTooSmall("scratch"))?;
-    let q = f64::from(cfg.quality);
+    // The checked range `(0, 1]`, restated so that the optimiser knows `quality_of(max) <=
+    // max` (the redetection's worst frame on the Cortex-M7: BENCHMARKS.md).
+    let q = f64::from(cfg.quality).min(1.0).max(0.0);
     let quality_of = |max: u32| (f64::from(max) * q) as u32;
     // Rows of products and of scores live in rings of three, slot `row % 3`.
     let pslot = |r: usize| ((r % 3) * 3 * w)..((r % 3) + 1) * 3 * w;
