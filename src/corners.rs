@@ -476,7 +476,9 @@ pub fn good_features<const K: usize>(
         .split_at_mut_checked(9 * w)
         .ok_or(Error::BufferTooSmall("scratch"))?;
     // The checked range `(0, 1]`, restated so that the optimiser knows `quality_of(max) <=
-    // max` (the redetection's worst frame on the Cortex-M7: BENCHMARKS.md).
+    // max` (the redetection's worst frame on the Cortex-M7: BENCHMARKS.md). Not `clamp`: it
+    // lets a NaN through, and then the optimiser knows nothing.
+    #[allow(clippy::manual_clamp)]
     let q = f64::from(cfg.quality).min(1.0).max(0.0);
     let quality_of = |max: u32| (f64::from(max) * q) as u32;
     // Rows of products and of scores live in rings of three, slot `row % 3`.
