@@ -67,7 +67,7 @@ def main():
     out = subprocess.run(cmd + ["apriltag", "--frames", SEQ, "--intrinsics", cam, "--tag-size",
                                 str(SIZE)], cwd=ROOT, check=True, capture_output=True, text=True)
     det_r, det_t = [], []
-    for f, (rt, tt) in zip(json.loads(out.stdout), gt):
+    for f, (rt, tt) in zip(json.loads(out.stdout)["frames"], gt):
         for d in f["detections"]:
             if d["id"] == 42 and d["R"] is not None:
                 e = errors(np.reshape(d["R"], (3, 3)), np.array(d["t"]), rt, tt)

@@ -54,7 +54,8 @@ pub struct ApriltagArgs {
     overlay: Option<PathBuf>,
 }
 
-/// `camgeom apriltag`: the JSON (one object with --image, an array of them with --frames).
+/// `camgeom apriltag`: the JSON (one object with --image; with --frames, `{"frames": [..]}`
+/// holding one of them a frame).
 /// Every frame is detected before anything is written.
 pub fn run(a: &ApriltagArgs) -> Result<String> {
     let families = families_list(&a.family)?;
@@ -99,10 +100,15 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
             }
         }
     }
+    // One top-level object either way (CLI.md's convention): the frames under "frames".
+    #[derive(serde::Serialize)]
+    struct Frames<'a> {
+        frames: &'a [JsonFrame],
+    }
     Ok(if single {
         to_json(&frames[0])
     } else {
-        to_json(&frames)
+        to_json(&Frames { frames: &frames })
     })
 }
 

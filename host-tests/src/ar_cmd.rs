@@ -65,9 +65,17 @@ pub struct ArArgs {
     /// Edge of the cube drawn on the target (default: the target's smaller side).
     #[arg(long, value_name = "S")]
     cube: Option<f32>,
-    /// Output folder: one overlay PNG per frame, `poses.csv`, `contact_sheet.png`.
+    /// Output folder: one overlay PNG per frame (see --overlay-every), `poses.csv`,
+    /// `contact_sheet.png`.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
+    /// Write the overlay PNG of every N-th frame only (frames 0, N, 2N, ..).
+    #[arg(long, value_name = "N", default_value_t = 1,
+          value_parser = clap::value_parser!(u32).range(1..))]
+    overlay_every: u32,
+    /// Write no overlay PNG (`poses.csv` and the contact sheet are written still).
+    #[arg(long, conflicts_with = "overlay_every")]
+    no_overlay: bool,
     /// Run the f32 flow instead of the fixed-point (integer) one.
     #[arg(long)]
     f32: bool,
@@ -296,17 +304,25 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let sheet_idx = evenly_spaced(frames.len(), a.sheet_frames);
     let mut tiles = Vec::new();
     let mut write_err = None;
+    let every = usize::try_from(a.overlay_every).unwrap_or(usize::MAX);
     let results = run_ar(&frames, acquire, &camera, &opts, |f| {
         bar.inc(1);
-        let img = draw_ar(&frames[f.index], &camera, f, &opts);
-        let name = files[f.index]
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| f.index.to_string());
-        if let Err(e) = img.save_png(a.out.join(format!("{name}.png"))) {
-            write_err.get_or_insert(e);
+        let write = !a.no_overlay && f.index.is_multiple_of(every);
+        let tile = sheet_idx.contains(&f.index);
+        if !(write || tile) {
+            return;
         }
-        if sheet_idx.contains(&f.index) {
+        let img = draw_ar(&frames[f.index], &camera, f, &opts);
+        if write {
+            let name = files[f.index]
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| f.index.to_string());
+            if let Err(e) = img.save_png(a.out.join(format!("{name}.png"))) {
+                write_err.get_or_insert(e);
+            }
+        }
+        if tile {
             tiles.push((f.index, img));
         }
     })

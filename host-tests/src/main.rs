@@ -66,8 +66,9 @@ enum Command {
     Camera(CameraArgs),
     /// Plane homography of point correspondences (OpenCV's findHomography with RANSAC).
     ///
-    /// Reads rows `x1,y1,x2,y2` (CSV) and prints JSON `{"H": [[..], [..], [..]], "inliers": N,
-    /// "inlier_mask": [..], "method": .., "iterations": ..}` with `x2 ~ H x1`, `h33 = 1`.
+    /// Reads rows `x1,y1,x2,y2` (CSV), or matches ORB features of two images (`--images A B`),
+    /// and prints JSON `{"H": [h11, h12, h13, h21, .., h33], "inliers": N, "inlier_mask": [..],
+    /// "method": .., "iterations": ..}` (H row-major, 9 numbers) with `x2 ~ H x1`, `h33 = 1`.
     /// Exactly 4 rows: the exact 4-point solver (getPerspectiveTransform); more: RANSAC.
     Homography(homography_cmd::HomographyArgs),
     /// Paste a logo into a frame inside a quadrilateral (OpenCV's warpPerspective).

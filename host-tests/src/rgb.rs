@@ -29,7 +29,8 @@ pub trait Overlay: Sized {
     /// ([`label_size`] gives its full size).
     fn label(&mut self, x: usize, y: usize, text: &str, max_w: usize, max_h: usize);
 
-    /// Writes the image as PNG with the best compression.
+    /// Writes the image as PNG with fast compression: with the best one, compressing took
+    /// most of `ar`'s and `apriltag --overlay`'s time (BENCHMARKS.md).
     fn save_png(&self, path: impl AsRef<Path>) -> Result<()>;
 }
 
@@ -111,7 +112,7 @@ impl Overlay for RgbImage {
         let file = std::fs::File::create(path).map_err(io)?;
         let enc = PngEncoder::new_with_quality(
             std::io::BufWriter::new(file),
-            CompressionType::Best,
+            CompressionType::Fast,
             FilterType::Adaptive,
         );
         enc.write_image(

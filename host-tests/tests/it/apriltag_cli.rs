@@ -61,7 +61,7 @@ fn cli_on_the_apriltag_test_photos_gives_the_expected_tags() {
         "--no-refine-edges",
         "--apriltag-coords",
     ]);
-    let frames = v.as_array().unwrap();
+    let frames = v["frames"].as_array().unwrap();
     assert_eq!(frames.len(), TEST_PHOTOS.len());
     let mut errors = Vec::new();
     for (frame, name) in frames.iter().zip(TEST_PHOTOS) {
@@ -154,7 +154,7 @@ fn cli_poses_on_the_tag_sequence_match_the_truth() {
         "--tag-size",
         "0.08",
     ]);
-    let frames = v.as_array().unwrap();
+    let frames = v["frames"].as_array().unwrap();
     let truth = tag_sequence();
     assert_eq!(frames.len(), truth.len());
     let (mut worst_r, mut worst_t, mut checked, mut empty) = (0.0f64, 0.0f64, 0, 0);

@@ -256,11 +256,38 @@ fn ar_cli_writes_overlays_poses_and_contact_sheet() {
     assert_eq!((img.width(), img.height()), (320, 240));
     let sheet = image::open(out.join("contact_sheet.png")).unwrap();
     assert_eq!((sheet.width(), sheet.height()), (2 * 160 + 6, 2 * 120 + 6));
+    // Every 5th overlay (frames 0, 5, 10), or none; the contact sheet and poses.csv either way.
+    let pngs = || {
+        let mut v: Vec<String> = std::fs::read_dir(&out)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".png") && n != "contact_sheet.png")
+            .collect();
+        v.sort();
+        v
+    };
+    for (extra, expect) in [
+        (
+            &["--overlay-every", "5"][..],
+            &["0000.png", "0005.png", "0010.png"][..],
+        ),
+        (&["--no-overlay"][..], &[][..]),
+    ] {
+        std::fs::remove_dir_all(&out).unwrap();
+        let mut args = vec!["--size", "0.258,0.189"];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(pngs(), expect, "{extra:?}");
+        assert!(out.join("contact_sheet.png").exists() && out.join("poses.csv").exists());
+    }
     // Input errors: status 2, one line.
     for bad in [
         &["--size", "0.258,0,1"][..],
         &["--size", "-1"][..],
         &["--size", "0.2", "--cube", "0"][..],
+        &["--size", "0.2", "--overlay-every", "0"][..],
+        &["--size", "0.2", "--overlay-every", "2", "--no-overlay"][..],
     ] {
         let o = run(bad);
         assert_eq!(o.status.code(), Some(2), "{bad:?}");
