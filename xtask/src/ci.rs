@@ -252,8 +252,12 @@ fn secs(d: Duration) -> String {
     format!("{:.1} s", d.as_secs_f64())
 }
 
-pub fn ci() -> Result<()> {
-    let all = steps();
+/// Runs every step, or with `only` the steps whose name contains it.
+pub fn ci(only: Option<&str>) -> Result<()> {
+    let all: Vec<Step> = steps()
+        .into_iter()
+        .filter(|(name, _)| only.is_none_or(|o| name.contains(o)))
+        .collect();
     let count = all.len();
     println!(
         "xtask ci: {count} steps{}",

@@ -20,7 +20,7 @@ use crate::util::{cargo, locked, root, run};
 
 pub const PACKAGE: &str = "camgeom-fw-emulated";
 /// The projection checks (run by `cargo xtask run` before the main job).
-const PROJECTION_BIN: &str = "camgeom-fw-projection";
+pub const PROJECTION_BIN: &str = "camgeom-fw-projection";
 /// The homography benchmark binary (`cargo xtask bench-fw`).
 pub const BENCH_BIN: &str = "camgeom-fw-bench";
 /// The line the firmware logs when it has done all its work; the run fails without it.
@@ -83,6 +83,19 @@ pub fn build_bin_for(board: Board, bin: &str, extra: &[&str]) -> Result<PathBuf>
         bail!("the build did not produce {}", elf.display());
     }
     Ok(elf)
+}
+
+/// Builds binaries `bins` of the firmware package (release) for `board` in one cargo call, so
+/// their release links (each an LTO of the whole app, single-threaded) run side by side on the
+/// machine's cores instead of one after another; a later [`build_bin_for`] of one of them is a
+/// no-op.
+pub fn build_bins_for(board: Board, bins: &[&str]) -> Result<()> {
+    let mut cmd = firmware_cargo("build");
+    cmd.args(["--release", "-p", PACKAGE, "--target", board.target]);
+    for bin in bins {
+        cmd.args(["--bin", bin]);
+    }
+    run(locked(&mut cmd))
 }
 
 /// Builds and runs the projection checks; returns their summary line.

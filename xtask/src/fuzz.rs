@@ -108,17 +108,36 @@ fn prepare(only: Option<&str>) -> Result<Vec<(&'static str, PathBuf, PathBuf)>> 
     Ok(out)
 }
 
+/// How many targets run at once: one per core of the 2-core CI machine (each libFuzzer run is
+/// single-threaded).
+const PARALLEL: usize = 2;
+
 pub fn fuzz(seconds: u64, only: Option<&str>) -> Result<()> {
-    for (target, seeds, out) in prepare(only)? {
-        // libFuzzer reads every corpus directory given and writes new inputs to the first.
-        run(cargo_fuzz("run")
-            .args(BUILD)
-            .arg(target)
-            .arg(&out)
-            .arg(&seeds)
-            .arg("--")
-            .arg(format!("-max_total_time={seconds}"))
-            .arg("-rss_limit_mb=1024"))?;
+    let targets = prepare(only)?;
+    for batch in targets.chunks(PARALLEL) {
+        std::thread::scope(|s| {
+            let runs: Vec<_> = batch
+                .iter()
+                .map(|(target, seeds, out)| {
+                    s.spawn(move || {
+                        // libFuzzer reads every corpus directory given and writes new inputs
+                        // to the first.
+                        run(cargo_fuzz("run")
+                            .args(BUILD)
+                            .arg(target)
+                            .arg(out)
+                            .arg(seeds)
+                            .arg("--")
+                            .arg(format!("-max_total_time={seconds}"))
+                            .arg("-rss_limit_mb=1024"))
+                    })
+                })
+                .collect();
+            runs.into_iter().try_for_each(|r| {
+                r.join()
+                    .unwrap_or_else(|_| bail!("a fuzz run's thread panicked"))
+            })
+        })?;
     }
     Ok(())
 }

@@ -122,7 +122,11 @@ enum Command {
     /// xtask.
     Imports,
     /// Every check in order: fmt, clippy, tests, no_std builds, docs, then `run`.
-    Ci,
+    Ci {
+        /// Only the steps whose name contains this text (to time or rerun one step).
+        #[arg(long, value_name = "TEXT")]
+        only: Option<String>,
+    },
 }
 
 /// Runs `command`.
@@ -157,7 +161,7 @@ fn run(command: Command) -> Result<()> {
         Command::Fuzz { seconds, target } => fuzz::fuzz(seconds, target.as_deref()),
         Command::FuzzCmin { target } => fuzz::cmin(target.as_deref()),
         Command::Imports => imports::check(&util::root()),
-        Command::Ci => ci::ci(),
+        Command::Ci { only } => ci::ci(only.as_deref()),
     }
 }
 

@@ -164,9 +164,11 @@ fn link(features: &str, targets: &[&str]) -> Result<()> {
 
 /// The CI step: for each target, one binary with every area and both scalar types. An area
 /// with a known panic on that target in one scalar type only goes into a second binary with
-/// the other. `cargo xtask panic-check` says which case failed.
+/// the other. Targets with the same selection link in one cargo call, so their builds and LTO
+/// links share the machine's cores. `cargo xtask panic-check` says which case failed.
 pub fn check_panic_free() -> Result<()> {
-    let mut links = 0;
+    // Each selection (features) and the targets it is linked for.
+    let mut selections: Vec<(String, Vec<&str>)> = Vec::new();
     for target in TARGETS {
         // The scalar types each area links with on this target ([`SCALARS`] for an area
         // without `f64` entry points that links with `f32`: `f64` adds nothing to it).
@@ -192,13 +194,25 @@ pub fn check_panic_free() -> Result<()> {
         }
         for (scalars, areas) in sets {
             let features = [areas, scalars].concat().join(",");
-            if let Err(e) = link(&features, &[target]) {
-                let found = locate(&features, target)
-                    .unwrap_or_else(|l| format!("(could not locate it: {l:#})"));
-                return Err(e.context(format!("a panic path on {target}: {found}")));
+            match selections.iter_mut().find(|(f, _)| *f == features) {
+                Some((_, targets)) => targets.push(target),
+                None => selections.push((features, vec![target])),
             }
-            links += 1;
         }
+    }
+    let mut links = 0;
+    for (features, targets) in &selections {
+        if let Err(e) = link(features, targets) {
+            let found: Vec<String> = targets
+                .iter()
+                .map(|t| match locate(features, t) {
+                    Ok(f) => format!("{t}: {f}"),
+                    Err(l) => format!("{t}: (could not locate it: {l:#})"),
+                })
+                .collect();
+            return Err(e.context(format!("a panic path: {}", found.join("; "))));
+        }
+        links += targets.len();
     }
     println!(
         "panic-check: every area not in KNOWN_PANICS links without a panic path on {} ({links} links)",

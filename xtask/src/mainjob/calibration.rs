@@ -31,7 +31,7 @@ use crate::util::root;
 /// coordinates, absolute 1e-4 on the lens coefficients.
 pub const TOLERANCE: f32 = 1e-4;
 
-const BIN: &str = "camgeom-fw-calib";
+pub const BIN: &str = "camgeom-fw-calib";
 
 fn prepare(dir: &Path) -> Result<CalibSpec> {
     fs::create_dir_all(dir)?;

@@ -40,7 +40,9 @@ use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::images::{GrayImage, save_gray};
 use camgeom_host::rgb::{Overlay, RgbImage};
 
-use crate::firmware::{build_and_run_projection, build_bin_for, size_of};
+use crate::firmware::{
+    PROJECTION_BIN, build_and_run_projection, build_bin_for, build_bins_for, size_of,
+};
 use crate::jobs::{BOARDS, Board, FULL, HALF, M7, Size, snapshot_key};
 use crate::util::root;
 
@@ -209,8 +211,30 @@ fn forward_backward_job(stride: u32) -> Result<String> {
     Ok(out)
 }
 
+/// Every binary the run needs, built up front: one cargo call per board, whose links run in
+/// parallel (see [`build_bins_for`]).
+fn prebuild(opts: &Options) -> Result<()> {
+    for &board in &opts.boards {
+        let mut bins: Vec<&str> = opts.sizes.iter().map(|s| s.bin).collect();
+        if board == M7 {
+            bins.extend([PROJECTION_BIN, KEPT_BIN, tag::SIZE.bin, calibration::BIN]);
+        }
+        bins.sort_unstable();
+        bins.dedup();
+        build_bins_for(board, &bins)?;
+    }
+    Ok(())
+}
+
 /// `cargo xtask run`.
 pub fn run(opts: &Options) -> Result<()> {
+    let t = Instant::now();
+    prebuild(opts)?;
+    println!(
+        "main job: firmware built for {} board(s) ({:.1} s)",
+        opts.boards.len(),
+        t.elapsed().as_secs_f64()
+    );
     if opts.boards.contains(&M7) {
         let summary = build_and_run_projection()?;
         println!("projection checks: {summary}");

@@ -38,7 +38,7 @@ const TAG_ID: u16 = 42;
 /// tracks (the sequence's exposure drop and occlusion move them most).
 pub const REACQUIRE_EVERY: u32 = 5;
 
-const SIZE: Size = Size {
+pub const SIZE: Size = Size {
     width: 320,
     height: 240,
     bin: "camgeom-fw-tag",
