@@ -51,11 +51,20 @@ pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
 /// The cross-checked matches of two feature sets, `(index in a, index in b)`; `what` names
 /// the pair in an error message.
 pub fn cross_check(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>> {
+    matches_with(a, b, &CROSS_CHECK, what)
+}
+
+fn matches_with(
+    a: &[Feature],
+    b: &[Feature],
+    config: &MatchConfig,
+    what: &str,
+) -> Result<Vec<(usize, usize)>> {
     let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
     let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
     let mut ms = vec![Match::default(); da.len()];
     let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
-    let params = CROSS_CHECK
+    let params = config
         .check()
         .map_err(|e| Error::camgeom(format!("{what}: match configuration"), e))?;
     let n = match_descriptors(&da, &db, &params, &mut scratch, &mut ms)
@@ -64,6 +73,20 @@ pub fn cross_check(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usiz
         .iter()
         .map(|m| (usize::from(m.query), usize::from(m.train)))
         .collect())
+}
+
+/// Lowe's ratio test and the mutual check together: what structure from motion matches with
+/// (a cross-check alone keeps many wrong matches on repeated building texture).
+const RATIO_MUTUAL: MatchConfig = MatchConfig {
+    ratio: 0.8,
+    cross_check: true,
+    max_distance: 256,
+};
+
+/// The matches of two feature sets that pass the ratio test and the mutual check,
+/// `(index in a, index in b)`; `what` names the pair in an error message.
+pub fn match_features(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(usize, usize)>> {
+    matches_with(a, b, &RATIO_MUTUAL, what)
 }
 
 /// Correspondences of two images: their ORB keypoints matched with cross-check.
