@@ -32,8 +32,8 @@ Scores, the same for every method (views registered is "k/n"):
 Selections: --all (all views of the set in one run) and --triplets (every consecutive triplet
 i, i+1, i+2, each a separate run; a summary row gives the worst value of each column over the
 triplets, and the triplets' total time). --unrelated runs every method on views of different
-buildings (two each of herz-jesus-p8, entry-p10 and sceaux-castle) and reports which views each
-method put into one reconstruction; sceaux-castle's K differs from the others', and all views
+buildings (two each, or --per-building N, of herz-jesus-p8, entry-p10 and sceaux-castle) and
+reports which views each method put into one reconstruction; sceaux-castle's K differs from the others', and all views
 are given herz-jesus-p8's camera.json.
 
     python3 host-tests/scripts/sfm_peers.py host-tests/data/multiview/herz-jesus-p8 --all --triplets
@@ -178,9 +178,16 @@ def run_colmap(images, k, threads=1, seed=0):
         pipeline.mapper.random_seed = seed
         pipeline.triangulation.random_seed = seed
 
+        # One camera for all views; but COLMAP skips an image whose size differs from the
+        # single camera's (CAMERA_SINGLE_DIM_ERROR), as in --unrelated: there, one camera per
+        # image, every one given the same fixed K.
+        sizes = {cv2.imread(p, cv2.IMREAD_UNCHANGED).shape[:2] for p in images}
+        mode = pycolmap.CameraMode.SINGLE if len(sizes) == 1 else pycolmap.CameraMode.PER_IMAGE
+        if len(sizes) > 1:
+            res.note = "images of different sizes: one camera per image, all with the same fixed K"
         t0 = time.perf_counter()
         pycolmap.extract_features(
-            db, imdir, image_names=names, camera_mode=pycolmap.CameraMode.SINGLE, reader_options=reader,
+            db, imdir, image_names=names, camera_mode=mode, reader_options=reader,
             extraction_options=extraction, device=pycolmap.Device.cpu,
         )
         t1 = time.perf_counter()
@@ -191,6 +198,8 @@ def run_colmap(images, k, threads=1, seed=0):
         res.seconds = t3 - t0
         res.stages = {"features_s": t1 - t0, "matching_s": t2 - t1, "mapping_s": t3 - t2}
         if not recs:
+            # COLMAP keeps no two-view model: an initial pair that no third view extends is
+            # discarded as a "bad initial pair".
             res.refused = "no reconstruction"
             res.reasons = ["not in any model"] * len(images)
             return res
@@ -198,11 +207,11 @@ def run_colmap(images, k, threads=1, seed=0):
         best = max(recs, key=lambda i: (sizes[i], recs[i].num_points3D()))
         rec = recs[best]
         if len(recs) > 1:
-            res.note = f"{len(recs)} models, registered views {sorted(sizes.values(), reverse=True)}; the largest is scored"
+            res.note = (res.note + "; " if res.note else "") + f"{len(recs)} models, registered views {sorted(sizes.values(), reverse=True)}; the largest is scored"
         res.points = rec.num_points3D()
         cams = [list(map(float, c.params)) for c in rec.cameras.values()]
         res.stages["cameras_after"] = cams
-        if len(cams) != 1 or not np.allclose(cams[0], [k[0, 0], k[1, 1], k[0, 2], k[1, 2]], rtol=0, atol=1e-6):
+        if not all(np.allclose(c, [k[0, 0], k[1, 1], k[0, 2], k[1, 2]], rtol=0, atol=1e-6) for c in cams):
             res.note = (res.note + "; " if res.note else "") + f"camera not fixed: {cams}"
         index = {n: i for i, n in enumerate(names)}
         for img in rec.images.values():
@@ -529,6 +538,7 @@ def run_selection(method, folder, files, k, truth, label, args):
     s = score(res, [truth[f] for f in files])
     s.update({"method": method, "selection": label, "files": files, "refused": res.refused, "note": res.note or "", "stages": res.stages})
     s["unregistered"] = {f: res.reasons[i] for i, f in enumerate(files) if res.poses[i] is None}
+    s["poses"] = {f: {"R": p[0].ravel().tolist(), "t": p[1].ravel().tolist()} for f, p in zip(files, res.poses) if p is not None}
     if s["unregistered"] and not res.refused:
         miss = ", ".join(f"{f} ({why})" for f, why in s["unregistered"].items())
         s["note"] = (s["note"] + "; " if s["note"] else "") + f"not registered: {miss}"
@@ -556,11 +566,7 @@ def bench_set(folder, args):
     return name, rows
 
 
-UNRELATED = [
-    ("herz-jesus-p8", ["0002.jpg", "0003.jpg"]),
-    ("entry-p10", ["0002.jpg", "0003.jpg"]),
-    ("sceaux-castle", ["100_7100.jpg", "100_7101.jpg"]),
-]
+UNRELATED = [("herz-jesus-p8", 2), ("entry-p10", 2), ("sceaux-castle", 0)]  # (set, first view)
 
 
 def bench_unrelated(args):
@@ -568,9 +574,11 @@ def bench_unrelated(args):
     of different buildings (a model of two views of one building is not wrong)."""
     camera_json = os.path.join(DATA, "herz-jesus-p8", "camera.json")
     k, _, _ = load_set(os.path.join(DATA, "herz-jesus-p8"))
-    entries = [(b, f) for b, fs in UNRELATED for f in fs]
+    per = args.per_building
+    chosen = [(b, load_set(os.path.join(DATA, b))[1][first : first + per]) for b, first in UNRELATED]
+    entries = [(b, f) for b, fs in chosen for f in fs]
     if args.interleave:
-        entries = [(b, fs[i]) for i in range(2) for b, fs in UNRELATED]
+        entries = [(b, fs[i]) for i in range(per) for b, fs in chosen]
     images = [os.path.join(DATA, b, f) for b, f in entries]
     labels = [f"{b}/{f}" for b, f in entries]
     rows = []
@@ -592,6 +600,9 @@ def bench_unrelated(args):
             "note": res.note or "",
             "reasons": {labels[i]: res.reasons[i] for i in range(len(images)) if res.poses[i] is None},
         }
+        fp = res.stages.get("first_pair")
+        if fp:
+            row["note"] = (row["note"] + "; " if row["note"] else "") + f"first pair: {fp['matches']} ratio-test matches, {fp['inliers']} pose inliers"
         print(f"  {method} unrelated: {verdict}, {reg}", file=sys.stderr)
         rows.append(row)
     lines = [
@@ -599,11 +610,11 @@ def bench_unrelated(args):
         "|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        note = r["refused"] or r["note"]
+        note = "; ".join(x for x in (r["refused"], r["note"]) if x)
         lines.append(
             f"| {r['method']} | {r['registered']}/{r['views']} | {', '.join(r['registered_views']) or '—'} | {r['verdict']} | {r['points']} | {r['seconds']:.1f} | {note} |"
         )
-    order = "interleaved (A1 B1 C1 A2 B2 C2)" if args.interleave else "grouped (A1 A2 B1 B2 C1 C2)"
+    order = "interleaved (A1 B1 C1 A2 B2 C2 ...)" if args.interleave else "grouped (A1 A2 ... B1 B2 ... C1 C2 ...)"
     head = f"### unrelated views: {', '.join(labels)}; order {order}; all given herz-jesus-p8's camera.json (sceaux-castle's true K differs)"
     return head, rows, "\n".join(lines)
 
@@ -615,6 +626,7 @@ def main():
     ap.add_argument("--triplets", action="store_true", help="every consecutive triplet, one run each")
     ap.add_argument("--unrelated", action="store_true", help="views of three different buildings in one run")
     ap.add_argument("--interleave", action="store_true", help="--unrelated: order A1 B1 C1 A2 B2 C2 (default A1 A2 B1 B2 C1 C2)")
+    ap.add_argument("--per-building", type=int, default=2, help="--unrelated: consecutive views of each building (default 2)")
     ap.add_argument("--methods", default="colmap,opencv", help="comma-separated: colmap,opencv,camgeom (default colmap,opencv; camgeom needs --camgeom)")
     ap.add_argument("--camgeom", help="path to the camgeom binary (adds camgeom to --methods)")
     ap.add_argument("--json", help="write the rows as JSON here")
