@@ -33,6 +33,7 @@
 //! # Ok::<(), camgeom::Error>(())
 //! ```
 
+mod cholesky;
 mod eigen;
 mod elementary;
 pub mod lm;
@@ -42,6 +43,7 @@ mod reduction;
 mod rotation;
 mod svd;
 
+pub(crate) use cholesky::cholesky_solve;
 pub(crate) use eigen::{null_vector, real_eigenvalues};
 pub(crate) use elementary::{column, hypot, swap_rows};
 pub(crate) use nullspace::null_space;

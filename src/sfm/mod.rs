@@ -1,4 +1,7 @@
-//! Three-view structure from motion with a small bundle adjustment, in fixed capacity.
+//! Structure from motion in caller-owned memory: incremental reconstruction over any number of
+//! views ([`reconstruct`], with [`TrackBuilder`] to make its [`TrackSet`] from pairwise matches
+//! and [`bundle_adjust_views`]), and the fixed-capacity three-view pipeline below.
+//!
 //!
 //! [`reconstruct_three_views`] runs the classic incremental pipeline on point tracks seen by
 //! one calibrated camera from three positions:
@@ -52,12 +55,27 @@
 //! ```
 
 mod bundle;
+mod bundle_views;
 mod config;
+mod incremental;
+mod incremental_config;
+mod initial_pair;
+mod scene;
 mod track;
+mod track_builder;
+mod track_set;
 
 pub use bundle::{BundleReport, PointBlock, bundle_adjust};
+pub use bundle_views::{
+    BundleScratch, BundleSettings, Gauge, PointScratch, ViewsBundleReport, bundle_adjust_views,
+};
 pub use config::{SfmConfig, SfmParams};
+pub use incremental::{Reconstruction, reconstruct};
+pub use incremental_config::{IncrementalConfig, IncrementalParams};
+pub use scene::{InitialRefusal, Scene, ViewRefusal, ViewResult, ViewState, Workspace};
 pub use track::Track;
+pub use track_builder::{NO_TRACK, TrackBuilder};
+pub use track_set::{MAX_VIEWS, Observation, TrackSet};
 
 use nalgebra::{Point2, Point3};
 
