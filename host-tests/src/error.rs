@@ -28,6 +28,9 @@ pub enum ErrorKind {
     /// A command-line usage error: an option's value out of range, or options that do not go
     /// together.
     Usage(String),
+    /// The input is well formed but does not determine a result (structure from motion that
+    /// registers fewer than two views, ...): the message says why.
+    Undetermined(String),
     /// A camgeom operation on the input failed: `context` says which and on what (for example
     /// `"pts.csv: find_homography failed on 3 correspondences"`).
     Camgeom {
@@ -65,6 +68,15 @@ impl Error {
             path: Some(path.into()),
             line: Some(line),
             kind,
+        }
+    }
+
+    /// No result determined ([`ErrorKind::Undetermined`]), about no file.
+    pub fn undetermined(message: impl Into<String>) -> Self {
+        Self {
+            path: None,
+            line: None,
+            kind: ErrorKind::Undetermined(message.into()),
         }
     }
 
@@ -132,7 +144,10 @@ impl fmt::Display for Error {
         match &self.kind {
             ErrorKind::Io(e) => write!(f, "cannot read: {e}"),
             ErrorKind::Write(e) => write!(f, "cannot write: {e}"),
-            ErrorKind::Syntax(m) | ErrorKind::Shape(m) | ErrorKind::Usage(m) => f.write_str(m),
+            ErrorKind::Syntax(m)
+            | ErrorKind::Shape(m)
+            | ErrorKind::Usage(m)
+            | ErrorKind::Undetermined(m) => f.write_str(m),
             ErrorKind::MissingKey(k) => write!(f, "missing key `{k}`"),
             ErrorKind::Unsupported(m) => write!(f, "unsupported: {m}"),
             ErrorKind::Camera(e) => write!(f, "camgeom rejected the values: {}", describe(e)),

@@ -36,7 +36,7 @@ mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
 const EXIT_INPUT: u8 = 2;
-/// Exit status when the output cannot be written.
+/// Exit status when the output cannot be written, or the data determines no result.
 const EXIT_OUTPUT: u8 = 1;
 
 #[derive(Parser, Debug)]
@@ -184,12 +184,13 @@ struct CameraArgs {
     toml: bool,
 }
 
-/// The exit status of an error: [`EXIT_OUTPUT`] when an output could not be written,
+/// The exit status of an error: [`EXIT_OUTPUT`] when an output could not be written or the
+/// data determines no result (structure from motion with fewer than two views registered),
 /// [`EXIT_INPUT`] for everything else (usage errors, unreadable or malformed input, inputs camgeom
 /// rejects).
 fn exit_code(e: &Error) -> u8 {
     match e.kind() {
-        ErrorKind::Write(_) => EXIT_OUTPUT,
+        ErrorKind::Write(_) | ErrorKind::Undetermined(_) => EXIT_OUTPUT,
         _ => EXIT_INPUT,
     }
 }

@@ -1,253 +1,528 @@
-//! `camgeom sfm`: three-view structure from motion on three images of one calibrated camera.
+//! `camgeom sfm`: incremental structure from motion over any number of images of one calibrated
+//! camera, or over tracks the user brings.
 //!
-//! 1. ORB features of each image ([`camgeom::features::orb::orb_detect`], default settings),
-//!    matched pairwise with cross-check (`A-B`, `B-C`, `A-C`, as `camgeom homography --images`);
-//! 2. tracks: every `A-B` match, extended to `C` through its `B-C` match (dropped there if the
-//!    direct `A-C` match disagrees), then the `B-C` and `A-C` matches not yet in a track;
-//! 3. [`camgeom::sfm::reconstruct_three_views`] (without its bundle adjustment): `E` of views
-//!    A-B (5-point RANSAC) and the cheirality test, triangulation, PnP of view C, triangulation
-//!    of the new tracks; then [`camgeom::sfm::bundle_adjust`] of every pose but the first and
-//!    every point (lens distortion is modelled: observations are raw pixels), with the mean and
-//!    RMS reprojection error over the used observations before and after;
-//! 4. writes `DIR/points.ply` (ASCII PLY: the points in grey, then the three camera centres in
-//!    red, green, blue), `DIR/plot.png` (top-down `X-Z` and side `Z-Y` orthographic views of the
-//!    points and cameras, each camera with its viewing direction) and prints a JSON summary.
+//! 1. ORB features of each image ([`orb_features`]: a count and a grid sized from the image),
+//!    matched between every pair of images with the ratio test and the mutual check
+//!    ([`match_features`]);
+//! 2. each pair's matches verified by an essential matrix (5-point RANSAC on undistorted
+//!    pixels): a pair keeps its inliers when there are at least `--min-pair-inliers`, else none;
+//! 3. tracks: the connected components of the verified matches
+//!    ([`camgeom::sfm::TrackBuilder`]), a component with two features of one image dropped;
+//!    or, with `--matches`, the tracks of a CSV file (`track,view,x,y`);
+//! 4. [`camgeom::sfm::reconstruct`]: the initial pair (refused when planar, low-parallax or
+//!    short of inliers), PnP-RANSAC registration of each next view, triangulation, bundle
+//!    adjustments of every view and point, outlier filtering;
+//! 5. prints JSON: per image in the order given, `registered`, the `reason` when not, `R`
+//!    (row-major), `t` (`X_cam = R X_world + t`), `center`, `inliers`, `reprojection_rms_px`;
+//!    writes `DIR/points.ply` (points coloured from the images, then the camera centres) and
+//!    `DIR/plot.png` (top-down and side views of points and cameras).
 //!
-//! The world frame is view A's camera frame (`x` right, `y` down, `z` forward); the unit is the
-//! A-B baseline.
+//! The world frame is the first view of the initial pair (`x` right, `y` down, `z` forward);
+//! the unit is the initial pair's baseline. Fewer than two registered views is an error (exit
+//! status 1) that says why; no pose is printed that the data does not determine.
 
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 use camgeom::camera::Camera;
 use camgeom::features::orb::Feature;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::ransac::RansacConfig;
 use camgeom::sfm::{
-    PointBlock, SfmConfig, SfmWorkspace, Track, bundle_adjust, reconstruct_three_views,
+    BundleScratch, IncrementalConfig, InitialRefusal, NO_TRACK, Observation, PointScratch, Scene,
+    TrackBuilder, TrackSet, ViewRefusal, ViewResult, ViewState, Workspace, reconstruct,
 };
-use camgeom::transform::Pose;
+use camgeom::twoview::find_essential;
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
-use camgeom_host::cli::matches::{cross_check, orb_features};
-use camgeom_host::points::to_json;
+use camgeom_host::cli::matches::{match_features, orb_features};
+use camgeom_host::points::{read_csv, to_json};
 use camgeom_host::rgb::{Overlay, RgbImage};
-use camgeom_host::{Error, Result, load_camera};
+use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
-/// Most tracks (three images of at most 500 ORB features each give fewer).
-const MAX_TRACKS: usize = 1024;
-
 #[derive(Args, Debug)]
 pub struct SfmArgs {
-    /// Three images of a static scene from one camera (PNG, JPEG; read as grey), in order.
-    #[arg(long, num_args = 3, value_names = ["A.png", "B.png", "C.png"], required = true)]
+    /// Two or more images of a static scene from one camera (PNG, JPEG), in any order; the
+    /// output lists them in this order.
+    #[arg(long, num_args = 2.., value_name = "IMAGE", required = true)]
     pub images: Vec<PathBuf>,
+    /// Tracks instead of features: a CSV file of rows `track,view,x,y` (`view` indexes
+    /// `--images`, pixels as in the images); the images then only colour the points.
+    #[arg(long, value_name = "FILE.csv")]
+    pub matches: Option<PathBuf>,
     #[command(flatten)]
     pub camera: CameraArg,
     /// Output directory (created): `points.ply` and `plot.png`.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Inlier threshold of the A-B essential matrix, pixels (Sampson distance).
+    /// Inlier threshold of the initial pair's essential matrix, pixels (Sampson distance).
     #[arg(long, value_name = "PX", default_value_t = 1.0)]
     pub threshold: f64,
-    /// Inlier threshold of the PnP registration of view C, pixels (reprojection error).
-    #[arg(long, value_name = "PX", default_value_t = 2.0)]
+    /// Inlier threshold of the PnP registrations and of the observations kept, pixels.
+    #[arg(long, value_name = "PX", default_value_t = 4.0)]
     pub pnp_threshold: f64,
-    /// Seed of both RANSAC samplers.
-    #[arg(long, value_name = "SEED", default_value_t = camgeom::ransac::RansacConfig::<f64>::default().seed)]
+    /// Inlier threshold of the pairwise verification of the matches, pixels (Sampson).
+    #[arg(long, value_name = "PX", default_value_t = 4.0)]
+    pub verify_threshold: f64,
+    /// Fewest verified matches for a pair of images to count.
+    #[arg(long, value_name = "N", default_value_t = 15)]
+    pub min_pair_inliers: usize,
+    /// Seed of every RANSAC sampler.
+    #[arg(long, value_name = "SEED", default_value_t = RansacConfig::<f64>::default().seed)]
     pub seed: u64,
-    /// Levenberg-Marquardt steps of the bundle adjustment (0 skips it).
-    #[arg(long, value_name = "N", default_value_t = 20)]
+    /// Levenberg-Marquardt steps of the final bundle adjustment.
+    #[arg(long, value_name = "N", default_value_t = 40)]
     pub bundle_iterations: u8,
 }
 
-/// One camera of the summary.
+/// One image of the summary.
 #[derive(Serialize, Debug)]
 pub struct View {
     /// The image file.
     pub image: String,
-    /// ORB features detected.
-    pub features: usize,
-    /// World-to-camera rotation, row-major.
-    #[serde(rename = "R")]
-    pub r: [f64; 9],
+    /// Whether it has a pose.
+    pub registered: bool,
+    /// Why not (absent when registered).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reason: Option<String>,
+    /// World-to-camera rotation, row-major (absent when not registered).
+    #[serde(rename = "R", skip_serializing_if = "Option::is_none")]
+    pub r: Option<[f64; 9]>,
     /// World-to-camera translation.
-    pub t: [f64; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub t: Option<[f64; 3]>,
     /// Camera centre in the world frame, `-Rᵀ t`.
-    pub center: [f64; 3],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub center: Option<[f64; 3]>,
+    /// Observations of the reconstruction in this image.
+    pub inliers: u32,
+    /// Their RMS reprojection error, pixels.
+    pub reprojection_rms_px: f64,
+    /// ORB features detected (0 with `--matches`).
+    pub features: usize,
+}
+
+/// One pair of images.
+#[derive(Serialize, Debug)]
+pub struct Pair {
+    /// Indices into `views`.
+    pub views: [usize; 2],
+    /// Matches (ratio test and mutual check).
+    pub matches: usize,
+    /// Of which the essential matrix explains (0 when below `--min-pair-inliers`).
+    pub verified: usize,
 }
 
 /// The JSON summary.
 #[derive(Serialize, Debug)]
 pub struct SfmOutput {
-    /// The three views.
+    /// Every image, in the order given.
     pub views: Vec<View>,
-    /// Cross-checked matches per pair: `[A-B, B-C, A-C]`.
-    pub matches: [usize; 3],
-    /// Tracks given to the reconstruction (seen by at least two views).
-    pub tracks: usize,
-    /// Tracks seen by all three views.
-    pub tracks_in_three: usize,
+    /// Registered views.
+    pub registered: usize,
     /// Reconstructed points.
     pub points: usize,
-    /// Inliers of the A-B essential matrix after cheirality.
-    pub initial_inliers: usize,
-    /// Inliers of the PnP registration of view C.
-    pub pnp_inliers: usize,
-    /// Points added from view C.
-    pub new_points: usize,
-    /// Observations in the bundle adjustment.
+    /// Tracks given to the reconstruction.
+    pub tracks: usize,
+    /// Observations used.
     pub observations: usize,
-    /// Mean reprojection error over those observations before the bundle adjustment, pixels.
-    pub reprojection_mean_before_px: f64,
-    /// The same after.
-    pub reprojection_mean_after_px: f64,
-    /// RMS reprojection error over those observations before the bundle adjustment, pixels.
-    pub reprojection_rms_before_px: f64,
-    /// The same after.
-    pub reprojection_rms_after_px: f64,
-    /// Levenberg-Marquardt steps taken.
-    pub bundle_iterations: u8,
+    /// RMS reprojection error of those, pixels.
+    pub reprojection_rms_px: f64,
+    /// The initial pair (indices into `views`).
+    pub initial_pair: [usize; 2],
+    /// Its inliers.
+    pub initial_inliers: u32,
+    /// Pairwise matching (absent with `--matches`).
+    pub pairs: Vec<Pair>,
+    /// Wall time, seconds: features and matching, then the reconstruction.
+    pub seconds: [f64; 2],
     /// The files written.
     pub ply: String,
     /// The plot.
     pub plot: String,
 }
 
-/// Tracks of features `(a, b, c)` (indices) from the pairwise matches (step 2 of the module
-/// docs); every feature is in at most one track.
-pub fn build_tracks(
-    ab: &[(usize, usize)],
-    bc: &[(usize, usize)],
-    ac: &[(usize, usize)],
-) -> Vec<[Option<usize>; 3]> {
-    use std::collections::{HashMap, HashSet};
-    let bc_map: HashMap<usize, usize> = bc.iter().copied().collect();
-    let ac_map: HashMap<usize, usize> = ac.iter().copied().collect();
-    let mut used = [HashSet::new(), HashSet::new(), HashSet::new()];
-    let mut tracks = Vec::new();
-    let mut push = |t: [Option<usize>; 3], tracks: &mut Vec<[Option<usize>; 3]>| {
-        if t.iter()
-            .zip(used.iter())
-            .any(|(i, u)| i.is_some_and(|i| u.contains(&i)))
-        {
-            return;
+/// Tracks in compressed rows: `starts` (one more than tracks) and the observations.
+struct Tracks {
+    starts: Vec<u32>,
+    observations: Vec<Observation<f64>>,
+}
+
+fn pixel(f: &Feature) -> Point2<f64> {
+    Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y))
+}
+
+/// Steps 1-3 of the module docs from images.
+fn tracks_from_images(
+    a: &SfmArgs,
+    camera: &Camera<f64>,
+    features: &[Vec<Feature>],
+) -> Result<(Tracks, Vec<Pair>)> {
+    let k = camera.intrinsics;
+    let mut verify = RansacConfig::<f64> {
+        threshold: a.verify_threshold,
+        confidence: 0.999,
+        seed: a.seed,
+        ..RansacConfig::default()
+    }
+    .check()
+    .map_err(|e| Error::camgeom("--verify-threshold", e));
+    let verify = verify.as_mut().map_err(|e| Error::usage(e.to_string()))?;
+    let offsets: Vec<u32> = std::iter::once(0)
+        .chain(features.iter().scan(0u32, |acc, f| {
+            *acc += f.len() as u32;
+            Some(*acc)
+        }))
+        .collect();
+    let nodes = *offsets.last().unwrap_or(&0) as usize;
+    let (mut parent, mut scratch) = (vec![0u32; nodes], vec![0u32; nodes]);
+    let mut builder = TrackBuilder::new(&mut parent, &mut scratch)
+        .map_err(|e| Error::camgeom("track building", e))?;
+    let mut pairs = Vec::new();
+    for i in 0..features.len() {
+        for j in i + 1..features.len() {
+            let what = format!("{} - {}", a.images[i].display(), a.images[j].display());
+            let m = match_features(&features[i], &features[j], &what)?;
+            let und = |f: &Feature| camera.undistort_pixel(&pixel(f)).ok();
+            let pts: Vec<(usize, usize, Point2<f64>, Point2<f64>)> = m
+                .iter()
+                .filter_map(|&(p, q)| Some((p, q, und(&features[i][p])?, und(&features[j][q])?)))
+                .collect();
+            let mut verified = 0;
+            if pts.len() >= a.min_pair_inliers.max(5) {
+                let x1: Vec<Point2<f64>> = pts.iter().map(|p| p.2).collect();
+                let x2: Vec<Point2<f64>> = pts.iter().map(|p| p.3).collect();
+                let mut mask = vec![false; pts.len()];
+                if find_essential(&k, &k, &x1, &x2, verify, &mut mask).is_ok() {
+                    let n = mask.iter().filter(|&&b| b).count();
+                    if n >= a.min_pair_inliers {
+                        verified = n;
+                        for (p, _) in pts.iter().zip(&mask).filter(|(_, b)| **b) {
+                            builder
+                                .join(offsets[i] + p.0 as u32, offsets[j] + p.1 as u32)
+                                .map_err(|e| Error::camgeom("track building", e))?;
+                        }
+                    }
+                }
+            }
+            pairs.push(Pair {
+                views: [i, j],
+                matches: m.len(),
+                verified,
+            });
         }
-        for (i, u) in t.iter().zip(used.iter_mut()) {
-            if let Some(i) = i {
-                u.insert(*i);
+    }
+    let mut labels = vec![0u32; nodes];
+    let n = builder
+        .label(&offsets, &mut labels)
+        .map_err(|e| Error::camgeom("track building", e))?;
+    let mut members: Vec<Vec<Observation<f64>>> = vec![Vec::new(); n];
+    for (v, w) in offsets.windows(2).enumerate() {
+        for node in w[0]..w[1] {
+            let l = labels[node as usize];
+            if l != NO_TRACK {
+                let f = &features[v][(node - w[0]) as usize];
+                members[l as usize].push(Observation {
+                    view: v as u16,
+                    pixel: pixel(f),
+                });
             }
         }
-        tracks.push(t);
+    }
+    Ok((compress(members), pairs))
+}
+
+fn compress(members: Vec<Vec<Observation<f64>>>) -> Tracks {
+    let mut starts = vec![0u32];
+    let mut observations = Vec::new();
+    for m in members {
+        if m.len() < 2 {
+            continue;
+        }
+        observations.extend(m);
+        starts.push(observations.len() as u32);
+    }
+    Tracks {
+        starts,
+        observations,
+    }
+}
+
+/// Tracks of a CSV file `track,view,x,y` (step 3 with `--matches`): a track seen twice in one
+/// view, or once, is dropped.
+fn tracks_from_csv(path: &PathBuf, views: usize) -> Result<Tracks> {
+    let rows = read_csv(path, &["track", "view", "x", "y"])?.rows;
+    let mut by_track: BTreeMap<i64, Vec<Observation<f64>>> = BTreeMap::new();
+    for (line, r) in rows.iter().enumerate() {
+        let (t, v) = (r[0], r[1]);
+        if t.fract() != 0.0 || v.fract() != 0.0 || v < 0.0 || v >= views as f64 {
+            return Err(Error::at_line(
+                path,
+                line + 2,
+                ErrorKind::Syntax(format!("track and view must be integers, view < {views}")),
+            ));
+        }
+        by_track.entry(t as i64).or_default().push(Observation {
+            view: v as u16,
+            pixel: Point2::new(r[2], r[3]),
+        });
+    }
+    let members = by_track
+        .into_values()
+        .filter(|m| {
+            let mut v: Vec<u16> = m.iter().map(|o| o.view).collect();
+            v.sort_unstable();
+            v.windows(2).all(|w| w[0] != w[1])
+        })
+        .collect();
+    Ok(compress(members))
+}
+
+fn describe_view(r: &ViewRefusal) -> String {
+    match r {
+        ViewRefusal::NotReached => "not reached: no initial pair".into(),
+        ViewRefusal::TooFewCorrespondences { found, needed } => format!(
+            "too_few_correspondences: {found} of its features see reconstructed points, {needed} needed"
+        ),
+        ViewRefusal::NoPose => "no_pose: PnP-RANSAC found no pose".into(),
+        ViewRefusal::TooFewInliers {
+            inliers,
+            correspondences,
+        } => format!(
+            "too_few_inliers: the best pose explains {inliers} of {correspondences} correspondences"
+        ),
+        ViewRefusal::LostInRefinement { inliers } => {
+            format!("lost_in_refinement: {inliers} observations left after the bundle adjustment")
+        }
+        _ => r.name().into(),
+    }
+}
+
+fn describe_initial(r: &InitialRefusal<f64>, names: &[String]) -> String {
+    let n = |(a, b): (u16, u16)| {
+        let get = |i: u16| names.get(usize::from(i)).map_or("?", String::as_str);
+        format!("{} and {}", get(a), get(b))
     };
-    for &(a, b) in ab {
-        let c = bc_map
-            .get(&b)
-            .copied()
-            .filter(|c| ac_map.get(&a).is_none_or(|c2| c2 == c));
-        push([Some(a), Some(b), c], &mut tracks);
+    match r {
+        InitialRefusal::NoSharedTracks => "no two images share a verified track".into(),
+        InitialRefusal::TooFewInliers {
+            pair,
+            inliers,
+            needed,
+        } => format!(
+            "the best pair ({}) has {inliers} inliers, {needed} needed",
+            n(*pair)
+        ),
+        InitialRefusal::Planar { pair, ratio } => format!(
+            "the best pair ({}) is explained by a homography ({:.0} % of the inliers): a planar scene or a pure rotation",
+            n(*pair),
+            ratio * 100.0
+        ),
+        InitialRefusal::LowParallax { pair, median_angle } => format!(
+            "the best pair ({}) has a median triangulation angle of {:.2} deg: too little parallax",
+            n(*pair),
+            median_angle.to_degrees()
+        ),
+        InitialRefusal::NoModel { pair } => {
+            format!("no essential matrix for the best pair ({})", n(*pair))
+        }
+        _ => r.name().into(),
     }
-    for &(b, c) in bc {
-        push([None, Some(b), Some(c)], &mut tracks);
-    }
-    for &(a, c) in ac {
-        push([Some(a), None, Some(c)], &mut tracks);
-    }
-    tracks
 }
 
 /// Runs the subcommand: writes the files, returns the JSON summary.
 pub fn run(a: &SfmArgs) -> Result<String> {
-    let [ia, ib, ic] = a.images.as_slice() else {
-        return Err(Error::usage("--images takes three files"));
+    let spec = load_camera(&a.camera.intrinsics)?;
+    let camera = spec.camera;
+    let names: Vec<String> = a.images.iter().map(|p| p.display().to_string()).collect();
+    if a.images.len() > camgeom::sfm::MAX_VIEWS {
+        return Err(Error::usage("too many images"));
+    }
+    let t0 = Instant::now();
+    let (tracks, pairs, counts) = match &a.matches {
+        Some(path) => (
+            tracks_from_csv(path, a.images.len())?,
+            Vec::new(),
+            vec![0; a.images.len()],
+        ),
+        None => {
+            let features: Vec<Vec<Feature>> = a
+                .images
+                .iter()
+                .map(|p| orb_features(p))
+                .collect::<Result<_>>()?;
+            let counts = features.iter().map(Vec::len).collect();
+            let (t, p) = tracks_from_images(a, &camera, &features)?;
+            (t, p, counts)
+        }
     };
-    let mut config = SfmConfig::<f64>::default();
+    let t_match = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let set = TrackSet::new_checked(&tracks.starts, &tracks.observations, a.images.len())
+        .map_err(|e| Error::camgeom("tracks", e))?;
+    let mut config = IncrementalConfig::<f64>::default();
     config.essential.threshold = a.threshold;
     config.essential.seed = a.seed;
     config.pnp.threshold = a.pnp_threshold;
     config.pnp.seed = a.seed;
-    // The bundle adjustment runs below, on its own, so that its effect can be measured.
-    config.bundle_iterations = 0;
-    let params = config
-        .check()
-        .map_err(|e| Error::camgeom("sfm configuration (--threshold, --pnp-threshold)", e))?;
-    let spec = load_camera(&a.camera.intrinsics)?;
-    let feats = [orb_features(ia)?, orb_features(ib)?, orb_features(ic)?];
-    let [fa, fb, fc] = &feats;
-    let ab = cross_check(fa, fb, "A-B")?;
-    let bc = cross_check(fb, fc, "B-C")?;
-    let ac = cross_check(fa, fc, "A-C")?;
-    let mut ids = build_tracks(&ab, &bc, &ac);
-    ids.truncate(MAX_TRACKS);
-    let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
-    let tracks: Vec<Track<f64>> = ids
-        .iter()
-        .map(|t| core::array::from_fn(|v| t[v].and_then(|i| feats[v].get(i)).map(point)))
-        .collect();
-    let mut ws: Box<SfmWorkspace<f64, MAX_TRACKS>> = Box::default();
-    let source = format!("{} {} {}", ia.display(), ib.display(), ic.display());
-    let r = reconstruct_three_views(&spec.camera, &tracks, &params, &mut ws).map_err(|e| {
-        let what = format!(
-            "{source}: reconstruct_three_views failed on {} tracks",
-            tracks.len()
-        );
-        Error::camgeom(what, e)
+    config.max_reprojection_px = a.pnp_threshold;
+    config.final_bundle_iterations = a.bundle_iterations;
+    let params = config.check().map_err(|e| {
+        Error::usage(format!(
+            "sfm configuration (--threshold, --pnp-threshold): {e}"
+        ))
     })?;
-    let n = tracks.len();
-    let mut poses = r.poses;
-    let mean_before = mean_error(&spec.camera, &poses, &tracks, &ws.points, &ws.used);
-    let mut blocks = vec![PointBlock::<f64>::default(); n];
-    let bundle = bundle_adjust(
-        &spec.camera,
-        &mut poses,
-        &mut ws.points[..n],
-        &tracks,
-        &ws.used[..n],
-        &mut blocks,
-        a.bundle_iterations,
-    )
-    .map_err(|e| Error::camgeom(format!("{source}: bundle_adjust failed"), e))?;
-    let mean_after = mean_error(&spec.camera, &poses, &tracks, &ws.points, &ws.used);
-    let points: Vec<Point3<f64>> = ws.points.iter().take(n).flatten().copied().collect();
-    let views: Vec<View> = poses
-        .iter()
-        .zip([ia, ib, ic])
-        .zip(&feats)
-        .map(|((p, path), f)| {
-            let m = p.rotation().into_inner();
-            let t = p.translation();
-            let c = p.camera_center();
+    let (v, nt, no) = (set.views(), set.len(), set.observations().len());
+    let mut poses = vec![None; v];
+    let mut results = vec![ViewResult::<f64>::default(); v];
+    let mut points = vec![None; nt];
+    let mut used = vec![false; no];
+    let mut normalized = vec![None; no];
+    let mut covisibility = vec![0u32; v * v];
+    let mut tried = vec![0u32; v];
+    let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
+    let mut world = vec![Point3::origin(); nt];
+    let mut index = vec![0u32; nt];
+    let (mut mask, mut mask2) = (vec![false; nt], vec![false; nt]);
+    let mut angles = vec![0.0; nt];
+    let mut system = vec![0.0; BundleScratch::<f64>::system_len(v)];
+    let (mut rhs, mut gradient) = (vec![0.0; 6 * v], vec![0.0; 6 * v]);
+    let mut bindex = vec![0u16; v];
+    let mut trial = vec![None; v];
+    let mut coupling = vec![Default::default(); no];
+    let mut pscratch = vec![PointScratch::default(); nt];
+    let mut scene = Scene {
+        poses: &mut poses,
+        views: &mut results,
+        points: &mut points,
+        used: &mut used,
+    };
+    let mut ws = Workspace {
+        normalized: &mut normalized,
+        covisibility: &mut covisibility,
+        tried: &mut tried,
+        first: &mut first,
+        second: &mut second,
+        world: &mut world,
+        index: &mut index,
+        mask: &mut mask,
+        mask2: &mut mask2,
+        angles: &mut angles,
+        bundle: BundleScratch {
+            system: &mut system,
+            rhs: &mut rhs,
+            gradient: &mut gradient,
+            index: &mut bindex,
+            trial: &mut trial,
+            coupling: &mut coupling,
+            points: &mut pscratch,
+        },
+    };
+    let r = reconstruct(&camera, &set, &params, &mut scene, &mut ws)
+        .map_err(|e| Error::camgeom("sfm: reconstruct", e))?;
+    let t_rec = t1.elapsed().as_secs_f64();
+    let initial = match r.initial {
+        Ok(p) => p,
+        Err(refusal) => {
+            return Err(Error::undetermined(format!(
+                "sfm: no reconstruction from {} tracks: {}",
+                nt,
+                describe_initial(&refusal, &names)
+            )));
+        }
+    };
+    if r.registered < 2 {
+        return Err(Error::undetermined(format!(
+            "sfm: only {} view(s) registered",
+            r.registered
+        )));
+    }
+    let views: Vec<View> = (0..v)
+        .map(|i| {
+            let res = results[i];
+            let pose = poses[i];
+            let (rm, t, c) = match pose {
+                Some(p) => {
+                    let m = p.rotation().into_inner();
+                    let t = p.translation();
+                    let c = p.camera_center();
+                    (
+                        Some([
+                            m.m11, m.m12, m.m13, m.m21, m.m22, m.m23, m.m31, m.m32, m.m33,
+                        ]),
+                        Some([t.x, t.y, t.z]),
+                        Some([c.x, c.y, c.z]),
+                    )
+                }
+                None => (None, None, None),
+            };
             View {
-                image: path.display().to_string(),
-                features: f.len(),
-                r: [
-                    m.m11, m.m12, m.m13, m.m21, m.m22, m.m23, m.m31, m.m32, m.m33,
-                ],
-                t: [t.x, t.y, t.z],
-                center: [c.x, c.y, c.z],
+                image: names[i].clone(),
+                registered: pose.is_some(),
+                reason: match res.state {
+                    ViewState::Registered => None,
+                    ViewState::Refused(r) => Some(describe_view(&r)),
+                },
+                r: rm,
+                t,
+                center: c,
+                inliers: res.inliers,
+                reprojection_rms_px: res.rms_px,
+                features: counts[i],
             }
         })
         .collect();
+    // Each point's colour: the mean of its used observations' pixels.
+    let images: Vec<Option<RgbImage>> = a
+        .images
+        .iter()
+        .map(|p| image::open(p).ok().map(|i| i.to_rgb8()))
+        .collect();
+    let mut coloured = Vec::new();
+    for (i, p) in points.iter().enumerate() {
+        let Some(x) = p else { continue };
+        let (mut sum, mut n) = ([0u32; 3], 0u32);
+        for (o, &u) in set.track(i).iter().zip(&used[set.range(i)]) {
+            let img = images.get(usize::from(o.view)).and_then(Option::as_ref);
+            if let (true, Some(img)) = (u, img) {
+                let (px, py) = (o.pixel.x.round(), o.pixel.y.round());
+                if px >= 0.0 && py >= 0.0 && (px as u32) < img.width() && (py as u32) < img.height()
+                {
+                    let c = img.get_pixel(px as u32, py as u32).0;
+                    for (s, c) in sum.iter_mut().zip(c) {
+                        *s += u32::from(c);
+                    }
+                    n += 1;
+                }
+            }
+        }
+        let rgb = if n == 0 {
+            [160, 160, 160]
+        } else {
+            sum.map(|s| (s / n) as u8)
+        };
+        coloured.push((*x, rgb));
+    }
     create_dir(&a.out)?;
     let ply = a.out.join("points.ply");
     let plot = a.out.join("plot.png");
-    write_ply(&ply, &points, &views)?;
-    write_plot(&plot, &points, &views)?;
+    write_ply(&ply, &coloured, &views)?;
+    let plain: Vec<Point3<f64>> = coloured.iter().map(|(p, _)| *p).collect();
+    write_plot(&plot, &plain, &views)?;
     let summary = SfmOutput {
-        matches: [ab.len(), bc.len(), ac.len()],
-        tracks: tracks.len(),
-        tracks_in_three: ids.iter().filter(|t| t.iter().all(Option::is_some)).count(),
-        points: points.len(),
+        registered: r.registered,
+        points: r.points,
+        tracks: nt,
+        observations: r.observations,
+        reprojection_rms_px: r.rms_px,
+        initial_pair: [usize::from(initial.0), usize::from(initial.1)],
         initial_inliers: r.initial_inliers,
-        pnp_inliers: r.pnp_inliers,
-        new_points: r.new_points,
-        observations: bundle.observations,
-        reprojection_mean_before_px: mean_before,
-        reprojection_mean_after_px: mean_after,
-        reprojection_rms_before_px: bundle.initial_rms_px,
-        reprojection_rms_after_px: bundle.final_rms_px,
-        bundle_iterations: bundle.iterations,
+        pairs,
+        seconds: [t_match, t_rec],
         views,
         ply: ply.display().to_string(),
         plot: plot.display().to_string(),
@@ -255,51 +530,44 @@ pub fn run(a: &SfmArgs) -> Result<String> {
     Ok(to_json(&summary))
 }
 
-/// Mean pixel reprojection error (through the lens model) of the used observations of the
-/// reconstructed tracks; an observation that does not project is skipped (the bundle
-/// adjustment refuses such a start anyway).
-fn mean_error(
-    camera: &Camera<f64>,
-    poses: &[Pose<f64>; 3],
-    tracks: &[Track<f64>],
-    points: &[Option<Point3<f64>>],
-    used: &[[bool; 3]],
-) -> f64 {
-    let (mut sum, mut count) = (0.0, 0usize);
-    for ((track, point), used) in tracks.iter().zip(points).zip(used) {
-        let Some(x) = point else { continue };
-        for ((obs, pose), u) in track.iter().zip(poses).zip(used) {
-            if let (Some(obs), true) = (obs, u)
-                && let Ok(p) = camera.project(pose, x)
-            {
-                sum += (p - obs).norm();
-                count += 1;
-            }
-        }
-    }
-    if count == 0 { 0.0 } else { sum / count as f64 }
+/// The colour of camera `k` of `n`: hues around the circle.
+fn camera_rgb(k: usize, n: usize) -> [u8; 3] {
+    let h = 6.0 * k as f64 / n.max(1) as f64;
+    let x = 1.0 - (h % 2.0 - 1.0).abs();
+    let (r, g, b) = match h as u32 {
+        0 => (1.0, x, 0.0),
+        1 => (x, 1.0, 0.0),
+        2 => (0.0, 1.0, x),
+        3 => (0.0, x, 1.0),
+        4 => (x, 0.0, 1.0),
+        _ => (1.0, 0.0, x),
+    };
+    [r, g, b].map(|c: f64| (40.0 + 190.0 * c) as u8)
 }
 
-/// The colours of the three cameras: red, green, blue.
-const CAMERA_RGB: [[u8; 3]; 3] = [[230, 40, 40], [40, 180, 40], [40, 90, 230]];
-
-/// ASCII PLY: `x y z red green blue` per vertex, the points (grey) then the camera centres.
-fn write_ply(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> {
+/// ASCII PLY: `x y z red green blue` per vertex, the points (their colour in the images) then
+/// the registered camera centres ([`camera_rgb`]).
+fn write_ply(path: &Path, points: &[(Point3<f64>, [u8; 3])], views: &[View]) -> Result<()> {
     let mut s = String::new();
-    let n = points.len() + views.len();
+    let centres: Vec<(usize, [f64; 3])> = views
+        .iter()
+        .enumerate()
+        .filter_map(|(k, v)| v.center.map(|c| (k, c)))
+        .collect();
+    let n = points.len() + centres.len();
     let _ = write!(
         s,
-        "ply\nformat ascii 1.0\ncomment camgeom sfm: {} points, then {} camera centres (red, green, blue)\n\
+        "ply\nformat ascii 1.0\ncomment camgeom sfm: {} points, then {} camera centres\n\
          element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n\
          property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
         points.len(),
-        views.len()
+        centres.len()
     );
-    for p in points {
-        let _ = writeln!(s, "{} {} {} 160 160 160", p.x, p.y, p.z);
+    for (p, [r, g, b]) in points {
+        let _ = writeln!(s, "{} {} {} {r} {g} {b}", p.x, p.y, p.z);
     }
-    for (v, [r, g, b]) in views.iter().zip(CAMERA_RGB) {
-        let [x, y, z] = v.center;
+    for (k, [x, y, z]) in centres {
+        let [r, g, b] = camera_rgb(k, views.len());
         let _ = writeln!(s, "{x} {y} {z} {r} {g} {b}");
     }
     write_file(path, s)
@@ -348,11 +616,18 @@ fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()>
     // Panel axes: (horizontal, vertical-up) as functions of a world point.
     type Axis = fn(&Vector3<f64>) -> (f64, f64);
     let panels: [Axis; 2] = [|p| (p.x, p.z), |p| (p.z, -p.y)];
-    let centres: Vec<Vector3<f64>> = views.iter().map(|v| Vector3::from(v.center)).collect();
-    // Optical axes: the third row of R is the viewing direction in the world frame.
-    let axes: Vec<Vector3<f64>> = views
+    let n = views.len();
+    let registered: Vec<(usize, [f64; 3], [f64; 9])> = views
         .iter()
-        .map(|v| Vector3::new(v.r[6], v.r[7], v.r[8]))
+        .enumerate()
+        .filter_map(|(k, v)| Some((k, v.center?, v.r?)))
+        .collect();
+    let centres: Vec<Vector3<f64>> = registered.iter().map(|r| Vector3::from(r.1)).collect();
+    let colours: Vec<[u8; 3]> = registered.iter().map(|r| camera_rgb(r.0, n)).collect();
+    // Optical axes: the third row of R is the viewing direction in the world frame.
+    let axes: Vec<Vector3<f64>> = registered
+        .iter()
+        .map(|r| Vector3::new(r.2[6], r.2[7], r.2[8]))
         .collect();
     for (k, proj) in panels.iter().enumerate() {
         let pts: Vec<(f64, f64)> = points.iter().map(|p| proj(&p.coords)).collect();
@@ -386,7 +661,7 @@ fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()>
         for p in &pts {
             draw_disc(&mut canvas, to_px(*p), 1, [90, 90, 90]);
         }
-        for ((c, axis), rgb) in centres.iter().zip(&axes).zip(CAMERA_RGB) {
+        for ((c, axis), &rgb) in centres.iter().zip(&axes).zip(&colours) {
             let tip = c + axis * (0.15 * span);
             draw_line(&mut canvas, to_px(proj(c)), to_px(proj(&tip)), rgb);
             draw_disc(&mut canvas, to_px(proj(c)), 4, rgb);

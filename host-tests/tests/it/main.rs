@@ -25,6 +25,7 @@ mod pose_chessboard;
 mod pose_cli;
 mod pose_sequence;
 mod projection;
+mod sfm_cli;
 mod twoview_chessboard;
 mod twoview_cli;
 mod undistort;

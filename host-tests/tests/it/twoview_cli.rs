@@ -297,38 +297,41 @@ fn sfm_on_three_box_frames() {
     ]));
     println!("{v}");
     let points = v["points"].as_u64().unwrap() as usize;
-    let (before, after) = (
-        v["reprojection_rms_before_px"].as_f64().unwrap(),
-        v["reprojection_rms_after_px"].as_f64().unwrap(),
-    );
-    // A real triple: most three-view tracks are reconstructed, view C registers on a good
-    // share of them, and the bundle adjustment lowers a sub-pixel RMS further (ORB keypoints
-    // are on a pyramid grid: 0.3-0.7 px is their localisation noise).
-    assert!(points >= 200, "{points}");
-    assert!(v["pnp_inliers"].as_u64().unwrap() >= 50);
-    assert!(after <= before && after < 1.0, "{before} -> {after}");
-    // The mean is not what the adjustment minimises; it stays below the RMS and sub-pixel.
-    let mean_after = v["reprojection_mean_after_px"].as_f64().unwrap();
-    assert!(mean_after <= after && mean_after < 1.0, "{mean_after}");
-    // The three centres: view B at the unit baseline, and the box turns on the same way, so
-    // A -> C continues A -> B (within 30 degrees).
-    let centres: Vec<Vector3<f64>> = v["views"]
+    let rms = v["reprojection_rms_px"].as_f64().unwrap();
+    // A real triple: every view registered with a good share of inliers, sub-pixel RMS (ORB
+    // keypoints are on a pyramid grid: 0.3-0.7 px is their localisation noise). The box turns
+    // by a few degrees between these frames, so the 1.5° triangulation angle keeps about half
+    // of the tracks (135 measured).
+    assert_eq!(v["registered"], 3);
+    assert!(points >= 100, "{points}");
+    let views = v["views"].as_array().unwrap();
+    for w in views {
+        assert_eq!(w["registered"], true, "{w}");
+        assert!(w["inliers"].as_u64().unwrap() >= 50, "{w}");
+        assert!(w["reprojection_rms_px"].as_f64().unwrap() < 1.0, "{w}");
+    }
+    assert!(rms < 1.0, "{rms}");
+    // The world is the initial pair's first view, the unit its baseline.
+    let centres: Vec<Vector3<f64>> = views.iter().map(|w| vec3(&w["center"])).collect();
+    let pair: Vec<usize> = v["initial_pair"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|w| vec3(&w["center"]))
+        .map(|x| x.as_u64().unwrap() as usize)
         .collect();
-    assert!(centres[0].norm() < 1e-12);
-    assert!((centres[1].norm() - 1.0).abs() < 1e-6);
-    assert!(dir_err_deg(&centres[1], &centres[2]) < 30.0);
-    assert!(centres[2].norm() > 1.2);
+    assert!(centres[pair[0]].norm() < 1e-12);
+    assert!((centres[pair[1]].norm() - 1.0).abs() < 1e-6);
+    // The box turns on the same way, so A -> C continues A -> B (within 30 degrees).
+    let (ab, ac) = (centres[1] - centres[0], centres[2] - centres[0]);
+    assert!(dir_err_deg(&ab, &ac) < 30.0);
+    assert!(ac.norm() > 1.2 * ab.norm());
     // points.ply: the header's vertex count, then one row per point and per camera.
     let ply = std::fs::read_to_string(out.join("points.ply")).unwrap();
     assert!(ply.starts_with("ply\nformat ascii 1.0\n"));
     assert!(ply.contains(&format!("element vertex {}\n", points + 3)));
     let body: Vec<&str> = ply.split("end_header\n").nth(1).unwrap().lines().collect();
     assert_eq!(body.len(), points + 3);
-    assert!(body[points].ends_with(" 230 40 40"));
+
     for line in &body {
         let f: Vec<f64> = line.split(' ').map(|x| x.parse().unwrap()).collect();
         assert_eq!(f.len(), 6);
@@ -362,12 +365,11 @@ fn input_errors() {
     // No intrinsics: a usage error.
     let out = camgeom(&["twoview", "--matches", few.to_str().unwrap()]);
     assert_eq!(out.status.code(), Some(2));
-    // sfm needs exactly three images.
+    // sfm needs two images at least.
     let out = camgeom(&[
         "sfm",
         "--images",
         "a.png",
-        "b.png",
         "--intrinsics",
         k.to_str().unwrap(),
         "--out",

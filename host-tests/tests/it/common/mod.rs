@@ -62,3 +62,13 @@ pub fn camgeom(args: &[&str]) -> Output {
         .output()
         .expect("run camgeom")
 }
+
+/// The JSON standard output of a `camgeom` run that must have succeeded.
+pub fn json(o: &Output) -> serde_json::Value {
+    assert!(
+        o.status.success(),
+        "camgeom failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    serde_json::from_slice(&o.stdout).unwrap()
+}
