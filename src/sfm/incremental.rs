@@ -556,3 +556,147 @@ fn drop_weak_views<T: Real>(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::vec;
+    use std::vec::Vec;
+
+    use nalgebra::Vector3;
+
+    use super::*;
+    use crate::camera::Intrinsics;
+    use crate::sfm::{BundleScratch, IncrementalConfig, Observation, PointScratch};
+
+    /// `views` cameras on an arc looking at a box of points, exact observations (or with
+    /// `noise` px of deterministic jitter); returns the truth and the reconstruction's poses.
+    fn run(
+        views: usize,
+        noise: f64,
+    ) -> (Vec<Pose<f64>>, Vec<Option<Pose<f64>>>, Reconstruction<f64>) {
+        let camera = Camera::pinhole(Intrinsics::new(800.0, 800.0, 320.0, 240.0).unwrap());
+        let truth: Vec<Pose<f64>> = (0..views)
+            .map(|v| {
+                // Centres on an arc of 40° around (0, 0, 6), each looking at it.
+                let a = 0.7 * v as f64 / views as f64;
+                let c = Vector3::new(6.0 * a.sin(), 0.3 * (v % 2) as f64, 6.0 - 6.0 * a.cos());
+                let r = nalgebra::Rotation3::from_euler_angles(0.0, -a, 0.0);
+                Pose::new(r, -(r * c)).unwrap()
+            })
+            .collect();
+        let mut starts = vec![0u32];
+        let mut obs = Vec::new();
+        let mut k = 0u64;
+        for i in 0..400 {
+            let f = |m: usize, n: usize| ((i * m) % n) as f64 / n as f64 - 0.5;
+            let x = Point3::new(4.0 * f(37, 101), 3.0 * f(53, 97), 6.0 + 3.0 * f(29, 89));
+            for (v, p) in truth.iter().enumerate() {
+                if (i + v) % 5 == 0 {
+                    continue;
+                }
+                if let Ok(u) = camera.project(p, &x) {
+                    k = k
+                        .wrapping_mul(6364136223846793005)
+                        .wrapping_add(1442695040888963407);
+                    let j = |s: u32| ((k >> s) & 0xffff) as f64 / 65535.0 - 0.5;
+                    obs.push(Observation {
+                        view: v as u16,
+                        pixel: u + nalgebra::Vector2::new(j(16), j(32)) * noise,
+                    });
+                }
+            }
+            if obs.len() - *starts.last().unwrap() as usize >= 2 {
+                starts.push(obs.len() as u32);
+            } else {
+                obs.truncate(*starts.last().unwrap() as usize);
+            }
+        }
+        let set = TrackSet::new_checked(&starts, &obs, views).unwrap();
+        let (nt, no) = (set.len(), obs.len());
+        let mut poses = vec![None; views];
+        let mut results = vec![ViewResult::default(); views];
+        let mut points = vec![None; nt];
+        let mut used = vec![false; no];
+        let mut normalized = vec![None; no];
+        let mut covisibility = vec![0; views * views];
+        let mut tried = vec![0; views];
+        let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
+        let mut world = vec![Point3::origin(); nt];
+        let mut index = vec![0; nt];
+        let (mut mask, mut mask2) = (vec![false; nt], vec![false; nt]);
+        let mut angles = vec![0.0; nt];
+        let mut system = vec![0.0; BundleScratch::<f64>::system_len(views)];
+        let (mut rhs, mut gradient) = (vec![0.0; 6 * views], vec![0.0; 6 * views]);
+        let mut bindex = vec![0; views];
+        let mut trial = vec![None; views];
+        let mut coupling = vec![Default::default(); no];
+        let mut pscratch = vec![PointScratch::default(); nt];
+        let mut scene = Scene {
+            poses: &mut poses,
+            views: &mut results,
+            points: &mut points,
+            used: &mut used,
+        };
+        let mut ws = Workspace {
+            normalized: &mut normalized,
+            covisibility: &mut covisibility,
+            tried: &mut tried,
+            first: &mut first,
+            second: &mut second,
+            world: &mut world,
+            index: &mut index,
+            mask: &mut mask,
+            mask2: &mut mask2,
+            angles: &mut angles,
+            bundle: BundleScratch {
+                system: &mut system,
+                rhs: &mut rhs,
+                gradient: &mut gradient,
+                index: &mut bindex,
+                trial: &mut trial,
+                coupling: &mut coupling,
+                points: &mut pscratch,
+            },
+        };
+        let params = IncrementalConfig::default().check().unwrap();
+        let r = reconstruct(&camera, &set, &params, &mut scene, &mut ws).unwrap();
+        (truth, poses, r)
+    }
+
+    /// Largest rotation error between every pair of views, degrees.
+    fn worst_pair_error(truth: &[Pose<f64>], est: &[Option<Pose<f64>>]) -> f64 {
+        let mut worst = 0.0f64;
+        for i in 0..truth.len() {
+            for j in i + 1..truth.len() {
+                let (Some(a), Some(b)) = (est[i], est[j]) else {
+                    panic!("view not registered")
+                };
+                let r_est = b.rotation() * a.rotation().inverse();
+                let r_true = truth[j].rotation() * truth[i].rotation().inverse();
+                worst = worst.max((r_est * r_true.inverse()).angle().to_degrees());
+            }
+        }
+        worst
+    }
+
+    #[test]
+    fn exact_tracks_give_the_cameras_back() {
+        let (truth, poses, r) = run(8, 0.0);
+        assert_eq!(r.registered, 8);
+        assert!(r.rms_px < 1e-6, "{}", r.rms_px);
+        let e = worst_pair_error(&truth, &poses);
+        assert!(e < 1e-4, "{e}");
+    }
+
+    #[test]
+    fn noisy_tracks_stay_close() {
+        // ±0.5 px uniform jitter: a bundle adjustment averages it down.
+        let (truth, poses, r) = run(12, 1.0);
+        assert_eq!(r.registered, 12);
+        assert!(r.rms_px < 0.5, "{}", r.rms_px);
+        let e = worst_pair_error(&truth, &poses);
+        std::println!("noisy: worst {e} deg, rms {}", r.rms_px);
+        assert!(e < 0.1, "{e}");
+    }
+}

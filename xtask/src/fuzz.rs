@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 3;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 9] = [
+pub const TARGETS: [&str; 10] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -35,6 +35,7 @@ pub const TARGETS: [&str; 9] = [
     "calibrate",
     "apriltag",
     "remap",
+    "sfm",
 ];
 
 /// Build flags: release with debug assertions (so integer overflow panics), no sanitizer (the

@@ -115,7 +115,11 @@ pub const AREAS: [Area; 19] = [
         true,
         "`eight_point`, `seven_point`, `five_point`, `find_fundamental`, `find_essential`, `refine_fundamental`, `refine_essential`, `recover_pose`, `triangulate_dlt`, `_midpoint`, `_optimal`",
     ),
-    area("sfm", true, "`reconstruct_three_views`, `bundle_adjust`"),
+    area(
+        "sfm",
+        true,
+        "`reconstruct_three_views`, `bundle_adjust`; `TrackBuilder`, `TrackSet::new_checked`, `reconstruct` (with `bundle_adjust_views`)",
+    ),
     area(
         "calib",
         true,

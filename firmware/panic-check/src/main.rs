@@ -672,6 +672,87 @@ fn run_sfm<T: Real>() {
         )
         .ok(),
     );
+    run_sfm_incremental::<T>(&cam);
+}
+
+/// The incremental reconstruction over any number of views: tracks built by union-find, checked
+/// into a `TrackSet`, reconstructed (with its bundle adjustments).
+#[cfg(feature = "sfm")]
+fn run_sfm_incremental<T: Real>(cam: &camgeom::camera::Camera<T>) {
+    use camgeom::sfm::{
+        BundleScratch, IncrementalConfig, Observation, PointScratch, Scene, TrackBuilder, TrackSet,
+        ViewResult, Workspace, reconstruct,
+    };
+    use camgeom::transform::Pose;
+    const V: usize = 3;
+    const O: usize = 2 * N;
+    let (mut parent, mut scratch, mut labels) = black_box(([0u32; O], [0u32; O], [0u32; O]));
+    if let Ok(mut b) = TrackBuilder::new(&mut parent, &mut scratch) {
+        for i in 0..black_box(N as u32) {
+            black_box(b.join(i, i + N as u32).ok());
+        }
+        black_box(
+            b.label(&black_box([0, N as u32, O as u32]), &mut labels)
+                .ok(),
+        );
+    }
+    let starts: [u32; N + 1] = black_box(core::array::from_fn(|i| 2 * i as u32));
+    let obs: [Observation<T>; O] = black_box(core::array::from_fn(|k| Observation {
+        view: (k % 2) as u16,
+        pixel: pt2(1.0, 2.0),
+    }));
+    let Ok(set) = TrackSet::new_checked(&starts, &obs, V) else {
+        return;
+    };
+    let Ok(params) = black_box(IncrementalConfig::<T>::default()).check() else {
+        return;
+    };
+    let mut poses: [Option<Pose<T>>; V] = black_box([None; V]);
+    let mut views = black_box([ViewResult::<T>::default(); V]);
+    let mut points = black_box([None; N]);
+    let mut used = black_box([false; O]);
+    let mut normalized = black_box([None; O]);
+    let mut covisibility = black_box([0u32; V * V]);
+    let mut tried = black_box([0u32; V]);
+    let (mut first, mut second) = black_box(([pt2::<T>(0.0, 0.0); N], [pt2::<T>(0.0, 0.0); N]));
+    let mut world = black_box([pt3::<T>(0.0, 0.0, 1.0); N]);
+    let mut index = black_box([0u32; N]);
+    let (mut mask, mut mask2) = black_box(([false; N], [false; N]));
+    let mut angles = black_box([T::zero(); N]);
+    let mut system = black_box([T::zero(); 36 * V * V]);
+    let (mut rhs, mut gradient) = black_box(([T::zero(); 6 * V], [T::zero(); 6 * V]));
+    let mut bindex = black_box([0u16; V]);
+    let mut trial: [Option<Pose<T>>; V] = black_box([None; V]);
+    let mut coupling = black_box([camgeom::nalgebra::SMatrix::<T, 6, 3>::zeros(); O]);
+    let mut pscratch = black_box([PointScratch::<T>::default(); N]);
+    let mut scene = Scene {
+        poses: &mut poses,
+        views: &mut views,
+        points: &mut points,
+        used: &mut used,
+    };
+    let mut ws = Workspace {
+        normalized: &mut normalized,
+        covisibility: &mut covisibility,
+        tried: &mut tried,
+        first: &mut first,
+        second: &mut second,
+        world: &mut world,
+        index: &mut index,
+        mask: &mut mask,
+        mask2: &mut mask2,
+        angles: &mut angles,
+        bundle: BundleScratch {
+            system: &mut system,
+            rhs: &mut rhs,
+            gradient: &mut gradient,
+            index: &mut bindex,
+            trial: &mut trial,
+            coupling: &mut coupling,
+            points: &mut pscratch,
+        },
+    };
+    black_box(reconstruct(cam, &set, &params, &mut scene, &mut ws).ok());
 }
 
 // ---------------------------------------------------------------- calib
