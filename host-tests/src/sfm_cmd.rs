@@ -56,6 +56,10 @@ pub struct SfmArgs {
     pub matches: Option<PathBuf>,
     #[command(flatten)]
     pub camera: CameraArg,
+    /// Also write the tracks given to the reconstruction, rows `track,view,x,y` (what
+    /// `--matches` reads back).
+    #[arg(long, value_name = "FILE.csv")]
+    pub tracks_out: Option<PathBuf>,
     /// Output directory (created): `points.ply` and `plot.png`.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
@@ -361,6 +365,15 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         }
     };
     let t_match = t0.elapsed().as_secs_f64();
+    if let Some(path) = &a.tracks_out {
+        let mut csv = String::from("track,view,x,y\n");
+        for (t, w) in tracks.starts.windows(2).enumerate() {
+            for o in &tracks.observations[w[0] as usize..w[1] as usize] {
+                let _ = writeln!(csv, "{t},{},{},{}", o.view, o.pixel.x, o.pixel.y);
+            }
+        }
+        write_file(path, csv)?;
+    }
     let t1 = Instant::now();
     let set = TrackSet::new_checked(&tracks.starts, &tracks.observations, a.images.len())
         .map_err(|e| Error::camgeom("tracks", e))?;

@@ -12,7 +12,8 @@
 //!    tracks it shares with registered views are triangulated (the widest pair of rays, checked
 //!    for depth, angle and reprojection error in every registered view); a bundle adjustment
 //!    of every view and point follows ([`bundle_adjust_views`]), then observations whose
-//!    reprojection error exceeds the bound are dropped, and points left with fewer than two
+//!    reprojection error exceeds the bound are dropped, observations of reconstructed points
+//!    that the refined poses now explain are taken back, and points left with fewer than two
 //!    observations or too small an angle go.
 //! 5. A final, longer bundle adjustment and filtering; each view's inliers and RMS error.
 //!
@@ -463,8 +464,37 @@ fn refine<T: Real>(
         Err(Error::TooFewPoints | Error::BehindCamera) => None,
         Err(e) => return Err(e),
     };
+    complete(camera, tracks, config, scene);
     filter(camera, tracks, config, scene);
     Ok(report)
+}
+
+/// Takes back the unused observations of reconstructed points in registered views that the
+/// refined point and pose now explain (COLMAP's track completion): an observation rejected
+/// under an early, rougher pose constrains the next adjustment once it fits.
+fn complete<T: Real>(
+    camera: &Camera<T>,
+    tracks: &TrackSet<'_, T>,
+    config: &super::IncrementalConfig<T>,
+    scene: &mut Scene<'_, T>,
+) {
+    for i in 0..tracks.len() {
+        let Some(x) = scene.points.get(i).copied().flatten() else { continue };
+        let range = tracks.range(i);
+        for (k, o) in tracks.track(i).iter().enumerate() {
+            let Some(u) = scene.used.get_mut(range.start + k) else { continue };
+            if *u {
+                continue;
+            }
+            *u = scene
+                .poses
+                .get(usize::from(o.view))
+                .copied()
+                .flatten()
+                .and_then(|p| camera.project(&p, &x).ok())
+                .is_some_and(|p| above(config.max_reprojection_px, (p - o.pixel).norm()));
+        }
+    }
 }
 
 /// Drops used observations whose reprojection error exceeds the bound (or that do not project),
