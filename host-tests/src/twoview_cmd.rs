@@ -23,8 +23,12 @@
 //! Output: JSON `{"F": [9], "E": [9], "R": [9], "t": [3], "inliers": N, "points": [[X, Y, Z],
 //! ...], ...}` (matrices row-major; `F` with unit Frobenius norm). A camgeom failure is an input
 //! error (status 2, one line naming the error).
+//!
+//! `--matches-out FILE.csv` also writes every correspondence (the ORB matches with `--images`,
+//! the input rows otherwise) as `x1,y1,x2,y2,inlier`: raw pixels as read or matched, `inlier`
+//! 1 for the rows counted in `inliers` (the JSON's `inlier_mask`), 0 otherwise.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use camgeom::Real;
 use camgeom::camera::Camera;
@@ -35,8 +39,9 @@ use camgeom::twoview::{
     View1, find_essential, find_fundamental, recover_pose, triangulate_optimal,
 };
 use camgeom_host::cli::args::MatchesArg;
+use camgeom_host::cli::files::write_file;
 use camgeom_host::cli::matches::read_input;
-use camgeom_host::points::to_json;
+use camgeom_host::points::{format_csv, format_float, to_json};
 use camgeom_host::{Error, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
@@ -75,6 +80,10 @@ pub struct TwoviewArgs {
     /// Compute in f32, as the firmware does (default f64).
     #[arg(long)]
     pub f32: bool,
+    /// Also write every correspondence (the feature matches with `--images`) as CSV rows
+    /// `x1,y1,x2,y2,inlier` (raw pixels; `inlier` 1 for the pairs counted in `inliers`, else 0).
+    #[arg(long, value_name = "FILE.csv")]
+    pub matches_out: Option<PathBuf>,
 }
 
 /// The JSON result.
@@ -120,26 +129,45 @@ pub fn run(a: &TwoviewArgs) -> Result<String> {
         Some(p) => load_camera(p)?,
         None => spec1,
     };
-    let out = if a.f32 {
-        to_json(&estimate(
+    let (out, mask) = if a.f32 {
+        let o = estimate(
             a,
             &source,
             &matches,
             from_images,
             &spec1.camera_f32(),
             &spec2.camera_f32(),
-        )?)
+        )?;
+        (to_json(&o), o.inlier_mask)
     } else {
-        to_json(&estimate(
+        let o = estimate(
             a,
             &source,
             &matches,
             from_images,
             &spec1.camera,
             &spec2.camera,
-        )?)
+        )?;
+        (to_json(&o), o.inlier_mask)
     };
+    if let Some(path) = &a.matches_out {
+        write_matches(path, &matches, &mask)?;
+    }
     Ok(out)
+}
+
+/// Writes `matches` with their inlier flags as CSV rows `x1,y1,x2,y2,inlier` (`--matches-out`).
+fn write_matches(path: &Path, matches: &[(Point2<f64>, Point2<f64>)], mask: &[bool]) -> Result<()> {
+    let rows = matches.iter().zip(mask).map(|((p, q), &inlier)| {
+        [
+            format_float(p.x),
+            format_float(p.y),
+            format_float(q.x),
+            format_float(q.y),
+            u8::from(inlier).to_string(),
+        ]
+    });
+    write_file(path, format_csv(&["x1", "y1", "x2", "y2", "inlier"], rows))
 }
 
 fn flat<T: Real>(m: &Matrix3<T>) -> [T; 9] {

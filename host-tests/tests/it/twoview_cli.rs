@@ -377,3 +377,52 @@ fn input_errors() {
     ]);
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn matches_out_of_a_herz_jesus_pair() {
+    // `--matches-out`: every ORB match with its inlier flag, consistent with the JSON.
+    let dir = camgeom_host::data_dir().join("multiview/herz-jesus-p8");
+    let (a, b) = (dir.join("0003.jpg"), dir.join("0004.jpg"));
+    let cam = dir.join("camera.json");
+    let csv = scratch_file("herz-jesus-matches.csv", "");
+    let v = json(&camgeom(&[
+        "twoview",
+        "--images",
+        a.to_str().unwrap(),
+        b.to_str().unwrap(),
+        "--intrinsics1",
+        cam.to_str().unwrap(),
+        "--matches-out",
+        csv.to_str().unwrap(),
+    ]));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x1,y1,x2,y2,inlier"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|f| f.parse().unwrap()).collect())
+        .collect();
+    let matches = v["matches"].as_u64().unwrap() as usize;
+    let inliers = v["inliers"].as_u64().unwrap() as usize;
+    println!("{matches} matches, {inliers} inliers");
+    assert_eq!(rows.len(), matches);
+    assert!(
+        rows.iter()
+            .all(|r| r.len() == 5 && (r[4] == 0.0 || r[4] == 1.0))
+    );
+    assert_eq!(rows.iter().filter(|r| r[4] == 1.0).count(), inliers);
+    // The flags are the JSON's mask, row by row, and the pixels inside the 1536x1024 images.
+    let mask: Vec<bool> = v["inlier_mask"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|m| m.as_bool().unwrap())
+        .collect();
+    assert!(rows.iter().zip(&mask).all(|(r, &m)| (r[4] == 1.0) == m));
+    assert!(rows.iter().all(|r| {
+        (0.0..1536.0).contains(&r[0])
+            && (0.0..1024.0).contains(&r[1])
+            && (0.0..1536.0).contains(&r[2])
+            && (0.0..1024.0).contains(&r[3])
+    }));
+    assert!(inliers >= 50 && inliers < matches, "{inliers} of {matches}");
+}
