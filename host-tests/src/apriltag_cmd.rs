@@ -8,7 +8,7 @@ use camgeom_host::apriltag::{
 };
 use camgeom_host::cli::files::create_dir;
 use camgeom_host::cli::frames::frame_files;
-use camgeom_host::images::load_gray;
+use camgeom_host::images::{load_gray, require_size};
 use camgeom_host::points::to_json;
 use camgeom_host::rgb::Overlay;
 use camgeom_host::{Error, Result};
@@ -57,6 +57,10 @@ pub struct ApriltagArgs {
 /// `camgeom apriltag`: the JSON (one object with --image; with --frames, `{"frames": [..]}`
 /// holding one of them a frame).
 /// Every frame is detected before anything is written.
+/// The smallest image side the detector can find a tag in: tag16h5 is 8 cells across with its
+/// black and white borders (the other families have more), at one pixel a cell.
+pub const MIN_SIDE: usize = 8;
+
 pub fn run(a: &ApriltagArgs) -> Result<String> {
     let families = families_list(&a.family)?;
     let det = detector(&families, a.decimate, a.max_hamming, !a.no_refine_edges)?;
@@ -76,6 +80,7 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
     let mut overlays = Vec::new();
     for f in &files {
         let img = load_gray(f)?;
+        require_size(&img, f, MIN_SIDE, "the smallest tag AprilTag can find")?;
         let found = detect(&det, &mut ws, &img, f)?;
         if a.overlay.is_some() {
             overlays.push(draw_tags(&img, &found));

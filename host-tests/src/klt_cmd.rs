@@ -6,7 +6,7 @@ use camgeom::corners::CornerConfig;
 use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
 use camgeom_host::cli::files::{create_dir, write_file};
 use camgeom_host::cli::frames::{frame_files, load_frames, progress_bar};
-use camgeom_host::images::{load_gray, save_gray};
+use camgeom_host::images::{load_gray, require_size, save_gray};
 use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_sequence};
 use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result};
@@ -149,6 +149,7 @@ pub fn run_flow(a: &FlowArgs) -> Result<String> {
     let pts: Vec<[f64; 2]> = pts.rows.iter().map(|r| [r[0], r[1]]).collect();
     let from = load_gray(&a.from)?;
     let to = load_gray(&a.to)?;
+    require_size(&from, &a.from, a.lk.win, "the tracking window (--win)")?;
     if (from.width, from.height) != (to.width, to.height) {
         return Err(Error::new(
             &a.to,

@@ -5,7 +5,8 @@
 //!    matched between every pair of images with the ratio test and the mutual check
 //!    ([`match_features`]);
 //! 2. each pair's matches verified by an essential matrix (5-point RANSAC on undistorted
-//!    pixels): a pair keeps its inliers when there are at least `--min-pair-inliers`, else none;
+//!    pixels) or, when it explains more, a homography (a plane, a camera that only turned): a
+//!    pair keeps that model's inliers when there are at least `--min-pair-inliers`, else none;
 //! 3. tracks: the connected components of the verified matches
 //!    ([`camgeom::sfm::TrackBuilder`]), a component with two features of one image dropped;
 //!    or, with `--matches`, the tracks of a CSV file (`track,view,x,y`);
@@ -28,6 +29,7 @@ use std::time::Instant;
 
 use camgeom::camera::Camera;
 use camgeom::features::orb::Feature;
+use camgeom::homography::find_homography;
 use camgeom::nalgebra::{Point2, Point3, Vector3};
 use camgeom::ransac::RansacConfig;
 use camgeom::sfm::{
@@ -200,8 +202,16 @@ fn tracks_from_images(
             if pts.len() >= a.min_pair_inliers.max(5) {
                 let x1: Vec<Point2<f64>> = pts.iter().map(|p| p.2).collect();
                 let x2: Vec<Point2<f64>> = pts.iter().map(|p| p.3).collect();
-                let mut mask = vec![false; pts.len()];
-                if find_essential(&k, &k, &x1, &x2, verify, &mut mask).is_ok() {
+                // The model that explains more: the essential matrix for a pair that moved,
+                // a homography for a plane or a camera that only turned (whose matches still
+                // make tracks, though such a pair cannot start the reconstruction).
+                let (mut mask, mut mask_h) = (vec![false; pts.len()], vec![false; pts.len()]);
+                let e = find_essential(&k, &k, &x1, &x2, verify, &mut mask).map(|r| r.1.inliers);
+                let h = find_homography(&x1, &x2, verify, &mut mask_h).map(|r| r.1.inliers);
+                if h.unwrap_or(0) > e.unwrap_or(0) {
+                    mask = mask_h;
+                }
+                if e.is_ok() || h.is_ok() {
                     let n = mask.iter().filter(|&&b| b).count();
                     if n >= a.min_pair_inliers {
                         verified = n;

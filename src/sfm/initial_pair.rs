@@ -177,8 +177,23 @@ fn try_pair<T: Real>(
     ) else {
         return Err(no_model);
     };
+    let h_inliers = find_homography(x1, x2, params.essential(), mask2)
+        .map(|(_, r)| r.inliers as u32)
+        .unwrap_or(0);
     let Ok((e, report)) = find_essential(&k, &k, x1, x2, params.essential(), mask) else {
-        return Err(no_model);
+        // No essential matrix (e.g. no motion at all): if a homography explains most of the
+        // correspondences, that is why.
+        return Err(if 2 * u64::from(h_inliers) >= m as u64 {
+            (
+                h_inliers,
+                InitialRefusal::Planar {
+                    pair,
+                    ratio: T::one(),
+                },
+            )
+        } else {
+            no_model
+        });
     };
     let essential_inliers = report.inliers as u32;
     let Ok(rel) = recover_pose(&e, &k, &k, x1, x2, config.max_depth, mask) else {
@@ -188,9 +203,6 @@ fn try_pair<T: Real>(
     if inliers < needed {
         return Err(too_few(inliers));
     }
-    let h_inliers = find_homography(x1, x2, params.essential(), mask2)
-        .map(|(_, r)| r.inliers as u32)
-        .unwrap_or(0);
     let ratio = T::lit(f64::from(h_inliers)) / T::lit(f64::from(essential_inliers.max(1)));
     if ratio > config.max_homography_ratio {
         return Err((inliers, InitialRefusal::Planar { pair, ratio }));

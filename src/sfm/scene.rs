@@ -104,7 +104,7 @@ pub enum InitialRefusal<T: Real = f32> {
     Planar {
         /// The views.
         pair: (u16, u16),
-        /// Homography inliers over essential inliers.
+        /// Homography inliers over essential inliers (1 when no essential matrix exists).
         ratio: T,
     },
     /// The rays meet at too small an angle for depth.
