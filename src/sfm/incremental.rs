@@ -479,10 +479,14 @@ fn complete<T: Real>(
     scene: &mut Scene<'_, T>,
 ) {
     for i in 0..tracks.len() {
-        let Some(x) = scene.points.get(i).copied().flatten() else { continue };
+        let Some(x) = scene.points.get(i).copied().flatten() else {
+            continue;
+        };
         let range = tracks.range(i);
         for (k, o) in tracks.track(i).iter().enumerate() {
-            let Some(u) = scene.used.get_mut(range.start + k) else { continue };
+            let Some(u) = scene.used.get_mut(range.start + k) else {
+                continue;
+            };
             if *u {
                 continue;
             }
@@ -599,12 +603,12 @@ mod tests {
     use crate::camera::Intrinsics;
     use crate::sfm::{BundleScratch, IncrementalConfig, Observation, PointScratch};
 
+    /// The true poses, the reconstruction's poses, its report.
+    type Run = (Vec<Pose<f64>>, Vec<Option<Pose<f64>>>, Reconstruction<f64>);
+
     /// `views` cameras on an arc looking at a box of points, exact observations (or with
     /// `noise` px of deterministic jitter); returns the truth and the reconstruction's poses.
-    fn run(
-        views: usize,
-        noise: f64,
-    ) -> (Vec<Pose<f64>>, Vec<Option<Pose<f64>>>, Reconstruction<f64>) {
+    fn run(views: usize, noise: f64) -> Run {
         let camera = Camera::pinhole(Intrinsics::new(800.0, 800.0, 320.0, 240.0).unwrap());
         let truth: Vec<Pose<f64>> = (0..views)
             .map(|v| {
