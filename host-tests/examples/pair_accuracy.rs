@@ -19,6 +19,8 @@
 //! ```
 //!
 //! `SET` is a folder name under `data/multiview/` (default: `herz-jesus-p8 entry-p10`).
+//! `PAIR_SEEDS=K` runs RANSAC with `K` seeds per pair and prints each pair's median errors
+//! and inliers over them (default 1: RANSAC's default seed), which steadies comparisons.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -102,8 +104,30 @@ fn pair(
     a: (&View, &[Feature]),
     b: (&View, &[Feature]),
     what: &str,
+    seeds: u64,
 ) -> Result<(usize, usize, Option<(f64, f64)>), String> {
     let matches = match_features(a.1, b.1, what).map_err(|e| e.to_string())?;
+    let mut runs = Vec::new();
+    for s in 0..seeds {
+        runs.push(geometry(a, b, &matches, s)?);
+    }
+    let mut inl: Vec<f64> = runs.iter().map(|r| r.0 as f64).collect();
+    let errors = runs.iter().all(|r| r.1.is_some()).then(|| {
+        let mut rot: Vec<f64> = runs.iter().filter_map(|r| r.1.map(|e| e.0)).collect();
+        let mut tr: Vec<f64> = runs.iter().filter_map(|r| r.1.map(|e| e.1)).collect();
+        (median(&mut rot), median(&mut tr))
+    });
+    Ok((matches.len(), median(&mut inl) as usize, errors))
+}
+
+/// `(inliers, errors)` of the essential matrix and pose of `matches` with RANSAC seed
+/// number `seed` (0: the default seed).
+fn geometry(
+    a: (&View, &[Feature]),
+    b: (&View, &[Feature]),
+    matches: &[(usize, usize)],
+    seed: u64,
+) -> Result<(usize, Option<(f64, f64)>), String> {
     let pt = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
     let x1: Vec<_> = matches.iter().map(|&(i, _)| pt(&a.1[i])).collect();
     let x2: Vec<_> = matches.iter().map(|&(_, j)| pt(&b.1[j])).collect();
@@ -113,6 +137,7 @@ fn pair(
         threshold: 1.0,
         confidence: 0.999,
         max_iterations: 2000,
+        seed: RansacConfig::<f64>::default().seed.wrapping_add(seed),
         ..RansacConfig::default()
     }
     .check()
@@ -131,7 +156,7 @@ fn pair(
         let cos = t_est.normalize().dot(&tij.normalize()).clamp(-1.0, 1.0);
         (rot, cos.acos().to_degrees())
     });
-    Ok((matches.len(), inliers, errors))
+    Ok((inliers, errors))
 }
 
 fn main() {
@@ -139,6 +164,11 @@ fn main() {
     if sets.is_empty() {
         sets = vec!["herz-jesus-p8".into(), "entry-p10".into()];
     }
+    let seeds: u64 = std::env::var("PAIR_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(1)
+        .max(1);
     for set in &sets {
         let dir = camgeom_host::data_dir().join("multiview").join(set);
         let views = views(&dir);
@@ -160,7 +190,7 @@ fn main() {
                 let j = i + step;
                 let what = format!("{set} {i}-{j}");
                 let t0 = Instant::now();
-                let r = pair((&views[i], &feats[i]), (&views[j], &feats[j]), &what);
+                let r = pair((&views[i], &feats[i]), (&views[j], &feats[j]), &what, seeds);
                 let ms = t0.elapsed().as_secs_f64() * 1e3 + feat_ms[i] + feat_ms[j];
                 let nf = format!("{}/{}", feats[i].len(), feats[j].len());
                 match r {

@@ -1,16 +1,18 @@
 //! Point correspondences of two images: read from a CSV file of rows `x1,y1,x2,y2`, or found
 //! by matching the ORB features of both images ([`camgeom::features::orb::orb_detect`],
-//! default settings) with cross-check, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`.
+//! default settings) with cross-check, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`
+//! ([`match_images`]). Structure from motion takes its features from [`orb_features`]
+//! (thousands a view, spread by a grid, sub-pixel) and matches them with [`match_features`].
 
 use std::path::{Path, PathBuf};
 
-use camgeom::features::orb::{self, Feature, OrbParams};
+use camgeom::features::orb::{self, Feature, OrbConfig};
 use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
 use camgeom::nalgebra::Point2;
 
 use crate::cli::args::MatchesArg;
 use crate::error::{Error, ErrorKind, Result};
-use crate::images::load_gray;
+use crate::images::{GrayImage, load_gray};
 use crate::points::read_csv;
 
 /// The columns of a correspondence row.
@@ -30,22 +32,65 @@ const CROSS_CHECK: MatchConfig = MatchConfig {
     max_distance: 256,
 };
 
-/// ORB features of an image file (at most [`MAX_FEATURES`]).
+/// ORB features of an image file for structure from motion: [`sfm_orb_config`] for its size,
+/// keypoints in full-resolution pixels, buffers sized at run time.
 pub fn orb_features(path: &Path) -> Result<Vec<Feature>> {
     let img = load_gray(path)?;
+    features_with(path, &img, &sfm_orb_config(img.width, img.height))
+}
+
+/// ORB features of an image file with OpenCV's settings, [`MAX_FEATURES`] of them (what
+/// [`match_images`] matches).
+pub fn orb_features_default(path: &Path) -> Result<Vec<Feature>> {
+    let img = load_gray(path)?;
+    features_with(path, &img, &OrbConfig::default())
+}
+
+/// Pixels of the image per ORB feature of [`sfm_orb_config`]: 10 485 at 1536x1024 (FAST
+/// finds fewer on some views: 8 480 on herz-jesus-p8). Measured by `examples/pair_accuracy.rs`
+/// (median rotation error of the pairs of herz-jesus-p8 and entry-p10): 1 000 px a feature
+/// 0.17 and 0.34 deg, 300 px 0.11 and 0.15 deg, 150 px 0.07 and 0.14 deg; 100 px no better.
+pub const PIXELS_PER_FEATURE: usize = 150;
+
+/// Grid cells along the longer side of the image in [`sfm_orb_config`].
+pub const GRID_CELLS_ALONG: usize = 64;
+
+/// Corners a grid cell keeps in [`sfm_orb_config`].
+pub const CELL_KEEP: u8 = 4;
+
+/// ORB settings for structure from motion on a `width x height` image: one feature per
+/// [`PIXELS_PER_FEATURE`] pixels (at most `u16::MAX`), sub-pixel positions, and a grid of
+/// cells of `1 / GRID_CELLS_ALONG` of the image's longer side (24 px at 1536x1024; in every
+/// level's own pixels) keeping [`CELL_KEEP`] corners each, so that the features cover the
+/// image instead of crowding on its strongest texture. The rest is OpenCV's (8 levels of
+/// scale 1.2, FAST threshold 20).
+pub fn sfm_orb_config(width: usize, height: usize) -> OrbConfig {
+    let cell = (width.max(height) / GRID_CELLS_ALONG).max(usize::from(orb::MIN_GRID_CELL));
+    OrbConfig {
+        max_features: (width * height / PIXELS_PER_FEATURE).clamp(1, usize::from(u16::MAX)) as u16,
+        grid_cell: u16::try_from(cell).unwrap_or(u16::MAX),
+        cell_keep: CELL_KEEP,
+        subpixel: true,
+        ..OrbConfig::default()
+    }
+}
+
+fn features_with(path: &Path, img: &GrayImage, config: &OrbConfig) -> Result<Vec<Feature>> {
     let view = img.view().ok_or_else(|| {
         Error::new(
             path,
             ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
         )
     })?;
-    let params = OrbParams::default();
-    let scale_q8 = params.config().scale_q8;
-    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, scale_q8)];
-    let mut out = Box::new(camgeom::heapless::Vec::<Feature, MAX_FEATURES>::new());
-    orb::orb_detect(&view, &params, &mut scratch, &mut out)
+    let params = config
+        .check()
+        .map_err(|e| Error::camgeom(format!("{}: ORB configuration", path.display()), e))?;
+    let mut scratch = vec![0u8; orb::scratch_len(img.width, img.height, config.scale_q8)];
+    let mut out = vec![Feature::default(); orb::grid_capacity(img.width, img.height, config)];
+    let n = orb::orb_detect_into(&view, &params, &mut scratch, &mut out)
         .map_err(|e| Error::camgeom(format!("{}: orb_detect failed", path.display()), e))?;
-    Ok(out.to_vec())
+    out.truncate(n);
+    Ok(out)
 }
 
 /// The cross-checked matches of two feature sets, `(index in a, index in b)`; `what` names
@@ -91,7 +136,7 @@ pub fn match_features(a: &[Feature], b: &[Feature], what: &str) -> Result<Vec<(u
 
 /// Correspondences of two images: their ORB keypoints matched with cross-check.
 pub fn match_images(a: &Path, b: &Path) -> Result<Correspondences> {
-    let (fa, fb) = (orb_features(a)?, orb_features(b)?);
+    let (fa, fb) = (orb_features_default(a)?, orb_features_default(b)?);
     let pairs = cross_check(&fa, &fb, &format!("{} -> {}", a.display(), b.display()))?;
     let point = |f: &Feature| Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y));
     Ok(pairs
