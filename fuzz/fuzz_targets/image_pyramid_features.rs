@@ -7,7 +7,8 @@
 //! Contract: no panic; a view exists only for a valid geometry; a pyramid's levels have the
 //! documented sizes; corners lie inside the image and respect the output capacity; FAST
 //! corners keep the border, score at least the threshold, come in row-major order and (with
-//! suppression) are never 8-neighbours; ORB keypoints lie inside the frame, within the caps;
+//! suppression) are never 8-neighbours; ORB keypoints (any grid, sub-pixel or not, into a
+//! heapless vector or a slice of any length) lie inside the frame, within the caps;
 //! matches index both sides and carry the descriptors' Hamming distance; a warp writes at most
 //! the frame's pixels.
 #![no_main]
@@ -17,7 +18,7 @@ use camgeom::arith::Fixed;
 use camgeom::corners::{Corner, CornerConfig, good_features};
 use camgeom::features::{
     Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect, hamming,
-    match_descriptors, orb_detect,
+    match_descriptors, orb_detect, orb_detect_into,
 };
 use camgeom::heapless::Vec;
 use camgeom::homography::Homography;
@@ -57,6 +58,11 @@ struct Input {
     orb_border: u16,
     orb_max: u16,
     orb_slack: i16,
+    orb_grid_cell: u16,
+    orb_cell_keep: u8,
+    orb_subpixel: bool,
+    /// Length of the output slice of `orb_detect_into`.
+    orb_out_len: u8,
     ratio: f32,
     cross_check: bool,
     max_distance: u16,
@@ -261,6 +267,9 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
         scale_q8: inp.orb_scale_q8,
         fast_threshold: inp.orb_threshold,
         border: inp.orb_border,
+        grid_cell: inp.orb_grid_cell,
+        cell_keep: inp.orb_cell_keep,
+        subpixel: inp.orb_subpixel,
     };
     let need = camgeom::features::orb::scratch_len(w, h, inp.orb_scale_q8.max(1));
     let mut oscratch = std::vec![0u8; grow(need.min(1 << 18), inp.orb_slack)];
@@ -282,6 +291,24 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
                 k.angle.is_finite() && k.scale.is_finite(),
                 "ORB keypoint not finite"
             );
+        }
+    }
+
+    // The slice entry point, any output length: the same contract, at most `len` features.
+    if let Ok(oparams) = ocfg.check() {
+        let mut slice = std::vec![Feature::default(); usize::from(inp.orb_out_len)];
+        if let Ok(n) = orb_detect_into(view, &oparams, &mut oscratch[..], &mut slice) {
+            assert!(
+                n <= slice.len() && n <= usize::from(inp.orb_max),
+                "orb_detect_into over its caps"
+            );
+            for f in &slice[..n] {
+                let k = &f.keypoint;
+                assert!(
+                    k.x >= 0.0 && k.y >= 0.0 && k.x < w as f32 && k.y < h as f32,
+                    "ORB keypoint outside the frame (slice)"
+                );
+            }
         }
     }
 
