@@ -90,6 +90,8 @@ fuzz_target!(|inp: Input| {
     let mut normalized = vec![None; no];
     let mut covisibility = vec![0u32; views * views];
     let mut tried = vec![0u32; views];
+    let mut counts = vec![0u32; views];
+    let mut free = vec![true; views];
     let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
     let mut world = vec![Point3::origin(); nt];
     let mut index = vec![0u32; nt];
@@ -111,6 +113,7 @@ fuzz_target!(|inp: Input| {
         normalized: &mut normalized,
         covisibility: &mut covisibility,
         tried: &mut tried,
+        counts: &mut counts,
         first: &mut first,
         second: &mut second,
         world: &mut world,
@@ -123,6 +126,7 @@ fuzz_target!(|inp: Input| {
             rhs: &mut rhs,
             gradient: &mut gradient,
             index: &mut bindex,
+            free: &mut free,
             trial: &mut trial,
             coupling: &mut coupling,
             points: &mut pscratch,

@@ -407,6 +407,8 @@ pub fn run(a: &SfmArgs) -> Result<String> {
     let mut normalized = vec![None; no];
     let mut covisibility = vec![0u32; v * v];
     let mut tried = vec![0u32; v];
+    let mut next_counts = vec![0u32; v];
+    let mut free = vec![true; v];
     let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
     let mut world = vec![Point3::origin(); nt];
     let mut index = vec![0u32; nt];
@@ -428,6 +430,7 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         normalized: &mut normalized,
         covisibility: &mut covisibility,
         tried: &mut tried,
+        counts: &mut next_counts,
         first: &mut first,
         second: &mut second,
         world: &mut world,
@@ -440,6 +443,7 @@ pub fn run(a: &SfmArgs) -> Result<String> {
             rhs: &mut rhs,
             gradient: &mut gradient,
             index: &mut bindex,
+            free: &mut free,
             trial: &mut trial,
             coupling: &mut coupling,
             points: &mut pscratch,

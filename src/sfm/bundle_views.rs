@@ -65,6 +65,10 @@ pub struct BundleScratch<'a, T: Real = f32> {
     pub gradient: &'a mut [T],
     /// One per view: the free-view index of each view.
     pub index: &'a mut [u16],
+    /// One per view, set by the caller: which registered views may move (all of them for a
+    /// global adjustment; a new view and its neighbours for a local one). The anchor never
+    /// moves. Points that no free view sees used are left out entirely.
+    pub free: &'a mut [bool],
     /// One per view: poses of the trial step.
     pub trial: &'a mut [Option<Pose<T>>],
     /// One per observation: its `W` block (camera-point coupling).
@@ -84,6 +88,7 @@ impl<T: Real> BundleScratch<'_, T> {
             && self.rhs.len() >= 6 * views
             && self.gradient.len() >= 6 * views
             && self.index.len() >= views
+            && self.free.len() >= views
             && self.trial.len() >= views
             && self.coupling.len() >= observations
             && self.points.len() >= tracks;
@@ -122,7 +127,8 @@ pub struct BundleSettings<T: Real = f32> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ViewsBundleReport<T: Real = f32> {
-    /// RMS reprojection error over the used observations of active points before, pixels.
+    /// RMS reprojection error over the used observations of the points the free views see,
+    /// before, pixels.
     pub initial_rms_px: T,
     /// The same after.
     pub final_rms_px: T,
@@ -152,11 +158,13 @@ fn huber_cost<T: Real>(e2: T, delta: T) -> T {
 
 /// The robust cost and the squared-error sum of the used observations of active points, and
 /// their count; `None` when a used observation does not project.
+#[allow(clippy::too_many_arguments)]
 fn cost<T: Real>(
     camera: &Camera<T>,
     tracks: &TrackSet<'_, T>,
     poses: &[Option<Pose<T>>],
     used: &[bool],
+    index: &[u16],
     delta: T,
     point: impl Fn(usize) -> Option<Point3<T>>,
 ) -> Option<(T, T, usize)> {
@@ -164,6 +172,9 @@ fn cost<T: Real>(
     for i in 0..tracks.len() {
         let Some(x) = point(i) else { continue };
         let range = tracks.range(i);
+        if !affected(tracks, i, used, index) {
+            continue;
+        }
         for (o, &u) in tracks.track(i).iter().zip(used.get(range)?) {
             let Some(Some(pose)) = poses.get(usize::from(o.view)) else {
                 continue;
@@ -180,6 +191,20 @@ fn cost<T: Real>(
     (c.finite() && sq.finite()).then_some((c, sq, n))
 }
 
+/// Whether a free view sees track `i` in a used observation (else the step cannot move it).
+fn affected<T: Real>(tracks: &TrackSet<'_, T>, i: usize, used: &[bool], index: &[u16]) -> bool {
+    let range = tracks.range(i);
+    tracks
+        .track(i)
+        .iter()
+        .zip(used.get(range).unwrap_or(&[]))
+        .any(|(o, &u)| {
+            u && index
+                .get(usize::from(o.view))
+                .is_some_and(|&x| x != u16::MAX)
+        })
+}
+
 fn rms<T: Real>(sq: T, n: usize) -> T {
     if n == 0 {
         T::zero()
@@ -192,6 +217,9 @@ fn rms<T: Real>(sq: T, n: usize) -> T {
 /// (`points[i]` is `Some`) on the used observations (`used`, one per observation of `tracks`):
 /// at most `settings.max_iterations` Levenberg-Marquardt steps with Huber's loss of threshold
 /// `settings.loss_px` pixels, `settings.gauge` fixed (see the module docs). Observations of unregistered views are ignored.
+///
+/// Only the views marked in `scratch.free` move (see [`BundleScratch::free`]), and the errors
+/// reported are over the points they see.
 ///
 /// Errors: [`Error::LengthMismatch`] for `poses`, `points` or `used` of the wrong length;
 /// [`Error::BufferTooSmall`] for `scratch`; [`Error::InvalidParameter`]`("bundle.gauge")`
@@ -231,14 +259,15 @@ pub fn bundle_adjust_views<T: Real>(
     }
     // Free views and their index.
     let mut free = 0usize;
-    for (v, (idx, pose)) in scratch
+    for (v, ((idx, pose), &f)) in scratch
         .index
         .iter_mut()
         .zip(poses.iter())
+        .zip(scratch.free.iter())
         .enumerate()
         .take(views)
     {
-        *idx = if pose.is_some() && v != anchor {
+        *idx = if pose.is_some() && v != anchor && f {
             free += 1;
             (free - 1) as u16
         } else {
@@ -246,9 +275,11 @@ pub fn bundle_adjust_views<T: Real>(
         };
     }
     let dim = 6 * free;
-    let Some((mut current, sq0, count)) = cost(camera, tracks, poses, used, loss_px, |i| {
-        points.get(i).copied().flatten()
-    }) else {
+    let Some((mut current, sq0, count)) =
+        cost(camera, tracks, poses, used, scratch.index, loss_px, |i| {
+            points.get(i).copied().flatten()
+        })
+    else {
         return Err(Error::BehindCamera);
     };
     if count == 0 {
@@ -300,9 +331,15 @@ pub fn bundle_adjust_views<T: Real>(
                 };
                 *trial = Pose::new(r, t).ok();
             }
-            let trial_cost = cost(camera, tracks, scratch.trial, used, loss_px, |i| {
-                scratch.points.get(i).and_then(|s| s.candidate)
-            });
+            let trial_cost = cost(
+                camera,
+                tracks,
+                scratch.trial,
+                used,
+                scratch.index,
+                loss_px,
+                |i| scratch.points.get(i).and_then(|s| s.candidate),
+            );
             match trial_cost {
                 Some((c, sq, _)) if c < current => {
                     let gain = (current - c) / current.max(T::EPSILON);
@@ -379,7 +416,7 @@ fn linearise_and_solve<T: Real>(
             .zip(u)
             .filter(|(o, u)| **u && matches!(poses.get(usize::from(o.view)), Some(Some(_))))
             .count();
-        if seen < 2 {
+        if seen < 2 || !affected(tracks, i, used, s.index) {
             continue;
         }
         let mut v = Matrix3::<T>::zeros();

@@ -11,7 +11,11 @@
 //!    else it is refused with the reason, and tried again only once more points see it. The
 //!    tracks it shares with registered views are triangulated (the widest pair of rays, checked
 //!    for depth, angle and reprojection error in every registered view); a bundle adjustment
-//!    of every view and point follows ([`bundle_adjust_views`]), then observations whose
+//!    follows ([`bundle_adjust_views`]): global (every view and point) when the registered
+//!    views have grown by [`IncrementalConfig::global_growth`](super::IncrementalConfig) since
+//!    the last global one, else local (the new view and the
+//!    [`local_views`](super::IncrementalConfig) - 1 views sharing the most tracks with it, and
+//!    the points they see), then observations whose
 //!    reprojection error exceeds the bound are dropped, observations of reconstructed points
 //!    that the refined poses now explain are taken back, and points left with fewer than two
 //!    observations or too small an angle go.
@@ -113,15 +117,9 @@ pub fn reconstruct<T: Real>(
     set_registered(scene, b, pair.pose);
     // 3.
     triangulate_new(camera, tracks, config, scene, ws);
-    refine(
-        camera,
-        tracks,
-        params,
-        scene,
-        ws,
-        gauge,
-        config.bundle_iterations,
-    )?;
+    let iterations = config.bundle_iterations;
+    refine(camera, tracks, params, scene, ws, gauge, iterations, None)?;
+    let mut last_global = 2usize;
     // 4. Each round registers a view or records a refusal at a count that must grow before
     // the view is tried again, so `4 views` rounds bound the loop.
     for _ in 0..4 * views {
@@ -131,15 +129,16 @@ pub fn reconstruct<T: Real>(
         match register(camera, tracks, params, scene, ws, v, found) {
             Ok(()) => {
                 triangulate_new(camera, tracks, config, scene, ws);
-                refine(
-                    camera,
-                    tracks,
-                    params,
-                    scene,
-                    ws,
-                    gauge,
-                    config.bundle_iterations,
-                )?;
+                let registered = scene.poses.iter().filter(|p| p.is_some()).count();
+                let grown =
+                    T::lit(registered as f64) >= config.global_growth * T::lit(last_global as f64);
+                let local = if grown {
+                    last_global = registered;
+                    None
+                } else {
+                    Some(v)
+                };
+                refine(camera, tracks, params, scene, ws, gauge, iterations, local)?;
             }
             Err(r) => {
                 if let Some(t) = ws.tried.get_mut(v) {
@@ -161,6 +160,7 @@ pub fn reconstruct<T: Real>(
         ws,
         gauge,
         config.final_bundle_iterations,
+        None,
     )?;
     drop_weak_views(tracks, config.min_registration_inliers, scene, gauge);
     filter(camera, tracks, config, scene);
@@ -234,8 +234,7 @@ fn next_view<T: Real>(
     ws: &mut Workspace<'_, T>,
 ) -> Option<(usize, u32)> {
     let views = tracks.views();
-    // Count per view into `covisibility`'s first row (free once the pair is chosen).
-    let counts = ws.covisibility.get_mut(..views)?;
+    let counts = ws.counts.get_mut(..views)?;
     counts.iter_mut().for_each(|c| *c = 0);
     for i in 0..tracks.len() {
         if scene.points.get(i).copied().flatten().is_none() {
@@ -436,6 +435,7 @@ fn triangulate_new<T: Real>(
 
 /// Bundle adjustment of everything, then [`filter`]. `None` when the adjustment could not run
 /// (no observation), which leaves the scene as it was.
+#[allow(clippy::too_many_arguments)]
 fn refine<T: Real>(
     camera: &Camera<T>,
     tracks: &TrackSet<'_, T>,
@@ -444,8 +444,10 @@ fn refine<T: Real>(
     ws: &mut Workspace<'_, T>,
     gauge: Gauge,
     iterations: u8,
+    local: Option<usize>,
 ) -> Result<Option<ViewsBundleReport<T>>> {
     let config = params.config();
+    choose_free(scene.poses, config.local_views, local, ws);
     filter(camera, tracks, config, scene);
     let report = match bundle_adjust_views(
         camera,
@@ -467,6 +469,46 @@ fn refine<T: Real>(
     complete(camera, tracks, config, scene);
     filter(camera, tracks, config, scene);
     Ok(report)
+}
+
+/// Marks the views a bundle adjustment moves: every one (`local` is `None`), or view `local`
+/// and the `local_views - 1` registered views that share the most tracks with it.
+fn choose_free<T: Real>(
+    poses: &[Option<Pose<T>>],
+    local_views: u16,
+    local: Option<usize>,
+    ws: &mut Workspace<'_, T>,
+) {
+    let views = poses.len();
+    let free = &mut *ws.bundle.free;
+    let Some(v) = local else {
+        free.iter_mut().for_each(|f| *f = true);
+        return;
+    };
+    free.iter_mut().for_each(|f| *f = false);
+    if let Some(f) = free.get_mut(v) {
+        *f = true;
+    }
+    let covisibility = &*ws.covisibility;
+    let shared = |w: usize| {
+        let (a, b) = if v < w { (v, w) } else { (w, v) };
+        covisibility.get(a * views + b).copied().unwrap_or(0)
+    };
+    for _ in 1..local_views {
+        let best = (0..views)
+            .filter(|&w| {
+                !free.get(w).copied().unwrap_or(true) && matches!(poses.get(w), Some(Some(_)))
+            })
+            .max_by_key(|&w| shared(w));
+        match best {
+            Some(w) if shared(w) > 0 => {
+                if let Some(f) = free.get_mut(w) {
+                    *f = true;
+                }
+            }
+            _ => break,
+        }
+    }
 }
 
 /// Takes back the unused observations of reconstructed points in registered views that the
@@ -603,6 +645,8 @@ mod tests {
     use crate::camera::Intrinsics;
     use crate::sfm::{BundleScratch, IncrementalConfig, Observation, PointScratch};
 
+    const POINTS: usize = 400;
+
     /// The true poses, the reconstruction's poses, its report.
     type Run = (Vec<Pose<f64>>, Vec<Option<Pose<f64>>>, Reconstruction<f64>);
 
@@ -622,7 +666,7 @@ mod tests {
         let mut starts = vec![0u32];
         let mut obs = Vec::new();
         let mut k = 0u64;
-        for i in 0..400 {
+        for i in 0..POINTS {
             let f = |m: usize, n: usize| ((i * m) % n) as f64 / n as f64 - 0.5;
             let x = Point3::new(4.0 * f(37, 101), 3.0 * f(53, 97), 6.0 + 3.0 * f(29, 89));
             for (v, p) in truth.iter().enumerate() {
@@ -655,6 +699,8 @@ mod tests {
         let mut normalized = vec![None; no];
         let mut covisibility = vec![0; views * views];
         let mut tried = vec![0; views];
+        let mut counts = vec![0; views];
+        let mut free = vec![true; views];
         let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
         let mut world = vec![Point3::origin(); nt];
         let mut index = vec![0; nt];
@@ -676,6 +722,7 @@ mod tests {
             normalized: &mut normalized,
             covisibility: &mut covisibility,
             tried: &mut tried,
+            counts: &mut counts,
             first: &mut first,
             second: &mut second,
             world: &mut world,
@@ -688,6 +735,7 @@ mod tests {
                 rhs: &mut rhs,
                 gradient: &mut gradient,
                 index: &mut bindex,
+                free: &mut free,
                 trial: &mut trial,
                 coupling: &mut coupling,
                 points: &mut pscratch,

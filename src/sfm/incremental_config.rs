@@ -42,6 +42,13 @@ pub struct IncrementalConfig<T: Real = f32> {
     pub loss_px: T,
     /// Levenberg-Marquardt steps of the bundle adjustment after each registration. Default 10.
     pub bundle_iterations: u8,
+    /// Views a local bundle adjustment moves: the new view and those sharing the most tracks
+    /// with it, `≥ 1`. Default 6 (COLMAP's).
+    pub local_views: u16,
+    /// A registration is followed by a global bundle adjustment (every view) when the
+    /// registered views have grown by this factor since the last global one, else by a local
+    /// one; `≥ 1`. Default 1.2.
+    pub global_growth: T,
     /// Steps of the final bundle adjustment. Default 40.
     pub final_bundle_iterations: u8,
 }
@@ -70,6 +77,8 @@ impl<T: Real> Default for IncrementalConfig<T> {
             max_depth: T::lit(100.0),
             loss_px: T::one(),
             bundle_iterations: 10,
+            local_views: 6,
+            global_growth: T::lit(1.2),
             final_bundle_iterations: 40,
         }
     }
@@ -112,6 +121,11 @@ impl<T: Real> IncrementalConfig<T> {
             (
                 above(self.loss_px, T::zero()) && self.loss_px.finite(),
                 "sfm.loss_px",
+            ),
+            (self.local_views >= 1, "sfm.local_views"),
+            (
+                self.global_growth >= T::one() && self.global_growth.finite(),
+                "sfm.global_growth",
             ),
         ];
         match checks.iter().find(|(ok, _)| !ok) {
@@ -203,6 +217,8 @@ mod tests {
             bad("sfm.min_inlier_ratio")
         );
         assert_eq!(with(|c| c.loss_px = f64::INFINITY), bad("sfm.loss_px"));
+        assert_eq!(with(|c| c.local_views = 0), bad("sfm.local_views"));
+        assert_eq!(with(|c| c.global_growth = 0.5), bad("sfm.global_growth"));
         assert_eq!(
             with(|c| c.min_initial_angle = 4.0),
             bad("sfm.min_initial_angle")

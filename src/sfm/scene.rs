@@ -159,6 +159,8 @@ pub struct Workspace<'a, T: Real = f32> {
     pub covisibility: &'a mut [u32],
     /// One per view: 2D-3D count at the last failed registration.
     pub tried: &'a mut [u32],
+    /// One per view: 2D-3D counts of the next registration.
+    pub counts: &'a mut [u32],
     /// One per track (each of the next six).
     pub first: &'a mut [Point2<T>],
     /// Second pixels of a pair; PnP's normalised scratch.
@@ -182,6 +184,7 @@ impl<T: Real> Workspace<'_, T> {
         let ok = self.normalized.len() >= observations
             && self.covisibility.len() >= views * views
             && self.tried.len() >= views
+            && self.counts.len() >= views
             && self.first.len() >= tracks
             && self.second.len() >= tracks
             && self.world.len() >= tracks

@@ -533,12 +533,13 @@ fn run_draw<T: Real>() {
 
 // ---------------------------------------------------------------- features
 
-/// FAST, ORB and brute-force Hamming matching.
+/// FAST, ORB (OpenCV's settings, and with a grid and sub-pixel positions into a slice) and
+/// brute-force Hamming matching.
 #[cfg(feature = "features")]
 fn run_features() {
     use camgeom::features::{
         Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect,
-        match_descriptors, orb_detect,
+        match_descriptors, orb_detect, orb_detect_into,
     };
     use camgeom::heapless::Vec;
     let frame = black_box([0u8; W * H]);
@@ -561,6 +562,19 @@ fn run_features() {
     let mut out: Vec<Feature, 32> = Vec::new();
     black_box(orb_detect(&v, &oparams, black_box(&mut scratch[..]), &mut out).ok());
     black_box(&out);
+    // The spread and sub-pixel options, into a slice.
+    let grid = OrbConfig {
+        grid_cell: 16,
+        cell_keep: 2,
+        subpixel: true,
+        ..OrbConfig::default()
+    };
+    let Ok(gparams) = black_box(grid).check() else {
+        return;
+    };
+    let mut slots = black_box([Feature::default(); 48]);
+    black_box(orb_detect_into(&v, &gparams, black_box(&mut scratch[..]), &mut slots[..]).ok());
+    black_box(&slots);
     let q = black_box([Descriptor([1; 8]); 8]);
     let t = black_box([Descriptor([2; 8]); 12]);
     let Ok(mparams) = black_box(MatchConfig::default()).check() else {
@@ -714,6 +728,8 @@ fn run_sfm_incremental<T: Real>(cam: &camgeom::camera::Camera<T>) {
     let mut normalized = black_box([None; O]);
     let mut covisibility = black_box([0u32; V * V]);
     let mut tried = black_box([0u32; V]);
+    let mut counts = black_box([0u32; V]);
+    let mut free = black_box([true; V]);
     let (mut first, mut second) = black_box(([pt2::<T>(0.0, 0.0); N], [pt2::<T>(0.0, 0.0); N]));
     let mut world = black_box([pt3::<T>(0.0, 0.0, 1.0); N]);
     let mut index = black_box([0u32; N]);
@@ -735,6 +751,7 @@ fn run_sfm_incremental<T: Real>(cam: &camgeom::camera::Camera<T>) {
         normalized: &mut normalized,
         covisibility: &mut covisibility,
         tried: &mut tried,
+        counts: &mut counts,
         first: &mut first,
         second: &mut second,
         world: &mut world,
@@ -747,6 +764,7 @@ fn run_sfm_incremental<T: Real>(cam: &camgeom::camera::Camera<T>) {
             rhs: &mut rhs,
             gradient: &mut gradient,
             index: &mut bindex,
+            free: &mut free,
             trial: &mut trial,
             coupling: &mut coupling,
             points: &mut pscratch,
