@@ -600,16 +600,23 @@ impl Grid {
         if keep == 0 || quota == 0 || cells > counts.len() {
             return Ok(0);
         }
-        let gx = w.div_ceil(cell);
+        let gx = w.div_ceil(cell.max(1));
         let counts = counts.get_mut(..cells).unwrap_or(&mut []);
         counts.fill(0);
         let slots = out.get_mut(start..).unwrap_or(&mut []);
         detect(&mut |f: Feature| {
             let (x, y) = (f.keypoint.x as usize, f.keypoint.y as usize);
-            let c = (y / cell) * gx + x / cell;
-            let (Some(count), Some(heap)) =
-                (counts.get_mut(c), slots.get_mut(c * keep..c * keep + keep))
-            else {
+            // Checked: `cell >= 1` and `c < cells`, `c keep <= out.len()`, which the optimiser
+            // cannot see.
+            let c = match (y.checked_div(cell), x.checked_div(cell)) {
+                (Some(row), Some(col)) => row.saturating_mul(gx).saturating_add(col),
+                _ => return,
+            };
+            let first = c.saturating_mul(keep);
+            let (Some(count), Some(heap)) = (
+                counts.get_mut(c),
+                slots.get_mut(first..first.saturating_add(keep)),
+            ) else {
                 return;
             };
             let mut len = usize::from(*count);
@@ -622,14 +629,14 @@ impl Grid {
         let mut n = 0usize;
         for (c, &count) in counts.iter().enumerate() {
             let count = usize::from(count);
-            let first = c * keep;
-            if let Some(heap) = slots.get_mut(first..first + count) {
+            let first = c.saturating_mul(keep);
+            if let Some(heap) = slots.get_mut(first..first.saturating_add(count)) {
                 crate::corners::heapsort_by(heap, |a, b| {
                     b.keypoint.response.cmp(&a.keypoint.response)
                 });
             }
             for r in 0..count {
-                let Some(mut f) = slots.get(first + r).copied() else {
+                let Some(mut f) = slots.get(first.saturating_add(r)).copied() else {
                     break;
                 };
                 f.keypoint.level = r as u8;
