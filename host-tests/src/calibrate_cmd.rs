@@ -7,6 +7,7 @@
 //! with one line and leaves no file behind. Images of another size than most (another camera
 //! mode) are skipped with a warning, as OpenCV's users skip them.
 
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use camgeom::calib::{
@@ -72,6 +73,22 @@ pub struct CalibrateArgs {
     /// Fisheye only: `k4 = 0` (`fisheye::CALIB_FIX_K4`).
     #[arg(long)]
     fix_k4: bool,
+    /// Also write every used view's detected corners, CSV rows `view,X,Y,Z,u,v` (`view`: the
+    /// image's index in `--images`, from 0; `X,Y,Z`: the corner on the board, `(i, j, 0)`
+    /// squares in `--square`'s unit; `u,v`: its pixel), which `camgeom pose --view` reads.
+    #[arg(long, value_name = "FILE.csv")]
+    corners_out: Option<PathBuf>,
+}
+
+/// One used view's pose (board to camera, `X_cam = R X_board + t`) and error.
+#[derive(Serialize, Debug)]
+struct ViewPose {
+    image: String,
+    /// Index in `--images`.
+    view: usize,
+    rvec: [f64; 3],
+    tvec: [f64; 3],
+    rms_px: f64,
 }
 
 /// `COLSxROWS`, within the detector's capacity.
@@ -240,6 +257,8 @@ struct Summary {
     model: &'static str,
     std: StdDev,
     per_view_rms: Vec<f64>,
+    /// Each used view's pose, as OpenCV's `rvecs`/`tvecs`.
+    views: Vec<ViewPose>,
     warnings: Vec<&'static str>,
     image_width: usize,
     image_height: usize,
@@ -386,6 +405,40 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
         }
     }
 
+    // Each used view's pose and corners.
+    let mut poses = Vec::new();
+    let mut corners_csv = String::from("view,X,Y,Z,u,v\n");
+    for (k, v) in found.iter().enumerate() {
+        let (Some(Some(pose)), Some(Some(rms)), Some(c)) = (
+            report.poses.get(k),
+            report.per_view_rms_px.get(k),
+            v.corners.as_ref(),
+        ) else {
+            continue;
+        };
+        let index = views.iter().position(|w| std::ptr::eq(w, *v)).unwrap_or(k);
+        let (r, t) = (pose.rotation_vector(), pose.translation());
+        poses.push(ViewPose {
+            image: file_name(&v.path),
+            view: index,
+            rvec: [r.x, r.y, r.z],
+            tvec: [t.x, t.y, t.z],
+            rms_px: *rms,
+        });
+        let cols = board.cols();
+        for (n, p) in c.corners.iter().enumerate() {
+            let (i, j) = (n % cols, n / cols);
+            let _ = writeln!(
+                corners_csv,
+                "{index},{},{},0,{},{}",
+                i as f64 * a.square,
+                j as f64 * a.square,
+                p.x,
+                p.y
+            );
+        }
+    }
+
     // Outputs, all made before any is written.
     let yaml = camera_yaml(&report, &cfg, board, a.square, width, height, &per_view);
     let sheet = corners_sheet(&views);
@@ -414,6 +467,9 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     write_file(&a.out, &yaml)?;
     sheet.save_png(&sheet_path)?;
     chart.save_png(&chart_path)?;
+    if let Some(path) = &a.corners_out {
+        write_file(path, &corners_csv)?;
+    }
 
     let k = &report.camera.intrinsics;
     let s = &report.std;
@@ -439,6 +495,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
             distortion: s.iter().skip(4).take(n_lens).copied().collect(),
         },
         per_view_rms: per_view,
+        views: poses,
         warnings: report.warnings.iter().map(warning_name).collect(),
         image_width: width,
         image_height: height,

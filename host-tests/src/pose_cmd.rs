@@ -24,6 +24,9 @@ pub struct PoseArgs {
     /// otherwise EPnP + Levenberg-Marquardt.
     #[arg(long, value_name = "FILE.csv")]
     points: PathBuf,
+    /// Read rows `view,X,Y,Z,u,v` (`camgeom calibrate --corners-out`) and keep view `K`'s.
+    #[arg(long, value_name = "K")]
+    view: Option<u32>,
     /// Robust N-point pose (P3P RANSAC with EPnP local optimisation, OpenCV's
     /// solvePnPRansac) with this inlier threshold in pixels; used for planar points too.
     #[arg(long, value_name = "PX")]
@@ -112,7 +115,20 @@ fn no_pose(src: &impl std::fmt::Display, e: camgeom::Error, planar: bool) -> Err
 /// `camgeom pose`: the JSON result.
 pub fn run(a: &PoseArgs) -> Result<String> {
     let spec = load_camera(&a.camera.intrinsics)?;
-    let table = read_csv(&a.points, &["X", "Y", "Z", "u", "v"])?;
+    let table = match a.view {
+        None => read_csv(&a.points, &["X", "Y", "Z", "u", "v"])?,
+        Some(k) => {
+            let mut t = read_csv(&a.points, &["view", "X", "Y", "Z", "u", "v"])?;
+            let keep: Vec<bool> = t.rows.iter().map(|r| r[0] == f64::from(k)).collect();
+            let mut it = keep.iter();
+            t.lines.retain(|_| *it.next().unwrap_or(&false));
+            t.rows.retain(|r| r[0] == f64::from(k));
+            t.rows.iter_mut().for_each(|r| {
+                r.remove(0);
+            });
+            t
+        }
+    };
     let n = table.rows.len();
     // 4 points: the fewest IPPE and EPnP accept (6 pose unknowns, 2 equations a point, and
     // one more point than P3P to single out its solution).

@@ -684,3 +684,35 @@ fn views_without_the_board_are_listed_and_left_out() {
     assert!(!dir.join("camera_corners.png").exists());
     assert!(out.exists());
 }
+
+/// `--corners-out` writes every used view's corners as `view,X,Y,Z,u,v`, and `pose --view K` on
+/// that file gives back the pose the calibration reports for view `K` (OpenCV's `rvecs` and
+/// `tvecs` are the same refinement of the same correspondences).
+#[test]
+fn calibrate_writes_poses_and_corners_that_pose_reads() {
+    let dir = scratch_dir("corners-out");
+    let (camera, corners) = (dir.join("camera.yml"), dir.join("corners.csv"));
+    let c = corners.display().to_string();
+    let out = run_calibrate(&bundled_views(), &["--corners-out", &c], &camera);
+    assert!(out.status.success(), "{out:?}");
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let views = v["views"].as_array().unwrap();
+    assert_eq!(views.len(), 13);
+    let text = std::fs::read_to_string(&corners).unwrap();
+    assert!(text.starts_with("view,X,Y,Z,u,v\n"));
+    assert_eq!(text.lines().count(), 1 + 13 * 54);
+    for w in views.iter().step_by(4) {
+        let k = w["view"].as_u64().unwrap().to_string();
+        let cam = camera.display().to_string();
+        let p = camgeom(&["pose", "--intrinsics", &cam, "--points", &c, "--view", &k]);
+        assert!(p.status.success(), "{p:?}");
+        let p: Value = serde_json::from_slice(&p.stdout).unwrap();
+        for key in ["rvec", "t"] {
+            let (a, b) = (&p[key], &w[if key == "t" { "tvec" } else { key }]);
+            for i in 0..3 {
+                let (x, y) = (a[i].as_f64().unwrap(), b[i].as_f64().unwrap());
+                assert!((x - y).abs() < 1e-4 * (1.0 + y.abs()), "{key}: {x} vs {y}");
+            }
+        }
+    }
+}
