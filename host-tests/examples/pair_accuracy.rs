@@ -99,13 +99,16 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// `(inliers, rotation error, translation error)` of one pair, or why it failed.
+/// `(matches, inliers, (rotation error, translation error) when the set has poses)`.
+type PairResult = (usize, usize, Option<(f64, f64)>);
+
+/// The matches, inliers and errors of one pair (medians over the seeds), or why it failed.
 fn pair(
     a: (&View, &[Feature]),
     b: (&View, &[Feature]),
     what: &str,
     seeds: u64,
-) -> Result<(usize, usize, Option<(f64, f64)>), String> {
+) -> Result<PairResult, String> {
     let matches = match_features(a.1, b.1, what).map_err(|e| e.to_string())?;
     let mut runs = Vec::new();
     for s in 0..seeds {
