@@ -191,6 +191,55 @@ pub fn flow_pyramids_in(
     }
 }
 
+/// `calc_flow` in `f32` from `pts` of `prev` to `next`, starting at `guesses` (OpenCV's
+/// `OPTFLOW_USE_INITIAL_FLOW`): a sub-pixel alignment of windows already matched, per-window
+/// derivatives, no forward-backward check.
+pub fn flow_from_guesses(
+    prev: &Pyramid<'_>,
+    next: &Pyramid<'_>,
+    pts: &[[f64; 2]],
+    guesses: &[[f64; 2]],
+    cfg: &LkConfig,
+) -> camgeom::Result<Vec<FlowPoint>> {
+    if pts.len() != guesses.len() {
+        return Err(camgeom::Error::LengthMismatch);
+    }
+    let params = LkConfig {
+        use_initial_flow: true,
+        ..*cfg
+    }
+    .check()?;
+    let from: Vec<[f32; 2]> = pts.iter().map(|p| [p[0] as f32, p[1] as f32]).collect();
+    let mut flows: Vec<Flow<f32>> = guesses
+        .iter()
+        .map(|g| Flow {
+            x: g[0] as f32,
+            y: g[1] as f32,
+            ..Flow::default()
+        })
+        .collect();
+    let mut scratch = vec![0; scratch_len(cfg.win)];
+    calc_flow::<f32>(
+        prev,
+        next,
+        &from,
+        &mut flows,
+        &params,
+        Gradients::PerWindow,
+        Borders::None,
+        &mut scratch,
+    )?;
+    Ok(flows
+        .iter()
+        .map(|f| FlowPoint {
+            x: f64::from(f.x),
+            y: f64::from(f.y),
+            status: f.status,
+            err: f64::from(f.err),
+        })
+        .collect())
+}
+
 /// Tracks `pts` from `a` to `b` (same size) with the given path.
 pub fn flow(
     a: &GrayImage,

@@ -40,6 +40,7 @@ use camgeom::twoview::find_essential;
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
 use camgeom_host::cli::matches::{match_features, orb_features};
+use camgeom_host::images::{GrayImage, load_gray};
 use camgeom_host::points::{read_csv, to_json};
 use camgeom_host::rgb::{Overlay, RgbImage};
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
@@ -77,6 +78,10 @@ pub struct SfmArgs {
     /// Fewest verified matches for a pair of images to count.
     #[arg(long, value_name = "N", default_value_t = 15)]
     pub min_pair_inliers: usize,
+    /// Keep the ORB keypoints where the detector put them (no KLT alignment of each track to
+    /// its finest observation).
+    #[arg(long)]
+    pub no_refine: bool,
     /// Seed of every RANSAC sampler.
     #[arg(long, value_name = "SEED", default_value_t = RansacConfig::<f64>::default().seed)]
     pub seed: u64,
@@ -234,20 +239,115 @@ fn tracks_from_images(
     let n = builder
         .label(&offsets, &mut labels)
         .map_err(|e| Error::camgeom("track building", e))?;
-    let mut members: Vec<Vec<Observation<f64>>> = vec![Vec::new(); n];
+    let mut members: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
     for (v, w) in offsets.windows(2).enumerate() {
         for node in w[0]..w[1] {
             let l = labels[node as usize];
             if l != NO_TRACK {
-                let f = &features[v][(node - w[0]) as usize];
-                members[l as usize].push(Observation {
-                    view: v as u16,
-                    pixel: pixel(f),
-                });
+                members[l as usize].push((v, (node - w[0]) as usize));
             }
         }
     }
-    Ok((compress(members), pairs))
+    let tracks = if a.no_refine {
+        members
+            .iter()
+            .map(|m| {
+                m.iter()
+                    .map(|&(v, f)| Observation {
+                        view: v as u16,
+                        pixel: pixel(&features[v][f]),
+                    })
+                    .collect()
+            })
+            .collect()
+    } else {
+        refine_tracks(&a.images, features, &members)?
+    };
+    Ok((compress(tracks), pairs))
+}
+
+/// Largest move of a keypoint by [`refine_tracks`], in pixels of its own pyramid level: FAST
+/// places a corner within about a pixel of its level; a larger move is a window that slid off
+/// to other texture, and the keypoint stays where it was.
+const MAX_REFINE_SHIFT: f64 = 1.5;
+
+/// Each track's observations aligned to its finest one (the keypoint of the smallest scale)
+/// by KLT from there (`calc_flow` with the match as the initial guess, 21x21 windows, two
+/// levels): ORB keypoints of one scene point sit at view-dependent offsets (a FAST corner's
+/// position on its pyramid level), which bias the geometry; windows aligned to one reference
+/// agree to a small fraction of a pixel.
+fn refine_tracks(
+    images: &[PathBuf],
+    features: &[Vec<Feature>],
+    members: &[Vec<(usize, usize)>],
+) -> Result<Vec<Vec<Observation<f64>>>> {
+    use camgeom::klt::{FlowStatus, LkConfig};
+    use camgeom_host::klt::{flow_from_guesses, pyramid};
+    let cfg = LkConfig {
+        win: 21,
+        max_level: 1,
+        ..LkConfig::default()
+    };
+    let grey: Vec<GrayImage> = images.iter().map(load_gray).collect::<Result<_>>()?;
+    let mut bufs: Vec<Vec<u8>> = vec![Vec::new(); grey.len()];
+    let pyramids: Vec<_> = grey
+        .iter()
+        .zip(bufs.iter_mut())
+        .map(|(g, b)| pyramid(g, b, 2))
+        .collect();
+    // Requests per (reference view, view): (track, member, reference pixel, guess).
+    let mut requests: BTreeMap<(usize, usize), Vec<(usize, usize, [f64; 2], [f64; 2])>> =
+        BTreeMap::new();
+    let mut out: Vec<Vec<Observation<f64>>> = Vec::with_capacity(members.len());
+    for (t, m) in members.iter().enumerate() {
+        let reference = m
+            .iter()
+            .enumerate()
+            .min_by(|x, y| {
+                let s = |&(_, &(v, f)): &(usize, &(usize, usize))| features[v][f].keypoint.scale;
+                s(x).total_cmp(&s(y))
+            })
+            .map_or(0, |(k, _)| k);
+        let (rv, rf) = m[reference];
+        let rp = pixel(&features[rv][rf]);
+        for (k, &(v, f)) in m.iter().enumerate() {
+            if k != reference {
+                let g = pixel(&features[v][f]);
+                requests
+                    .entry((rv, v))
+                    .or_default()
+                    .push((t, k, [rp.x, rp.y], [g.x, g.y]));
+            }
+        }
+        out.push(
+            m.iter()
+                .map(|&(v, f)| Observation {
+                    view: v as u16,
+                    pixel: pixel(&features[v][f]),
+                })
+                .collect(),
+        );
+    }
+    for ((rv, v), reqs) in &requests {
+        let pts: Vec<[f64; 2]> = reqs.iter().map(|r| r.2).collect();
+        let guesses: Vec<[f64; 2]> = reqs.iter().map(|r| r.3).collect();
+        let Ok(flows) = flow_from_guesses(&pyramids[*rv], &pyramids[*v], &pts, &guesses, &cfg)
+        else {
+            continue;
+        };
+        for (r, f) in reqs.iter().zip(flows) {
+            let (v_feat, scale) = {
+                let (vv, ff) = members[r.0][r.1];
+                (vv, f64::from(features[vv][ff].keypoint.scale))
+            };
+            debug_assert_eq!(v_feat, *v);
+            let moved = ((f.x - r.3[0]).powi(2) + (f.y - r.3[1]).powi(2)).sqrt();
+            if f.status == FlowStatus::Tracked && moved <= MAX_REFINE_SHIFT * scale {
+                out[r.0][r.1].pixel = Point2::new(f.x, f.y);
+            }
+        }
+    }
+    Ok(out)
 }
 
 fn compress(members: Vec<Vec<Observation<f64>>>) -> Tracks {
