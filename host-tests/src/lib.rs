@@ -12,6 +12,7 @@
 //! | [`known_motion`] | known warps of a frame and an independent bilinear warp, for KLT accuracy |
 //! | [`ar`] | the AR loop ([`camgeom::target::PlanarTarget`]) over a sequence and its overlays (`ar`) |
 //! | [`rgb`] | colour overlays on `image::RgbImage`: grey in colour, inked masks, digit labels, compact PNG |
+//! | [`figures`] | the figures of structure from motion (plotters): the scene from above and the side, correspondences, reprojection errors |
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
@@ -25,6 +26,7 @@ pub mod bench;
 pub mod cli;
 pub mod contact_sheet;
 pub mod error;
+pub mod figures;
 pub mod images;
 pub mod intrinsics;
 pub mod klt;

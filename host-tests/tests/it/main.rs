@@ -15,6 +15,7 @@ mod chessboard_scales;
 mod cli;
 mod common;
 mod features;
+mod figures;
 mod filestorage;
 mod homography_cli;
 mod homography_sweep;
