@@ -30,7 +30,7 @@ use std::time::Instant;
 use camgeom::camera::Camera;
 use camgeom::features::orb::Feature;
 use camgeom::homography::find_homography;
-use camgeom::nalgebra::{Point2, Point3, Vector3};
+use camgeom::nalgebra::{Point2, Point3};
 use camgeom::ransac::RansacConfig;
 use camgeom::sfm::{
     BundleScratch, IncrementalConfig, InitialRefusal, NO_TRACK, Observation, PointScratch, Scene,
@@ -40,9 +40,12 @@ use camgeom::twoview::find_essential;
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
 use camgeom_host::cli::matches::{match_features, orb_features};
+use camgeom_host::figures::{
+    CAMERA_COLOURS, SceneCamera, correspondences_plot, reprojection_plot, scene_plot,
+};
 use camgeom_host::images::{GrayImage, load_gray};
 use camgeom_host::points::{read_csv, to_json};
-use camgeom_host::rgb::{Overlay, RgbImage};
+use camgeom_host::rgb::RgbImage;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
@@ -153,8 +156,12 @@ pub struct SfmOutput {
     pub seconds: [f64; 2],
     /// The files written.
     pub ply: String,
-    /// The plot.
+    /// The scene from above and from the side (`plot.png`).
     pub plot: String,
+    /// The initial pair's matches, verified (inliers) or not (`matches.png`).
+    pub matches_plot: String,
+    /// Each registered view's observed and reprojected points (`reprojection-KK.png`).
+    pub reprojection_plots: Vec<String>,
 }
 
 /// Tracks in compressed rows: `starts` (one more than tracks) and the observations.
@@ -168,11 +175,14 @@ fn pixel(f: &Feature) -> Point2<f64> {
 }
 
 /// Steps 1-3 of the module docs from images.
+/// Each pair's matches (pixels in the first and the second image, verified), by `(i, j)`, `i < j`.
+type PairMatches = BTreeMap<(usize, usize), Vec<(Point2<f64>, Point2<f64>, bool)>>;
+
 fn tracks_from_images(
     a: &SfmArgs,
     camera: &Camera<f64>,
     features: &[Vec<Feature>],
-) -> Result<(Tracks, Vec<Pair>)> {
+) -> Result<(Tracks, Vec<Pair>, PairMatches)> {
     let k = camera.intrinsics;
     let mut verify = RansacConfig::<f64> {
         threshold: a.verify_threshold,
@@ -194,19 +204,22 @@ fn tracks_from_images(
     let mut builder = TrackBuilder::new(&mut parent, &mut scratch)
         .map_err(|e| Error::camgeom("track building", e))?;
     let mut pairs = Vec::new();
+    let mut pair_matches = PairMatches::new();
     for i in 0..features.len() {
         for j in i + 1..features.len() {
             let what = format!("{} - {}", a.images[i].display(), a.images[j].display());
             let m = match_features(&features[i], &features[j], &what)?;
             let und = |f: &Feature| camera.undistort_pixel(&pixel(f)).ok();
-            let pts: Vec<(usize, usize, Point2<f64>, Point2<f64>)> = m
+            // (index into m, undistorted pixels)
+            let pts: Vec<(usize, Point2<f64>, Point2<f64>)> = m
                 .iter()
-                .filter_map(|&(p, q)| Some((p, q, und(&features[i][p])?, und(&features[j][q])?)))
+                .enumerate()
+                .filter_map(|(n, &(p, q))| Some((n, und(&features[i][p])?, und(&features[j][q])?)))
                 .collect();
-            let mut verified = 0;
+            let mut inlier = vec![false; m.len()];
             if pts.len() >= a.min_pair_inliers.max(5) {
-                let x1: Vec<Point2<f64>> = pts.iter().map(|p| p.2).collect();
-                let x2: Vec<Point2<f64>> = pts.iter().map(|p| p.3).collect();
+                let x1: Vec<Point2<f64>> = pts.iter().map(|p| p.1).collect();
+                let x2: Vec<Point2<f64>> = pts.iter().map(|p| p.2).collect();
                 // The model that explains more: the essential matrix for a pair that moved,
                 // a homography for a plane or a camera that only turned (whose matches still
                 // make tracks, though such a pair cannot start the reconstruction).
@@ -216,18 +229,26 @@ fn tracks_from_images(
                 if h.unwrap_or(0) > e.unwrap_or(0) {
                     mask = mask_h;
                 }
-                if e.is_ok() || h.is_ok() {
-                    let n = mask.iter().filter(|&&b| b).count();
-                    if n >= a.min_pair_inliers {
-                        verified = n;
-                        for (p, _) in pts.iter().zip(&mask).filter(|(_, b)| **b) {
-                            builder
-                                .join(offsets[i] + p.0 as u32, offsets[j] + p.1 as u32)
-                                .map_err(|e| Error::camgeom("track building", e))?;
-                        }
+                let n = mask.iter().filter(|&&b| b).count();
+                if (e.is_ok() || h.is_ok()) && n >= a.min_pair_inliers {
+                    for (pt, _) in pts.iter().zip(&mask).filter(|(_, b)| **b) {
+                        inlier[pt.0] = true;
                     }
                 }
             }
+            for (&(p, q), _) in m.iter().zip(&inlier).filter(|(_, b)| **b) {
+                builder
+                    .join(offsets[i] + p as u32, offsets[j] + q as u32)
+                    .map_err(|e| Error::camgeom("track building", e))?;
+            }
+            let verified = inlier.iter().filter(|&&b| b).count();
+            pair_matches.insert(
+                (i, j),
+                m.iter()
+                    .zip(&inlier)
+                    .map(|(&(p, q), &ok)| (pixel(&features[i][p]), pixel(&features[j][q]), ok))
+                    .collect(),
+            );
             pairs.push(Pair {
                 views: [i, j],
                 matches: m.len(),
@@ -263,8 +284,11 @@ fn tracks_from_images(
     } else {
         refine_tracks(&a.images, features, &members)?
     };
-    Ok((compress(tracks), pairs))
+    Ok((compress(tracks), pairs, pair_matches))
 }
+
+/// One alignment of [`refine_tracks`]: track, member, reference pixel, initial guess.
+type Request = (usize, usize, [f64; 2], [f64; 2]);
 
 /// Largest move of a keypoint by [`refine_tracks`], in pixels of its own pyramid level: FAST
 /// places a corner within about a pixel of its level; a larger move is a window that slid off
@@ -296,8 +320,7 @@ fn refine_tracks(
         .map(|(g, b)| pyramid(g, b, 2))
         .collect();
     // Requests per (reference view, view): (track, member, reference pixel, guess).
-    let mut requests: BTreeMap<(usize, usize), Vec<(usize, usize, [f64; 2], [f64; 2])>> =
-        BTreeMap::new();
+    let mut requests: BTreeMap<(usize, usize), Vec<Request>> = BTreeMap::new();
     let mut out: Vec<Vec<Observation<f64>>> = Vec::with_capacity(members.len());
     for (t, m) in members.iter().enumerate() {
         let reference = m
@@ -457,11 +480,12 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         return Err(Error::usage("too many images"));
     }
     let t0 = Instant::now();
-    let (tracks, pairs, counts) = match &a.matches {
+    let (tracks, pairs, counts, pair_matches) = match &a.matches {
         Some(path) => (
             tracks_from_csv(path, a.images.len())?,
             Vec::new(),
             vec![0; a.images.len()],
+            PairMatches::new(),
         ),
         None => {
             let features: Vec<Vec<Feature>> = a
@@ -470,8 +494,8 @@ pub fn run(a: &SfmArgs) -> Result<String> {
                 .map(|p| orb_features(p))
                 .collect::<Result<_>>()?;
             let counts = features.iter().map(Vec::len).collect();
-            let (t, p) = tracks_from_images(a, &camera, &features)?;
-            (t, p, counts)
+            let (t, p, m) = tracks_from_images(a, &camera, &features)?;
+            (t, p, counts, m)
         }
     };
     let t_match = t0.elapsed().as_secs_f64();
@@ -638,8 +662,66 @@ pub fn run(a: &SfmArgs) -> Result<String> {
     let ply = a.out.join("points.ply");
     let plot = a.out.join("plot.png");
     write_ply(&ply, &coloured, &views)?;
-    let plain: Vec<Point3<f64>> = coloured.iter().map(|(p, _)| *p).collect();
-    write_plot(&plot, &plain, &views)?;
+    let file = |i: usize| {
+        a.images[i]
+            .file_name()
+            .map_or_else(|| names[i].clone(), |f| f.to_string_lossy().into_owned())
+    };
+    let cameras: Vec<SceneCamera> = (0..v)
+        .filter_map(|i| {
+            let p = poses[i]?;
+            let k = camera.intrinsics;
+            let size = images[i]
+                .as_ref()
+                .map_or((0, 0), |m| (m.width(), m.height()));
+            Some(SceneCamera {
+                label: file(i),
+                rotation: p.rotation().into_inner(),
+                center: p.camera_center(),
+                intrinsics: (k.fx(), k.fy(), k.cx(), k.cy()),
+                size,
+            })
+        })
+        .collect();
+    scene_plot(&plot, &coloured, &cameras, "initial baseline")?;
+    // The course's figures: the initial pair's correspondences, each view's reprojections.
+    let (ia, ib) = (usize::from(initial.0), usize::from(initial.1));
+    let pair_plot = a.out.join("matches.png");
+    if let (Some(m), Some(Some(ima)), Some(Some(imb))) = (
+        pair_matches.get(&(ia.min(ib), ia.max(ib))),
+        images.get(ia),
+        images.get(ib),
+    ) {
+        let (first, second) = if ia < ib { (ima, imb) } else { (imb, ima) };
+        let title = format!(
+            "{} - {}: matches verified by the pair's geometry (initial pair)",
+            file(ia.min(ib)),
+            file(ia.max(ib))
+        );
+        correspondences_plot(&pair_plot, first, second, m, &title)?;
+    }
+    let mut reprojection_plots = Vec::new();
+    for i in (0..v).filter(|&i| poses[i].is_some()) {
+        let (Some(pose), Some(Some(img))) = (poses[i], images.get(i)) else {
+            continue;
+        };
+        let (mut observed, mut reprojected) = (Vec::new(), Vec::new());
+        for t in 0..nt {
+            let Some(x) = points[t] else { continue };
+            for (o, &u) in set.track(t).iter().zip(&used[set.range(t)]) {
+                if u && usize::from(o.view) == i
+                    && let Ok(p) = camera.project(&pose, &x)
+                {
+                    observed.push(o.pixel);
+                    reprojected.push(p);
+                }
+            }
+        }
+        let path = a.out.join(format!("reprojection-{i:02}.png"));
+        let title = format!("{}: observed and reprojected points", file(i));
+        reprojection_plot(&path, img, &observed, &reprojected, None, &title)?;
+        reprojection_plots.push(path.display().to_string());
+    }
     let summary = SfmOutput {
         registered: r.registered,
         points: r.points,
@@ -653,27 +735,14 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         views,
         ply: ply.display().to_string(),
         plot: plot.display().to_string(),
+        matches_plot: pair_plot.display().to_string(),
+        reprojection_plots,
     };
     Ok(to_json(&summary))
 }
 
-/// The colour of camera `k` of `n`: hues around the circle.
-fn camera_rgb(k: usize, n: usize) -> [u8; 3] {
-    let h = 6.0 * k as f64 / n.max(1) as f64;
-    let x = 1.0 - (h % 2.0 - 1.0).abs();
-    let (r, g, b) = match h as u32 {
-        0 => (1.0, x, 0.0),
-        1 => (x, 1.0, 0.0),
-        2 => (0.0, 1.0, x),
-        3 => (0.0, x, 1.0),
-        4 => (x, 0.0, 1.0),
-        _ => (1.0, 0.0, x),
-    };
-    [r, g, b].map(|c: f64| (40.0 + 190.0 * c) as u8)
-}
-
 /// ASCII PLY: `x y z red green blue` per vertex, the points (their colour in the images) then
-/// the registered camera centres ([`camera_rgb`]).
+/// the registered camera centres (in `plot.png`'s camera colours).
 fn write_ply(path: &Path, points: &[(Point3<f64>, [u8; 3])], views: &[View]) -> Result<()> {
     let mut s = String::new();
     let centres: Vec<(usize, [f64; 3])> = views
@@ -694,112 +763,8 @@ fn write_ply(path: &Path, points: &[(Point3<f64>, [u8; 3])], views: &[View]) -> 
         let _ = writeln!(s, "{} {} {} {r} {g} {b}", p.x, p.y, p.z);
     }
     for (k, [x, y, z]) in centres {
-        let [r, g, b] = camera_rgb(k, views.len());
+        let [r, g, b] = CAMERA_COLOURS[k % CAMERA_COLOURS.len()];
         let _ = writeln!(s, "{x} {y} {z} {r} {g} {b}");
     }
     write_file(path, s)
-}
-
-/// Bresenham's line from `(x0, y0)` to `(x1, y1)`, clipped to the image.
-fn draw_line(img: &mut RgbImage, (mut x0, mut y0): (i64, i64), (x1, y1): (i64, i64), c: [u8; 3]) {
-    let (dx, dy) = ((x1 - x0).abs(), -(y1 - y0).abs());
-    let (sx, sy) = (if x0 < x1 { 1 } else { -1 }, if y0 < y1 { 1 } else { -1 });
-    let mut err = dx + dy;
-    for _ in 0..=(dx - dy).min(1 << 16) {
-        img.put(x0, y0, c);
-        if x0 == x1 && y0 == y1 {
-            break;
-        }
-        let e2 = 2 * err;
-        if e2 >= dy {
-            err += dy;
-            x0 += sx;
-        }
-        if e2 <= dx {
-            err += dx;
-            y0 += sy;
-        }
-    }
-}
-
-/// A filled disc of radius `r` around `(x, y)`, clipped to the image.
-fn draw_disc(img: &mut RgbImage, (x, y): (i64, i64), r: i64, c: [u8; 3]) {
-    for j in -r..=r {
-        for i in -r..=r {
-            if i * i + j * j <= r * r {
-                img.put(x + i, y + j, c);
-            }
-        }
-    }
-}
-
-/// Two orthographic panels side by side: top-down (`X` right, `Z` up) and side (`Z` right,
-/// `-Y` up, so the camera's up is up), each fitted to the points' 2nd..98th percentiles and the
-/// cameras; cameras as discs with a line along their optical axis.
-fn write_plot(path: &Path, points: &[Point3<f64>], views: &[View]) -> Result<()> {
-    const PANEL: u32 = 480;
-    const MARGIN: f64 = 24.0;
-    let mut canvas = RgbImage::from_pixel(2 * PANEL, PANEL, image::Rgb([255, 255, 255]));
-    // Panel axes: (horizontal, vertical-up) as functions of a world point.
-    type Axis = fn(&Vector3<f64>) -> (f64, f64);
-    let panels: [Axis; 2] = [|p| (p.x, p.z), |p| (p.z, -p.y)];
-    let n = views.len();
-    let registered: Vec<(usize, [f64; 3], [f64; 9])> = views
-        .iter()
-        .enumerate()
-        .filter_map(|(k, v)| Some((k, v.center?, v.r?)))
-        .collect();
-    let centres: Vec<Vector3<f64>> = registered.iter().map(|r| Vector3::from(r.1)).collect();
-    let colours: Vec<[u8; 3]> = registered.iter().map(|r| camera_rgb(r.0, n)).collect();
-    // Optical axes: the third row of R is the viewing direction in the world frame.
-    let axes: Vec<Vector3<f64>> = registered
-        .iter()
-        .map(|r| Vector3::new(r.2[6], r.2[7], r.2[8]))
-        .collect();
-    for (k, proj) in panels.iter().enumerate() {
-        let pts: Vec<(f64, f64)> = points.iter().map(|p| proj(&p.coords)).collect();
-        let cams: Vec<(f64, f64)> = centres.iter().map(proj).collect();
-        let range = |sel: fn(&(f64, f64)) -> f64| {
-            let mut v: Vec<f64> = pts.iter().map(sel).collect();
-            v.sort_by(f64::total_cmp);
-            let lo = v.get(v.len() / 50).copied();
-            let hi = v
-                .get(v.len() - v.len() / 50 - usize::from(!v.is_empty()))
-                .copied();
-            cams.iter()
-                .map(sel)
-                .chain(lo)
-                .chain(hi)
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-                    (a.min(x), b.max(x))
-                })
-        };
-        let ((h0, h1), (v0, v1)) = (range(|p| p.0), range(|p| p.1));
-        let span = (h1 - h0).max(v1 - v0).max(1e-9);
-        let scale = (f64::from(PANEL) - 2.0 * MARGIN) / span;
-        let x_off = f64::from(PANEL) * k as f64;
-        let to_px = |(h, v): (f64, f64)| {
-            (
-                (x_off + MARGIN + (h - h0) * scale + (span - (h1 - h0)) * scale / 2.0) as i64,
-                (f64::from(PANEL) - MARGIN - (v - v0) * scale - (span - (v1 - v0)) * scale / 2.0)
-                    as i64,
-            )
-        };
-        for p in &pts {
-            draw_disc(&mut canvas, to_px(*p), 1, [90, 90, 90]);
-        }
-        for ((c, axis), &rgb) in centres.iter().zip(&axes).zip(&colours) {
-            let tip = c + axis * (0.15 * span);
-            draw_line(&mut canvas, to_px(proj(c)), to_px(proj(&tip)), rgb);
-            draw_disc(&mut canvas, to_px(proj(c)), 4, rgb);
-        }
-    }
-    // Panel separator.
-    draw_line(
-        &mut canvas,
-        (i64::from(PANEL), 0),
-        (i64::from(PANEL), i64::from(PANEL) - 1),
-        [0, 0, 0],
-    );
-    canvas.save_png(path)
 }

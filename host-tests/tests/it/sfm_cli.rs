@@ -18,7 +18,7 @@ fn out_dir(name: &str) -> PathBuf {
         .join(format!("{name}-{}", std::process::id()))
 }
 
-fn sfm(images: &[PathBuf], camera: &PathBuf, out: &str) -> std::process::Output {
+fn sfm(images: &[PathBuf], camera: &std::path::Path, out: &str) -> std::process::Output {
     let mut args = vec!["sfm".to_string(), "--images".into()];
     args.extend(images.iter().map(|p| p.display().to_string()));
     args.extend([
@@ -99,7 +99,16 @@ fn herz_jesus_triplet_matches_the_true_cameras() {
     for w in views {
         assert!(w["reprojection_rms_px"].as_f64().unwrap() < 1.0, "{w}");
     }
-    let ply = std::fs::read_to_string(out_dir("sfm-herz").join("points.ply")).unwrap();
+    let dir = out_dir("sfm-herz");
+    let plot = image::open(dir.join("plot.png")).unwrap();
+    assert_eq!(
+        (plot.width(), plot.height()),
+        camgeom_host::figures::SCENE_SIZE
+    );
+    for f in ["matches.png", "reprojection-00.png", "reprojection-02.png"] {
+        assert!(dir.join(f).is_file(), "{f}");
+    }
+    let ply = std::fs::read_to_string(dir.join("points.ply")).unwrap();
     assert!(ply.contains(&format!(
         "element vertex {}\n",
         v["points"].as_u64().unwrap() + 3

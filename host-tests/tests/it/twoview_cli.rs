@@ -277,14 +277,18 @@ fn images_of_the_box() {
     assert!(v["runner_up"].as_u64().unwrap() < n / 10);
 }
 
+/// The box sequence's camera stands still while a hand turns the box: features spread over the
+/// whole frame are mostly the static background, which gives no parallax. The scene as a whole
+/// does not determine a reconstruction, and `sfm` says so (exit 1, one line) instead of
+/// reconstructing the box against a background that contradicts it.
 #[test]
-fn sfm_on_three_box_frames() {
+fn sfm_refuses_a_still_camera() {
     let cam = camgeom_host::data_dir().join("sequences/box-camera.yml");
     let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
         .join("camgeom-host-tests")
         .join(format!("sfm-{}", std::process::id()));
     let (a, b, c) = (box_frame(110), box_frame(120), box_frame(130));
-    let v = json(&camgeom(&[
+    let o = camgeom(&[
         "sfm",
         "--images",
         a.to_str().unwrap(),
@@ -294,51 +298,15 @@ fn sfm_on_three_box_frames() {
         cam.to_str().unwrap(),
         "--out",
         out.to_str().unwrap(),
-    ]));
-    println!("{v}");
-    let points = v["points"].as_u64().unwrap() as usize;
-    let rms = v["reprojection_rms_px"].as_f64().unwrap();
-    // A real triple: every view registered with a good share of inliers, sub-pixel RMS (ORB
-    // keypoints are on a pyramid grid: 0.3-0.7 px is their localisation noise). The box turns
-    // by a few degrees between these frames, so the 1.5° triangulation angle keeps about half
-    // of the tracks (135 measured).
-    assert_eq!(v["registered"], 3);
-    assert!(points >= 100, "{points}");
-    let views = v["views"].as_array().unwrap();
-    for w in views {
-        assert_eq!(w["registered"], true, "{w}");
-        assert!(w["inliers"].as_u64().unwrap() >= 50, "{w}");
-        assert!(w["reprojection_rms_px"].as_f64().unwrap() < 1.0, "{w}");
-    }
-    assert!(rms < 1.0, "{rms}");
-    // The world is the initial pair's first view, the unit its baseline.
-    let centres: Vec<Vector3<f64>> = views.iter().map(|w| vec3(&w["center"])).collect();
-    let pair: Vec<usize> = v["initial_pair"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_u64().unwrap() as usize)
-        .collect();
-    assert!(centres[pair[0]].norm() < 1e-12);
-    assert!((centres[pair[1]].norm() - 1.0).abs() < 1e-6);
-    // The box turns on the same way, so A -> C continues A -> B (within 30 degrees).
-    let (ab, ac) = (centres[1] - centres[0], centres[2] - centres[0]);
-    assert!(dir_err_deg(&ab, &ac) < 30.0);
-    assert!(ac.norm() > 1.2 * ab.norm());
-    // points.ply: the header's vertex count, then one row per point and per camera.
-    let ply = std::fs::read_to_string(out.join("points.ply")).unwrap();
-    assert!(ply.starts_with("ply\nformat ascii 1.0\n"));
-    assert!(ply.contains(&format!("element vertex {}\n", points + 3)));
-    let body: Vec<&str> = ply.split("end_header\n").nth(1).unwrap().lines().collect();
-    assert_eq!(body.len(), points + 3);
-
-    for line in &body {
-        let f: Vec<f64> = line.split(' ').map(|x| x.parse().unwrap()).collect();
-        assert_eq!(f.len(), 6);
-        assert!(f.iter().all(|x| x.is_finite()));
-    }
-    let plot = image::open(out.join("plot.png")).unwrap();
-    assert_eq!((plot.width(), plot.height()), (960, 480));
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{o:?}");
+    assert!(o.stdout.is_empty());
+    let err = String::from_utf8(o.stderr).unwrap();
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.contains("parallax") || err.contains("homography"),
+        "{err}"
+    );
 }
 
 #[test]
