@@ -150,7 +150,7 @@ pub struct Scene<'a, T: Real = f32> {
 }
 
 /// The caller-owned scratch of [`reconstruct`](super::reconstruct): per observation, per track,
-/// per view (lengths in [`Self::check`]).
+/// per view (each field says its length).
 #[derive(Debug)]
 pub struct Workspace<'a, T: Real = f32> {
     /// One per observation: undistorted normalised coordinates.

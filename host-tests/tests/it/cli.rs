@@ -385,17 +385,26 @@ fn degenerate_and_16_bit_images() {
     let dir = std::env::temp_dir().join(format!("camgeom-degenerate-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let one = dir.join("one.png");
-    image::GrayImage::from_pixel(1, 1, image::Luma([0])).save(&one).unwrap();
+    image::GrayImage::from_pixel(1, 1, image::Luma([0]))
+        .save(&one)
+        .unwrap();
     let out = camgeom(&["apriltag", "--image", one.to_str().unwrap()], None);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8(out.stderr).unwrap();
-    assert!(err.contains("1x1 is smaller than") && err.lines().count() == 1, "{err}");
+    assert!(
+        err.contains("1x1 is smaller than") && err.lines().count() == 1,
+        "{err}"
+    );
     let pts = dir.join("p.csv");
     std::fs::write(&pts, "x,y\n0,0\n").unwrap();
     let (o, p) = (one.to_str().unwrap(), pts.to_str().unwrap());
     let out = camgeom(&["flow", "--from", o, "--to", o, "--points", p], None);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
-    assert!(String::from_utf8(out.stderr).unwrap().contains("tracking window"));
+    assert!(
+        String::from_utf8(out.stderr)
+            .unwrap()
+            .contains("tracking window")
+    );
     // 16-bit grey: each sample's high byte.
     let wide = dir.join("wide.png");
     let px: Vec<u16> = (0..64u16).map(|i| i * 1000 + 255).collect();
