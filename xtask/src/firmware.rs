@@ -90,8 +90,20 @@ pub fn build_bin_for(board: Board, bin: &str, extra: &[&str]) -> Result<PathBuf>
 /// machine's cores instead of one after another; a later [`build_bin_for`] of one of them is a
 /// no-op.
 pub fn build_bins_for(board: Board, bins: &[&str]) -> Result<()> {
+    build_bins_for_all(&[board], bins)
+}
+
+/// [`build_bins_for`] for several boards in one cargo call: the core and its dependencies are
+/// compiled for every target side by side (one target's compile is mostly one core's work).
+pub fn build_bins_for_all(boards: &[Board], bins: &[&str]) -> Result<()> {
     let mut cmd = firmware_cargo("build");
-    cmd.args(["--release", "-p", PACKAGE, "--target", board.target]);
+    cmd.args(["--release", "-p", PACKAGE]);
+    let mut targets: Vec<&str> = boards.iter().map(|b| b.target).collect();
+    targets.sort_unstable();
+    targets.dedup();
+    for t in targets {
+        cmd.args(["--target", t]);
+    }
     for bin in bins {
         cmd.args(["--bin", bin]);
     }

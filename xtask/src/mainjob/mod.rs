@@ -41,7 +41,8 @@ use camgeom_host::images::{GrayImage, save_gray};
 use camgeom_host::rgb::{Overlay, RgbImage};
 
 use crate::firmware::{
-    PROJECTION_BIN, build_and_run_projection, build_bin_for, build_bins_for, size_of,
+    PROJECTION_BIN, build_and_run_projection, build_bin_for, build_bins_for, build_bins_for_all,
+    size_of,
 };
 use crate::jobs::{BOARDS, Board, FULL, HALF, M7, Size, snapshot_key};
 use crate::util::root;
@@ -211,17 +212,30 @@ fn forward_backward_job(stride: u32) -> Result<String> {
     Ok(out)
 }
 
-/// Every binary the run needs, built up front: one cargo call per board, whose links run in
-/// parallel (see [`build_bins_for`]).
+/// Every binary the run needs, built up front: the sizes' binaries for every board of an
+/// architecture in one cargo call (the targets compile side by side), then the reference board's own binaries
+/// (their links run in parallel; see [`build_bins_for`]).
 fn prebuild(opts: &Options) -> Result<()> {
-    for &board in &opts.boards {
-        let mut bins: Vec<&str> = opts.sizes.iter().map(|s| s.bin).collect();
-        if board == M7 {
-            bins.extend([PROJECTION_BIN, KEPT_BIN, tag::SIZE.bin, calibration::BIN]);
+    let mut bins: Vec<&str> = opts.sizes.iter().map(|s| s.bin).collect();
+    bins.sort_unstable();
+    bins.dedup();
+    // One call per architecture: a call for Arm and RISC-V targets together would unify their
+    // dependencies' features (critical-section's restore state is `u32` on Cortex-M, `bool` on
+    // riscv-rt) and fail.
+    let (arm, other): (Vec<Board>, Vec<Board>) = opts
+        .boards
+        .iter()
+        .partition(|b| b.target.starts_with("thumb"));
+    for group in [arm, other] {
+        if !group.is_empty() {
+            build_bins_for_all(&group, &bins)?;
         }
-        bins.sort_unstable();
-        bins.dedup();
-        build_bins_for(board, &bins)?;
+    }
+    if opts.boards.contains(&M7) {
+        build_bins_for(
+            M7,
+            &[PROJECTION_BIN, KEPT_BIN, tag::SIZE.bin, calibration::BIN],
+        )?;
     }
     Ok(())
 }
