@@ -397,34 +397,28 @@ fn triangulate_new<T: Real>(
             continue;
         }
         // Keep the observations it explains; a point needs two.
-        let mut kept = 0usize;
-        for (k, o) in obs.iter().enumerate() {
-            let explained = matches!(norm.get(k), Some(Some(_)))
-                && scene
-                    .poses
+        let poses: &[Option<Pose<T>>] = scene.poses;
+        let explained = |k: usize, o: &super::Observation<T>| {
+            matches!(norm.get(k), Some(Some(_)))
+                && poses
                     .get(usize::from(o.view))
                     .copied()
                     .flatten()
                     .and_then(|p| camera.project(&p, &t.point).ok())
-                    .is_some_and(|u| above(config.max_reprojection_px, (u - o.pixel).norm()));
-            if explained {
-                kept += 1;
-            }
-        }
-        if kept < 2 {
+                    .is_some_and(|u| above(config.max_reprojection_px, (u - o.pixel).norm()))
+        };
+        if obs
+            .iter()
+            .enumerate()
+            .filter(|&(k, o)| explained(k, o))
+            .count()
+            < 2
+        {
             continue;
         }
         for (k, o) in obs.iter().enumerate() {
-            let explained = matches!(norm.get(k), Some(Some(_)))
-                && scene
-                    .poses
-                    .get(usize::from(o.view))
-                    .copied()
-                    .flatten()
-                    .and_then(|p| camera.project(&p, &t.point).ok())
-                    .is_some_and(|u| above(config.max_reprojection_px, (u - o.pixel).norm()));
             if let Some(u) = scene.used.get_mut(range.start + k) {
-                *u = explained;
+                *u = explained(k, o);
             }
         }
         if let Some(p) = scene.points.get_mut(i) {
