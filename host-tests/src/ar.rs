@@ -10,7 +10,7 @@ use camgeom::nalgebra::{Point2, Point3};
 use camgeom::pose::PlanarPose;
 use camgeom::pyramid::{PyramidPair, buffer_len};
 use camgeom::target::{
-    Acquire, PlanarTarget, PoseArith, TargetConfig, TargetFrame, TargetParams, TargetState,
+    Acquire, PlanarTarget, TargetConfig, TargetFrame, TargetParams, TargetState,
     corner_scratch_len, flow_scratch_len,
 };
 
@@ -89,55 +89,107 @@ pub fn run_ar(
     opts: &ArOptions,
     mut on_frame: impl FnMut(&ArFrame),
 ) -> camgeom::Result<Vec<ArFrame>> {
-    let params = TargetParams::new(&opts.target, *camera, opts.size)?;
-    match opts.path {
-        Path::Fixed => go::<Fixed>(frames, acquire, &params, &mut on_frame),
-        Path::F32 => go::<f32>(frames, acquire, &params, &mut on_frame),
+    if frames.is_empty() {
+        return Err(camgeom::Error::TooFewPoints);
     }
+    let mut tracker = ArTracker::new(camera, opts)?;
+    let mut out = Vec::with_capacity(frames.len());
+    for img in frames {
+        let f = tracker.step(img, acquire)?;
+        on_frame(&f);
+        out.push(f);
+    }
+    Ok(out)
 }
 
-fn go<A: PoseArith>(
-    frames: &[GrayImage],
-    acquire: &mut dyn Acquire,
-    params: &TargetParams,
-    on_frame: &mut dyn FnMut(&ArFrame),
-) -> camgeom::Result<Vec<ArFrame>> {
-    let first = frames.first().ok_or(camgeom::Error::TooFewPoints)?;
-    let (w, h) = (first.width, first.height);
-    if w > MAX_WIDTH {
-        return Err(camgeom::Error::InvalidImage);
+/// The tracker in either arithmetic.
+enum Tracker {
+    Fixed(Box<HostTarget<Fixed>>),
+    F32(Box<HostTarget<f32>>),
+}
+
+/// The AR loop one frame at a time, for frames that arrive one by one (a video): the target
+/// tracker, its parameters and the two pyramids, sized by the first frame.
+pub struct ArTracker {
+    params: TargetParams,
+    tracker: Tracker,
+    pair: Option<PyramidPair<Vec<u8>, Vec<u8>>>,
+    size: (usize, usize),
+    index: usize,
+}
+
+impl ArTracker {
+    /// A tracker for `opts` through `camera`.
+    ///
+    /// Errors: as [`TargetParams::new`].
+    pub fn new(camera: &Camera<f32>, opts: &ArOptions) -> camgeom::Result<Self> {
+        Ok(Self {
+            params: TargetParams::new(&opts.target, *camera, opts.size)?,
+            tracker: match opts.path {
+                Path::Fixed => Tracker::Fixed(Box::default()),
+                Path::F32 => Tracker::F32(Box::default()),
+            },
+            pair: None,
+            size: (0, 0),
+            index: 0,
+        })
     }
-    let mut target: Box<HostTarget<A>> = Box::default();
-    let mut pair = PyramidPair::new(
-        [vec![0u8; w * h], vec![0u8; w * h]],
-        [(); 2].map(|()| vec![0u8; buffer_len(w, h, levels(&params.config().lk))]),
-    );
-    pair.set_geometry(w, h, levels(&params.config().lk))?;
-    let mut out = Vec::with_capacity(frames.len());
-    for (k, img) in frames.iter().enumerate() {
-        if (img.width, img.height) != (w, h) {
+
+    /// Tracks the target into `img`, the next frame ([`PlanarTarget::step`]).
+    ///
+    /// Errors: as [`PlanarTarget::step`]; [`camgeom::Error::InvalidImage`] for a frame of
+    /// another size than the first or wider than [`MAX_WIDTH`].
+    pub fn step(&mut self, img: &GrayImage, acquire: &mut dyn Acquire) -> camgeom::Result<ArFrame> {
+        let levels = levels(&self.params.config().lk);
+        if self.pair.is_none() {
+            let (w, h) = (img.width, img.height);
+            if w > MAX_WIDTH {
+                return Err(camgeom::Error::InvalidImage);
+            }
+            let mut pair = PyramidPair::new(
+                [vec![0u8; w * h], vec![0u8; w * h]],
+                [(); 2].map(|()| vec![0u8; buffer_len(w, h, levels)]),
+            );
+            pair.set_geometry(w, h, levels)?;
+            self.pair = Some(pair);
+            self.size = (w, h);
+        }
+        let pair = self.pair.as_mut().ok_or(camgeom::Error::InvalidImage)?;
+        if (img.width, img.height) != self.size {
             return Err(camgeom::Error::InvalidImage);
         }
         pair.capture()?
             .copy_from(&img.view().ok_or(camgeom::Error::InvalidImage)?)?;
         let pyramids = pair.advance()?;
-        let frame = target.step(
-            params,
-            pyramids.previous.as_ref(),
-            &pyramids.next,
-            acquire,
-            &mut (),
-        )?;
-        let f = ArFrame {
-            index: k,
-            frame,
-            features: target.features().map(|(p, _)| p).collect(),
-            targets: target.features().map(|(_, t)| t).collect(),
+        let prev = pyramids.previous.as_ref();
+        let p = &self.params;
+        let (frame, features, targets) = match &mut self.tracker {
+            Tracker::Fixed(t) => {
+                let frame = t.step(p, prev, &pyramids.next, acquire, &mut ())?;
+                (
+                    frame,
+                    t.features().map(|(p, _)| p).collect(),
+                    t.features().map(|(_, q)| q).collect(),
+                )
+            }
+            Tracker::F32(t) => {
+                let frame = t.step(p, prev, &pyramids.next, acquire, &mut ())?;
+                (
+                    frame,
+                    t.features().map(|(p, _)| p).collect(),
+                    t.features().map(|(_, q)| q).collect(),
+                )
+            }
         };
-        on_frame(&f);
-        out.push(f);
+        let f = ArFrame {
+            index: self.index,
+            frame,
+            features,
+            targets,
+        };
+        self.index += 1;
+        Ok(f)
     }
-    Ok(out)
 }
 
 /// Outline colour (green), cube (yellow), features (cyan), lost-frame marker (red).
@@ -151,8 +203,19 @@ const LOST: [u8; 3] = [255, 40, 40];
 /// [`draw_wireframe`]), the tracked features as small crosses, and a red frame border when the
 /// target is lost.
 pub fn draw_ar(img: &GrayImage, camera: &Camera<f32>, f: &ArFrame, opts: &ArOptions) -> RgbImage {
-    let mut out = RgbImage::from_gray(img);
-    let blank = || GrayImage::filled(img.width, img.height, 0);
+    draw_ar_on(RgbImage::from_gray(img), camera, f, opts)
+}
+
+/// [`draw_ar`] on a frame already in colour (`frame`, the frame's own colours or its grey).
+pub fn draw_ar_on(
+    frame: RgbImage,
+    camera: &Camera<f32>,
+    f: &ArFrame,
+    opts: &ArOptions,
+) -> RgbImage {
+    let mut out = frame;
+    let (width, height) = (out.width() as usize, out.height() as usize);
+    let blank = || GrayImage::filled(width, height, 0);
     if let Some(outline) = f.frame.outline {
         let mut m = blank();
         if let Some(mut v) = m.view_mut() {

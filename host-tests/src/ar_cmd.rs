@@ -1,30 +1,34 @@
-//! `camgeom ar`: track a planar target through a folder of frames and draw a cube on it.
+//! `camgeom ar`: track a planar target through a folder of frames or a video and draw a cube
+//! on it.
 
 use std::path::PathBuf;
 
-use camgeom::apriltag::{Detector, Family, TagTarget};
+use camgeom::apriltag::{Detector, Family};
 use camgeom::corners::CornerConfig;
 use camgeom::klt::LkConfig;
 use camgeom::nalgebra::Point2;
 use camgeom::ransac::RansacConfig;
 use camgeom::target::{Acquire, GivenCorners, TargetConfig, TargetState};
-use camgeom_host::apriltag::{HostWorkspace, check_tag_size, detector, family};
-use camgeom_host::ar::{ArOptions, draw_ar, evenly_spaced, run_ar};
+use camgeom_host::apriltag::{HostTagTarget, check_tag_size, detector, family};
+use camgeom_host::ar::{ArOptions, ArTracker, draw_ar_on, evenly_spaced};
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
-use camgeom_host::cli::frames::{frame_files, load_frames, progress_bar};
+use camgeom_host::cli::frames::{FrameSource, progress_bar};
 use camgeom_host::contact_sheet::contact_sheet;
 use camgeom_host::klt::Path;
 use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
-use camgeom_host::rgb::Overlay;
+use camgeom_host::rgb::{Overlay, RgbImage};
+use camgeom_host::video::VideoWriter;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 use serde::Serialize;
 
 #[derive(Args, Debug)]
 pub struct ArArgs {
-    /// Folder of frames (PNG/JPEG, in file-name order; colour is converted to grey).
-    #[arg(long, value_name = "DIR")]
+    /// The frames: a folder of PNG/JPEG files (file-name order) or a video file (.mp4, .mov,
+    /// .avi, .mkv, ..; decoded by ffmpeg one frame at a time). Tracked in grey; the overlays
+    /// are drawn on the colour frames.
+    #[arg(long, visible_alias = "video", value_name = "DIR|VIDEO")]
     frames: PathBuf,
     /// The target's four corners in the first frame, CSV rows `x,y` in the order
     /// (0,0), (w,0), (w,h), (0,h) of the target.
@@ -65,8 +69,8 @@ pub struct ArArgs {
     /// Edge of the cube drawn on the target (default: the target's smaller side).
     #[arg(long, value_name = "S")]
     cube: Option<f32>,
-    /// Output folder: one overlay PNG per frame (see --overlay-every), `poses.csv`,
-    /// `contact_sheet.png`.
+    /// Output folder: one overlay PNG per frame (see --overlay-every; named after the frame
+    /// file, or `000123.png` for a video's frame 123), `poses.csv`, `contact_sheet.png`.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Write the overlay PNG of every N-th frame only (frames 0, N, 2N, ..).
@@ -76,6 +80,13 @@ pub struct ArArgs {
     /// Write no overlay PNG (`poses.csv` and the contact sheet are written still).
     #[arg(long, conflicts_with = "overlay_every")]
     no_overlay: bool,
+    /// Also write every frame's overlay into a video (.mp4/.mov/.mkv: H.264; .avi: MPEG-4),
+    /// at the input video's frame rate (--fps for a folder).
+    #[arg(long, value_name = "OUT.mp4")]
+    video_out: Option<PathBuf>,
+    /// Frame rate of --video-out for a folder of frames (a video keeps its own).
+    #[arg(long, default_value_t = 30.0, value_name = "F")]
+    fps: f64,
     /// Run the f32 flow instead of the fixed-point (integer) one.
     #[arg(long)]
     f32: bool,
@@ -180,6 +191,8 @@ fn parse_size(s: &str) -> Result<[f32; 2]> {
 #[derive(Serialize)]
 struct Summary {
     frames: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    fps: Option<f64>,
     tracking: usize,
     lost: usize,
     mean_inliers: f64,
@@ -187,6 +200,23 @@ struct Summary {
     out: String,
     poses: String,
     contact_sheet: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    video_out: Option<String>,
+}
+
+/// A tile of the contact sheet: the overlay downscaled by `factor` as
+/// [`contact_sheet`] does (box filter on whole blocks), so only the small tiles are kept.
+fn shrink(img: &RgbImage, factor: usize) -> RgbImage {
+    let f = u32::try_from(factor.max(1)).unwrap_or(u32::MAX);
+    let (tw, th) = ((img.width() / f).max(1), (img.height() / f).max(1));
+    let blocks = image::imageops::crop_imm(
+        img,
+        0,
+        0,
+        (tw * f).min(img.width()),
+        (th * f).min(img.height()),
+    );
+    image::imageops::thumbnail(&*blocks, tw, th)
 }
 
 /// The options `camgeom ar` passes to the tracker.
@@ -277,7 +307,6 @@ pub fn run(a: &ArArgs) -> Result<String> {
     let spec = load_camera(&a.camera.intrinsics)?;
     let camera = spec.camera_f32();
     let mut given;
-    let mut ws: Box<HostWorkspace>;
     let mut tag_target;
     let acquire: &mut dyn Acquire = match &acquisition {
         Acquisition::Corners(path) => {
@@ -285,15 +314,22 @@ pub fn run(a: &ArArgs) -> Result<String> {
             &mut given
         }
         Acquisition::Tag(det, family, id) => {
-            ws = Box::default();
-            tag_target = TagTarget::new(det, ws.as_mut_view(), family, *id);
+            tag_target = HostTagTarget::new(det, family, *id);
             &mut tag_target
         }
     };
-    let files = frame_files(&a.frames)?;
+    let mut source = FrameSource::open(&a.frames, true)?;
+    let n = source.len();
     create_dir(&a.out)?;
-    let bar = progress_bar(files.len() as u64 * 2);
-    let frames = load_frames(&files, &bar)?;
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        return Err(Error::usage(format!(
+            "--fps must be positive, got {}",
+            a.fps
+        )));
+    }
+    let fps = source.fps();
+    let timed = source.is_video();
+    let bar = progress_bar(n as u64);
     let opts = ArOptions {
         size,
         cube,
@@ -301,52 +337,64 @@ pub fn run(a: &ArArgs) -> Result<String> {
         target,
     };
     bar.set_message("tracking");
-    let sheet_idx = evenly_spaced(frames.len(), a.sheet_frames);
+    let sheet_idx = evenly_spaced(n, a.sheet_frames);
     let mut tiles = Vec::new();
-    let mut write_err = None;
+    let mut video: Option<VideoWriter> = None;
     let every = usize::try_from(a.overlay_every).unwrap_or(usize::MAX);
-    let results = run_ar(&frames, acquire, &camera, &opts, |f| {
+    let mut tracker = ArTracker::new(&camera, &opts)
+        .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
+    let mut rows = Vec::with_capacity(n);
+    let mut worst: Option<f32> = None;
+    let (mut count, mut tracking, mut inliers) = (0usize, 0usize, 0usize);
+    while let Some(frame) = source.next_frame()? {
+        let f = tracker
+            .step(&frame.gray, acquire)
+            .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
         bar.inc(1);
+        if f.index == 0
+            && f.frame.pose.is_none()
+            && let Acquisition::Corners(path) = &acquisition
+        {
+            return Err(Error::camgeom(
+                format!(
+                    "{}: the corners enclose too little texture to track",
+                    path.display()
+                ),
+                camgeom::Error::TooFewPoints,
+            ));
+        }
         let write = !a.no_overlay && f.index.is_multiple_of(every);
         let tile = sheet_idx.contains(&f.index);
-        if !(write || tile) {
-            return;
-        }
-        let img = draw_ar(&frames[f.index], &camera, f, &opts);
-        if write {
-            let name = files[f.index]
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_else(|| f.index.to_string());
-            if let Err(e) = img.save_png(a.out.join(format!("{name}.png"))) {
-                write_err.get_or_insert(e);
+        if write || tile || a.video_out.is_some() {
+            let name = frame.name.clone();
+            let canvas = match frame.rgb {
+                Some(rgb) => rgb,
+                None => RgbImage::from_gray(&frame.gray),
+            };
+            let img = draw_ar_on(canvas, &camera, &f, &opts);
+            if write {
+                img.save_png(a.out.join(format!("{name}.png")))?;
+            }
+            if tile {
+                tiles.push((f.index, shrink(&img, a.sheet_scale)));
+            }
+            if let Some(path) = &a.video_out {
+                if video.is_none() {
+                    let rate = fps.unwrap_or(a.fps);
+                    video = Some(VideoWriter::create(path, img.width(), img.height(), rate)?);
+                }
+                if let Some(v) = video.as_mut() {
+                    v.write(&img)?;
+                }
             }
         }
-        if tile {
-            tiles.push((f.index, img));
-        }
-    })
-    .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
-    bar.finish_and_clear();
-    if let Some(e) = write_err {
-        return Err(e);
-    }
-    if let Acquisition::Corners(path) = acquisition
-        && results.first().is_some_and(|f| f.frame.pose.is_none())
-    {
-        return Err(Error::camgeom(
-            format!(
-                "{}: the corners enclose too little texture to track",
-                path.display()
-            ),
-            camgeom::Error::TooFewPoints,
-        ));
-    }
-    let mut rows = Vec::with_capacity(results.len());
-    let mut worst: Option<f32> = None;
-    for f in &results {
+        count += 1;
+        inliers += f.frame.inliers;
         let state = match f.frame.state {
-            TargetState::Tracking => "tracking",
+            TargetState::Tracking => {
+                tracking += 1;
+                "tracking"
+            }
             TargetState::Lost => "lost",
             TargetState::Uninitialised => "uninitialised",
         };
@@ -370,31 +418,51 @@ pub fn run(a: &ArArgs) -> Result<String> {
         if let Some(o) = outline {
             worst = Some(worst.map_or(o, |w| w.max(o)));
         }
-        let mut row = vec![f.index.to_string(), state.to_string()];
+        let mut row = vec![f.index.to_string()];
+        if timed {
+            row.push(
+                frame
+                    .t
+                    .map_or_else(|| "nan".to_string(), |t| format!("{t:.6}")),
+            );
+        }
+        row.push(state.to_string());
         row.extend(nums.iter().map(|v| format_float(*v)));
         row.push(format_float(outline.unwrap_or(f32::NAN)));
         row.extend([f.frame.tracked, f.frame.inliers, f.frame.added].map(|n| n.to_string()));
         rows.push(row);
     }
-    let csv = format_csv(&POSES_COLUMNS, rows);
+    bar.finish_and_clear();
+    if count == 0 {
+        return Err(Error::new(&a.frames, ErrorKind::Shape("no frames".into())));
+    }
+    let video_out = match (video, &a.video_out) {
+        (Some(v), Some(path)) => {
+            v.finish()?;
+            Some(path.display().to_string())
+        }
+        _ => None,
+    };
+    let mut columns: Vec<&str> = POSES_COLUMNS.to_vec();
+    if timed {
+        columns.insert(1, "t");
+    }
+    let csv = format_csv(&columns, rows);
     let poses = a.out.join("poses.csv");
     write_file(&poses, csv)?;
     let sheet_path = a.out.join("contact_sheet.png");
-    contact_sheet(&tiles, a.sheet_cols, a.sheet_scale).save_png(&sheet_path)?;
-    let tracking = results
-        .iter()
-        .filter(|f| f.frame.state == TargetState::Tracking)
-        .count();
+    contact_sheet(&tiles, a.sheet_cols, 1).save_png(&sheet_path)?;
     let summary = Summary {
-        frames: results.len(),
+        frames: count,
+        fps,
         tracking,
-        lost: results.len() - tracking,
-        mean_inliers: results.iter().map(|f| f.frame.inliers as f64).sum::<f64>()
-            / results.len().max(1) as f64,
+        lost: count - tracking,
+        mean_inliers: inliers as f64 / count.max(1) as f64,
         worst_outline_px: worst,
         out: a.out.display().to_string(),
         poses: poses.display().to_string(),
         contact_sheet: sheet_path.display().to_string(),
+        video_out,
     };
     Ok(to_json(&summary))
 }

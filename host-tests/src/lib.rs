@@ -16,6 +16,7 @@
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
+//! | [`video`] | video files in and out through the system's ffmpeg: probed, decoded one frame at a time, encoded from frames |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
@@ -34,6 +35,7 @@ pub mod known_motion;
 pub mod points;
 pub mod rgb;
 pub mod storage;
+pub mod video;
 
 pub use error::{Error, ErrorKind, Result, describe, status_name};
 pub use intrinsics::{CameraSpec, load_camera};
