@@ -285,10 +285,16 @@ pub fn json_tag(d: &Detection, coords: Coords, pose: Option<&(f32, Camera<f32>)>
 /// Outline (green), corner 0 (red square) and id (white on black, at the centre) of each tag
 /// drawn over `img`.
 pub fn draw_tags(img: &GrayImage, tags: &[Detection]) -> RgbImage {
+    draw_tags_on(RgbImage::from_gray(img), tags)
+}
+
+/// [`draw_tags`] on a frame already in colour (the frame's own colours, or its grey).
+pub fn draw_tags_on(frame: RgbImage, tags: &[Detection]) -> RgbImage {
     const OUTLINE: [u8; 3] = [40, 230, 40];
     const CORNER0: [u8; 3] = [255, 40, 40];
-    let mut out = RgbImage::from_gray(img);
-    let mut mask = GrayImage::filled(img.width, img.height, 0);
+    let mut out = frame;
+    let (width, height) = (out.width() as usize, out.height() as usize);
+    let mut mask = GrayImage::filled(width, height, 0);
     if let Some(mut v) = mask.view_mut() {
         for d in tags {
             let c = &d.corners;

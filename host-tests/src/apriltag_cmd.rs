@@ -1,16 +1,18 @@
-//! `camgeom apriltag`: AprilTag detection (and tag pose) on an image or a folder of frames.
+//! `camgeom apriltag`: AprilTag detection (and tag pose) on an image, a folder of frames or a
+//! video.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use camgeom_host::apriltag::{
-    Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags, families_list, json_tag,
+    Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags_on, families_list, json_tag,
     pose_inputs,
 };
 use camgeom_host::cli::files::create_dir;
-use camgeom_host::cli::frames::frame_files;
-use camgeom_host::images::{load_gray, require_size};
+use camgeom_host::cli::frames::{Frame, FrameSource};
+use camgeom_host::images::{load_gray_and_rgb, require_size};
 use camgeom_host::points::to_json;
-use camgeom_host::rgb::Overlay;
+use camgeom_host::rgb::{Overlay, RgbImage};
+use camgeom_host::video::VideoWriter;
 use camgeom_host::{Error, Result};
 use clap::Args;
 
@@ -20,8 +22,9 @@ pub struct ApriltagArgs {
     /// One image (PNG/JPEG; colour is converted to grey).
     #[arg(long, value_name = "FILE")]
     image: Option<PathBuf>,
-    /// A folder of frames: every PNG/JPEG in it, in file-name order.
-    #[arg(long, value_name = "DIR")]
+    /// A sequence: a folder of frames (every PNG/JPEG in it, in file-name order) or a video
+    /// file (.mp4, .mov, .avi, .mkv, ..; decoded by ffmpeg one frame at a time).
+    #[arg(long, visible_alias = "video", value_name = "DIR|VIDEO")]
     frames: Option<PathBuf>,
     /// Families to decode, comma-separated: tag36h11, tag25h9, tag16h5, tagStandard41h12.
     #[arg(long, default_value = "tag36h11", value_name = "F[,F..]")]
@@ -48,19 +51,44 @@ pub struct ApriltagArgs {
     /// centres at i + 0.5, instead of camgeom's (OpenCV's), centres at i.
     #[arg(long)]
     apriltag_coords: bool,
-    /// Draw each tag's outline, id and corner 0 over the image: a PNG file (with --image) or
-    /// a folder of `<frame name>.png` (with --frames).
+    /// Draw each tag's outline, id and corner 0 over the image (in colour when it is): a PNG
+    /// file (with --image) or a folder of `<frame name>.png` (with --frames; `000123.png` for
+    /// a video's frame 123), each written as soon as its frame is detected.
     #[arg(long, value_name = "OUT")]
     overlay: Option<PathBuf>,
+    /// With --frames and --overlay: the overlay of every N-th frame only (frames 0, N, 2N, ..).
+    #[arg(long, value_name = "N", default_value_t = 1, requires = "overlay",
+          value_parser = clap::value_parser!(u32).range(1..))]
+    overlay_every: u32,
+    /// With --frames: every frame's overlay into a video (.mp4/.mov/.mkv: H.264; .avi:
+    /// MPEG-4), at the input video's frame rate (--fps for a folder).
+    #[arg(long, value_name = "OUT.mp4", requires = "frames")]
+    video_out: Option<PathBuf>,
+    /// Frame rate of --video-out for a folder of frames (a video keeps its own).
+    #[arg(long, default_value_t = 30.0, value_name = "F")]
+    fps: f64,
 }
 
-/// `camgeom apriltag`: the JSON (one object with --image; with --frames, `{"frames": [..]}`
-/// holding one of them a frame).
-/// Every frame is detected before anything is written.
+/// A frame of the JSON with --frames: the frame's detections, with its index and time for a
+/// video (`image` then absent).
+#[derive(serde::Serialize)]
+struct SeqFrame {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    frame: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    t: Option<f64>,
+    #[serde(flatten)]
+    detections: JsonFrame,
+}
+
 /// The smallest image side the detector can find a tag in: tag16h5 is 8 cells across with its
 /// black and white borders (the other families have more), at one pixel a cell.
 pub const MIN_SIDE: usize = 8;
 
+/// `camgeom apriltag`: the JSON (one object with --image; with --frames, `{"frames": [..]}`
+/// holding one of them a frame, and `"fps"` for a video). A sequence is read one frame at a
+/// time; the overlay folder is made when the first overlay is written, so an error on the
+/// first frame leaves no output.
 pub fn run(a: &ApriltagArgs) -> Result<String> {
     let families = families_list(&a.family)?;
     let det = detector(&families, a.decimate, a.max_hamming, !a.no_refine_edges)?;
@@ -70,58 +98,102 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
     } else {
         Coords::Camgeom
     };
-    let (files, single) = match (&a.image, &a.frames) {
-        (Some(f), None) => (vec![f.clone()], true),
-        (None, Some(dir)) => (frame_files(dir)?, false),
-        _ => return Err(Error::usage("give one of --image and --frames")),
-    };
     let mut ws: Box<HostWorkspace> = Box::default();
-    let mut frames = Vec::with_capacity(files.len());
-    let mut overlays = Vec::new();
-    for f in &files {
-        let img = load_gray(f)?;
-        require_size(&img, f, MIN_SIDE, "the smallest tag AprilTag can find")?;
-        let found = detect(&det, &mut ws, &img, f)?;
-        if a.overlay.is_some() {
-            overlays.push(draw_tags(&img, &found));
+    let colour = a.overlay.is_some() || a.video_out.is_some();
+    // One image: its JSON object, its overlay.
+    if let (Some(f), None) = (&a.image, &a.frames) {
+        let (gray, rgb) = load_gray_and_rgb(f)?;
+        require_size(&gray, f, MIN_SIDE, "the smallest tag AprilTag can find")?;
+        let found = detect(&det, &mut ws, &gray, f)?;
+        if let Some(out) = &a.overlay {
+            let canvas = rgb.unwrap_or_else(|| RgbImage::from_gray(&gray));
+            draw_tags_on(canvas, &found).save_png(out)?;
         }
-        frames.push(JsonFrame {
-            image: (!single).then(|| f.display().to_string()),
+        return Ok(to_json(&JsonFrame {
+            image: None,
             detections: found
                 .iter()
                 .map(|d| json_tag(d, coords, pose.as_ref()))
                 .collect(),
-            width: img.width,
-            height: img.height,
-        });
+            width: gray.width,
+            height: gray.height,
+        }));
     }
-    if let Some(out) = &a.overlay {
-        if single {
-            overlays[0].save_png(out)?;
-        } else {
-            create_dir(out)?;
-            for (f, img) in files.iter().zip(&overlays) {
-                img.save_png(out.join(overlay_name(f)))?;
+    let Some(input) = &a.frames else {
+        return Err(Error::usage("give one of --image and --frames"));
+    };
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        return Err(Error::usage(format!(
+            "--fps must be positive, got {}",
+            a.fps
+        )));
+    }
+    // A sequence: frames detected one at a time, each overlay written (and dropped) as soon
+    // as it is drawn; only the JSON is kept.
+    let mut source = FrameSource::open(input, colour)?.any_size();
+    let every = usize::try_from(a.overlay_every).unwrap_or(usize::MAX);
+    let rate = source.fps().unwrap_or(a.fps);
+    let video = source.is_video();
+    let mut writer: Option<VideoWriter> = None;
+    let mut frames = Vec::with_capacity(source.len());
+    while let Some(frame) = source.next_frame()? {
+        let Frame {
+            index,
+            name,
+            file,
+            t,
+            gray,
+            rgb,
+        } = frame;
+        let at = file.clone().unwrap_or_else(|| input.clone());
+        require_size(&gray, &at, MIN_SIDE, "the smallest tag AprilTag can find")?;
+        let found = detect(&det, &mut ws, &gray, &at)?;
+        let png = a.overlay.as_ref().filter(|_| index.is_multiple_of(every));
+        if png.is_some() || a.video_out.is_some() {
+            let canvas = rgb.unwrap_or_else(|| RgbImage::from_gray(&gray));
+            let img = draw_tags_on(canvas, &found);
+            if let Some(dir) = png {
+                if index == 0 {
+                    create_dir(dir)?;
+                }
+                img.save_png(dir.join(format!("{name}.png")))?;
+            }
+            if let Some(path) = &a.video_out {
+                if writer.is_none() {
+                    writer = Some(VideoWriter::create(path, img.width(), img.height(), rate)?);
+                }
+                if let Some(w) = writer.as_mut() {
+                    w.write(&img)?;
+                }
             }
         }
+        frames.push(SeqFrame {
+            frame: video.then_some(index),
+            t,
+            detections: JsonFrame {
+                image: file.map(|f| f.display().to_string()),
+                detections: found
+                    .iter()
+                    .map(|d| json_tag(d, coords, pose.as_ref()))
+                    .collect(),
+                width: gray.width,
+                height: gray.height,
+            },
+        });
     }
-    // One top-level object either way (CLI.md's convention): the frames under "frames".
+    if let Some(w) = writer {
+        w.finish()?;
+    }
+    // One top-level object either way (CLI.md's convention): the frames under "frames", and
+    // for a video its frame rate.
     #[derive(serde::Serialize)]
     struct Frames<'a> {
-        frames: &'a [JsonFrame],
+        #[serde(skip_serializing_if = "Option::is_none")]
+        fps: Option<f64>,
+        frames: &'a [SeqFrame],
     }
-    Ok(if single {
-        to_json(&frames[0])
-    } else {
-        to_json(&Frames { frames: &frames })
-    })
-}
-
-/// `<stem>.png` of a frame.
-fn overlay_name(f: &Path) -> String {
-    let stem = f
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    format!("{stem}.png")
+    Ok(to_json(&Frames {
+        fps: video.then_some(rate),
+        frames: &frames,
+    }))
 }

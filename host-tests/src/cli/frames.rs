@@ -17,6 +17,8 @@ pub struct Frame {
     /// The name of its outputs: the file's stem (`0007` for `0007.png`), or for a video the
     /// index on six digits (`000007`).
     pub name: String,
+    /// The frame's file (folders only).
+    pub file: Option<PathBuf>,
     /// Presentation time in seconds (videos only).
     pub t: Option<f64>,
     /// The frame in grey (what the detectors and trackers see).
@@ -37,7 +39,7 @@ enum Source {
 
 /// The frames of a folder of PNG/JPEG files ([`frame_files`], file-name order) or of a video
 /// file ([`crate::video`], decoded by ffmpeg), one at a time: never more than one frame is in
-/// memory. Every frame must have the first one's size.
+/// memory. Every frame must have the first one's size (unless [`FrameSource::any_size`]).
 #[derive(Debug)]
 pub struct FrameSource {
     path: PathBuf,
@@ -46,6 +48,7 @@ pub struct FrameSource {
     len: usize,
     fps: Option<f64>,
     size: Option<(usize, usize)>,
+    any_size: bool,
 }
 
 impl FrameSource {
@@ -71,6 +74,7 @@ impl FrameSource {
                 len: n,
                 fps,
                 size: None,
+                any_size: false,
             });
         } else if path.exists() {
             return Err(Error::new(
@@ -96,7 +100,15 @@ impl FrameSource {
             len,
             fps,
             size: None,
+            any_size: false,
         })
+    }
+
+    /// Frames of any size (a folder of photos for a detector): the check that every frame
+    /// has the first one's size is off.
+    pub fn any_size(mut self) -> Self {
+        self.any_size = true;
+        self
     }
 
     /// The folder or video.
@@ -145,6 +157,7 @@ impl FrameSource {
                 let frame = Frame {
                     index: *next,
                     name,
+                    file: Some(f.clone()),
                     t: None,
                     gray,
                     rgb,
@@ -159,6 +172,7 @@ impl FrameSource {
                 let frame = Frame {
                     index: v.index,
                     name: format!("{:06}", v.index),
+                    file: None,
                     t: Some(v.t),
                     gray: gray_of_rgb(&v.rgb),
                     rgb: self.colour.then_some(v.rgb),
@@ -169,7 +183,7 @@ impl FrameSource {
         let size = (frame.gray.width, frame.gray.height);
         match self.size {
             None => self.size = Some(size),
-            Some(first) if first != size => {
+            Some(first) if first != size && !self.any_size => {
                 return Err(Error::new(
                     at,
                     ErrorKind::Shape("frame size differs from the first frame".into()),
