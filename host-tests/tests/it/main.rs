@@ -30,4 +30,5 @@ mod sfm_cli;
 mod twoview_chessboard;
 mod twoview_cli;
 mod undistort;
+mod video;
 mod warp;
