@@ -3,13 +3,25 @@
 //!
 //! The map stores, for every pixel `(x, y)` of the undistorted frame, where it comes from in
 //! the camera's frame: `u = K distort(K'⁻¹ (x, y, 1))` with `K'` the new camera matrix
-//! ([`new_camera_matrix`]), in Q10.5 fixed point (`i16` per coordinate, 1/32 px: OpenCV's
-//! `INTER_BITS = 5`). [`remap`] then samples bilinearly with 5-bit weights,
+//! ([`new_camera_matrix`]), in fixed point with 5 fractional bits (1/32 px: OpenCV's
+//! `INTER_BITS = 5`), `q = round(32 u)`. [`remap`] then samples bilinearly with 5-bit weights
+//! `fx = q_x mod 32`, `fy = q_y mod 32` at the integer pixel `(⌊q_x / 32⌋, ⌊q_y / 32⌋)`,
 //! `out = (Σ (32 - fx | fx)(32 - fy | fy) p + 512) >> 10`, which is OpenCV's fixed-point
 //! `INTER_LINEAR` for 8-bit images (its Q15 coefficients are these weights times 32), with
 //! taps outside the source replaced by the border value (`BORDER_CONSTANT`).
 //!
-//! RAM for the full map, 4 bytes a pixel ([`map_len`]): 76.8 KB at 160x120, 307 KB at
+//! Two kinds of map entry ([`MapEntry`]) hold `q`, with the same sampling:
+//! - `[i16; 2]`, Q10.5 (`q` itself in an `i16`): 4 bytes a pixel, frames up to
+//!   [`MAX_MAP_DIM`] = 1023 px each way; the board's map.
+//! - [`WideEntry`], OpenCV's own form for `CV_16SC2` maps: the integer pixel in two `i16`
+//!   and the fraction index `32 fy + fx` in a `u16` (OpenCV's `CV_16SC2` + `CV_16UC1` pair,
+//!   interleaved): 6 bytes a pixel, frames up to [`WideEntry::MAX_DIM`] = 32767 px each way
+//!   (73 MB at 4032x3024, 12 MB at 1920x1080); the host's map for any camera.
+//!
+//! Both give the same `q` wherever both can hold it, so the same output pixels on a frame
+//! both address.
+//!
+//! RAM for the full Q10.5 map, 4 bytes a pixel ([`map_len`]): 76.8 KB at 160x120, 307 KB at
 //! 320x240, 1.23 MB at 640x480 (beyond a 512 KB board). The compact [`GridMap`] keeps one node
 //! every `2^shift` pixels and interpolates the map per pixel
 //! ([`grid_len`] nodes of 8 bytes: 8-px nodes are 39.5 KB at 640x480 and 10.2 KB at 320x240,
@@ -38,6 +50,25 @@
 //! assert!(out.iter().all(|&p| p == 128));
 //! # Ok::<(), camgeom::Error>(())
 //! ```
+//!
+//! A frame of any size takes [`WideEntry`] maps the same way:
+//!
+//! ```
+//! # use camgeom::camera::{Camera, Distortion, Intrinsics};
+//! use camgeom::remap::{MapEntry, WideEntry, build_map, map_len, new_camera_matrix};
+//!
+//! let cam = Camera::new(
+//!     Intrinsics::new(1500.0f64, 1500.0, 959.5, 539.5)?,
+//!     Distortion::from_opencv([-0.25, 0.05, 0.0, 0.0, 0.0])?,
+//! );
+//! let k_new = new_camera_matrix(&cam, 1920, 1080, 0.0)?;
+//! let mut map = vec![WideEntry::INVALID; map_len(1920, 1080)];
+//! build_map(&cam, &k_new, 1920, 1080, &mut map)?;
+//! // Too wide for the Q10.5 map:
+//! let mut small = vec![[0i16; 2]; map_len(1920, 1080)];
+//! assert_eq!(build_map(&cam, &k_new, 1920, 1080, &mut small), Err(camgeom::Error::InvalidImage));
+//! # Ok::<(), camgeom::Error>(())
+//! ```
 
 use nalgebra::Point2;
 
@@ -48,11 +79,96 @@ use crate::{Error, Result};
 
 /// Fractional bits of a map entry (OpenCV's `INTER_BITS`).
 pub const MAP_BITS: u32 = 5;
-/// Largest width or height a Q10.5 map can address (`i16::MAX / 32`).
+/// Largest width or height a Q10.5 map can address (`i16::MAX / 32`): `[i16; 2]`'s
+/// [`MapEntry::MAX_DIM`].
 pub const MAX_MAP_DIM: usize = 1023;
-/// A map entry for a pixel whose source does not exist (behind the lens, or beyond the
-/// model's range): [`remap`] writes the border value there.
+/// A Q10.5 map entry for a pixel whose source does not exist (behind the lens, or beyond the
+/// model's range, or beyond ±1023.97 px): [`remap`] writes the border value there.
+/// `[i16; 2]`'s [`MapEntry::INVALID`].
 pub const INVALID: [i16; 2] = [i16::MIN, i16::MIN];
+/// Largest width or height of a [`GridMap`]: its far-off nodes are clamped to four times the
+/// frame's size in Q.8 (`4 · 256 · 2^20 = 2^30`, within `i32`).
+pub const MAX_GRID_DIM: usize = 1 << 20;
+
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for [i16; 2] {}
+    impl Sealed for super::WideEntry {}
+}
+
+/// One entry of a full undistortion map: the source position `q = round(32 u)` of one
+/// undistorted pixel in Q.5 fixed point, or "no source". Implemented by `[i16; 2]` (Q10.5,
+/// 4 bytes, frames up to 1023 px) and [`WideEntry`] (OpenCV's `CV_16SC2` + `CV_16UC1` form,
+/// 6 bytes, frames up to 32767 px); [`build_map`] and [`remap`] take either.
+pub trait MapEntry: Copy + sealed::Sealed {
+    /// Largest width or height of a map of these entries ([`build_map`] refuses larger ones
+    /// with [`Error::InvalidImage`]).
+    const MAX_DIM: usize;
+    /// The entry of a pixel without a source: [`remap`] writes the border value there.
+    const INVALID: Self;
+    /// The entry holding Q.5 position `(qx, qy)` (pixels times 32), `None` when this kind of
+    /// entry cannot hold it (the position is then beyond any frame it addresses).
+    fn from_q5(qx: i32, qy: i32) -> Option<Self>;
+    /// The Q.5 position, `None` for [`MapEntry::INVALID`].
+    fn q5(self) -> Option<[i32; 2]>;
+}
+
+/// Q10.5: `[round(32 u_x), round(32 u_y)]`, positions in `(-1024, 1024)` px; `i16::MIN` is
+/// kept for [`INVALID`].
+impl MapEntry for [i16; 2] {
+    const MAX_DIM: usize = MAX_MAP_DIM;
+    const INVALID: Self = INVALID;
+    #[inline]
+    fn from_q5(qx: i32, qy: i32) -> Option<Self> {
+        let c = |q: i32| i16::try_from(q).ok().filter(|&v| v != i16::MIN);
+        Some([c(qx)?, c(qy)?])
+    }
+    #[inline]
+    fn q5(self) -> Option<[i32; 2]> {
+        (self != INVALID).then_some([i32::from(self[0]), i32::from(self[1])])
+    }
+}
+
+/// A map entry for frames of any camera, OpenCV's split fixed-point map interleaved: the
+/// integer source pixel `xy = (⌊q_x / 32⌋, ⌊q_y / 32⌋)` (OpenCV's `CV_16SC2` map1) and the
+/// fraction index `frac = 32 (q_y mod 32) + (q_x mod 32)` (its `CV_16UC1` map2), so
+/// `q = 32 xy + (frac mod 32, frac / 32)`. Positions in `(-32767, 32768)` px; 6 bytes a pixel.
+#[doc(alias = "CV_16SC2")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WideEntry {
+    /// Integer source pixel; `[i16::MIN; 2]` is [`WideEntry::INVALID`].
+    pub xy: [i16; 2],
+    /// Fraction index `32 fy + fx`, each fraction in 1/32 px (`0..1024`).
+    pub frac: u16,
+}
+
+impl MapEntry for WideEntry {
+    const MAX_DIM: usize = i16::MAX as usize;
+    const INVALID: Self = Self {
+        xy: [i16::MIN, i16::MIN],
+        frac: 0,
+    };
+    #[inline]
+    fn from_q5(qx: i32, qy: i32) -> Option<Self> {
+        let c = |q: i32| i16::try_from(q >> MAP_BITS).ok().filter(|&v| v != i16::MIN);
+        Some(Self {
+            xy: [c(qx)?, c(qy)?],
+            frac: (((qy & 31) << MAP_BITS) | (qx & 31)) as u16,
+        })
+    }
+    #[inline]
+    fn q5(self) -> Option<[i32; 2]> {
+        if self.xy == Self::INVALID.xy {
+            return None;
+        }
+        let f = i32::from(self.frac);
+        Some([
+            (i32::from(self.xy[0]) << MAP_BITS) | (f & 31),
+            (i32::from(self.xy[1]) << MAP_BITS) | ((f >> MAP_BITS) & 31),
+        ])
+    }
+}
 
 /// Entries of the full map of a `width x height` frame.
 pub const fn map_len(width: usize, height: usize) -> usize {
@@ -73,48 +189,51 @@ fn source<T: Real>(camera: &Camera<T>, k_new: &Intrinsics<T>, x: T, y: T) -> Opt
     (u.x.finite() && u.y.finite()).then_some(u)
 }
 
-/// `round(32 v)` saturated to `i16`, or `None` when out of range.
-fn q5<T: Real>(v: T) -> Option<i16> {
+/// `round(32 v)` as an `i32`, or `None` when out of its range.
+fn q5<T: Real>(v: T) -> Option<i32> {
     let s = libm::rint(v.to_f64() * f64::from(1u32 << MAP_BITS));
-    (s >= f64::from(i16::MIN) + 1.0 && s <= f64::from(i16::MAX)).then_some(s as i16)
+    (s >= f64::from(i32::MIN) + 1.0 && s <= f64::from(i32::MAX)).then_some(s as i32)
 }
 
 /// Fills `map` (row-major, [`map_len`] entries) for a `width x height` undistorted frame seen
-/// through `k_new` (OpenCV's `initUndistortRectifyMap` without rectification, `CV_16SC2`
-/// with the fractional parts folded into each coordinate).
+/// through `k_new` (OpenCV's `initUndistortRectifyMap` without rectification, `CV_16SC2`):
+/// entry `(x, y)` holds `round(32 K distort(K'⁻¹ (x, y, 1)))` ([`MapEntry`]). `[i16; 2]`
+/// entries fold the fractional parts into each coordinate (Q10.5, frames up to 1023 px);
+/// [`WideEntry`] keeps OpenCV's split form (frames up to 32767 px).
 ///
-/// Errors: [`Error::InvalidImage`] for a zero size or one beyond [`MAX_MAP_DIM`],
-/// `BufferTooSmall("map")`; an entry whose source cannot be computed is [`INVALID`].
+/// Errors: [`Error::InvalidImage`] for a zero size or one beyond the entry's
+/// [`MapEntry::MAX_DIM`], `BufferTooSmall("map")`; an entry whose source cannot be computed
+/// or held is [`MapEntry::INVALID`].
 #[doc(alias = "initUndistortRectifyMap")]
-pub fn build_map<T: Real>(
+pub fn build_map<T: Real, E: MapEntry>(
     camera: &Camera<T>,
     k_new: &Intrinsics<T>,
     width: usize,
     height: usize,
-    map: &mut [[i16; 2]],
+    map: &mut [E],
 ) -> Result<()> {
-    check_size(width, height)?;
+    check_size(width, height, E::MAX_DIM)?;
     let map = map
         .get_mut(..map_len(width, height))
         .ok_or(Error::BufferTooSmall("map"))?;
     for (y, row) in map.chunks_exact_mut(width).enumerate() {
         for (x, e) in row.iter_mut().enumerate() {
             *e = source(camera, k_new, T::lit(x as f64), T::lit(y as f64))
-                .and_then(|u| Some([q5(u.x)?, q5(u.y)?]))
-                .unwrap_or(INVALID);
+                .and_then(|u| E::from_q5(q5(u.x)?, q5(u.y)?))
+                .unwrap_or(E::INVALID);
         }
     }
     Ok(())
 }
 
-fn check_size(width: usize, height: usize) -> Result<()> {
-    if width == 0 || height == 0 || width > MAX_MAP_DIM || height > MAX_MAP_DIM {
+fn check_size(width: usize, height: usize, max: usize) -> Result<()> {
+    if width == 0 || height == 0 || width > max || height > max {
         return Err(Error::InvalidImage);
     }
     Ok(())
 }
 
-/// One bilinear 8-bit sample at Q10.5 `(mx, my)`, taps outside `src` set to `border`.
+/// One bilinear 8-bit sample at Q.5 `(mx, my)` (pixels times 32), taps outside `src` set to `border`.
 #[inline]
 fn sample(src: &ImageView<'_, u8>, mx: i32, my: i32, border: u8) -> u8 {
     let (x, y) = (mx >> MAP_BITS, my >> MAP_BITS);
@@ -132,13 +251,14 @@ fn sample(src: &ImageView<'_, u8>, mx: i32, my: i32, border: u8) -> u8 {
     ((v + 512) >> 10) as u8
 }
 
-/// `dst(x, y) = src(map(x, y))`, bilinear in fixed point (see the module documentation);
-/// [`INVALID`] entries and sources wholly outside `src` give `border`.
+/// `dst(x, y) = src(map(x, y))`, bilinear in fixed point (see the module documentation),
+/// through a map of either [`MapEntry`] kind; [`MapEntry::INVALID`] entries and sources wholly
+/// outside `src` give `border`.
 ///
 /// Errors: `BufferTooSmall("map")` when the map has fewer than `dst`'s pixels.
-pub fn remap(
+pub fn remap<E: MapEntry>(
     src: &ImageView<'_, u8>,
-    map: &[[i16; 2]],
+    map: &[E],
     dst: &mut ImageMut<'_, u8>,
     border: u8,
 ) -> Result<()> {
@@ -149,10 +269,9 @@ pub fn remap(
     for (y, mrow) in map.chunks_exact(w.max(1)).enumerate() {
         let Some(row) = dst.row_mut(y) else { break };
         for (o, m) in row.iter_mut().zip(mrow) {
-            *o = if *m == INVALID {
-                border
-            } else {
-                sample(src, m[0] as i32, m[1] as i32, border)
+            *o = match m.q5() {
+                Some([mx, my]) => sample(src, mx, my, border),
+                None => border,
             };
         }
     }
@@ -173,9 +292,10 @@ pub struct GridMap<'a> {
 
 impl<'a> GridMap<'a> {
     /// Builds the nodes into `nodes` ([`grid_len`] entries) for a `width x height` frame
-    /// seen through `k_new`, `shift` in `1..=6` (2..64 px).
+    /// seen through `k_new`, `shift` in `1..=6` (2..64 px). Nodes are Q.8 (`round(256 u)`),
+    /// those farther out than four times the frame's size (or 4092 px) clamped there.
     ///
-    /// Errors: [`Error::InvalidImage`] for a bad size, `InvalidParameter("shift")`,
+    /// Errors: [`Error::InvalidImage`] for a zero size or one beyond [`MAX_GRID_DIM`], `InvalidParameter("shift")`,
     /// `BufferTooSmall("nodes")`, [`Error::Degenerate`] when a node's source cannot be
     /// computed (the new camera sees beyond the lens model: use a smaller field of view).
     #[doc(alias = "initUndistortRectifyMap")]
@@ -187,7 +307,7 @@ impl<'a> GridMap<'a> {
         shift: u32,
         nodes: &'a mut [[i32; 2]],
     ) -> Result<Self> {
-        check_size(width, height)?;
+        check_size(width, height, MAX_GRID_DIM)?;
         if !(1..=6).contains(&shift) {
             return Err(Error::InvalidParameter("shift"));
         }
@@ -208,8 +328,8 @@ impl<'a> GridMap<'a> {
                 .ok_or(Error::Degenerate)?;
                 let q8 = |v: T| libm::rint(v.to_f64() * 256.0);
                 let (a, b) = (q8(u.x), q8(u.y));
-                // Far outside any frame: clamp (the pixel reads the border either way).
-                let lim = 4.0 * 256.0 * MAX_MAP_DIM as f64;
+                // Far outside the frame: clamp (the pixel reads the border either way).
+                let lim = 4.0 * 256.0 * MAX_MAP_DIM.max(width).max(height) as f64;
                 *n = [a.clamp(-lim, lim) as i32, b.clamp(-lim, lim) as i32];
             }
         }
@@ -384,6 +504,219 @@ pub fn new_camera_matrix<T: Real>(
             let cx = -cn.x * fnew + w * half;
             let cy = (-cn.y * fnew + h * aspect * half) / aspect;
             Intrinsics::new(fnew, fnew / aspect, cx, cy)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Distortion, Fisheye};
+    use std::vec;
+    use std::vec::Vec;
+
+    /// A strong barrel lens with its principal point off centre, for a `w x h` frame.
+    fn barrel(w: usize, h: usize) -> Camera<f64> {
+        let f = 0.8 * w.max(h) as f64;
+        Camera::new(
+            Intrinsics::new(f, 1.01 * f, 0.52 * w as f64, 0.47 * h as f64).unwrap(),
+            Distortion::from_opencv([-0.3, 0.09, 0.001, -0.0005, -0.01]).unwrap(),
+        )
+    }
+
+    fn fisheye(w: usize, h: usize) -> Camera<f64> {
+        let f = 0.3 * w.max(h) as f64;
+        Camera::fisheye(
+            Intrinsics::new(f, f, 0.5 * w as f64, 0.5 * h as f64).unwrap(),
+            Fisheye::from_opencv([0.06, -0.02, 0.008, -0.002]).unwrap(),
+        )
+    }
+
+    fn pattern(w: usize, h: usize) -> Vec<u8> {
+        (0..w * h)
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                ((((x / 7 + y / 5) % 2) * 140 + (3 * x + y) % 97) % 256) as u8
+            })
+            .collect()
+    }
+
+    #[test]
+    fn entries_round_trip_their_q5_positions() {
+        for q in [
+            0, 1, 31, 32, 33, -1, -31, -32, -33, 32735, -32735, 32767, -32767,
+        ] {
+            let n = <[i16; 2]>::from_q5(q, -q).unwrap();
+            assert_eq!(n.q5(), Some([q, -q]));
+            let w = WideEntry::from_q5(q, -q).unwrap();
+            assert_eq!(w.q5(), Some([q, -q]), "{w:?}");
+            // OpenCV's split: the floor and the fraction index 32 fy + fx.
+            assert_eq!(i32::from(w.xy[0]), q.div_euclid(32));
+            assert_eq!(
+                i32::from(w.frac),
+                32 * (-q).rem_euclid(32) + q.rem_euclid(32)
+            );
+        }
+        // Q10.5 holds (-1024, 1024) px; the wide entry (-32767, 32768) px.
+        assert_eq!(<[i16; 2]>::from_q5(32768, 0), None);
+        assert_eq!(<[i16; 2]>::from_q5(0, -32768), None);
+        let far = 32767 * 32 + 31;
+        assert_eq!(
+            WideEntry::from_q5(far, -far + 31).unwrap().q5(),
+            Some([far, -far + 31])
+        );
+        assert_eq!(WideEntry::from_q5(far + 1, 0), None);
+        assert_eq!(WideEntry::from_q5(0, -32767 * 32 - 1), None);
+        assert_eq!(WideEntry::INVALID.q5(), None);
+        assert_eq!(INVALID.q5(), None);
+    }
+
+    #[test]
+    fn wide_map_equals_the_q10_5_map_on_a_frame_both_address() {
+        let (w, h) = (200, 150);
+        let src = pattern(w, h);
+        let view = ImageView::packed(&src, w, h).unwrap();
+        for (cam, alpha) in [
+            (barrel(w, h), 0.0),
+            (barrel(w, h), 1.0),
+            (fisheye(w, h), 0.5),
+        ] {
+            let k = new_camera_matrix(&cam, w, h, alpha).unwrap();
+            let mut narrow = vec![[0i16; 2]; map_len(w, h)];
+            let mut wide = vec![WideEntry::INVALID; map_len(w, h)];
+            build_map(&cam, &k, w, h, &mut narrow).unwrap();
+            build_map(&cam, &k, w, h, &mut wide).unwrap();
+            let mut out_of_range = 0;
+            for (n, e) in narrow.iter().zip(&wide) {
+                match n.q5() {
+                    Some(q) => assert_eq!(e.q5(), Some(q)),
+                    // Beyond ±1024 px: outside this frame either way.
+                    None => {
+                        out_of_range += 1;
+                        if let Some([x, y]) = e.q5() {
+                            assert!(x.abs().max(y.abs()) >= 32767, "{x} {y}");
+                        }
+                    }
+                }
+            }
+            assert!(out_of_range < w * h / 2);
+            let (mut a, mut b) = (vec![0u8; w * h], vec![0u8; w * h]);
+            remap(
+                &view,
+                &narrow,
+                &mut ImageMut::packed(&mut a, w, h).unwrap(),
+                7,
+            )
+            .unwrap();
+            remap(
+                &view,
+                &wide,
+                &mut ImageMut::packed(&mut b, w, h).unwrap(),
+                7,
+            )
+            .unwrap();
+            assert_eq!(a, b);
+        }
+    }
+
+    #[test]
+    fn a_1500_px_frame_takes_the_wide_map() {
+        let (w, h) = (1500, 1100);
+        let cam = barrel(w, h);
+        let k = new_camera_matrix(&cam, w, h, 0.0).unwrap();
+        let mut narrow = vec![[0i16; 2]; map_len(w, h)];
+        assert_eq!(
+            build_map(&cam, &k, w, h, &mut narrow),
+            Err(Error::InvalidImage)
+        );
+        let mut wide = vec![WideEntry::INVALID; map_len(w, h)];
+        build_map(&cam, &k, w, h, &mut wide).unwrap();
+        // Every pixel has its source, inside the frame up to the 9x9 sampling of the outline
+        // that alpha = 0 inscribes (a fraction of a pixel).
+        let (mut lo, mut hi) = ([i32::MAX; 2], [i32::MIN; 2]);
+        for e in &wide {
+            let q = e.q5().unwrap();
+            for c in 0..2 {
+                lo[c] = lo[c].min(q[c]);
+                hi[c] = hi[c].max(q[c]);
+            }
+        }
+        assert!(lo.iter().all(|&v| v > -32), "{lo:?}");
+        assert!(hi[0] < 32 * w as i32 && hi[1] < 32 * h as i32, "{hi:?}");
+        assert!(
+            hi[0] > 32 * (w as i32 - 4) && hi[1] > 32 * (h as i32 - 4),
+            "{hi:?}"
+        );
+        // A flat frame stays flat inside.
+        let src = vec![90u8; w * h];
+        let mut out = vec![0u8; w * h];
+        remap(
+            &ImageView::packed(&src, w, h).unwrap(),
+            &wide,
+            &mut ImageMut::packed(&mut out, w, h).unwrap(),
+            0,
+        )
+        .unwrap();
+        for y in 2..h - 2 {
+            assert!(out[y * w + 2..y * w + w - 2].iter().all(|&p| p == 90));
+        }
+        // The grid map addresses it too, within 1/8 px of the full map with 8-px nodes.
+        let mut nodes = vec![[0i32; 2]; grid_len(w, h, 3)];
+        let g = GridMap::build(&cam, &k, w, h, 3, &mut nodes).unwrap();
+        for y in (0..h).step_by(7) {
+            for x in (0..w).step_by(5) {
+                let a = g.entry(x, y);
+                let b = wide[y * w + x].q5().unwrap();
+                assert!((a[0] - b[0]).abs().max((a[1] - b[1]).abs()) <= 4, "{x},{y}");
+            }
+        }
+    }
+
+    #[test]
+    fn sizes_beyond_an_entrys_range_are_typed_errors() {
+        let cam = barrel(64, 48);
+        let k = cam.intrinsics;
+        let mut narrow = [[0i16; 2]; 4];
+        let mut wide = [WideEntry::INVALID; 4];
+        // Checked before the buffer: a 1-px-tall frame of each width.
+        for (w, ok) in [(1023, true), (1024, false)] {
+            let r = build_map(&cam, &k, w, 1, &mut narrow);
+            assert_eq!(
+                r.is_ok() || r == Err(Error::BufferTooSmall("map")),
+                ok,
+                "{w}"
+            );
+            let r = build_map(&cam, &k, 1, w, &mut narrow);
+            assert_eq!(
+                r.is_ok() || r == Err(Error::BufferTooSmall("map")),
+                ok,
+                "{w}"
+            );
+        }
+        for (w, ok) in [
+            (1024, true),
+            (32767, true),
+            (32768, false),
+            (usize::MAX, false),
+        ] {
+            let r = build_map(&cam, &k, w, 1, &mut wide);
+            assert_eq!(r == Err(Error::BufferTooSmall("map")), ok, "{w}");
+            assert_eq!(r == Err(Error::InvalidImage), !ok, "{w}");
+            let r = build_map(&cam, &k, 1, w, &mut wide);
+            assert_eq!(r == Err(Error::InvalidImage), !ok, "{w}");
+        }
+        assert_eq!(
+            build_map(&cam, &k, 0, 1, &mut wide),
+            Err(Error::InvalidImage)
+        );
+        let mut nodes = [[0i32; 2]; 4];
+        for (w, ok) in [
+            (4000, true),
+            (MAX_GRID_DIM, true),
+            (MAX_GRID_DIM + 1, false),
+        ] {
+            let r = GridMap::build(&cam, &k, w, 1, 3, &mut nodes);
+            assert_eq!(r.err() == Some(Error::InvalidImage), !ok, "{w}");
         }
     }
 }
