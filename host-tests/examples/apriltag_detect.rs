@@ -9,8 +9,8 @@
 //! Rows: `image,family,id,hamming,margin,x0,y0,x1,y1,x2,y2,x3,y3` (AprilTag's corner order,
 //! camgeom's pixel convention), with `--pose` also `r11..r33,tx,ty,tz,ambiguous` (the best
 //! pose of `camgeom::apriltag::tag_pose`, AprilTag's tag frame). Frames up to 320x240 after
-//! decimation use the board workspace [`Workspace320x240`], larger ones the CLI's 1024x1024
-//! `camgeom_host::apriltag::HostWorkspace`.
+//! decimation use the board workspace [`Workspace320x240`], larger ones the CLI's
+//! `camgeom_host::apriltag::HostWorkspace` (sized for the frame, `u32` labels).
 //! `--repeat N` runs each detection N times (the output once): callgrind's per-call counts;
 //! `--stats` prints each frame's [`camgeom::apriltag::Stats`] to stderr.
 
@@ -57,7 +57,7 @@ fn main() {
     }
     let det = Detector::new(cfg, &fams).expect("configuration");
     let mut small = Box::new(Workspace320x240::new());
-    let mut large: Option<Box<Large>> = None;
+    let mut large = Large::new();
     println!(
         "image,family,id,hamming,margin,x0,y0,x1,y1,x2,y2,x3,y3{}",
         if pose.is_some() {
@@ -76,16 +76,11 @@ fn main() {
             found = if fits {
                 det.detect(&view, &mut small.as_mut_view()).expect("detect")
             } else {
-                let ws = large.get_or_insert_with(|| Box::new(Large::new()));
-                det.detect(&view, &mut ws.as_mut_view()).expect("detect")
+                large.detect(&det, &view).expect("detect")
             };
         }
         if stats {
-            let s = if fits {
-                small.stats()
-            } else {
-                large.as_ref().expect("used").stats()
-            };
+            let s = if fits { small.stats() } else { large.stats() };
             eprintln!("{path}: {s:?}");
         }
         for t in &found {

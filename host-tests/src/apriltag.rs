@@ -1,36 +1,246 @@
 //! AprilTag detection on image files (`camgeom apriltag`, `camgeom ar --tag`): the options
-//! checked once, a host workspace for frames up to 1024x1024, the JSON form of a frame's
-//! detections and their overlay.
+//! checked once, a host workspace sized at run time for each frame (any frame up to 8192
+//! pixels a side after decimation), the JSON form of a frame's detections and their overlay.
 
+use camgeom::apriltag::quad::Cluster;
+use camgeom::apriltag::segment::Run;
 use camgeom::apriltag::{
-    APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, Workspace, families,
-    sort_len, tag_pose, tiles_len,
+    APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, Stats, WorkspaceView,
+    families, sort_len, tag_pose, tiles_len,
 };
 use camgeom::camera::Camera;
 use camgeom::draw::draw_line;
+use camgeom::image::ImageView;
 use camgeom::nalgebra::Matrix3;
+use camgeom::nalgebra::Point2;
 use camgeom::pose::{PlanarConfig, PoseEstimate};
+use camgeom::target::Acquire;
 use serde::Serialize;
 
 use crate::images::GrayImage;
 use crate::rgb::{Overlay, RgbImage, label_size};
 use crate::{Error, Result};
 
-/// Widest and tallest frame (after decimation) [`HostWorkspace`] takes.
-pub const MAX_SIDE: usize = 1024;
+/// Widest and tallest frame [`HostWorkspace`] takes: the detector's own limit, that of any
+/// image view ([`camgeom::apriltag::MAX_SIDE`]; boundary points hold doubled coordinates in 14
+/// bits).
+pub const MAX_SIDE: usize = camgeom::apriltag::MAX_SIDE;
 
-/// The host's workspace: frames up to [`MAX_SIDE`] x [`MAX_SIDE`] after decimation, with
-/// capacities (65533 labels, 8192 cluster slots, 262144 points a batch) above the largest
-/// counts of the bundled 799x533 photos (21,713 labels, 711 clusters, 64,463 kept points:
-/// `docs/notes/apriltag.md`), so nothing is cut on photos of that size. About 1.6 MB: box it.
-pub type HostWorkspace = Workspace<
-    MAX_SIDE,
-    { tiles_len(MAX_SIDE, MAX_SIDE, 1) },
-    65533,
-    8192,
-    262_144,
-    { sort_len(MAX_SIDE, MAX_SIDE, 1) },
->;
+/// The host's workspace: buffers sized at run time for the frame (after decimation), with
+/// `u32` labels (a 1920x1080 frame of texture or noise needs more than the 65533 of `u16`).
+///
+/// For a `w x h` frame after decimation (`n = w h` pixels) it holds exactly what the frame
+/// needs of the per-frame buffers (tiles `⌊w/4⌋ ⌊h/4⌋`, two rows of runs, sort keys
+/// `4 (w + h)`), and starts the capacities that depend on the content at `n / 16` labels,
+/// `n / 256` cluster slots and `n / 8` points a batch (at least 4096, 1024, 16384): the
+/// bundled 799x533 photos use at most 21,713 labels, 711 clusters and 64,463 kept points
+/// (`docs/notes/apriltag.md`). When a frame runs out of one of them ([`Stats::label_overflow`],
+/// [`Stats::cluster_overflow`], [`Stats::clusters_skipped`]), [`HostWorkspace::run`] grows it
+/// (labels up to `n`, which no frame exceeds: a label starts at a run; cluster slots up to
+/// `n / 4`; points to what the kept clusters need) and detects again, so no frame is cut.
+/// It never shrinks: the next frames of a sequence reuse it. Memory: [`HostWorkspace::bytes`]
+/// (BENCHMARKS.md, "AprilTag at 1920x1080": 2.4 MB at 1920x1080).
+#[derive(Default)]
+pub struct HostWorkspace {
+    /// The frame size (after decimation) the buffers hold.
+    w: usize,
+    h: usize,
+    tiles: Vec<u8>,
+    ring_min: Vec<u8>,
+    ring_max: Vec<u8>,
+    runs: [Vec<Run<u32>>; 2],
+    parent: Vec<u32>,
+    size: Vec<u8>,
+    clusters: Vec<Cluster<u64>>,
+    points: Vec<u32>,
+    keys: Vec<u16>,
+    stats: Stats,
+}
+
+/// Most detections of one frame: a growth and a repeat for each capacity at most.
+const MAX_ATTEMPTS: usize = 4;
+
+impl HostWorkspace {
+    /// An empty workspace (it grows with the first frame).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Grows the buffers for a `width x height` frame at `decimate` (never shrinks).
+    ///
+    /// Errors: [`camgeom::Error::BufferTooSmall`] (`"workspace.width"`) when the frame after
+    /// decimation is wider or taller than [`MAX_SIDE`].
+    pub fn fit(&mut self, width: usize, height: usize, decimate: u8) -> camgeom::Result<()> {
+        let d = usize::from(decimate.max(1));
+        let (w, h) = (width.div_ceil(d), height.div_ceil(d));
+        if w > MAX_SIDE || h > MAX_SIDE {
+            return Err(camgeom::Error::BufferTooSmall("workspace.width"));
+        }
+        let n = w * h;
+        let grow = |v: &mut Vec<_>, len: usize, fill| {
+            if v.len() < len {
+                v.resize(len, fill);
+            }
+        };
+        grow(&mut self.tiles, tiles_len(w, h, 1), 0u8);
+        grow(&mut self.ring_min, w, 0u8);
+        grow(&mut self.ring_max, w, 0u8);
+        for r in &mut self.runs {
+            if r.len() < w {
+                r.resize(w, Run::empty());
+            }
+        }
+        let labels = (n / 16).max(4096);
+        if self.parent.len() < labels {
+            self.parent.resize(labels, 0);
+        }
+        grow(&mut self.size, labels, 0u8);
+        let clusters = (n / 256).max(1024);
+        if self.clusters.len() < clusters {
+            self.clusters.resize(clusters, Cluster::empty());
+        }
+        if self.points.len() < (n / 8).max(16384) {
+            self.points.resize((n / 8).max(16384), 0);
+        }
+        if self.keys.len() < sort_len(w, h, 1) {
+            self.keys.resize(sort_len(w, h, 1), 0);
+        }
+        (self.w, self.h) = (self.w.max(w), self.h.max(h));
+        Ok(())
+    }
+
+    /// Bytes of the buffers (their lengths times their element sizes).
+    pub fn bytes(&self) -> usize {
+        use std::mem::size_of;
+        self.tiles.len()
+            + self.ring_min.len()
+            + self.ring_max.len()
+            + self.runs.iter().map(Vec::len).sum::<usize>() * size_of::<Run<u32>>()
+            + self.parent.len() * size_of::<u32>()
+            + self.size.len()
+            + self.clusters.len() * size_of::<Cluster<u64>>()
+            + self.points.len() * size_of::<u32>()
+            + self.keys.len() * size_of::<u16>()
+    }
+
+    /// The label capacity (`u32` labels).
+    pub fn labels(&self) -> usize {
+        self.parent.len().min(self.size.len())
+    }
+
+    /// The counts of the last detection.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// The buffers as the detector takes them.
+    pub fn view(&mut self) -> WorkspaceView<'_, u32> {
+        let [r0, r1] = &mut self.runs;
+        WorkspaceView::with_labels(
+            &mut self.tiles,
+            &mut self.ring_min,
+            &mut self.ring_max,
+            [r0, r1],
+            &mut self.parent,
+            &mut self.size,
+            &mut self.clusters,
+            &mut self.points,
+            &mut self.keys,
+            &mut self.stats,
+        )
+    }
+
+    /// Runs `detect` (a detection of `frame` at `decimate`) on the workspace grown for the
+    /// frame; when the frame ran out of labels, cluster slots or points, grows what ran out
+    /// and runs it again (the type's docs), at most [`MAX_ATTEMPTS`] times.
+    ///
+    /// Errors: [`Self::fit`]'s, and `detect`'s.
+    pub fn run<R>(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        decimate: u8,
+        mut detect: impl FnMut(&mut WorkspaceView<'_, u32>) -> camgeom::Result<R>,
+    ) -> camgeom::Result<R> {
+        self.fit(frame.width(), frame.height(), decimate)?;
+        let n = self.w * self.h;
+        let mut attempt = 0;
+        loop {
+            let out = detect(&mut self.view())?;
+            attempt += 1;
+            let s = self.stats;
+            let mut grown = false;
+            if s.label_overflow > 0 && self.labels() < n {
+                let labels = (4 * self.labels()).min(n);
+                self.parent.resize(labels, 0);
+                self.size.resize(labels, 0);
+                grown = true;
+            }
+            if s.cluster_overflow > 0 && self.clusters.len() < n / 4 {
+                let len = (4 * self.clusters.len()).min(n / 4);
+                self.clusters.resize(len, Cluster::empty());
+                grown = true;
+            }
+            if s.clusters_skipped > 0 && self.points.len() < s.cluster_points as usize {
+                self.points.resize(s.cluster_points as usize, 0);
+                grown = true;
+            }
+            if !grown || attempt >= MAX_ATTEMPTS {
+                return Ok(out);
+            }
+        }
+    }
+
+    /// The tags of `det`'s families in `frame`, at most `N` ([`Detector::detect`] with
+    /// [`Self::run`]).
+    ///
+    /// Errors: [`Self::run`]'s.
+    pub fn detect<const N: usize>(
+        &mut self,
+        det: &Detector,
+        frame: &ImageView<'_, u8>,
+    ) -> camgeom::Result<camgeom::heapless::Vec<Detection, N>> {
+        self.run(frame, det.config().decimate, |ws| det.detect(frame, ws))
+    }
+}
+
+/// Tag `id` of `family` as the AR loop's acquisition step (`camgeom ar --tag`): the core's
+/// [`camgeom::apriltag::TagTarget`] with a [`HostWorkspace`] grown for each frame.
+pub struct HostTagTarget<'a> {
+    detector: &'a Detector,
+    workspace: HostWorkspace,
+    family: &'static Family,
+    id: u16,
+}
+
+impl<'a> HostTagTarget<'a> {
+    /// Tag `id` of `family` (one of `detector`'s families).
+    pub fn new(detector: &'a Detector, family: &'static Family, id: u16) -> Self {
+        Self {
+            detector,
+            workspace: HostWorkspace::new(),
+            family,
+            id,
+        }
+    }
+
+    /// The workspace (its [`Stats`] after the last detection).
+    pub fn workspace(&self) -> &HostWorkspace {
+        &self.workspace
+    }
+}
+
+impl Acquire for HostTagTarget<'_> {
+    fn acquire(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        _lost: u32,
+    ) -> camgeom::Result<Option<[Point2<f32>; 4]>> {
+        let (det, family, id) = (self.detector, self.family, self.id);
+        self.workspace.run(frame, det.config().decimate, |ws| {
+            det.find_target(frame, ws, family, id)
+        })
+    }
+}
 
 /// Most detections reported per frame.
 pub const MAX_DETECTIONS: usize = 256;
@@ -135,34 +345,37 @@ pub fn check_tag_size(s: f32) -> Result<()> {
 /// Detects the tags in `img` (read from `path`, named in errors).
 ///
 /// Errors: [`camgeom::Error::BufferTooSmall`] (as a [`crate::ErrorKind::Camgeom`]) when the
-/// frame after decimation is larger than [`HostWorkspace`] holds.
+/// frame after decimation is wider or taller than [`MAX_SIDE`].
 pub fn detect(
     det: &Detector,
     ws: &mut HostWorkspace,
     img: &GrayImage,
     path: &std::path::Path,
 ) -> Result<camgeom::heapless::Vec<Detection, MAX_DETECTIONS>> {
+    let too_large = |e| {
+        Error::camgeom(
+            format!(
+                "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE})",
+                path.display(),
+                img.width,
+                img.height,
+            ),
+            e,
+        )
+    };
+    if img.width > MAX_SIDE || img.height > MAX_SIDE {
+        return Err(too_large(camgeom::Error::BufferTooSmall("workspace.width")));
+    }
     let view = img.view().ok_or_else(|| {
         Error::camgeom(
             format!("{}: not an image camgeom can take", path.display()),
             camgeom::Error::InvalidImage,
         )
     })?;
-    det.detect(&view, &mut ws.as_mut_view())
-        .map_err(|e| match e {
-            camgeom::Error::BufferTooSmall(_) => Error::camgeom(
-                format!(
-                    "{}: {}x{} is too large for the workspace (at most {MAX_SIDE}x{MAX_SIDE} \
-                 after decimation: try --decimate {})",
-                    path.display(),
-                    img.width,
-                    img.height,
-                    img.width.max(img.height).div_ceil(MAX_SIDE).max(2)
-                ),
-                e,
-            ),
-            e => Error::camgeom(format!("{}: detection failed", path.display()), e),
-        })
+    ws.detect(det, &view).map_err(|e| match e {
+        camgeom::Error::BufferTooSmall(_) => too_large(e),
+        e => Error::camgeom(format!("{}: detection failed", path.display()), e),
+    })
 }
 
 /// Which pixel coordinates the output uses.

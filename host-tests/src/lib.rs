@@ -14,7 +14,7 @@
 //! | [`rgb`] | colour overlays on `image::RgbImage`: grey in colour, inked masks, digit labels, compact PNG |
 //! | [`figures`] | the figures of structure from motion (plotters): the scene from above and the side, correspondences, reprojection errors |
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
-//! | [`apriltag`] | AprilTag detection on files: options, a workspace for frames up to 1024x1024, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
+//! | [`apriltag`] | AprilTag detection on files: options, a workspace sized for each frame, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
 //! | [`video`] | video files in and out through the system's ffmpeg: probed, decoded one frame at a time, encoded from frames |
 //! | [`error`] | one error type naming the file, the line and what is wrong |

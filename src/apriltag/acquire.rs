@@ -5,6 +5,7 @@ use nalgebra::Point2;
 
 use super::detector::Detector;
 use super::family::Family;
+use super::label::Label;
 use super::workspace::WorkspaceView;
 use crate::Result;
 use crate::image::ImageView;
@@ -18,19 +19,20 @@ use crate::target::Acquire;
 ///
 /// With [`crate::target::TargetConfig::reacquire_every`] set, the loop asks again while
 /// tracking, so the detection bounds the tracks' drift; after a loss it asks on every frame.
-pub struct TagTarget<'a> {
+/// `L`: the workspace's label type ([`Label`]).
+pub struct TagTarget<'a, L: Label = u16> {
     detector: &'a Detector,
-    workspace: WorkspaceView<'a>,
+    workspace: WorkspaceView<'a, L>,
     family: &'static Family,
     id: u16,
 }
 
-impl<'a> TagTarget<'a> {
+impl<'a, L: Label> TagTarget<'a, L> {
     /// Tag `id` of `family` (one of `detector`'s families), found with `workspace` (a
     /// [`super::Workspace`]'s [`super::Workspace::as_mut_view`]).
     pub fn new(
         detector: &'a Detector,
-        workspace: WorkspaceView<'a>,
+        workspace: WorkspaceView<'a, L>,
         family: &'static Family,
         id: u16,
     ) -> Self {
@@ -43,12 +45,12 @@ impl<'a> TagTarget<'a> {
     }
 
     /// The workspace (its [`super::Stats`] after the last detection).
-    pub fn workspace(&self) -> &WorkspaceView<'a> {
+    pub fn workspace(&self) -> &WorkspaceView<'a, L> {
         &self.workspace
     }
 }
 
-impl Acquire for TagTarget<'_> {
+impl<L: Label> Acquire for TagTarget<'_, L> {
     fn acquire(
         &mut self,
         frame: &ImageView<'_, u8>,

@@ -6,6 +6,7 @@ use nalgebra::{Matrix3, Point2};
 use super::decode::{read_code, refine_edges};
 use super::family::{Family, MAX_CORRECTABLE};
 use super::geom::{at4, project};
+use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
 use super::segment::{
@@ -242,6 +243,12 @@ impl Detector {
     /// (when more are found, those with the largest Hamming distance and then the smallest
     /// margin are dropped, counted in [`Stats::dropped`]).
     ///
+    /// The workspace's label type ([`Label`]: `u16` or `u32`) is the caller's choice; the
+    /// detections are the same when neither runs out of labels ([`Stats::label_overflow`]).
+    ///
+    /// Any [`ImageView`] (at most [`crate::image::MAX_DIM`] = 8192 pixels a side) is taken:
+    /// the boundary points' 14-bit coordinates ([`super::MAX_SIDE`]) hold it.
+    ///
     /// Errors: [`Error::BufferTooSmall`] naming the workspace buffer that cannot hold this frame
     /// (`"workspace.width"`, `"workspace.tiles"`, `"workspace.labels"`: at least one,
     /// `"workspace.sort"`). Frames smaller than 8x8 after decimation give no detection.
@@ -249,7 +256,7 @@ impl Detector {
     pub fn detect<const N: usize>(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut WorkspaceView<'_>,
+        ws: &mut WorkspaceView<'_, impl Label>,
     ) -> Result<Vec<Detection, N>> {
         let mut out = Vec::new();
         self.detect_into(frame, ws, &mut (), |_, _| true, &mut out)?;
@@ -262,7 +269,7 @@ impl Detector {
     pub fn detect_into<const N: usize>(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut WorkspaceView<'_>,
+        ws: &mut WorkspaceView<'_, impl Label>,
         probe: &mut impl StageProbe<Stage>,
         keep: impl Fn(&Family, u16) -> bool,
         out: &mut Vec<Detection, N>,
@@ -286,7 +293,7 @@ impl Detector {
     pub fn find_target(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut WorkspaceView<'_>,
+        ws: &mut WorkspaceView<'_, impl Label>,
         family: &Family,
         id: u16,
     ) -> Result<Option<[Point2<f32>; 4]>> {
@@ -295,10 +302,10 @@ impl Detector {
         Ok(out.first().map(Detection::target_corners))
     }
 
-    fn run(
+    fn run<L: Label>(
         &self,
         frame: &ImageView<'_, u8>,
-        ws: &mut WorkspaceView<'_>,
+        ws: &mut WorkspaceView<'_, L>,
         probe: &mut impl StageProbe<Stage>,
         keep: &impl Fn(&Family, u16) -> bool,
         sink: &mut impl FnMut(Detection, &mut Stats),
@@ -352,7 +359,7 @@ impl Detector {
         let mut counter = Counter {
             table: &mut table,
             emitted: 0,
-            pending: (u32::MAX, Tally::EMPTY),
+            pending: (L::Key::EMPTY, Tally::EMPTY),
         };
         boundary_scan(
             &src,
@@ -383,12 +390,12 @@ impl Detector {
         );
         for c in table.slots.iter_mut() {
             let n = usize::from(c.n);
-            let wanted = c.key != u32::MAX
+            let wanted = c.key != L::Key::EMPTY
                 && match c.shape() {
                     Some(rev) => (rev && reversed) || (!rev && normal),
                     None => false,
                 };
-            if c.key == u32::MAX || n < min_pts || n > max_pts || !wanted {
+            if c.key == L::Key::EMPTY || n < min_pts || n > max_pts || !wanted {
                 c.n = 0;
             } else {
                 ws.stats.clusters_kept += 1;
@@ -439,8 +446,9 @@ impl Detector {
             size.iter_mut().for_each(|s| *s = 0);
             for c in table.slots.iter() {
                 if c.start != NOT_IN_BATCH {
-                    for r in [c.key >> 16, c.key & 0xffff] {
-                        if let Some(s) = size.get_mut(r as usize) {
+                    let (b, w) = L::halves(c.key);
+                    for r in [b, w] {
+                        if let Some(s) = size.get_mut(r) {
                             *s = u8::MAX;
                         }
                     }
@@ -591,25 +599,27 @@ impl Detector {
 /// The counting scan's sink: every run of points into the cluster table.
 /// Consecutive points mostly share their cluster: they are gathered in `pending` and go into
 /// the table when the key changes (and at [`Counter::finish`]).
-struct Counter<'t, 'a> {
-    table: &'t mut Table<'a>,
+struct Counter<'t, 'a, K: ClusterKey> {
+    table: &'t mut Table<'a, K>,
     emitted: u32,
-    pending: (u32, Tally),
+    pending: (K, Tally),
 }
 
-impl Counter<'_, '_> {
+impl<K: ClusterKey> Counter<'_, '_, K> {
     fn finish(&mut self) {
         let (key, t) = self.pending;
         if t.n > 0 {
             self.table.add(key, &t);
         }
-        self.pending = (u32::MAX, Tally::EMPTY);
+        self.pending = (K::EMPTY, Tally::EMPTY);
     }
 }
 
-impl Sink for Counter<'_, '_> {
-    #[inline]
-    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+impl<K: ClusterKey> Sink<K> for Counter<'_, '_, K> {
+    // Always into the scan, as when the scan was not generic over the label type (the board's
+    // code is unchanged by it).
+    #[inline(always)]
+    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
         if key != self.pending.0 {
             self.finish();
             self.pending.0 = key;
@@ -621,14 +631,14 @@ impl Sink for Counter<'_, '_> {
 }
 
 /// The storing scan's sink: the points of the clusters of the batch into their ranges.
-struct Filler<'t, 'a, 'p> {
-    table: &'t mut Table<'a>,
+struct Filler<'t, 'a, 'p, K: ClusterKey> {
+    table: &'t mut Table<'a, K>,
     points: &'p mut [u32],
 }
 
-impl Sink for Filler<'_, '_, '_> {
+impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
     #[inline]
-    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
         let Some(c) = self.table.get_mut(key) else {
             return;
         };
@@ -648,7 +658,7 @@ impl Sink for Filler<'_, '_, '_> {
 
 /// Marks the clusters in `slots` that are in the batch.
 #[allow(dead_code)]
-fn in_batch(c: &Cluster) -> bool {
+fn in_batch<K>(c: &Cluster<K>) -> bool {
     c.start != NOT_IN_BATCH
 }
 

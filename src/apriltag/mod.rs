@@ -76,6 +76,7 @@ mod detector;
 pub mod families;
 pub mod family;
 mod geom;
+pub mod label;
 mod pose;
 pub mod quad;
 pub mod segment;
@@ -89,7 +90,9 @@ pub use detector::{
     Stage,
 };
 pub use family::{Decoded, Family, LayoutBit, rotate90};
+pub use label::Label;
 pub use pose::tag_pose;
+pub use segment::MAX_SIDE;
 pub use workspace::{
     Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, sort_len, tiles_len,
 };

@@ -30,22 +30,24 @@
 use nalgebra::Point2;
 
 use super::geom::{Line, at4, eigen, intersect};
+use super::label::ClusterKey;
 use super::segment::{Sampled, unpack};
 use crate::features::offer_best;
 use crate::scalar::{above, at_most};
 
-/// An empty table slot.
-const EMPTY: u32 = u32::MAX;
 /// A cluster not in the current batch.
 pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
 
 /// One cluster: its key, point count, bounding box (doubled coordinates), the sums of its
 /// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
-/// current batch. 32 bytes.
+/// current batch. 32 bytes with the `u32` key of `u16` labels, 40 with the `u64` key of `u32`
+/// ones ([`super::label::Label::Key`]). The point count saturates at 65535: clusters of more
+/// than 65534 points (a boundary longer than twice the perimeter of a frame of
+/// [`super::segment::MAX_SIDE`] a side) are not fitted.
 #[derive(Debug, Clone, Copy)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Cluster {
-    pub(crate) key: u32,
+pub struct Cluster<K = u32> {
+    pub(crate) key: K,
     pub(crate) n: u16,
     pub(crate) fill: u16,
     pub(crate) start: u32,
@@ -59,20 +61,27 @@ pub struct Cluster {
 }
 
 impl Cluster {
-    /// A free slot.
-    pub const EMPTY: Self = Self {
-        key: EMPTY,
-        n: 0,
-        fill: 0,
-        start: NOT_IN_BATCH,
-        xmin: u16::MAX,
-        xmax: 0,
-        ymin: u16::MAX,
-        ymax: 0,
-        sgx: 0,
-        sgy: 0,
-        spg: 0,
-    };
+    /// A free slot (the `u32` key of `u16` labels; [`Cluster::empty`] for any).
+    pub const EMPTY: Self = Self::empty();
+}
+
+impl<K: ClusterKey> Cluster<K> {
+    /// A free slot of key type `K`.
+    pub const fn empty() -> Self {
+        Self {
+            key: K::EMPTY,
+            n: 0,
+            fill: 0,
+            start: NOT_IN_BATCH,
+            xmin: u16::MAX,
+            xmax: 0,
+            ymin: u16::MAX,
+            ymax: 0,
+            sgx: 0,
+            sgy: 0,
+            spg: 0,
+        }
+    }
 
     /// `Σ (p - c) · g` about the bounding box centre `c`, in quarter pixels (AprilTag's `dot`
     /// up to scale): positive when the gradient points away from the centre, i.e. white
@@ -150,32 +159,32 @@ impl Tally {
 
 /// Slot of `key` in a table of `len` slots (Fibonacci hashing).
 #[inline]
-fn home(key: u32, len: usize) -> usize {
-    let h = (u64::from(key).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize;
+fn home<K: ClusterKey>(key: K, len: usize) -> usize {
+    let h = (key.wide().wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 32) as usize;
     if len == 0 { 0 } else { h % len }
 }
 
 /// The cluster table over a caller slice (module docs). New keys are refused once 3/4 of the
 /// slots are used, which bounds every probe sequence.
-pub(crate) struct Table<'a> {
-    pub(crate) slots: &'a mut [Cluster],
+pub(crate) struct Table<'a, K: ClusterKey> {
+    pub(crate) slots: &'a mut [Cluster<K>],
     pub(crate) used: usize,
     /// Points of keys that found no room.
     pub(crate) dropped: u32,
     /// The slot of the last key looked up: consecutive points mostly share a cluster.
-    last: (u32, usize),
+    last: (K, usize),
     /// Slots that may be used (3/4 of them).
     limit: usize,
 }
 
-impl<'a> Table<'a> {
-    pub(crate) fn new(slots: &'a mut [Cluster]) -> Self {
-        slots.iter_mut().for_each(|c| *c = Cluster::EMPTY);
+impl<'a, K: ClusterKey> Table<'a, K> {
+    pub(crate) fn new(slots: &'a mut [Cluster<K>]) -> Self {
+        slots.iter_mut().for_each(|c| *c = Cluster::empty());
         Self {
             slots,
             used: 0,
             dropped: 0,
-            last: (EMPTY, 0),
+            last: (K::EMPTY, 0),
             limit: 0,
         }
         .with_limit()
@@ -188,7 +197,7 @@ impl<'a> Table<'a> {
 
     /// Adds the points `t` of cluster `key`.
     #[inline]
-    pub(crate) fn add(&mut self, key: u32, t: &Tally) {
+    pub(crate) fn add(&mut self, key: K, t: &Tally) {
         let i = if self.last.0 == key {
             self.last.1
         } else {
@@ -215,7 +224,7 @@ impl<'a> Table<'a> {
     }
 
     /// The slot of `key`, inserted when new and there is room (and remembered).
-    fn slot(&mut self, key: u32) -> Option<usize> {
+    fn slot(&mut self, key: K) -> Option<usize> {
         let len = self.slots.len();
         let mut i = home(key, len);
         for _ in 0..len {
@@ -224,7 +233,7 @@ impl<'a> Table<'a> {
                 self.last = (key, i);
                 return Some(i);
             }
-            if c.key == EMPTY {
+            if c.key == K::EMPTY {
                 if self.used >= self.limit {
                     return None;
                 }
@@ -240,7 +249,7 @@ impl<'a> Table<'a> {
 
     /// The cluster of `key`, if it has a slot.
     #[inline]
-    pub(crate) fn get_mut(&mut self, key: u32) -> Option<&mut Cluster> {
+    pub(crate) fn get_mut(&mut self, key: K) -> Option<&mut Cluster<K>> {
         let len = self.slots.len();
         let mut i = if self.last.0 == key {
             self.last.1
@@ -253,7 +262,7 @@ impl<'a> Table<'a> {
                 self.last = (key, i);
                 return self.slots.get_mut(i);
             }
-            if k == EMPTY {
+            if k == K::EMPTY {
                 return None;
             }
             i = if i + 1 == len { 0 } else { i + 1 };

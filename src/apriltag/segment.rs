@@ -13,7 +13,7 @@
 //! black ones 4-connected. One raster pass gives every pixel a *provisional label*: that of
 //! its first same-class neighbour among left, up (and for white up-left, up-right), or a new
 //! one; the other same-class neighbours are united with it (union by smaller index, path
-//! halving). Only the labels are stored (a `u16` parent and a saturating `u8` pixel count
+//! halving). Only the labels are stored (a parent, `u16` or `u32` ([`Label`]), and a saturating `u8` pixel count
 //! each) plus two rows; as labels are only created where no earlier neighbour has the class,
 //! there are far fewer than pixels. Later passes re-derive the same labels row by row (the
 //! rule depends only on the classes) and read the root from the flattened parents. When the
@@ -27,6 +27,7 @@
 //! included). Points are packed in a `u32`: doubled coordinates (14 bits each) and the
 //! gradient signs.
 
+use super::label::Label;
 use crate::image::ImageView;
 
 /// Pixel classes of the thresholded image.
@@ -44,12 +45,16 @@ pub const TILE: usize = 4;
 /// Components smaller than this (pixels) make no boundary points (AprilTag's 25).
 pub const MIN_COMPONENT: u8 = 25;
 
-/// A label value for "no component": a skipped pixel.
-pub(crate) const NONE: u16 = u16::MAX;
-/// A label value for a component below [`MIN_COMPONENT`] pixels (boundary scans only).
-pub(crate) const SMALL: u16 = u16::MAX - 1;
-/// Most labels a frame can use: every `u16` but the two markers.
-pub const MAX_LABELS: usize = SMALL as usize;
+/// Most labels a frame can use with `u16` labels (a [`super::Workspace`]): every `u16` but the
+/// two markers ([`Label::MAX_LABELS`] of `u16`; `u32` labels allow `2^32 - 2`).
+pub const MAX_LABELS: usize = <u16 as Label>::MAX_LABELS;
+
+/// Widest and tallest image the detector takes: that of any [`ImageView`]
+/// ([`crate::image::MAX_DIM`], 8192), which boundary points hold as doubled coordinates in 14
+/// bits (`2 (8192 - 2) + 1 < 2^14`); columns of a [`Run`] and the cluster bounding
+/// boxes are `u16`, the pixel counts of a row run `u16` too.
+pub const MAX_SIDE: usize = crate::image::MAX_DIM;
+const _: () = assert!(2 * (MAX_SIDE - 2) + 1 < 1 << 14);
 
 /// The image the per-pixel stages see: `img` point-sampled every `d` pixels (AprilTag's
 /// integer `quad_decimate`), `w x h = ⌈W / d⌉ x ⌈H / d⌉`.
@@ -203,7 +208,12 @@ fn class(v: u8, t: u8) -> u8 {
 /// Cuts row `y` into runs of one class (module docs: the classes are recomputed from the
 /// tile thresholds, one compare a pixel, never stored); `out` holds at most one per column.
 /// Returns the count.
-pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut [Run]) -> usize {
+pub(crate) fn row_runs<L: Label>(
+    src: &Sampled<'_>,
+    tiles: &Tiles<'_>,
+    y: usize,
+    out: &mut [Run<L>],
+) -> usize {
     let ty = (y / TILE).min(tiles.th.saturating_sub(1));
     let trow = tiles
         .thr
@@ -250,8 +260,8 @@ pub(crate) fn row_runs(src: &Sampled<'_>, tiles: &Tiles<'_>, y: usize, out: &mut
 }
 
 /// Cuts a row into runs of one class as the classes arrive, column by column.
-struct Cutter<'a> {
-    out: &'a mut [Run],
+struct Cutter<'a, L: Label> {
+    out: &'a mut [Run<L>],
     /// Runs written.
     n: usize,
     /// First column of the open run.
@@ -260,7 +270,7 @@ struct Cutter<'a> {
     cur: u32,
 }
 
-impl Cutter<'_> {
+impl<L: Label> Cutter<'_, L> {
     /// Column `x` has class `c`: a new run starts where the class changes.
     #[inline(always)]
     fn class_at(&mut self, x: usize, c: u32) {
@@ -280,7 +290,7 @@ impl Cutter<'_> {
                 x0: self.x0 as u16,
                 x1: x1 as u16,
                 c: self.cur as u8,
-                lab: NONE,
+                lab: L::NONE,
             };
             self.n += 1;
         }
@@ -289,16 +299,16 @@ impl Cutter<'_> {
 
 /// Root of `x` with path halving (`x` itself when out of range).
 #[inline]
-fn find(parent: &mut [u16], mut x: u16) -> u16 {
+fn find<L: Label>(parent: &mut [L], mut x: L) -> L {
     loop {
-        let Some(&p) = parent.get(usize::from(x)) else {
+        let Some(&p) = parent.get(x.index()) else {
             return x;
         };
         if p == x {
             return x;
         }
-        let gp = parent.get(usize::from(p)).copied().unwrap_or(p);
-        if let Some(slot) = parent.get_mut(usize::from(x)) {
+        let gp = parent.get(p.index()).copied().unwrap_or(p);
+        if let Some(slot) = parent.get_mut(x.index()) {
             *slot = gp;
         }
         x = gp;
@@ -308,11 +318,11 @@ fn find(parent: &mut [u16], mut x: u16) -> u16 {
 /// Unites the sets of `a` and `b`: the larger root goes under the smaller (so every parent
 /// index is below its child's, and one increasing pass flattens the forest).
 #[inline]
-fn union(parent: &mut [u16], a: u16, b: u16) {
+fn union<L: Label>(parent: &mut [L], a: L, b: L) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
     if lo != hi
-        && let Some(slot) = parent.get_mut(usize::from(hi))
+        && let Some(slot) = parent.get_mut(hi.index())
     {
         *slot = lo;
     }
@@ -320,35 +330,43 @@ fn union(parent: &mut [u16], a: u16, b: u16) {
 
 /// A run of one class in a row: columns `x0..x1`, its class and its label (provisional in the
 /// labelling pass; the root, or a marker for small components, in the scans; a marker for
-/// skipped pixels).
+/// skipped pixels), of label type `L` ([`Label`]: `u16` on a board, `u32` for large frames).
+/// Columns are `u16`: images are at most [`MAX_SIDE`] wide.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Run {
+pub struct Run<L = u16> {
     pub(crate) x0: u16,
     pub(crate) x1: u16,
     pub(crate) c: u8,
-    pub(crate) lab: u16,
+    pub(crate) lab: L,
+}
+
+impl<L: Label> Run<L> {
+    /// An empty run of label type `L`.
+    pub const fn empty() -> Self {
+        Self {
+            x0: 0,
+            x1: 0,
+            c: SKIP,
+            lab: L::NONE,
+        }
+    }
 }
 
 impl Run {
-    /// An empty run.
-    pub const EMPTY: Self = Self {
-        x0: 0,
-        x1: 0,
-        c: SKIP,
-        lab: NONE,
-    };
+    /// An empty run (`u16` labels; [`Run::empty`] for any).
+    pub const EMPTY: Self = Self::empty();
 }
 
 /// The row buffers of a pass: the runs of the previous and the current row (each at most one
 /// per column).
-pub(crate) struct Rows<'a> {
-    pub(crate) runs: [&'a mut [Run]; 2],
+pub(crate) struct Rows<'a, L: Label> {
+    pub(crate) runs: [&'a mut [Run<L>]; 2],
 }
 
 /// The index of the run of `runs` (from `from` on) that holds column `x`.
 #[inline]
-fn run_at(runs: &[Run], from: usize, x: usize) -> usize {
+fn run_at<L: Label>(runs: &[Run<L>], from: usize, x: usize) -> usize {
     let mut i = from;
     while let Some(r) = runs.get(i) {
         if usize::from(r.x1) > x {
@@ -376,21 +394,21 @@ fn touched(c: u8, x0: usize, x1: usize, w: usize) -> (usize, usize) {
 /// of a run has another class, so the per-pixel rule of the module docs gives the whole run
 /// this label.)
 #[inline]
-fn inherited(c: u8, x0: usize, up: &[Run], j: usize) -> u16 {
+fn inherited<L: Label>(c: u8, x0: usize, up: &[Run<L>], j: usize) -> L {
     let at = |x: usize| {
-        let r = up.get(run_at(up, j, x)).copied().unwrap_or(Run::EMPTY);
+        let r = up.get(run_at(up, j, x)).copied().unwrap_or(Run::empty());
         if r.c == c && x >= usize::from(r.x0) {
             r.lab
         } else {
-            NONE
+            L::NONE
         }
     };
     let v = at(x0);
-    if v != NONE || c != WHITE {
+    if v != L::NONE || c != WHITE {
         return v;
     }
-    let v = if x0 > 0 { at(x0 - 1) } else { NONE };
-    if v != NONE { v } else { at(x0 + 1) }
+    let v = if x0 > 0 { at(x0 - 1) } else { L::NONE };
+    if v != L::NONE { v } else { at(x0 + 1) }
 }
 
 /// Outcome of the labelling pass.
@@ -403,21 +421,21 @@ pub(crate) struct Labelled {
 }
 
 /// What a pass does with the labels of [`label_runs`].
-trait Labels {
+trait Labels<L: Label> {
     /// Whether [`Labels::join`] does anything (the scans skip the walk over the row above).
     const JOINS: bool;
     /// The label of a run no earlier run passes one to; `None`: no label left, the run is
     /// skipped.
-    fn fresh(&mut self) -> Option<u16>;
+    fn fresh(&mut self) -> Option<L>;
     /// Run label `l` touches label `o` of its class in the previous row.
-    fn join(&mut self, l: u16, o: u16);
+    fn join(&mut self, l: L, o: L);
     /// A run of `len` pixels was skipped.
     fn skipped(&mut self, len: usize);
 }
 
 /// Labels the runs `cur` of a row from the previous row's runs `up` (module docs).
 #[inline]
-fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) {
+fn label_runs<L: Label, B: Labels<L>>(cur: &mut [Run<L>], up: &[Run<L>], w: usize, labels: &mut B) {
     let mut j = 0;
     for r in cur.iter_mut() {
         if r.c == SKIP {
@@ -427,7 +445,7 @@ fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) 
         let (a, b) = touched(r.c, x0, x1, w);
         j = run_at(up, j, a);
         let mut l = inherited(r.c, x0, up, j);
-        if l == NONE {
+        if l == L::NONE {
             match labels.fresh() {
                 Some(n) => l = n,
                 None => {
@@ -438,7 +456,7 @@ fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) 
             }
         }
         r.lab = l;
-        if !L::JOINS {
+        if !B::JOINS {
             continue;
         }
         let mut last = l;
@@ -446,7 +464,7 @@ fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) 
             if usize::from(o.x0) >= b {
                 break;
             }
-            if o.c == r.c && o.lab != last && o.lab != NONE {
+            if o.c == r.c && o.lab != last && o.lab != L::NONE {
                 labels.join(l, o.lab);
                 last = o.lab;
             }
@@ -455,7 +473,10 @@ fn label_runs<L: Labels>(cur: &mut [Run], up: &[Run], w: usize, labels: &mut L) 
 }
 
 /// The runs of the previous and the current row for row `y`.
-fn run_rows<'r>(runs: &'r mut [&mut [Run]; 2], y: usize) -> (&'r [Run], &'r mut [Run]) {
+fn run_rows<'r, L: Label>(
+    runs: &'r mut [&mut [Run<L>]; 2],
+    y: usize,
+) -> (&'r [Run<L>], &'r mut [Run<L>]) {
     let [r0, r1] = runs;
     if y.is_multiple_of(2) {
         (&**r1, &mut **r0)
@@ -465,21 +486,21 @@ fn run_rows<'r>(runs: &'r mut [&mut [Run]; 2], y: usize) -> (&'r [Run], &'r mut 
 }
 
 /// The labelling pass's [`Labels`]: new labels from a counter, unions.
-struct UnionFind<'a> {
-    parent: &'a mut [u16],
+struct UnionFind<'a, L: Label> {
+    parent: &'a mut [L],
     size: &'a mut [u8],
     next: usize,
     cap: usize,
     exhausted: u32,
 }
 
-impl Labels for UnionFind<'_> {
+impl<L: Label> Labels<L> for UnionFind<'_, L> {
     const JOINS: bool = true;
-    fn fresh(&mut self) -> Option<u16> {
+    fn fresh(&mut self) -> Option<L> {
         if self.next >= self.cap {
             return None;
         }
-        let l = self.next as u16;
+        let l = L::from_index(self.next);
         if let (Some(p), Some(s)) = (self.parent.get_mut(self.next), self.size.get_mut(self.next)) {
             *p = l;
             *s = 0;
@@ -488,7 +509,7 @@ impl Labels for UnionFind<'_> {
         Some(l)
     }
     #[inline]
-    fn join(&mut self, l: u16, o: u16) {
+    fn join(&mut self, l: L, o: L) {
         union(self.parent, l, o);
     }
     fn skipped(&mut self, len: usize) {
@@ -498,42 +519,42 @@ impl Labels for UnionFind<'_> {
 
 /// The scans' [`Labels`]: the same counter, read as roots (or [`SMALL`]) of the flattened
 /// forest.
-struct Roots<'a> {
-    parent: &'a [u16],
+struct Roots<'a, L: Label> {
+    parent: &'a [L],
     size: &'a [u8],
     next: usize,
     labels: usize,
 }
 
-impl Labels for Roots<'_> {
+impl<L: Label> Labels<L> for Roots<'_, L> {
     const JOINS: bool = false;
-    fn fresh(&mut self) -> Option<u16> {
+    fn fresh(&mut self) -> Option<L> {
         if self.next >= self.labels {
             return None;
         }
-        let root = self.parent.get(self.next).copied().unwrap_or(NONE);
+        let root = self.parent.get(self.next).copied().unwrap_or(L::NONE);
         self.next += 1;
-        let big = self.size.get(usize::from(root)).copied().unwrap_or(0) >= MIN_COMPONENT;
-        Some(if big { root } else { SMALL })
+        let big = self.size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT;
+        Some(if big { root } else { L::SMALL })
     }
     #[inline]
-    fn join(&mut self, _: u16, _: u16) {}
+    fn join(&mut self, _: L, _: L) {}
     fn skipped(&mut self, _: usize) {}
 }
 
 /// The labelling pass (module docs), run by run: unions into `parent`, pixel counts into
 /// `size` (saturating), then flattens `parent` to roots and sums the counts into the roots.
-/// Capacity: `min(parent.len(), size.len(), MAX_LABELS)` labels; a run that needs a new label
+/// Capacity: `min(parent.len(), size.len(), L::MAX_LABELS)` labels; a run that needs a new label
 /// when none is left is skipped (in every pass alike). Returns also, per row, nothing: the
 /// scans re-derive the runs.
-pub(crate) fn label_pass(
+pub(crate) fn label_pass<L: Label>(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
-    rows: &mut Rows<'_>,
-    parent: &mut [u16],
+    rows: &mut Rows<'_, L>,
+    parent: &mut [L],
     size: &mut [u8],
 ) -> Labelled {
-    let cap = parent.len().min(size.len()).min(MAX_LABELS);
+    let cap = parent.len().min(size.len()).min(L::MAX_LABELS);
     let mut out = Labelled::default();
     let mut next: usize = 0;
     let w = src.w;
@@ -555,7 +576,7 @@ pub(crate) fn label_pass(
         out.exhausted = uf.exhausted;
         for r in cur.iter() {
             if r.c != SKIP
-                && let Some(s) = size.get_mut(usize::from(r.lab))
+                && let Some(s) = size.get_mut(r.lab.index())
             {
                 *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
             }
@@ -565,14 +586,14 @@ pub(crate) fn label_pass(
     out.labels = next;
     // Flatten (parents precede children) and total the counts into the roots.
     for i in 0..next {
-        let p = parent.get(i).copied().unwrap_or(i as u16);
-        let root = parent.get(usize::from(p)).copied().unwrap_or(p);
+        let p = parent.get(i).copied().unwrap_or(L::from_index(i));
+        let root = parent.get(p.index()).copied().unwrap_or(p);
         if let Some(slot) = parent.get_mut(i) {
             *slot = root;
         }
-        if usize::from(root) != i {
+        if root.index() != i {
             let add = size.get(i).copied().unwrap_or(0);
-            if let Some(s) = size.get_mut(usize::from(root)) {
+            if let Some(s) = size.get_mut(root.index()) {
                 *s = s.saturating_add(add);
             }
         }
@@ -601,51 +622,51 @@ pub(crate) fn unpack(p: u32) -> (i32, i32, i32, i32) {
 }
 
 /// Where a boundary scan sends its points: runs of points along a row, and single points.
-pub(crate) trait Sink {
+pub(crate) trait Sink<K = u32> {
     /// `count` points `(x2 + 2i, y2)`, `i = 0..count`, of cluster `key`, all with direction
     /// `(gx, gy)` towards white.
-    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
+    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
     /// One point.
-    fn point(&mut self, key: u32, x2: usize, y2: usize, gx: i32, gy: i32) {
+    fn point(&mut self, key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
         self.run(key, x2, y2, 1, gx, gy);
     }
 }
 
 /// A run's class and label when it counts for boundaries (not skipped, in a large component).
 #[inline]
-fn valid(r: &Run) -> bool {
-    r.c != SKIP && r.lab < SMALL
+fn valid<L: Label>(r: &Run<L>) -> bool {
+    r.c != SKIP && r.lab < L::SMALL
 }
 
 /// The cluster key of a black/white pair and the sign `s` of the direction from `a` to `b`
 /// towards white (`+1` when `a` is black).
 #[inline]
-fn key_of(a: &Run, b: &Run) -> (u32, i32) {
+fn key_of<L: Label>(a: &Run<L>, b: &Run<L>) -> (L::Key, i32) {
     if a.c == BLACK {
-        (u32::from(a.lab) << 16 | u32::from(b.lab), 1)
+        (L::key(a.lab, b.lab), 1)
     } else {
-        (u32::from(b.lab) << 16 | u32::from(a.lab), -1)
+        (L::key(b.lab, a.lab), -1)
     }
 }
 
 /// A boundary scan (module docs): re-derives the runs and labels of [`label_pass`] (which
 /// must have run on the same frame; `parent` flattened, `size[root] ≥ MIN_COMPONENT` marking
 /// the components that count) and sends every boundary point to `sink`,
-/// `key = black root << 16 | white root`.
+/// `key = L::key(black root, white root)`.
 ///
 /// The points are AprilTag's: for each pixel `p = (x, y)` with `1 ≤ x ≤ w - 2`,
 /// `1 ≤ y ≤ h - 2`, its neighbour right, below and below-right when of the opposite class,
 /// and below-left unless the below-right pair of `(x - 1, y)` gave the same point. They are
 /// found run against run: a pair of overlapping runs of opposite classes gives three runs of
 /// points (below, below-right, below-left) and two rows give `O(runs)` work, not `O(pixels)`.
-pub(crate) fn boundary_scan(
+pub(crate) fn boundary_scan<L: Label>(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
-    rows: &mut Rows<'_>,
-    parent: &[u16],
+    rows: &mut Rows<'_, L>,
+    parent: &[L],
     size: &[u8],
     labels: usize,
-    sink: &mut impl Sink,
+    sink: &mut impl Sink<L::Key>,
 ) {
     let mut next: usize = 0;
     let w = src.w;
@@ -673,7 +694,7 @@ pub(crate) fn boundary_scan(
 
 /// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
 /// `lo`), upper pixels in columns `1..w - 1`.
-fn pairs(up: &[Run], lo: &[Run], y: usize, w: usize, sink: &mut impl Sink) {
+fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut impl Sink<L::Key>) {
     let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
     // Right neighbours: one point at each boundary between two runs of the upper row.
     for pair in up.windows(2) {

@@ -3,8 +3,9 @@
 //! takes (so that its functions carry no buffer sizes, and buffers sized at run time serve as
 //! well).
 
+use super::label::Label;
 use super::quad::Cluster;
-use super::segment::{MAX_LABELS, Run, tile_count};
+use super::segment::{Run, tile_count};
 
 /// Per-frame counts of a detection: what each stage found and what a capacity cut off.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -95,7 +96,8 @@ pub const fn tiles_len(width: usize, height: usize, decimate: usize) -> usize {
 /// Sort keys for a `width x height` frame at `decimate` (the `SORT` a [`Workspace`] needs to
 /// fit the largest quads): the most points one cluster may have, twice the frame's perimeter,
 /// `2 (2w + 2h)` (AprilTag's bound: a boundary point is counted about twice along an edge),
-/// at most 65534.
+/// at most 65534 (clusters are counted in `u16`; the cap is reached only beyond
+/// `w + h = 16383`, frames of [`super::segment::MAX_SIDE`] a side).
 pub const fn sort_len(width: usize, height: usize, decimate: usize) -> usize {
     let d = if decimate == 0 { 1 } else { decimate };
     let n = 4 * (width.div_ceil(d) + height.div_ceil(d));
@@ -190,25 +192,31 @@ impl<
 /// [`super::Detector::find_target`] take. A board gets one from its `static` [`Workspace`]
 /// ([`Workspace::as_mut_view`]); [`WorkspaceView::new`] makes one of buffers sized at run time
 /// (a host's `Vec`s).
-pub struct WorkspaceView<'a> {
+///
+/// `L` is the label type ([`Label`]): `u16` (a [`Workspace`]'s: at most 65533 labels a frame)
+/// or `u32` (2 more bytes a label, for frames whose noise and texture need more, such as a
+/// host's 1920x1080 ones). Every buffer of label type takes it: `runs` (8 bytes a run with
+/// `u16`, 12 with `u32`), `parent`, and `clusters` (keyed by a pair of labels).
+pub struct WorkspaceView<'a, L: Label = u16> {
     pub(crate) tiles: &'a mut [u8],
     pub(crate) ring_min: &'a mut [u8],
     pub(crate) ring_max: &'a mut [u8],
-    pub(crate) runs: [&'a mut [Run]; 2],
-    pub(crate) parent: &'a mut [u16],
+    pub(crate) runs: [&'a mut [Run<L>]; 2],
+    pub(crate) parent: &'a mut [L],
     pub(crate) size: &'a mut [u8],
-    pub(crate) clusters: &'a mut [Cluster],
+    pub(crate) clusters: &'a mut [Cluster<L::Key>],
     pub(crate) points: &'a mut [u32],
     pub(crate) keys: &'a mut [u16],
     pub(crate) stats: &'a mut Stats,
 }
 
 impl<'a> WorkspaceView<'a> {
-    /// A view of caller buffers, one per row of the [`Workspace`] table: `tiles`
-    /// (`TILES`), `ring_min` and `ring_max` (`W` each), the two rows of `runs` (`W` each),
-    /// `parent` and `size` (`LABELS`: the shorter, at most 65533, is the label capacity),
-    /// `clusters`, `points`, `keys` (`SORT`), and the counts `stats`. The lengths are checked
-    /// against each frame ([`crate::Error::BufferTooSmall`]), as a [`Workspace`]'s are.
+    /// A view of caller buffers with `u16` labels, one per row of the [`Workspace`] table:
+    /// `tiles` (`TILES`), `ring_min` and `ring_max` (`W` each), the two rows of `runs` (`W`
+    /// each), `parent` and `size` (`LABELS`: the shorter, at most 65533, is the label
+    /// capacity), `clusters`, `points`, `keys` (`SORT`), and the counts `stats`. The lengths
+    /// are checked against each frame ([`crate::Error::BufferTooSmall`]), as a
+    /// [`Workspace`]'s are. [`WorkspaceView::with_labels`] takes any label type.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         tiles: &'a mut [u8],
@@ -218,6 +226,30 @@ impl<'a> WorkspaceView<'a> {
         parent: &'a mut [u16],
         size: &'a mut [u8],
         clusters: &'a mut [Cluster],
+        points: &'a mut [u32],
+        keys: &'a mut [u16],
+        stats: &'a mut Stats,
+    ) -> Self {
+        Self::with_labels(
+            tiles, ring_min, ring_max, runs, parent, size, clusters, points, keys, stats,
+        )
+    }
+}
+
+impl<'a, L: Label> WorkspaceView<'a, L> {
+    /// [`WorkspaceView::new`] with labels of type `L` ([`Label`]): `parent` and `size` hold
+    /// at most [`Label::MAX_LABELS`] labels, `runs` and `clusters` are of the same type. A host
+    /// sizes the buffers for each frame ([`tiles_len`], [`sort_len`], `W` = the decimated
+    /// width) and picks `u32` when a frame may need more than 65533 labels.
+    #[allow(clippy::too_many_arguments)]
+    pub fn with_labels(
+        tiles: &'a mut [u8],
+        ring_min: &'a mut [u8],
+        ring_max: &'a mut [u8],
+        runs: [&'a mut [Run<L>]; 2],
+        parent: &'a mut [L],
+        size: &'a mut [u8],
+        clusters: &'a mut [Cluster<L::Key>],
         points: &'a mut [u32],
         keys: &'a mut [u16],
         stats: &'a mut Stats,
@@ -241,9 +273,9 @@ impl<'a> WorkspaceView<'a> {
         self.stats
     }
 
-    /// Provisional labels a frame may use: `min(parent, size, 65533)`.
+    /// Provisional labels a frame may use: `min(parent, size, L::MAX_LABELS)`.
     pub(crate) fn labels_len(&self) -> usize {
-        self.parent.len().min(self.size.len()).min(MAX_LABELS)
+        self.parent.len().min(self.size.len()).min(L::MAX_LABELS)
     }
 }
 

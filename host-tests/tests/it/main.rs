@@ -4,6 +4,7 @@
 
 mod apriltag;
 mod apriltag_cli;
+mod apriltag_large;
 mod ar_box;
 mod calib_chessboard;
 mod calib_cli;
