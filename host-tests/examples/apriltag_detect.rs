@@ -3,7 +3,8 @@
 //!
 //! ```sh
 //! cargo run -p camgeom-host --example apriltag_detect -- [--decimate N] [--no-refine]
-//!     [--family tag36h11]... [--pose SIZE --camera FILE] [--repeat N] [--stats] IMAGE...
+//!     [--family tag36h11]... [--pose SIZE --camera FILE] [--repeat N] [--stats] [--time]
+//!     IMAGE...
 //! ```
 //!
 //! Rows: `image,family,id,hamming,margin,x0,y0,x1,y1,x2,y2,x3,y3` (AprilTag's corner order,
@@ -12,7 +13,9 @@
 //! decimation use the board workspace [`Workspace320x240`], larger ones the CLI's
 //! `camgeom_host::apriltag::HostWorkspace` (sized for the frame, `u32` labels).
 //! `--repeat N` runs each detection N times (the output once): callgrind's per-call counts;
-//! `--stats` prints each frame's [`camgeom::apriltag::Stats`] to stderr.
+//! `--stats` prints each frame's [`camgeom::apriltag::Stats`] to stderr; `--time` the median
+//! time of the N detections of each frame and the host workspace's bytes
+//! (`time,IMAGE,NS,BYTES`, the first run, which sizes the workspace, included).
 
 use camgeom::apriltag::{
     Detection, Detector, DetectorConfig, Family, Workspace320x240, families, tag_pose,
@@ -33,6 +36,7 @@ fn main() {
     let mut camera = None;
     let mut repeat = 1usize;
     let mut stats = false;
+    let mut time = false;
     let mut images = Vec::new();
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -45,6 +49,7 @@ fn main() {
             "--camera" => camera = Some(args.next().unwrap()),
             "--repeat" => repeat = args.next().unwrap().parse().unwrap(),
             "--stats" => stats = true,
+            "--time" => time = true,
             _ => images.push(a),
         }
     }
@@ -72,12 +77,21 @@ fn main() {
         let d = usize::from(cfg.decimate);
         let fits = img.width.div_ceil(d) <= 320 && img.height.div_ceil(d) <= 240;
         let mut found: HVec<Detection, 64> = HVec::new();
+        let mut times = Vec::with_capacity(repeat);
         for _ in 0..repeat {
+            let t = std::time::Instant::now();
             found = if fits {
                 det.detect(&view, &mut small.as_mut_view()).expect("detect")
             } else {
                 large.detect(&det, &view).expect("detect")
             };
+            times.push(t.elapsed().as_nanos());
+        }
+        if time {
+            times.sort_unstable();
+            let median = times.get(times.len() / 2).copied().unwrap_or(0);
+            let ws = if fits { 0 } else { large.bytes() };
+            eprintln!("time,{path},{median},{ws}");
         }
         if stats {
             let s = if fits { small.stats() } else { large.stats() };
