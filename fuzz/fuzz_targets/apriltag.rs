@@ -1,7 +1,9 @@
 //! AprilTag detection on frames of arbitrary geometry (sizes, strides, short buffers) holding
 //! rendered tags of any family (arbitrary id, cell size, placement, rotation, contrast) over
 //! the fuzzer's bytes, with arbitrary configurations (decimation, `max_hamming`, thresholds),
-//! family sets and two workspace sizes; then each family's decoder on arbitrary words and on
+//! family sets and three workspaces: two fixed `u16` ones (a board's) and one of `u32` labels
+//! whose buffers are sized at run time from the input (a host's, each buffer's length from
+//! the frame's `const fn` sizes scaled, short ones included); then each family's decoder on arbitrary words and on
 //! rotated codes with flipped bits. Contract (`Detector::new`, `detect`, `Family::decode`
 //! docs): no panic; every detection is of a family asked for, with an id in the family,
 //! `hamming ≤ max_hamming`, a finite margin `≥ min_decision_margin`, finite corners and
@@ -14,8 +16,11 @@
 use arbitrary::Arbitrary;
 use camgeom::Error;
 use camgeom::apriltag::family::MAX_CORRECTABLE;
+use camgeom::apriltag::quad::Cluster;
+use camgeom::apriltag::segment::Run;
 use camgeom::apriltag::{
-    Detection, Detector, DetectorConfig, Family, Workspace, WorkspaceView, families, rotate90,
+    Detection, Detector, DetectorConfig, Family, Label, Stats, Workspace, WorkspaceView, families,
+    rotate90, sort_len, tiles_len,
 };
 use camgeom::image::ImageView;
 use libfuzzer_sys::fuzz_target;
@@ -69,6 +74,10 @@ struct Input {
     /// `None`: the defaults (with the fuzzer's `max_hamming`).
     cfg: Option<Cfg>,
     small_workspace: bool,
+    /// `Some`: a run-time-sized `u32`-label workspace instead, each buffer's length a fraction
+    /// `(k + 1) / 8` of the frame's size (`k = byte % 10`: short, exact and long buffers) and
+    /// the label, cluster and point capacities from the fuzzer.
+    host: Option<([u8; 5], u16, u16, u16)>,
     words: std::vec::Vec<(u8, u64, u8)>,
     flips: std::vec::Vec<(u8, u16, u8, [u8; 3])>,
 }
@@ -166,13 +175,53 @@ fn check(dets: &[Detection], det: &Detector, w: usize, h: usize) {
     );
 }
 
-fn detect(det: &Detector, view: &ImageView<'_, u8>, ws: &mut WorkspaceView<'_>) {
+fn detect(det: &Detector, view: &ImageView<'_, u8>, ws: &mut WorkspaceView<'_, impl Label>) {
     let (w, h) = (view.width(), view.height());
     match det.detect::<8>(view, ws) {
         Ok(d) => check(&d, det, w, h),
         Err(Error::BufferTooSmall(b)) => assert!(b.starts_with("workspace."), "buffer {b}"),
         Err(e) => panic!("detect: undocumented error {e:?}"),
     }
+}
+
+/// A workspace of `u32` labels sized at run time (a host's): the frame's sizes (decimated
+/// width, tiles, sort keys) each scaled by `(frac + 1) / 8`, at most 10/8.
+fn host(
+    det: &Detector,
+    view: &ImageView<'_, u8>,
+    frac: [u8; 5],
+    labels: u16,
+    clusters: u16,
+    points: u16,
+) {
+    let d = usize::from(det.config().decimate.max(1));
+    let (w, h) = (view.width(), view.height());
+    let f = |i: usize, n: usize| n * (usize::from(frac[i] % 10) + 1) / 8;
+    let wd = w.div_ceil(d);
+    let mut tiles = vec![0u8; f(0, tiles_len(w, h, d))];
+    let (mut rmin, mut rmax) = (vec![0u8; f(1, wd)], vec![0u8; f(1, wd)]);
+    let (mut r0, mut r1) = (vec![Run::<u32>::empty(); f(2, wd)], vec![Run::empty(); wd]);
+    let labels = usize::from(labels % 4096);
+    let (mut parent, mut size) = (vec![0u32; labels], vec![0u8; f(3, labels)]);
+    let mut slots = vec![Cluster::<u64>::empty(); usize::from(clusters % 512)];
+    let mut pts = vec![0u32; usize::from(points % 8192)];
+    let mut keys = vec![0u16; f(4, sort_len(w, h, d))];
+    let mut stats = Stats::default();
+    let mut ws = WorkspaceView::with_labels(
+        &mut tiles,
+        &mut rmin,
+        &mut rmax,
+        [&mut r0, &mut r1],
+        &mut parent,
+        &mut size,
+        &mut slots,
+        &mut pts,
+        &mut keys,
+        &mut stats,
+    );
+    detect(det, view, &mut ws);
+    let s = ws.stats();
+    assert!(s.labels as usize <= labels, "{s:?}");
 }
 
 fuzz_target!(|inp: Input| {
@@ -187,7 +236,9 @@ fuzz_target!(|inp: Input| {
         let (w, h, s, len) = inp.geometry.dims(80 << 10);
         let data = render(&inp, s, len);
         if let Ok(view) = ImageView::new(&data[..], w, h, s) {
-            if inp.small_workspace {
+            if let Some((frac, labels, clusters, points)) = inp.host {
+                host(&det, &view, frac, labels, clusters, points);
+            } else if inp.small_workspace {
                 let mut ws = std::boxed::Box::new(Small::new());
                 detect(&det, &view, &mut ws.as_mut_view());
             } else {
