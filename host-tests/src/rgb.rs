@@ -56,8 +56,17 @@ impl Overlay for RgbImage {
         let on = |x: i64, y: i64| {
             x >= 0 && y >= 0 && x < w && y < h && mask.at(x as usize, y as usize) != 0
         };
-        for y in 0..h {
-            for x in 0..w {
+        // Only the mask's bounding box, one pixel wider for the halo: a drawing covers a
+        // small part of a large frame (a 1080p overlay inked the whole frame before).
+        let Some((x0, y0, x1, y1)) = bounding_box(mask) else {
+            return;
+        };
+        let (xs, ys) = (
+            (x0 - 1).max(0)..(x1 + 2).min(w),
+            (y0 - 1).max(0)..(y1 + 2).min(h),
+        );
+        for y in ys.clone() {
+            for x in xs.clone() {
                 if on(x, y) {
                     continue;
                 }
@@ -69,8 +78,8 @@ impl Overlay for RgbImage {
                 }
             }
         }
-        for y in 0..h {
-            for x in 0..w {
+        for y in ys {
+            for x in xs.clone() {
                 if on(x, y) {
                     self.put(x, y, colour);
                 }
@@ -126,6 +135,31 @@ impl Overlay for RgbImage {
             other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
         })
     }
+}
+
+/// The smallest box `(x0, y0, x1, y1)` (inclusive) holding every set pixel of `mask`; `None`
+/// when none is set.
+fn bounding_box(mask: &GrayImage) -> Option<(i64, i64, i64, i64)> {
+    let w = mask.width.max(1);
+    let rows: Vec<usize> = mask
+        .data
+        .chunks(w)
+        .enumerate()
+        .filter(|(_, r)| r.iter().any(|&v| v != 0))
+        .map(|(y, _)| y)
+        .collect();
+    let (&y0, &y1) = (rows.first()?, rows.last()?);
+    let (mut x0, mut x1) = (w, 0);
+    for &y in &rows {
+        let row = &mask.data[y * w..(y + 1) * w];
+        if let Some(a) = row.iter().position(|&v| v != 0) {
+            x0 = x0.min(a);
+        }
+        if let Some(b) = row.iter().rposition(|&v| v != 0) {
+            x1 = x1.max(b);
+        }
+    }
+    Some((x0 as i64, y0 as i64, x1 as i64, y1 as i64))
 }
 
 /// Width and height in pixels of [`Overlay::label`]'s box for `text`.

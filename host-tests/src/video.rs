@@ -350,7 +350,7 @@ impl Drop for VideoReader {
 
 /// A video written one frame at a time: raw RGB frames piped into `ffmpeg`, which encodes them
 /// at a constant rate. `.mp4`, `.mov` and `.mkv` get H.264 (`libx264`, `yuv420p`, preset
-/// `veryfast`, CRF 20; odd sizes are padded by one pixel), `.avi` MPEG-4 part 2 (`mpeg4`,
+/// `ultrafast`, CRF 20; odd sizes are padded by one pixel), `.avi` MPEG-4 part 2 (`mpeg4`,
 /// `-q:v 3`).
 #[derive(Debug)]
 pub struct VideoWriter {
@@ -384,7 +384,7 @@ impl VideoWriter {
                 "-c:v",
                 "libx264",
                 "-preset",
-                "veryfast",
+                "ultrafast",
                 "-crf",
                 "20",
                 "-pix_fmt",
