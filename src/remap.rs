@@ -94,6 +94,9 @@ mod sealed {
     pub trait Sealed {}
     impl Sealed for [i16; 2] {}
     impl Sealed for super::WideEntry {}
+    pub trait SealedPixel {}
+    impl SealedPixel for u8 {}
+    impl<const N: usize> SealedPixel for [u8; N] {}
 }
 
 /// One entry of a full undistortion map: the source position `q = round(32 u)` of one
@@ -233,33 +236,96 @@ fn check_size(width: usize, height: usize, max: usize) -> Result<()> {
     Ok(())
 }
 
-/// One bilinear 8-bit sample at Q.5 `(mx, my)` (pixels times 32), taps outside `src` set to `border`.
+/// A pixel [`remap`] interpolates: `u8` (grey) or `[u8; N]` (`N` interleaved channels, e.g.
+/// RGB), each channel sampled with the same weights.
+pub trait RemapPixel: Copy + sealed::SealedPixel {
+    /// The pixel with every channel `v` (the border value).
+    fn splat(v: u8) -> Self;
+    /// `Σ wᵢ pᵢ` rounded, `(Σ wᵢ pᵢ + 512) >> 10` channel by channel, for weights summing to
+    /// 1024.
+    fn blend(p: [Self; 4], w: [i32; 4]) -> Self;
+}
+
 #[inline]
-fn sample(src: &ImageView<'_, u8>, mx: i32, my: i32, border: u8) -> u8 {
-    let (x, y) = (mx >> MAP_BITS, my >> MAP_BITS);
-    let (fx, fy) = (mx & 31, my & 31);
-    let tap = |xx: i32, yy: i32| -> i32 {
-        if xx < 0 || yy < 0 {
-            return border as i32;
-        }
-        src.get(xx as usize, yy as usize).unwrap_or(border) as i32
-    };
-    let v = tap(x, y) * (32 - fx) * (32 - fy)
-        + tap(x + 1, y) * fx * (32 - fy)
-        + tap(x, y + 1) * (32 - fx) * fy
-        + tap(x + 1, y + 1) * fx * fy;
+fn blend1(p: [u8; 4], w: [i32; 4]) -> u8 {
+    let v = i32::from(p[0]) * w[0]
+        + i32::from(p[1]) * w[1]
+        + i32::from(p[2]) * w[2]
+        + i32::from(p[3]) * w[3];
     ((v + 512) >> 10) as u8
 }
 
+impl RemapPixel for u8 {
+    #[inline]
+    fn splat(v: u8) -> Self {
+        v
+    }
+    #[inline]
+    fn blend(p: [Self; 4], w: [i32; 4]) -> Self {
+        blend1(p, w)
+    }
+}
+
+impl<const N: usize> RemapPixel for [u8; N] {
+    #[inline]
+    fn splat(v: u8) -> Self {
+        [v; N]
+    }
+    #[inline]
+    fn blend(p: [Self; 4], w: [i32; 4]) -> Self {
+        core::array::from_fn(|c| {
+            let ch = |q: &[u8; N]| q.get(c).copied().unwrap_or(0);
+            blend1([ch(&p[0]), ch(&p[1]), ch(&p[2]), ch(&p[3])], w)
+        })
+    }
+}
+
+/// One bilinear sample at Q.5 `(mx, my)` (pixels times 32), taps outside `src` set to
+/// `border`.
+#[inline]
+fn sample<P: RemapPixel>(src: &ImageView<'_, P>, mx: i32, my: i32, border: u8) -> P {
+    let (x, y) = (mx >> MAP_BITS, my >> MAP_BITS);
+    let (fx, fy) = (mx & 31, my & 31);
+    let w = [
+        (32 - fx) * (32 - fy),
+        fx * (32 - fy),
+        (32 - fx) * fy,
+        fx * fy,
+    ];
+    // All four taps inside: two rows, two pixels each.
+    if x >= 0 && y >= 0 {
+        let (xu, yu) = (x as usize, y as usize);
+        if let (Some(&[a, b]), Some(&[c, d])) = (
+            src.row(yu).and_then(|r| r.get(xu..xu + 2)),
+            src.row(yu + 1).and_then(|r| r.get(xu..xu + 2)),
+        ) {
+            return P::blend([a, b, c, d], w);
+        }
+    }
+    let b = P::splat(border);
+    let tap = |xx: i32, yy: i32| -> P {
+        if xx < 0 || yy < 0 {
+            return b;
+        }
+        src.get(xx as usize, yy as usize).unwrap_or(b)
+    };
+    P::blend(
+        [tap(x, y), tap(x + 1, y), tap(x, y + 1), tap(x + 1, y + 1)],
+        w,
+    )
+}
+
 /// `dst(x, y) = src(map(x, y))`, bilinear in fixed point (see the module documentation),
-/// through a map of either [`MapEntry`] kind; [`MapEntry::INVALID`] entries and sources wholly
-/// outside `src` give `border`.
+/// through a map of either [`MapEntry`] kind, of grey or interleaved multi-channel pixels
+/// ([`RemapPixel`]: every channel with the same weights, as OpenCV's `remap` of a `CV_8UC3`
+/// image); [`MapEntry::INVALID`] entries and sources wholly outside `src` give `border` (in
+/// every channel).
 ///
 /// Errors: `BufferTooSmall("map")` when the map has fewer than `dst`'s pixels.
-pub fn remap<E: MapEntry>(
-    src: &ImageView<'_, u8>,
+pub fn remap<E: MapEntry, P: RemapPixel>(
+    src: &ImageView<'_, P>,
     map: &[E],
-    dst: &mut ImageMut<'_, u8>,
+    dst: &mut ImageMut<'_, P>,
     border: u8,
 ) -> Result<()> {
     let (w, h) = (dst.width(), dst.height());
@@ -271,7 +337,7 @@ pub fn remap<E: MapEntry>(
         for (o, m) in row.iter_mut().zip(mrow) {
             *o = match m.q5() {
                 Some([mx, my]) => sample(src, mx, my, border),
-                None => border,
+                None => P::splat(border),
             };
         }
     }
@@ -617,6 +683,43 @@ mod tests {
             .unwrap();
             assert_eq!(a, b);
         }
+    }
+
+    #[test]
+    fn interleaved_channels_are_each_remapped_as_a_grey_plane() {
+        let (w, h) = (90, 70);
+        let cam = barrel(w, h);
+        let k = new_camera_matrix(&cam, w, h, 1.0).unwrap();
+        let mut map = vec![WideEntry::INVALID; map_len(w, h)];
+        build_map(&cam, &k, w, h, &mut map).unwrap();
+        let planes = [pattern(w, h), pattern(h, w), vec![200u8; w * h]];
+        let rgb: Vec<[u8; 3]> = (0..w * h)
+            .map(|i| [planes[0][i], planes[1][i], planes[2][i]])
+            .collect();
+        let mut out = vec![[0u8; 3]; w * h];
+        remap(
+            &ImageView::packed(&rgb, w, h).unwrap(),
+            &map,
+            &mut ImageMut::packed(&mut out, w, h).unwrap(),
+            9,
+        )
+        .unwrap();
+        for (c, plane) in planes.iter().enumerate() {
+            let mut grey = vec![0u8; w * h];
+            remap(
+                &ImageView::packed(plane, w, h).unwrap(),
+                &map,
+                &mut ImageMut::packed(&mut grey, w, h).unwrap(),
+                9,
+            )
+            .unwrap();
+            assert!(
+                out.iter().zip(&grey).all(|(o, g)| o[c] == *g),
+                "channel {c}"
+            );
+        }
+        // alpha = 1 keeps every source pixel: some pixels are border.
+        assert!(out.contains(&[9, 9, 9]));
     }
 
     #[test]
