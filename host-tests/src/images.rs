@@ -86,6 +86,26 @@ pub fn load_rgb(path: impl AsRef<Path>) -> Result<image::RgbImage> {
     })
 }
 
+/// A file's pixels as they are, 8 bits a sample: grey or colour.
+#[derive(Debug, Clone)]
+pub enum GrayOrRgb {
+    /// A grey file (with or without alpha).
+    Gray(GrayImage),
+    /// A colour file (with or without alpha).
+    Rgb(image::RgbImage),
+}
+
+/// Reads a PNG or JPEG file as 8-bit grey when it is grey and 8-bit RGB when it is in colour,
+/// by the rules of [`load_gray`] (16-bit samples keep their high byte, alpha is ignored); for
+/// the commands whose output keeps the input's colour.
+pub fn load_gray_or_rgb(path: impl AsRef<Path>) -> Result<GrayOrRgb> {
+    let img = decode(path.as_ref())?;
+    Ok(match rgb_of(&img) {
+        Some(c) => GrayOrRgb::Rgb(c),
+        None => GrayOrRgb::Gray(gray_of(img)),
+    })
+}
+
 /// OpenCV's `cvtColor(RGB2GRAY)` in fixed point: `(4899 r + 9617 g + 1868 b + 2¹³) >> 14`.
 pub fn luma([r, g, b]: [u8; 3]) -> u8 {
     ((4899 * u32::from(r) + 9617 * u32::from(g) + 1868 * u32::from(b) + (1 << 13)) >> 14) as u8
@@ -159,6 +179,15 @@ pub fn save_gray(img: &GrayImage, path: impl AsRef<Path>) -> Result<()> {
             )
         })?;
     buf.save(path).map_err(|e| match e {
+        image::ImageError::IoError(io) => Error::new(path, ErrorKind::Write(io)),
+        other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
+    })
+}
+
+/// Writes `img` as an 8-bit RGB PNG (or JPEG for a `.jpg`/`.jpeg` name).
+pub fn save_rgb(img: &image::RgbImage, path: impl AsRef<Path>) -> Result<()> {
+    let path = path.as_ref();
+    img.save(path).map_err(|e| match e {
         image::ImageError::IoError(io) => Error::new(path, ErrorKind::Write(io)),
         other => Error::new(path, ErrorKind::Unsupported(other.to_string())),
     })

@@ -534,6 +534,124 @@ fn undistort_of_a_fisheye_file_equals_opencvs_fisheye_remap() {
     }
 }
 
+/// The bundled 640x480 camera on a `w x h` frame: a 4:3 sensor of width `w` cropped to `h`
+/// (`scaled_camera` of `undistort_peers.py`), as an OpenCV camera file.
+fn scaled_camera_file(dir: &Path, w: usize, h: usize) -> PathBuf {
+    let k = &crate::common::bundled_camera().camera;
+    let s = w as f64 / 640.0;
+    let (fx, fy) = (k.intrinsics.fx() * s, k.intrinsics.fy() * s);
+    let cx = (k.intrinsics.cx() + 0.5) * s - 0.5;
+    let cy = (k.intrinsics.cy() + 0.5) * s - 0.5 - (480.0 * s - h as f64) / 2.0;
+    let d = k.lens.coefficients();
+    let path = dir.join(format!("camera_{w}x{h}.yml"));
+    std::fs::write(
+        &path,
+        format!(
+            "%YAML:1.0\n---\nimage_width: {w}\nimage_height: {h}\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ {fx:?}, 0., {cx:?}, 0., {fy:?}, {cy:?}, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 5\n   cols: 1\n   dt: d\n   data: [ {:?}, {:?}, {:?}, {:?}, {:?} ]\n",
+            d[0], d[1], d[2], d[3], d[4]
+        ),
+    )
+    .unwrap();
+    path
+}
+
+#[test]
+fn undistort_of_a_1920x1080_colour_frame_equals_opencvs_and_grey_stays_grey() {
+    let dir = scratch_dir("undistbig");
+    let (w, h) = (1920usize, 1080usize);
+    let camera = scaled_camera_file(&dir, w, h);
+    // A deterministic colour frame: checks of three periods, a ramp per channel.
+    let rgb = image::RgbImage::from_fn(w as u32, h as u32, |x, y| {
+        let (x, y) = (x as usize, y as usize);
+        let c = |p: usize, k: usize| ((((x / p + y / p) % 2) * 150 + (k * x + y) % 97) % 256) as u8;
+        image::Rgb([c(9, 1), c(14, 3), c(23, 2)])
+    });
+    let colour = dir.join("colour.png");
+    rgb.save(&colour).unwrap();
+    let grey = dir.join("grey.png");
+    save_gray(&camgeom_host::images::gray_of_rgb(&rgb), &grey).unwrap();
+    for (src, channels) in [(&colour, 3u64), (&grey, 1)] {
+        let ours = dir.join(format!("camgeom_{channels}.png"));
+        let j = json(&camgeom(&[
+            "undistort",
+            "--intrinsics",
+            &camera.display().to_string(),
+            "--image",
+            &src.display().to_string(),
+            "--out",
+            &ours.display().to_string(),
+        ]));
+        assert_eq!(j["channels"], channels);
+        assert_eq!(
+            (j["width"].as_u64(), j["height"].as_u64()),
+            (Some(1920), Some(1080))
+        );
+        let out = image::open(&ours).unwrap();
+        assert_eq!(out.color().channel_count() as u64, channels);
+        // OpenCV through camgeom's new camera matrix: its map and remap.
+        let k = floats(&j["new_camera_matrix"]);
+        let theirs = dir.join(format!("opencv_{channels}.png"));
+        let Some(mut c) = opencv_undistort_script() else {
+            return;
+        };
+        let o = c
+            .arg(&camera)
+            .arg(src)
+            .arg("0")
+            .arg(&theirs)
+            .arg(format!("{:?},{:?},{:?},{:?}", k[0], k[4], k[2], k[5]))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let cv = image::open(&theirs).unwrap();
+        assert_eq!(cv.color().channel_count() as u64, channels);
+        let (a, b) = (out.into_bytes(), cv.into_bytes());
+        assert_eq!(a.len(), w * h * channels as usize);
+        let equal = a.iter().zip(&b).filter(|(x, y)| x == y).count();
+        println!(
+            "{w}x{h}, {channels} channel(s): {equal} of {} samples equal to OpenCV's",
+            a.len()
+        );
+        // The same Q.5 map (OpenCV's CV_16SC2 form, both in f64) and the same integer
+        // remap: every sample equal (measured).
+        assert_eq!(equal, a.len());
+    }
+}
+
+/// `undistort_peers.py opencv` (OpenCV's undistortion of a grey or colour file), `None` when
+/// python3 has no cv2.
+fn opencv_undistort_script() -> Option<Command> {
+    opencv()?;
+    let mut c = Command::new("python3");
+    c.arg(camgeom_host::package_dir().join("scripts/undistort_peers.py"))
+        .arg("opencv");
+    Some(c)
+}
+
+#[test]
+fn undistort_refuses_frames_beyond_32767_px_and_writes_nothing() {
+    let dir = scratch_dir("undisthuge");
+    let out = dir.join("out.png");
+    for (w, h) in [(32768usize, 1usize), (1, 32768)] {
+        let camera = scaled_camera_file(&dir, w, h);
+        let img = dir.join("huge.png");
+        save_gray(&GrayImage::filled(w, h, 100), &img).unwrap();
+        let o = camgeom(&[
+            "undistort",
+            "--intrinsics",
+            &camera.display().to_string(),
+            "--image",
+            &img.display().to_string(),
+            "--out",
+            &out.display().to_string(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("at most 32767 pixels each way"), "{err}");
+        assert!(!out.exists());
+    }
+}
+
 #[test]
 fn undistort_rejects_bad_input_and_writes_nothing() {
     let dir = scratch_dir("undistbad");
