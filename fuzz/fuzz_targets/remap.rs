@@ -1,6 +1,6 @@
 //! Undistortion (`remap`): the new camera matrix of arbitrary (singular, extreme, non-finite)
-//! Brown-Conrady and fisheye cameras with an arbitrary `alpha` / balance, the full and the grid
-//! map for arbitrary sizes and buffers, and both remaps between arbitrary source and
+//! Brown-Conrady and fisheye cameras with an arbitrary `alpha` / balance, the full (Q10.5 and
+//! wide) and the grid map for arbitrary sizes and buffers, and both remaps between arbitrary source and
 //! destination frames. Contract (module docs): no panic; a new camera matrix is finite with
 //! positive focal lengths, or `InvalidParameter("alpha")` for `alpha` outside `[0, 1]`; map
 //! entries are `INVALID` or in range; every remapped pixel is a convex combination of source
@@ -14,7 +14,8 @@ use camgeom::Real;
 use camgeom::camera::{Camera, Distortion, Fisheye, Intrinsics};
 use camgeom::image::{ImageMut, ImageView};
 use camgeom::remap::{
-    GridMap, INVALID, MAX_MAP_DIM, build_map, grid_len, map_len, new_camera_matrix, remap,
+    GridMap, INVALID, MAX_MAP_DIM, MapEntry, WideEntry, build_map, grid_len, map_len,
+    new_camera_matrix, remap,
 };
 use libfuzzer_sys::fuzz_target;
 
@@ -184,6 +185,41 @@ fn run<T: Real>(inp: &Input) {
         Err(e) => panic!("build_map: undocumented error {e:?}"),
     }
 
+    // The wide map (any frame up to 32767 px): where the Q10.5 map holds a source, the same
+    // Q.5 position; its remap between the same bounds, in grey and in RGB.
+    let mut wide = std::vec![WideEntry::INVALID; mlen];
+    match build_map(&camera, &k_new, dw, dh, &mut wide) {
+        Ok(()) => {
+            assert!(dw > 0 && dh > 0 && mlen >= need);
+            if !bad_size {
+                for (n, e) in map[..need].iter().zip(&wide) {
+                    if let Some(q) = n.q5() {
+                        assert_eq!(e.q5(), Some(q), "{n:?} {e:?}");
+                    }
+                }
+            }
+            if let Ok(mut dview) = ImageMut::packed(&mut out[..], dw, dh) {
+                match remap(&sview, &wide, &mut dview, inp.border) {
+                    Ok(()) => in_range(&out, &src, inp.border, "remap (wide)"),
+                    Err(e) => panic!("remap (wide): {e:?} with a map of the frame's size"),
+                }
+            }
+            let rgb: std::vec::Vec<[u8; 3]> = src.iter().map(|&p| [p, p / 2, 255 - p]).collect();
+            let mut orgb = std::vec![[0u8; 3]; out.len()];
+            if let (Ok(s3), Ok(mut d3)) = (
+                ImageView::new(&rgb[..], sw, sh, sstride),
+                ImageMut::packed(&mut orgb[..], dw, dh),
+            ) {
+                assert_eq!(remap(&s3, &wide, &mut d3, inp.border), Ok(()));
+                let grey: std::vec::Vec<u8> = orgb.iter().map(|p| p[0]).collect();
+                assert_eq!(grey, out, "RGB channel 0 against the grey remap");
+            }
+        }
+        Err(Error::InvalidImage) => assert!(dw == 0 || dh == 0),
+        Err(Error::BufferTooSmall("map")) => assert!(mlen < need),
+        Err(e) => panic!("build_map (wide): undocumented error {e:?}"),
+    }
+
     // The grid map.
     let shift = u32::from(inp.shift % 8);
     let glen = if (1..=6).contains(&shift) {
@@ -195,7 +231,7 @@ fn run<T: Real>(inp: &Input) {
     let mut nodes = std::vec![[0i32; 2]; glen];
     match GridMap::build(&camera, &k_new, dw, dh, shift, &mut nodes) {
         Ok(g) => {
-            assert!(!bad_size && (1..=6).contains(&shift));
+            assert!(dw > 0 && dh > 0 && (1..=6).contains(&shift));
             out.fill(0);
             let Ok(mut dview) = ImageMut::packed(&mut out[..], dw, dh) else {
                 return;
@@ -205,7 +241,7 @@ fn run<T: Real>(inp: &Input) {
                 Err(e) => panic!("GridMap::remap: {e:?} for a frame of the map's size"),
             }
         }
-        Err(Error::InvalidImage) => assert!(bad_size),
+        Err(Error::InvalidImage) => assert!(dw == 0 || dh == 0),
         Err(Error::InvalidParameter("shift")) => assert!(!(1..=6).contains(&shift)),
         Err(Error::BufferTooSmall("nodes")) => {}
         Err(Error::Degenerate) => {}

@@ -138,7 +138,7 @@ pub const AREAS: [Area; 19] = [
     area(
         "remap",
         true,
-        "`new_camera_matrix`, `build_map` + `remap`, `GridMap::build` + `GridMap::remap`; Brown-Conrady and fisheye",
+        "`new_camera_matrix`, `build_map` + `remap` (Q10.5 and wide maps, grey and RGB), `GridMap::build` + `GridMap::remap`; Brown-Conrady and fisheye",
     ),
     area("resize", false, "`resize_bilinear`"),
 ];

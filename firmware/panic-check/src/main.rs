@@ -888,7 +888,9 @@ fn run_apriltag() {
 /// New camera matrix, both map kinds and both remaps, for both lens models.
 #[cfg(feature = "remap")]
 fn run_remap<T: Real>() {
-    use camgeom::remap::{GridMap, build_map, grid_len, map_len, new_camera_matrix, remap};
+    use camgeom::remap::{
+        GridMap, MapEntry, WideEntry, build_map, grid_len, map_len, new_camera_matrix, remap,
+    };
     let frame = black_box([0u8; W * H]);
     let Some(src) = view(&frame) else { return };
     let mut out = black_box([0u8; W * H]);
@@ -903,6 +905,18 @@ fn run_remap<T: Real>() {
         let mut map = black_box([[0i16; 2]; map_len(W, H)]);
         if build_map(&cam, &k, w, h, &mut map).is_ok() {
             black_box(remap(&src, &map, &mut dst, black_box(0)).ok());
+        }
+        let mut wide = black_box([WideEntry::INVALID; map_len(W, H)]);
+        if build_map(&cam, &k, w, h, &mut wide).is_ok() {
+            black_box(remap(&src, &wide, &mut dst, black_box(0)).ok());
+            let rgb = black_box([[0u8; 3]; W * H]);
+            let mut out3 = black_box([[0u8; 3]; W * H]);
+            if let (Ok(s3), Ok(mut d3)) = (
+                ImageView::packed(&rgb[..], w, h),
+                ImageMut::packed(&mut out3[..], w, h),
+            ) {
+                black_box(remap(&s3, &wide, &mut d3, black_box(0)).ok());
+            }
         }
         let mut nodes = black_box([[0i32; 2]; grid_len(W, H, 3)]);
         if let Ok(g) = GridMap::build(&cam, &k, w, h, black_box(3), &mut nodes) {
