@@ -517,7 +517,7 @@ impl<L: Label> Labels<L> for UnionFind<'_, L> {
     }
 }
 
-/// The scans' [`Labels`]: the same counter, read as roots (or [`SMALL`]) of the flattened
+/// The scans' [`Labels`]: the same counter, read as roots (or [`Label::SMALL`]) of the flattened
 /// forest.
 struct Roots<'a, L: Label> {
     parent: &'a [L],
