@@ -75,6 +75,11 @@ pub struct Point2h<T: Real = f32>(Vector3<T>);
 pub struct Line2h<T: Real = f32>(Vector3<T>);
 
 impl<T: Real> Point2h<T> {
+    /// The ideal point of the x axis, `(1, 0, 0)` (a placeholder that needs no check).
+    pub(crate) fn x_direction() -> Self {
+        Self(Vector3::new(T::one(), T::zero(), T::zero()))
+    }
+
     /// `(x, y, w)`. Errors: NaN/inf ([`Error::NonFinite`]), `(0, 0, 0)` ([`Error::Degenerate`]).
     pub fn new(x: T, y: T, w: T) -> Result<Self> {
         Self::from_vector(Vector3::new(x, y, w))
@@ -226,20 +231,30 @@ impl<T: Real> Line2h<T> {
 /// [`Error::TooFewPoints`] for fewer than two lines, [`Error::Degenerate`] when the lines do
 /// not determine a point (all the same line, or lines at infinity).
 pub fn vanishing_point<T: Real>(lines: &[Line2h<T>]) -> Result<Point2h<T>> {
-    if lines.len() < 2 {
-        return Err(Error::TooFewPoints);
-    }
+    vanishing_point_of(lines.iter().copied())
+}
+
+/// [`vanishing_point`] over the lines an iterator yields (walked twice: the scale, then the
+/// rows), so that callers with lines in another shape (segments, a subset) need no buffer.
+pub(crate) fn vanishing_point_of<T: Real, I>(lines: I) -> Result<Point2h<T>>
+where
+    I: Iterator<Item = Line2h<T>> + Clone,
+{
     // Lines with (a, b) ~ 0 are the line at infinity: they carry no constraint on a finite
     // vanishing point and would dominate the scale.
-    let mut sum_dist = T::zero();
-    for l in lines {
+    let (mut count, mut sum_dist) = (0usize, T::zero());
+    for l in lines.clone() {
         if l.is_at_infinity() {
             return Err(Error::Degenerate);
         }
         let n = l.normalized().0;
         sum_dist += n.z.abs();
+        count += 1;
     }
-    let mean = sum_dist / T::lit(lines.len() as f64);
+    if count < 2 {
+        return Err(Error::TooFewPoints);
+    }
+    let mean = sum_dist / T::lit(count as f64);
     let s = if mean > T::EPSILON { mean } else { T::one() };
     let mut qr = crate::linalg::StreamingQr::<T, 3>::new();
     for l in lines {

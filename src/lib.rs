@@ -7,6 +7,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`homogeneous`] | points and lines of the projective plane, join, meet, vanishing points |
+//! | [`vanishing`] | vanishing points of line segments (sequential RANSAC, least squares) and the horizon |
 //! | [`transform`] | rigid transforms `[R t; 0 1]` between typed frames |
 //! | [`camera`] | pinhole intrinsics, Brown-Conrady distortion, projection, back-projection |
 //! | [`calib`] | camera calibration from chessboard views: Zhang's closed form, joint LM over the camera and every pose (Schur structure by QR), Brown-Conrady or fisheye, standard deviations |
@@ -101,6 +102,7 @@ mod simd;
 pub mod target;
 pub mod transform;
 pub mod twoview;
+pub mod vanishing;
 pub mod warp;
 
 pub use error::{Error, Result};
