@@ -297,69 +297,129 @@ pub struct TrackRow {
 
 /// Tracks features through `frames` with at most 1024 tracks (`cfg.max_tracks` fewer): detection on the first
 /// frame, then flow + removal + replenishment on every frame. `on_frame(k, rows)` is called
-/// after frame `k` with that frame's tracks.
+/// after frame `k` with that frame's tracks. The frames of a slice; [`track_stream`] takes
+/// them one at a time.
 pub fn track_sequence(
     frames: &[GrayImage],
     cfg: &TrackerConfig,
     path: Path,
     mut on_frame: impl FnMut(usize, &[TrackRow]),
 ) -> camgeom::Result<Vec<TrackRow>> {
-    fn go<A: FlowArith>(
-        frames: &[GrayImage],
-        cfg: &TrackerConfig,
-        on_frame: &mut dyn FnMut(usize, &[TrackRow]),
-    ) -> camgeom::Result<Vec<TrackRow>> {
-        let params = cfg.check()?;
-        let mut tracker: Box<Tracker<A, 1024>> = Box::new(Tracker::new());
-        let l = levels(&cfg.lk);
-        let mut scratch = vec![0i16; scratch_len(cfg.lk.win)];
-        let mut cands = vec![Corner::default(); 8192];
-        let mut cs = Vec::new();
-        let (w, h) = frames.first().map_or((0, 0), |f| (f.width, f.height));
-        let mut pair = PyramidPair::new(
-            [vec![0u8; w * h], vec![0u8; w * h]],
-            [
-                vec![0u8; buffer_len(w, h, l)],
-                vec![0u8; buffer_len(w, h, l)],
-            ],
-        );
-        if !frames.is_empty() {
-            pair.set_geometry(w, h, l)?;
+    track_stream(
+        frames.iter().map(Ok::<_, camgeom::Error>),
+        cfg,
+        path,
+        |k, _, rows| on_frame(k, rows),
+    )
+}
+
+/// [`track_sequence`] over frames that arrive one at a time (a video being decoded): only the
+/// current frame and the two pyramids are held. Every frame must have the first one's size
+/// (else [`camgeom::Error::InvalidImage`]); the first error of `frames` stops the run and
+/// is returned. `on_frame(k, frame, rows)` is called after frame `k`.
+pub fn track_stream<B, E>(
+    frames: impl Iterator<Item = Result<B, E>>,
+    cfg: &TrackerConfig,
+    path: Path,
+    mut on_frame: impl FnMut(usize, &GrayImage, &[TrackRow]),
+) -> Result<Vec<TrackRow>, E>
+where
+    B: core::borrow::Borrow<GrayImage>,
+    E: From<camgeom::Error>,
+{
+    /// The tracker's state for one arithmetic path.
+    struct State<A: FlowArith> {
+        params: camgeom::klt::TrackerParams,
+        tracker: Box<Tracker<A, 1024>>,
+        levels: usize,
+        scratch: Vec<i16>,
+        cands: Vec<Corner>,
+        cs: Vec<u32>,
+        pair: Option<PyramidPair<Vec<u8>, Vec<u8>>>,
+        size: (usize, usize),
+    }
+    impl<A: FlowArith> State<A> {
+        fn new(cfg: &TrackerConfig) -> camgeom::Result<Self> {
+            Ok(Self {
+                params: cfg.check()?,
+                tracker: Box::new(Tracker::new()),
+                levels: levels(&cfg.lk),
+                scratch: vec![0i16; scratch_len(cfg.lk.win)],
+                cands: vec![Corner::default(); 8192],
+                cs: Vec::new(),
+                pair: None,
+                size: (0, 0),
+            })
         }
-        let mut rows = Vec::new();
-        for (k, img) in frames.iter().enumerate() {
+        fn step(&mut self, k: usize, img: &GrayImage) -> camgeom::Result<Vec<TrackRow>> {
+            let (w, h) = (img.width, img.height);
+            let pair = match &mut self.pair {
+                Some(p) if self.size == (w, h) => p,
+                Some(_) => return Err(camgeom::Error::InvalidImage),
+                None => {
+                    let l = self.levels;
+                    let mut p = PyramidPair::new(
+                        [vec![0u8; w * h], vec![0u8; w * h]],
+                        [
+                            vec![0u8; buffer_len(w, h, l)],
+                            vec![0u8; buffer_len(w, h, l)],
+                        ],
+                    );
+                    p.set_geometry(w, h, l)?;
+                    self.size = (w, h);
+                    self.pair.insert(p)
+                }
+            };
             let view = img.view().ok_or(camgeom::Error::InvalidImage)?;
             pair.capture()?.copy_from(&view)?;
             let pyramids = pair.advance()?;
             if let Some(prev) = &pyramids.previous {
-                tracker.update(
-                    &params,
+                self.tracker.update(
+                    &self.params,
                     prev,
                     &pyramids.next,
                     Templates::Compute,
-                    &mut scratch,
+                    &mut self.scratch,
                 )?;
             }
-            cs.resize(camgeom::corners::scratch_len(img.width), 0);
-            tracker.replenish(&params, &view, &mut cands, &mut cs)?;
-            let start = rows.len();
-            for t in tracker.tracks() {
-                rows.push(TrackRow {
+            self.cs.resize(camgeom::corners::scratch_len(w), 0);
+            self.tracker
+                .replenish(&self.params, &view, &mut self.cands, &mut self.cs)?;
+            Ok(self
+                .tracker
+                .tracks()
+                .iter()
+                .map(|t| TrackRow {
                     frame: k,
                     id: t.id,
                     x: f64::from(t.x.to_f32()),
                     y: f64::from(t.y.to_f32()),
                     age: t.age,
-                });
-            }
-            on_frame(k, &rows[start..]);
+                })
+                .collect())
         }
-        Ok(rows)
     }
-    match path {
-        Path::Fixed => go::<Fixed>(frames, cfg, &mut on_frame),
-        Path::F32 => go::<f32>(frames, cfg, &mut on_frame),
+    /// Either path, chosen once.
+    enum Either {
+        Fixed(State<Fixed>),
+        F32(State<f32>),
     }
+    let mut state = match path {
+        Path::Fixed => Either::Fixed(State::new(cfg)?),
+        Path::F32 => Either::F32(State::new(cfg)?),
+    };
+    let mut rows = Vec::new();
+    for (k, img) in frames.enumerate() {
+        let img = img?;
+        let img = img.borrow();
+        let now = match &mut state {
+            Either::Fixed(s) => s.step(k, img)?,
+            Either::F32(s) => s.step(k, img)?,
+        };
+        on_frame(k, img, &now);
+        rows.extend(now);
+    }
+    Ok(rows)
 }
 
 /// Draws tracks onto a copy of `img`: a 5x5 cross at each position and a line to the

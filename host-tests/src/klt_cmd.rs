@@ -5,9 +5,9 @@ use std::path::PathBuf;
 use camgeom::corners::CornerConfig;
 use camgeom::klt::{FlowStatus, LkConfig, TrackerConfig};
 use camgeom_host::cli::files::{create_dir, write_file};
-use camgeom_host::cli::frames::{frame_files, load_frames, progress_bar};
+use camgeom_host::cli::frames::{Frame, FrameSource, progress_bar};
 use camgeom_host::images::{load_gray, require_size, save_gray};
-use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_sequence};
+use camgeom_host::klt::{Path, TrackRow, flow, overlay, track_stream};
 use camgeom_host::points::{format_csv, format_float, read_csv, to_json};
 use camgeom_host::{Error, ErrorKind, Result};
 use clap::Args;
@@ -96,13 +96,16 @@ pub struct FlowArgs {
 
 #[derive(Args, Debug)]
 pub struct TrackArgs {
-    /// Folder of frames (PNG/JPEG, tracked in file-name order).
-    #[arg(long, value_name = "DIR")]
+    /// Folder of frames (PNG/JPEG, tracked in file-name order) or a video file (MP4/AVI/MOV/MKV/WebM,
+    /// decoded by ffmpeg one frame at a time).
+    #[arg(long, visible_alias = "video", value_name = "DIR|VIDEO")]
     frames: PathBuf,
-    /// Output CSV, rows `frame,id,x,y` (frame = 0-based index in name order).
+    /// Output CSV, rows `frame,id,x,y` (frame = 0-based index in name order); from a video
+    /// `frame,t,id,x,y` with `t` the frame's time in seconds.
     #[arg(long, value_name = "tracks.csv")]
     out: PathBuf,
-    /// Also write one PNG per frame with the tracks drawn (crosses and 10-frame trails).
+    /// Also write one PNG per frame with the tracks drawn (crosses and 10-frame trails), named
+    /// for the frame's file (from a video: its index on six digits).
     #[arg(long, value_name = "DIR")]
     overlay: Option<PathBuf>,
     /// Most tracks kept (1..1024).
@@ -209,9 +212,23 @@ pub fn run_flow(a: &FlowArgs) -> Result<String> {
 #[derive(Serialize)]
 struct TrackSummary {
     frames: usize,
+    /// The video's frame rate (null for a folder).
+    fps: Option<f64>,
     tracks: usize,
     rows: usize,
     out: String,
+}
+
+/// Why `track` stopped: reading a frame, or the tracker.
+enum Failed {
+    Frames(Error),
+    Tracker(camgeom::Error),
+}
+
+impl From<camgeom::Error> for Failed {
+    fn from(e: camgeom::Error) -> Self {
+        Self::Tracker(e)
+    }
 }
 
 /// `camgeom track`: writes the CSV (and overlays), prints a JSON summary.
@@ -229,9 +246,9 @@ pub fn run_track(a: &TrackArgs) -> Result<String> {
             a.quality
         )));
     }
-    let files = frame_files(&a.frames)?;
-    let bar = progress_bar(files.len() as u64 * 2);
-    let frames = load_frames(&files, &bar)?;
+    let mut source = FrameSource::open(&a.frames, false)?;
+    let (fps, timed) = (source.fps(), source.is_video());
+    let bar = progress_bar(source.len() as u64);
     let cfg = TrackerConfig {
         lk,
         corners: CornerConfig {
@@ -246,43 +263,63 @@ pub fn run_track(a: &TrackArgs) -> Result<String> {
         create_dir(dir)?;
     }
     bar.set_message("tracking");
+    // What each frame's rows need from the frame after the tracker has seen it.
+    let names: std::cell::RefCell<Vec<(String, Option<f64>)>> = Default::default();
     let mut history: Vec<Vec<TrackRow>> = Vec::new();
     let mut overlay_err = None;
-    let rows = track_sequence(&frames, &cfg, a.lk.path(), |k, now| {
+    let frames = std::iter::from_fn(|| source.next_frame().transpose()).map(|f| {
+        f.and_then(|Frame { name, t, gray, .. }| {
+            require_size(&gray, &a.frames, a.lk.win, "the tracking window (--win)")?;
+            names.borrow_mut().push((name, t));
+            Ok(gray)
+        })
+        .map_err(Failed::Frames)
+    });
+    let tracked = track_stream(frames, &cfg, a.lk.path(), |_, img, now| {
         bar.inc(1);
         let Some(dir) = &a.overlay else { return };
         history.push(now.to_vec());
         let old = history.len().saturating_sub(11);
         let past = history.get(old).cloned().unwrap_or_default();
-        let img = overlay(&frames[k], now, &past);
-        let name = files[k]
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| k.to_string());
-        if let Err(e) = save_gray(&img, dir.join(format!("{name}.png"))) {
+        let drawn = overlay(img, now, &past);
+        let name = names
+            .borrow()
+            .last()
+            .map_or_else(String::new, |n| n.0.clone());
+        if let Err(e) = save_gray(&drawn, dir.join(format!("{name}.png"))) {
             overlay_err.get_or_insert(e);
         }
-    })
-    .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
+    });
     bar.finish_and_clear();
+    let rows = tracked.map_err(|e| match e {
+        Failed::Frames(e) => e,
+        Failed::Tracker(e) => Error::camgeom(format!("{}: tracking failed", a.frames.display()), e),
+    })?;
     if let Some(e) = overlay_err {
         return Err(e);
     }
+    let names = names.into_inner();
+    let mut columns = vec!["frame", "id", "x", "y"];
+    if timed {
+        columns.insert(1, "t");
+    }
     let csv = format_csv(
-        &["frame", "id", "x", "y"],
+        &columns,
         rows.iter().map(|r| {
-            [
-                r.frame.to_string(),
-                r.id.to_string(),
-                format_float(r.x),
-                format_float(r.y),
-            ]
+            let mut row = vec![r.frame.to_string()];
+            if timed {
+                let t = names.get(r.frame).and_then(|n| n.1);
+                row.push(t.map_or_else(|| "nan".to_string(), |t| format!("{t:.6}")));
+            }
+            row.extend([r.id.to_string(), format_float(r.x), format_float(r.y)]);
+            row
         }),
     );
     write_file(&a.out, csv)?;
     let ids: std::collections::BTreeSet<u32> = rows.iter().map(|r| r.id).collect();
     Ok(to_json(&TrackSummary {
-        frames: frames.len(),
+        frames: names.len(),
+        fps,
         tracks: ids.len(),
         rows: rows.len(),
         out: a.out.display().to_string(),

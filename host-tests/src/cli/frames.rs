@@ -234,23 +234,3 @@ pub fn progress_bar(len: u64) -> indicatif::ProgressBar {
     );
     bar
 }
-
-/// Loads `files` as grey frames of one size, advancing `bar` by one per frame.
-pub fn load_frames(files: &[PathBuf], bar: &indicatif::ProgressBar) -> Result<Vec<GrayImage>> {
-    bar.set_message("loading");
-    let mut frames: Vec<GrayImage> = Vec::with_capacity(files.len());
-    for f in files {
-        let img = load_gray(f)?;
-        if let Some(first) = frames.first()
-            && (first.width, first.height) != (img.width, img.height)
-        {
-            return Err(Error::new(
-                f,
-                ErrorKind::Shape("frame size differs from the first frame".into()),
-            ));
-        }
-        frames.push(img);
-        bar.inc(1);
-    }
-    Ok(frames)
-}

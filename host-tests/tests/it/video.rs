@@ -388,3 +388,72 @@ fn a_video_without_ffmpeg_says_how_to_install_it() {
         "{err}"
     );
 }
+
+/// `track` on the first 12 frames of the tree sequence and on a lossless video of them at 25
+/// fps: the same tracks to the bit, the video's rows with a `t` column (k / 25 s), the summary
+/// with the rate, the overlays named for the frames' indices.
+#[test]
+fn track_on_a_video_gives_the_folders_tracks_with_times() {
+    let dir = scratch_dir("track-video");
+    let (frames, video) = (dir.join("frames"), dir.join("tree.avi"));
+    std::fs::create_dir_all(&frames).unwrap();
+    for k in 0..12 {
+        let name = format!("{k:04}.png");
+        std::fs::copy(
+            data_dir().join("sequences/tree").join(&name),
+            frames.join(&name),
+        )
+        .unwrap();
+    }
+    let pattern = frames.join("%04d.png");
+    ffmpeg(&[
+        "-framerate",
+        "25",
+        "-i",
+        path(&pattern),
+        "-c:v",
+        "ffv1",
+        path(&video),
+    ]);
+    let run = |input: &Path, name: &str| {
+        let (out, overlay) = (dir.join(format!("{name}.csv")), dir.join(name));
+        let s = json(&camgeom(&[
+            "track",
+            "--frames",
+            path(input),
+            "--out",
+            path(&out),
+            "--overlay",
+            path(&overlay),
+            "--max-tracks",
+            "120",
+        ]));
+        (s, std::fs::read_to_string(out).unwrap(), overlay)
+    };
+    let (a, folder, _) = run(&frames, "from-folder");
+    let (b, timed, overlays) = run(&video, "from-video");
+    assert_eq!(
+        (a["frames"].as_u64(), b["frames"].as_u64()),
+        (Some(12), Some(12))
+    );
+    assert!(a["fps"].is_null(), "{a}");
+    assert_eq!(b["fps"].as_f64(), Some(25.0), "{b}");
+    assert_eq!(a["rows"], b["rows"]);
+    assert!(a["rows"].as_u64().unwrap() > 12 * 60, "{a}");
+    for (k, (f, v)) in folder.lines().zip(timed.lines()).enumerate() {
+        let mut v: Vec<&str> = v.split(',').collect();
+        let t = v.remove(1);
+        assert_eq!(f, v.join(","), "line {k}");
+        if k == 0 {
+            assert_eq!(t, "t");
+        } else {
+            let frame: f64 = v[0].parse().unwrap();
+            assert!(
+                (t.parse::<f64>().unwrap() - frame / 25.0).abs() < 1e-6,
+                "{k}: {t}"
+            );
+        }
+    }
+    assert!(overlays.join("000011.png").exists());
+    assert_eq!(std::fs::read_dir(&overlays).unwrap().count(), 12);
+}
