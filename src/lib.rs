@@ -27,7 +27,7 @@
 //! | [`target`] | tracking a planar target: KLT, RANSAC homography and pose each frame, re-detection |
 //! | [`probe`] | stage probes: a pipeline reports each stage's end (a board's cycle counter) |
 //! | [`ransac`] | generic RANSAC loop: MSAC scoring, adaptive stopping, local optimisation |
-//! | [`remap`] | frame undistortion: new camera matrix (alpha / balance), Q10.5 lookup table or a compact grid map, integer bilinear remap |
+//! | [`remap`] | frame undistortion: new camera matrix (alpha / balance), per-pixel maps (Q10.5 for the board's frames up to 1023 px, [`remap::WideEntry`] as OpenCV's `CV_16SC2` up to 32767 px) or a compact grid map, integer bilinear remap of grey or RGB |
 //! | [`rng`] | PCG32, a small deterministic generator for sampling |
 //! | [`resize`] | bilinear resizing with aligned pixel centres, in integers |
 //! | [`warp`] | perspective warp of a logo into a quadrilateral: inverse mapping, bilinear, f32 or fixed point, clipped |
