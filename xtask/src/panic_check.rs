@@ -133,7 +133,7 @@ pub const AREAS: [Area; 19] = [
     area(
         "apriltag",
         false,
-        "`Detector::detect` (all four families), `find_target`, `Family::decode`, `tag_pose`",
+        "`Detector::detect` (all four families; `u16` and `u32` labels), `find_target`, `Family::decode`, `tag_pose`",
     ),
     area(
         "remap",

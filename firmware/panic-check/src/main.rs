@@ -881,6 +881,50 @@ fn run_apriltag() {
     for f in families::ALL {
         black_box(f.decode(black_box(0x1234_5678_9abc), black_box(2)));
     }
+    run_apriltag_wide_labels(&detector, &v);
+}
+
+/// The same detection through a [`camgeom::apriltag::WorkspaceView`] of `u32` labels (a
+/// host's, sized at run time; here of stack buffers of opaque lengths).
+#[cfg(feature = "apriltag")]
+fn run_apriltag_wide_labels(detector: &camgeom::apriltag::Detector, v: &ImageView<'_, u8>) {
+    use camgeom::apriltag::quad::Cluster;
+    use camgeom::apriltag::segment::Run;
+    use camgeom::apriltag::{Stats, WorkspaceView, sort_len, tiles_len};
+    let mut tiles = [0u8; tiles_len(W, H, 1)];
+    let (mut rmin, mut rmax) = ([0u8; W], [0u8; W]);
+    let (mut r0, mut r1) = ([Run::<u32>::empty(); W], [Run::<u32>::empty(); W]);
+    let (mut parent, mut size) = ([0u32; 1024], [0u8; 1024]);
+    let mut slots = [Cluster::<u64>::empty(); 64];
+    let mut pts = [0u32; 2048];
+    let mut keys = [0u16; sort_len(W, H, 1)];
+    let mut stats = Stats::default();
+    let n = black_box(usize::MAX);
+    let mut ws = WorkspaceView::with_labels(
+        tiles
+            .get_mut(..n.min(tiles_len(W, H, 1)))
+            .unwrap_or(&mut []),
+        &mut rmin,
+        &mut rmax,
+        [&mut r0, &mut r1],
+        parent.get_mut(..n.min(1024)).unwrap_or(&mut []),
+        &mut size,
+        &mut slots,
+        &mut pts,
+        &mut keys,
+        &mut stats,
+    );
+    black_box(detector.detect::<4>(v, &mut ws).ok());
+    black_box(
+        detector
+            .find_target(
+                v,
+                &mut ws,
+                &camgeom::apriltag::families::TAG25H9,
+                black_box(2),
+            )
+            .ok(),
+    );
 }
 
 // ---------------------------------------------------------------- remap
