@@ -9,12 +9,13 @@
 //!
 //! | bytes | view record (`"CVEW"`) | result record (`"CCAL"`) |
 //! |---|---|---|
-//! | 0..8 | tag, version | tag, version |
+//! | 0..8 | tag, version ([`crate::wire`]) | tag, version |
 //! | 8..20 | `u32` frame, `u32` found (0/1), `u32` detection cost | `u32` views used, `u32` LM steps, `u32` solve cost |
 //! | 20..24 | `u32` corners | `u32` warnings (bit 0 focal length, 1 principal point, 2 lens) |
 //! | 24.. | `f32` `x y` of each corner, board order ([`CORNERS`] pairs) | `f32` `fx fy cx cy`, `k1 k2 p1 p2 k3`, RMS, initial RMS, 9 standard deviations, then [`VIEWS`] per-view RMS (NaN: rejected), `u32` stack used |
 //!
-//! The run description is [`CalibSpec`] (`calib.bin`): the frame size, the board, the square.
+//! The run description is [`CalibSpec`] (`calib.bin`, `"CSPC"`, version 2): tag and version,
+//! then `u32` width, height, frames, columns, rows and `f32` square side.
 
 use camgeom::Error;
 use camgeom::calib::{CalibrationParams, CalibrationReport, CalibrationWarning, Calibrator};
@@ -24,6 +25,7 @@ use camgeom::image::ImageView;
 
 use crate::pipeline::Clock;
 use crate::source::FrameSource;
+use crate::wire::{Reader, WireError, Writer, tag};
 
 /// Views the board keeps at most.
 pub const VIEWS: usize = 16;
@@ -34,12 +36,14 @@ pub const CANDIDATES: usize = 512;
 /// Bytes of every calibration record.
 pub const RECORD_LEN: usize = 24 + 8 * CORNERS;
 /// Bytes of a [`CalibSpec`].
-pub const SPEC_LEN: usize = 28;
+pub const SPEC_LEN: usize = 32;
 
-const VIEW_TAG: u32 = u32::from_le_bytes(*b"CVEW");
-const RESULT_TAG: u32 = u32::from_le_bytes(*b"CCAL");
-const SPEC_TAG: u32 = u32::from_le_bytes(*b"CSPC");
+const VIEW_TAG: u32 = tag(b"CVEW");
+const RESULT_TAG: u32 = tag(b"CCAL");
+const SPEC_TAG: u32 = tag(b"CSPC");
 const VERSION: u32 = 1;
+/// The spec's layout version (2: the version word of every record, [`crate::wire`]).
+const SPEC_VERSION: u32 = 2;
 
 /// The board's calibrator: f32, [`VIEWS`] x [`CORNERS`].
 pub type BoardCalibrator = Calibrator<f32, VIEWS, CORNERS>;
@@ -68,58 +72,26 @@ pub struct CalibSpec {
     pub square: f32,
 }
 
-fn words<const M: usize>(bytes: &[u8]) -> [u32; M] {
-    let mut w = [0u32; M];
-    for (o, c) in w.iter_mut().zip(bytes.chunks_exact(4)) {
-        let mut b = [0u8; 4];
-        b.copy_from_slice(c);
-        *o = u32::from_le_bytes(b);
-    }
-    w
-}
-
-fn put(out: &mut [u8], at: &mut usize, w: u32) {
-    if let Some(c) = out.get_mut(*at..*at + 4) {
-        c.copy_from_slice(&w.to_le_bytes());
-    }
-    *at += 4;
-}
-
 impl CalibSpec {
     /// The [`SPEC_LEN`] bytes.
     pub fn to_bytes(&self) -> [u8; SPEC_LEN] {
-        let mut out = [0u8; SPEC_LEN];
-        let mut at = 0;
-        for w in [
-            SPEC_TAG,
-            self.width,
-            self.height,
-            self.frames,
-            self.cols,
-            self.rows,
-            self.square.to_bits(),
-        ] {
-            put(&mut out, &mut at, w);
-        }
-        out
+        Writer::fill(SPEC_TAG, SPEC_VERSION, |w| {
+            w.u32s([self.width, self.height, self.frames, self.cols, self.rows]);
+            w.f32(self.square);
+        })
     }
 
-    /// Decodes [`SPEC_LEN`] bytes. Errors: [`Error::InvalidParameter`] (`calib_spec`).
-    pub fn parse(bytes: &[u8]) -> Result<Self, Error> {
-        if bytes.len() != SPEC_LEN {
-            return Err(Error::InvalidParameter("calib_spec"));
-        }
-        let [tag, width, height, frames, cols, rows, square] = words::<7>(bytes);
-        if tag != SPEC_TAG {
-            return Err(Error::InvalidParameter("calib_spec"));
-        }
+    /// Decodes [`SPEC_LEN`] bytes. Errors: [`WireError`] (length, tag, version).
+    pub fn parse(bytes: &[u8]) -> Result<Self, WireError> {
+        let mut r = Reader::new_checked("calib_spec", bytes, SPEC_LEN, &[SPEC_TAG], SPEC_VERSION)?;
+        let [width, height, frames, cols, rows] = r.u32s();
         Ok(Self {
             width,
             height,
             frames,
             cols,
             rows,
-            square: f32::from_bits(square),
+            square: r.f32(),
         })
     }
 }
@@ -204,102 +176,76 @@ pub enum Record {
 impl ViewRecord {
     /// The [`RECORD_LEN`] bytes.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
-        let mut out = [0u8; RECORD_LEN];
-        let mut at = 0;
-        let n = self.corners.as_ref().map_or(0, |c| c.len());
-        for w in [
-            VIEW_TAG,
-            VERSION,
-            self.frame,
-            u32::from(self.corners.is_some()),
-            self.cost,
-            n as u32,
-        ] {
-            put(&mut out, &mut at, w);
-        }
-        for [x, y] in self.corners.iter().flatten() {
-            put(&mut out, &mut at, x.to_bits());
-            put(&mut out, &mut at, y.to_bits());
-        }
-        out
+        Writer::fill(VIEW_TAG, VERSION, |w| {
+            let n = self.corners.as_ref().map_or(0, |c| c.len());
+            w.u32s([
+                self.frame,
+                u32::from(self.corners.is_some()),
+                self.cost,
+                n as u32,
+            ]);
+            w.f32s(self.corners.iter().flatten().flatten().copied());
+        })
     }
 }
 
 impl CalibRecord {
     /// The [`RECORD_LEN`] bytes.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
-        let mut out = [0u8; RECORD_LEN];
-        let mut at = 0;
-        for w in [
-            RESULT_TAG,
-            VERSION,
-            self.views_used,
-            self.iterations,
-            self.cost,
-            self.warnings,
-        ] {
-            put(&mut out, &mut at, w);
-        }
-        let rms = [self.rms_px, self.initial_rms_px];
-        let floats = self
-            .intrinsics
-            .iter()
-            .chain(&self.distortion)
-            .chain(&rms)
-            .chain(&self.std)
-            .chain(&self.per_view_rms_px);
-        for v in floats {
-            put(&mut out, &mut at, v.to_bits());
-        }
-        put(&mut out, &mut at, self.stack);
-        out
+        Writer::fill(RESULT_TAG, VERSION, |w| {
+            w.u32s([self.views_used, self.iterations, self.cost, self.warnings]);
+            let rms = [self.rms_px, self.initial_rms_px];
+            let floats = self
+                .intrinsics
+                .iter()
+                .chain(&self.distortion)
+                .chain(&rms)
+                .chain(&self.std)
+                .chain(&self.per_view_rms_px);
+            w.f32s(floats.copied());
+            w.u32(self.stack);
+        })
     }
 }
 
 impl Record {
-    /// Decodes one record. Errors: [`Error::InvalidParameter`] (`calib_report`).
-    pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
-        let bad = Error::InvalidParameter("calib_report");
-        if bytes.len() != RECORD_LEN {
-            return Err(bad);
+    /// Decodes one record. Errors: [`WireError`] (length, tag, version).
+    pub fn decode(bytes: &[u8]) -> Result<Self, WireError> {
+        let mut r = Reader::new_checked(
+            "calib_report",
+            bytes,
+            RECORD_LEN,
+            &[VIEW_TAG, RESULT_TAG],
+            VERSION,
+        )?;
+        if r.tag() == VIEW_TAG {
+            let [frame, found, cost, n] = r.u32s();
+            let n = (n as usize).min(CORNERS);
+            let corners = (found != 0).then(|| {
+                (0..n)
+                    .map(|_| r.f32s::<2>())
+                    .collect::<camgeom::heapless::Vec<_, CORNERS>>()
+            });
+            return Ok(Record::View(ViewRecord {
+                frame,
+                corners,
+                cost,
+            }));
         }
-        let w = words::<{ RECORD_LEN / 4 }>(bytes);
-        let f = |i: usize| f32::from_bits(w.get(i).copied().unwrap_or(0));
-        if w[1] != VERSION {
-            return Err(bad);
-        }
-        match w[0] {
-            VIEW_TAG => {
-                let n = (w[5] as usize).min(CORNERS);
-                let corners = (w[3] != 0).then(|| {
-                    (0..n)
-                        .map(|k| [f(6 + 2 * k), f(7 + 2 * k)])
-                        .collect::<camgeom::heapless::Vec<_, CORNERS>>()
-                });
-                Ok(Record::View(ViewRecord {
-                    frame: w[2],
-                    corners,
-                    cost: w[4],
-                }))
-            }
-            RESULT_TAG => {
-                let at = |i| f(6 + i);
-                Ok(Record::Result(CalibRecord {
-                    views_used: w[2],
-                    iterations: w[3],
-                    cost: w[4],
-                    warnings: w[5],
-                    intrinsics: [at(0), at(1), at(2), at(3)],
-                    distortion: [at(4), at(5), at(6), at(7), at(8)],
-                    rms_px: at(9),
-                    initial_rms_px: at(10),
-                    std: core::array::from_fn(|i| at(11 + i)),
-                    per_view_rms_px: core::array::from_fn(|i| at(20 + i)),
-                    stack: w.get(6 + 20 + VIEWS).copied().unwrap_or(0),
-                }))
-            }
-            _ => Err(bad),
-        }
+        let [views_used, iterations, cost, warnings] = r.u32s();
+        Ok(Record::Result(CalibRecord {
+            views_used,
+            iterations,
+            cost,
+            warnings,
+            intrinsics: r.f32s(),
+            distortion: r.f32s(),
+            rms_px: r.f32(),
+            initial_rms_px: r.f32(),
+            std: r.f32s(),
+            per_view_rms_px: r.f32s(),
+            stack: r.u32(),
+        }))
     }
 }
 

@@ -4,7 +4,7 @@
 //! from the host on the emulator) and a [`Clock`]; everything downstream of the frame is the
 //! same code on every board: [`pipeline::Pipeline`] (pyramid, the core's per-frame loop
 //! [`camgeom::target::PlanarTarget::step`], AR overlay, per-stage cost) and the binary
-//! [`report`] records a board sends back. It has no board dependency, so it also builds for
+//! [`report`] records a board sends back, all written and read by [`wire`]. It has no board dependency, so it also builds for
 //! the host (the replay that checks a board's run, and this crate's tests) and for any
 //! Cortex-M or RISC-V target.
 #![no_std]
@@ -23,6 +23,7 @@ pub mod sizes;
 pub mod slot;
 pub mod source;
 pub mod texture;
+pub mod wire;
 
 pub use costs::{Cost, StageCosts};
 pub use pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop, FrameReport, Pipeline};

@@ -25,6 +25,7 @@ use camgeom::image::ImageMut;
 use camgeom::rng::Pcg32;
 
 use crate::source::FrameSource;
+use crate::wire::{Reader, WireError, Writer, tag};
 
 /// Random access to the frames of a recording, all `width x height` grayscale.
 pub trait RecordedFrames {
@@ -115,8 +116,8 @@ impl Fault {
 pub const MAX_FAULTS: usize = 16;
 /// Bytes of a stored plan.
 pub const FAULT_PLAN_LEN: usize = 12 + 16 * MAX_FAULTS;
-/// `"CFLT"` as a little-endian word.
-pub const FAULT_MAGIC: u32 = u32::from_le_bytes(*b"CFLT");
+/// `"CFLT"`.
+pub const FAULT_MAGIC: u32 = tag(b"CFLT");
 /// Layout version of a stored plan.
 pub const FAULT_VERSION: u32 = 1;
 
@@ -172,46 +173,35 @@ impl FaultPlan {
             .copied()
     }
 
-    /// The [`FAULT_PLAN_LEN`] bytes of the plan.
+    /// The [`FAULT_PLAN_LEN`] bytes of the plan: tag and version ([`crate::wire`]), `u32`
+    /// count, then `first, frames, fault code, param` of each span (`u32` each), zeros after.
     pub fn to_bytes(&self) -> [u8; FAULT_PLAN_LEN] {
-        let mut out = [0u8; FAULT_PLAN_LEN];
-        let n = self.spans().count() as u32;
-        let head = [FAULT_MAGIC, FAULT_VERSION, n];
-        let body = self
-            .spans()
-            .flat_map(|s| [s.first, s.frames, s.fault.code(), s.param]);
-        for (c, w) in out.chunks_exact_mut(4).zip(head.into_iter().chain(body)) {
-            c.copy_from_slice(&w.to_le_bytes());
-        }
-        out
+        Writer::fill(FAULT_MAGIC, FAULT_VERSION, |w| {
+            w.u32(self.spans().count() as u32);
+            for s in self.spans() {
+                w.u32s([s.first, s.frames, s.fault.code(), s.param]);
+            }
+        })
     }
 
-    /// Decodes [`FAULT_PLAN_LEN`] bytes. Errors: [`Error::InvalidParameter`] (`faults`) for a
-    /// wrong length, magic, version, count or fault code.
-    pub fn parse(bytes: &[u8]) -> Result<Self, Error> {
-        let bad = Error::InvalidParameter("faults");
-        if bytes.len() != FAULT_PLAN_LEN {
-            return Err(bad);
-        }
-        let mut words = [0u32; FAULT_PLAN_LEN / 4];
-        for (w, c) in words.iter_mut().zip(bytes.chunks_exact(4)) {
-            let mut b = [0u8; 4];
-            b.copy_from_slice(c);
-            *w = u32::from_le_bytes(b);
-        }
-        let [magic, version, n, ..] = words;
-        if magic != FAULT_MAGIC || version != FAULT_VERSION || n as usize > MAX_FAULTS {
-            return Err(bad);
+    /// Decodes [`FAULT_PLAN_LEN`] bytes. Errors: [`WireError`] for a wrong length, magic or
+    /// version, a count above [`MAX_FAULTS`] or an unknown fault code.
+    pub fn parse(bytes: &[u8]) -> Result<Self, WireError> {
+        let mut r = Reader::new_checked(
+            "fault_plan",
+            bytes,
+            FAULT_PLAN_LEN,
+            &[FAULT_MAGIC],
+            FAULT_VERSION,
+        )?;
+        let n = r.u32() as usize;
+        if n > MAX_FAULTS {
+            return Err(r.invalid("count"));
         }
         let mut p = Self::none();
-        for (slot, q) in p
-            .spans
-            .iter_mut()
-            .zip(words.get(3..).unwrap_or(&[]).chunks_exact(4))
-            .take(n as usize)
-        {
-            let [first, frames, code, param] = [q[0], q[1], q[2], q[3]];
-            let fault = Fault::from_code(code).ok_or(bad)?;
+        for slot in p.spans.iter_mut().take(n) {
+            let [first, frames, code, param] = r.u32s();
+            let fault = Fault::from_code(code).ok_or(r.invalid("fault"))?;
             *slot = Some(FaultSpan {
                 first,
                 frames,

@@ -6,7 +6,7 @@
 //! (defmt) are separate and never parsed.
 //!
 //! Every record is [`RECORD_LEN`] bytes, little-endian, starting with a tag word and the layout
-//! [`VERSION`]:
+//! [`VERSION`] (the frame of [`crate::wire`]):
 //!
 //! | bytes | frame record ([`FRAME_TAG`] `"CFRM"`) | summary record ([`SUMMARY_TAG`] `"CSUM"`) |
 //! |---|---|---|
@@ -31,11 +31,12 @@ use camgeom::target::TargetState;
 
 use crate::costs::{Cost, StageCosts};
 use crate::pipeline::{AppError, FrameReport};
+use crate::wire::{Reader, WireError, Writer, tag};
 
-/// `"CFRM"` as a little-endian word: a frame record.
-pub const FRAME_TAG: u32 = u32::from_le_bytes(*b"CFRM");
-/// `"CSUM"` as a little-endian word: the summary record that ends a run.
-pub const SUMMARY_TAG: u32 = u32::from_le_bytes(*b"CSUM");
+/// `"CFRM"`: a frame record.
+pub const FRAME_TAG: u32 = tag(b"CFRM");
+/// `"CSUM"`: the summary record that ends a run.
+pub const SUMMARY_TAG: u32 = tag(b"CSUM");
 /// Layout version.
 pub const VERSION: u32 = 1;
 /// Bytes of every record: the fields up to the costs, then one `u32` a cost column.
@@ -193,33 +194,26 @@ impl FrameRecord {
 
     /// The [`RECORD_LEN`] bytes of the record.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
-        let mut w = Writer::new(FRAME_TAG);
-        w.u32(self.index);
-        let state = match self.state {
-            TargetState::Uninitialised => 0,
-            TargetState::Tracking => 1,
-            TargetState::Lost => 2,
-        };
-        let flags = u8::from(self.acquired)
-            | (u8::from(self.pose.is_some()) << 1)
-            | (u8::from(self.outline.is_some()) << 2);
-        w.bytes(&[state, flags, self.error.map_or(0, |e| e.0), 0]);
-        for c in [self.tracked, self.inliers, self.added, self.features] {
-            w.bytes(&c.to_le_bytes());
-        }
-        w.u32(self.checksum);
-        let (best, alt) = self.pose.unwrap_or_default();
-        for v in best.to_array().into_iter().chain(alt.to_array()) {
-            w.f32(v);
-        }
-        for [x, y] in self.outline.unwrap_or_default() {
-            w.f32(x);
-            w.f32(y);
-        }
-        for c in self.costs.to_array() {
-            w.u32(c);
-        }
-        w.finish()
+        Writer::fill(FRAME_TAG, VERSION, |w| {
+            w.u32(self.index);
+            let state = match self.state {
+                TargetState::Uninitialised => 0,
+                TargetState::Tracking => 1,
+                TargetState::Lost => 2,
+            };
+            let flags = u8::from(self.acquired)
+                | (u8::from(self.pose.is_some()) << 1)
+                | (u8::from(self.outline.is_some()) << 2);
+            w.bytes(&[state, flags, self.error.map_or(0, |e| e.0), 0]);
+            for c in [self.tracked, self.inliers, self.added, self.features] {
+                w.u16(c);
+            }
+            w.u32(self.checksum);
+            let (best, alt) = self.pose.unwrap_or_default();
+            w.f32s(best.to_array().into_iter().chain(alt.to_array()));
+            w.f32s(self.outline.unwrap_or_default().into_iter().flatten());
+            w.u32s(self.costs.to_array());
+        })
     }
 }
 
@@ -243,18 +237,16 @@ pub struct SummaryRecord {
 impl SummaryRecord {
     /// The [`RECORD_LEN`] bytes of the record.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
-        let mut w = Writer::new(SUMMARY_TAG);
-        for v in [
-            self.frames,
-            self.tracking,
-            self.pipeline_ram,
-            self.stack_used,
-            self.stack_size,
-            self.overlays,
-        ] {
-            w.u32(v);
-        }
-        w.finish()
+        Writer::fill(SUMMARY_TAG, VERSION, |w| {
+            w.u32s([
+                self.frames,
+                self.tracking,
+                self.pipeline_ram,
+                self.stack_used,
+                self.stack_size,
+                self.overlays,
+            ]);
+        })
     }
 }
 
@@ -268,132 +260,62 @@ pub enum Record {
 }
 
 impl Record {
-    /// Decodes one record of [`RECORD_LEN`] bytes. Errors: [`Error::InvalidParameter`]
-    /// (`report.length`, `report.tag`, `report.version`, `report.state`) for bytes that are not
-    /// a record of this layout.
-    pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
-        if bytes.len() != RECORD_LEN {
-            return Err(Error::InvalidParameter("report.length"));
+    /// Decodes one record of [`RECORD_LEN`] bytes. Errors: [`WireError`] for bytes that are
+    /// not a record of this layout (length, tag, version, or a `state` no record has).
+    pub fn decode(bytes: &[u8]) -> Result<Self, WireError> {
+        let mut r = Reader::new_checked(
+            "report",
+            bytes,
+            RECORD_LEN,
+            &[FRAME_TAG, SUMMARY_TAG],
+            VERSION,
+        )?;
+        if r.tag() == SUMMARY_TAG {
+            let [
+                frames,
+                tracking,
+                pipeline_ram,
+                stack_used,
+                stack_size,
+                overlays,
+            ] = r.u32s();
+            return Ok(Record::Summary(SummaryRecord {
+                frames,
+                tracking,
+                pipeline_ram,
+                stack_used,
+                stack_size,
+                overlays,
+            }));
         }
-        let mut r = Reader { bytes, at: 0 };
-        let tag = r.u32();
-        if r.u32() != VERSION {
-            return Err(Error::InvalidParameter("report.version"));
-        }
-        match tag {
-            FRAME_TAG => {
-                let index = r.u32();
-                let [state, flags, error, _] = r.array::<4>();
-                let state = match state {
-                    0 => TargetState::Uninitialised,
-                    1 => TargetState::Tracking,
-                    2 => TargetState::Lost,
-                    _ => return Err(Error::InvalidParameter("report.state")),
-                };
-                let [tracked, inliers, added, features] =
-                    [(); 4].map(|_| u16::from_le_bytes(r.array::<2>()));
-                let checksum = r.u32();
-                let best = PoseRecord::from_array([(); 7].map(|_| r.f32()));
-                let alt = PoseRecord::from_array([(); 7].map(|_| r.f32()));
-                let outline = [(); 4].map(|_| [r.f32(), r.f32()]);
-                let costs = StageCosts::from_array([(); Cost::COLUMNS].map(|_| r.u32()));
-                Ok(Record::Frame(FrameRecord {
-                    index,
-                    state,
-                    acquired: flags & 1 != 0,
-                    error: (error != 0).then_some(ErrorCode(error)),
-                    tracked,
-                    inliers,
-                    added,
-                    features,
-                    checksum,
-                    pose: (flags & 2 != 0).then_some((best, alt)),
-                    outline: (flags & 4 != 0).then_some(outline),
-                    costs,
-                }))
-            }
-            SUMMARY_TAG => {
-                let [
-                    frames,
-                    tracking,
-                    pipeline_ram,
-                    stack_used,
-                    stack_size,
-                    overlays,
-                ] = [(); 6].map(|_| r.u32());
-                Ok(Record::Summary(SummaryRecord {
-                    frames,
-                    tracking,
-                    pipeline_ram,
-                    stack_used,
-                    stack_size,
-                    overlays,
-                }))
-            }
-            _ => Err(Error::InvalidParameter("report.tag")),
-        }
-    }
-}
-
-struct Writer {
-    out: [u8; RECORD_LEN],
-    at: usize,
-}
-
-impl Writer {
-    fn new(tag: u32) -> Self {
-        let mut w = Self {
-            out: [0; RECORD_LEN],
-            at: 0,
+        let index = r.u32();
+        let [state, flags, error, _] = r.array::<4>();
+        let state = match state {
+            0 => TargetState::Uninitialised,
+            1 => TargetState::Tracking,
+            2 => TargetState::Lost,
+            _ => return Err(r.invalid("state")),
         };
-        w.u32(tag);
-        w.u32(VERSION);
-        w
-    }
-
-    fn bytes(&mut self, b: &[u8]) {
-        if let Some(d) = self.out.get_mut(self.at..self.at + b.len()) {
-            d.copy_from_slice(b);
-        }
-        self.at += b.len();
-    }
-
-    fn u32(&mut self, v: u32) {
-        self.bytes(&v.to_le_bytes());
-    }
-
-    fn f32(&mut self, v: f32) {
-        self.u32(v.to_bits());
-    }
-
-    fn finish(self) -> [u8; RECORD_LEN] {
-        self.out
-    }
-}
-
-/// Reads a record's fields in order; past the end it reads zeros (the length is checked
-/// before).
-struct Reader<'a> {
-    bytes: &'a [u8],
-    at: usize,
-}
-
-impl Reader<'_> {
-    fn array<const M: usize>(&mut self) -> [u8; M] {
-        let mut a = [0u8; M];
-        if let Some(s) = self.bytes.get(self.at..self.at + M) {
-            a.copy_from_slice(s);
-        }
-        self.at += M;
-        a
-    }
-
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.array::<4>())
-    }
-
-    fn f32(&mut self) -> f32 {
-        f32::from_bits(self.u32())
+        let [tracked, inliers, added, features] = [(); 4].map(|_| r.u16());
+        let checksum = r.u32();
+        let best = PoseRecord::from_array(r.f32s());
+        let alt = PoseRecord::from_array(r.f32s());
+        let outline = [(); 4].map(|_| r.f32s());
+        let costs = StageCosts::from_array(r.u32s());
+        Ok(Record::Frame(FrameRecord {
+            index,
+            state,
+            acquired: flags & 1 != 0,
+            error: (error != 0).then_some(ErrorCode(error)),
+            tracked,
+            inliers,
+            added,
+            features,
+            checksum,
+            pose: (flags & 2 != 0).then_some((best, alt)),
+            outline: (flags & 4 != 0).then_some(outline),
+            costs,
+        }))
     }
 }
 
@@ -460,27 +382,27 @@ mod tests {
     #[test]
     fn bad_bytes_are_errors() {
         let good = SummaryRecord::default().encode();
-        assert_eq!(
+        assert!(matches!(
             Record::decode(&good[..100]),
-            Err(Error::InvalidParameter("report.length"))
-        );
+            Err(WireError::Length { got: 100, .. })
+        ));
         let mut bad = good;
         bad[0] ^= 1;
-        assert_eq!(
-            Record::decode(&bad),
-            Err(Error::InvalidParameter("report.tag"))
-        );
+        assert!(matches!(Record::decode(&bad), Err(WireError::Tag { .. })));
         let mut bad = good;
         bad[4] = 9;
-        assert_eq!(
+        assert!(matches!(
             Record::decode(&bad),
-            Err(Error::InvalidParameter("report.version"))
-        );
+            Err(WireError::Version { got: 9, .. })
+        ));
         let mut frame = FrameRecord::default().encode();
         frame[12] = 7;
         assert_eq!(
             Record::decode(&frame),
-            Err(Error::InvalidParameter("report.state"))
+            Err(WireError::Field {
+                record: "report",
+                field: "state"
+            })
         );
     }
 }

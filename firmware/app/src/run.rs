@@ -2,7 +2,8 @@
 //!
 //! `cargo xtask run` writes it (`run.bin`) next to the raw frames; the emulated board reads it
 //! over semihosting and the host replay reads the same bytes, so both build the same
-//! [`AppConfig`] from it. Layout: [`RUN_SPEC_LEN`] bytes, 31 little-endian 32-bit words:
+//! [`AppConfig`] from it. Layout: [`RUN_SPEC_LEN`] bytes, 31 little-endian 32-bit words (the
+//! frame of [`crate::wire`]):
 //!
 //! | words | what |
 //! |---|---|
@@ -26,9 +27,10 @@ use camgeom::target::Acquire;
 use crate::pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
 use crate::report::{ErrorCode, FrameRecord};
+use crate::wire::{Reader, WireError, Writer, tag};
 
-/// `"CRUN"` as a little-endian word.
-pub const MAGIC: u32 = u32::from_le_bytes(*b"CRUN");
+/// `"CRUN"`.
+pub const MAGIC: u32 = tag(b"CRUN");
 /// Layout version.
 pub const VERSION: u32 = 3;
 /// Bytes of a run description.
@@ -97,99 +99,71 @@ pub struct RunSpec {
 }
 
 impl RunSpec {
-    /// Decodes [`RUN_SPEC_LEN`] bytes. Errors: [`Error::InvalidParameter`] for a wrong magic,
-    /// version or length.
-    pub fn parse(bytes: &[u8]) -> Result<Self, Error> {
-        if bytes.len() != RUN_SPEC_LEN {
-            return Err(Error::InvalidParameter("run_spec.length"));
-        }
-        let mut words = [0u32; RUN_SPEC_LEN / 4];
-        for (w, c) in words.iter_mut().zip(bytes.chunks_exact(4)) {
-            let mut b = [0u8; 4];
-            b.copy_from_slice(c);
-            *w = u32::from_le_bytes(b);
-        }
-        let u = |i: usize| words.get(i).copied().unwrap_or(0);
-        let f = |i: usize| f32::from_bits(u(i));
-        if u(0) != MAGIC || u(1) != VERSION {
-            return Err(Error::InvalidParameter("run_spec.version"));
-        }
+    /// Decodes [`RUN_SPEC_LEN`] bytes. Errors: [`WireError`] for a wrong length, magic or
+    /// version, or an `acquisition` or `forward_backward` word no run has.
+    pub fn parse(bytes: &[u8]) -> Result<Self, WireError> {
+        let mut r = Reader::new_checked("run_spec", bytes, RUN_SPEC_LEN, &[MAGIC], VERSION)?;
+        let [width, height, frames, stride, overlay_every] = r.u32s();
+        let intrinsics = r.f32s();
+        let distortion = r.f32s();
+        let target_size = r.f32s();
+        let corners = [(); 4].map(|_| r.f32s());
+        let [kind, family, id, reacquire_every, fb] = r.u32s();
         Ok(Self {
-            width: u(2),
-            height: u(3),
-            frames: u(4),
-            stride: u(5),
-            overlay_every: u(6),
-            intrinsics: [f(7), f(8), f(9), f(10)],
-            distortion: [f(11), f(12), f(13), f(14), f(15)],
-            target_size: [f(16), f(17)],
-            corners: [
-                [f(18), f(19)],
-                [f(20), f(21)],
-                [f(22), f(23)],
-                [f(24), f(25)],
-            ],
-            acquisition: match u(26) {
+            width,
+            height,
+            frames,
+            stride,
+            overlay_every,
+            intrinsics,
+            distortion,
+            target_size,
+            corners,
+            acquisition: match kind {
                 0 => Acquisition::Corners,
-                1 if (u(27) as usize) < TAG_FAMILIES.len() && u(28) <= u32::from(u16::MAX) => {
+                1 if (family as usize) < TAG_FAMILIES.len() && id <= u32::from(u16::MAX) => {
                     Acquisition::Tag {
-                        family: u(27) as u8,
-                        id: u(28) as u16,
+                        family: family as u8,
+                        id: id as u16,
                     }
                 }
-                _ => return Err(Error::InvalidParameter("run_spec.acquisition")),
+                _ => return Err(r.invalid("acquisition")),
             },
-            reacquire_every: u(29),
-            forward_backward: match u(30) {
+            reacquire_every,
+            forward_backward: match fb {
                 0 => false,
                 1 => true,
-                _ => return Err(Error::InvalidParameter("run_spec.forward_backward")),
+                _ => return Err(r.invalid("forward_backward")),
             },
         })
     }
 
     /// Encodes into [`RUN_SPEC_LEN`] bytes (the inverse of [`Self::parse`]).
     pub fn to_bytes(&self) -> [u8; RUN_SPEC_LEN] {
-        let mut words = [0u32; RUN_SPEC_LEN / 4];
-        let [fx, fy, cx, cy] = self.intrinsics;
-        let [k1, k2, p1, p2, k3] = self.distortion;
-        let [tw, th] = self.target_size;
-        let [[x0, y0], [x1, y1], [x2, y2], [x3, y3]] = self.corners;
-        let ints = [
-            MAGIC,
-            VERSION,
-            self.width,
-            self.height,
-            self.frames,
-            self.stride,
-            self.overlay_every,
-        ];
-        let floats = [
-            fx, fy, cx, cy, k1, k2, p1, p2, k3, tw, th, x0, y0, x1, y1, x2, y2, x3, y3,
-        ];
-        let (kind, family, id) = match self.acquisition {
-            Acquisition::Corners => (0, 0, 0),
-            Acquisition::Tag { family, id } => (1, u32::from(family), u32::from(id)),
-        };
-        let tail = [
-            kind,
-            family,
-            id,
-            self.reacquire_every,
-            u32::from(self.forward_backward),
-        ];
-        for (w, v) in words.iter_mut().zip(
-            ints.into_iter()
-                .chain(floats.into_iter().map(f32::to_bits))
-                .chain(tail),
-        ) {
-            *w = v;
-        }
-        let mut out = [0u8; RUN_SPEC_LEN];
-        for (c, w) in out.chunks_exact_mut(4).zip(words) {
-            c.copy_from_slice(&w.to_le_bytes());
-        }
-        out
+        Writer::fill(MAGIC, VERSION, |w| {
+            w.u32s([
+                self.width,
+                self.height,
+                self.frames,
+                self.stride,
+                self.overlay_every,
+            ]);
+            w.f32s(self.intrinsics);
+            w.f32s(self.distortion);
+            w.f32s(self.target_size);
+            w.f32s(self.corners.into_iter().flatten());
+            let (kind, family, id) = match self.acquisition {
+                Acquisition::Corners => (0, 0, 0),
+                Acquisition::Tag { family, id } => (1, u32::from(family), u32::from(id)),
+            };
+            w.u32s([
+                kind,
+                family,
+                id,
+                self.reacquire_every,
+                u32::from(self.forward_backward),
+            ]);
+        })
     }
 
     /// The start corners as points.
@@ -319,27 +293,27 @@ mod tests {
             assert_eq!(RunSpec::parse(&s.to_bytes()), Ok(s));
         }
         let good = spec(Acquisition::Corners, true).to_bytes();
-        assert_eq!(
+        assert!(matches!(
             RunSpec::parse(&good[..RUN_SPEC_LEN - 4]),
-            Err(Error::InvalidParameter("run_spec.length"))
-        );
+            Err(WireError::Length { .. })
+        ));
         let word = |i: usize, v: u32| {
             let mut b = good;
             b[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
             RunSpec::parse(&b)
         };
-        assert_eq!(
+        assert!(matches!(
             word(1, VERSION - 1),
-            Err(Error::InvalidParameter("run_spec.version"))
-        );
-        assert_eq!(
-            word(26, 2),
-            Err(Error::InvalidParameter("run_spec.acquisition"))
-        );
-        assert_eq!(
-            word(30, 2),
-            Err(Error::InvalidParameter("run_spec.forward_backward"))
-        );
+            Err(WireError::Version { .. })
+        ));
+        let field = |field| {
+            Err(WireError::Field {
+                record: "run_spec",
+                field,
+            })
+        };
+        assert_eq!(word(26, 2), field("acquisition"));
+        assert_eq!(word(30, 2), field("forward_backward"));
         assert_eq!(word(30, 0).map(|s| s.forward_backward), Ok(false));
         // The flag reaches the tracking parameters.
         let on = spec(Acquisition::Corners, true).app_config().unwrap();
