@@ -240,10 +240,21 @@ pub(crate) fn vanishing_point_of<T: Real, I>(lines: I) -> Result<Point2h<T>>
 where
     I: Iterator<Item = Line2h<T>> + Clone,
 {
+    weighted_vanishing_point_of(lines.map(|l| (l, T::one())))
+}
+
+/// [`vanishing_point_of`] with a weight per line: the unit `v` minimising
+/// `Σᵢ wᵢ² (l̂ᵢᵀ v)²` (a weight `wᵢ > 0`; each row of the system is scaled by `wᵢ`). For
+/// the reweighted fit of [`crate::vanishing`], where `wᵢ` turns the distance of `v` from a
+/// segment's line into that segment's endpoint residual.
+pub(crate) fn weighted_vanishing_point_of<T: Real, I>(lines: I) -> Result<Point2h<T>>
+where
+    I: Iterator<Item = (Line2h<T>, T)> + Clone,
+{
     // Lines with (a, b) ~ 0 are the line at infinity: they carry no constraint on a finite
     // vanishing point and would dominate the scale.
     let (mut count, mut sum_dist) = (0usize, T::zero());
-    for l in lines.clone() {
+    for (l, _) in lines.clone() {
         if l.is_at_infinity() {
             return Err(Error::Degenerate);
         }
@@ -257,9 +268,9 @@ where
     let mean = sum_dist / T::lit(count as f64);
     let s = if mean > T::EPSILON { mean } else { T::one() };
     let mut qr = crate::linalg::StreamingQr::<T, 3>::new();
-    for l in lines {
+    for (l, w) in lines {
         let n = l.normalized().0;
-        qr.push_row(&[n.x, n.y, n.z / s])?;
+        qr.push_row(&[w * n.x, w * n.y, w * n.z / s])?;
     }
     let svd = qr.svd()?;
     let sv = &svd.singular_values;
