@@ -14,6 +14,7 @@ extern crate std;
 
 pub mod calibration;
 pub mod costs;
+pub mod link;
 pub mod pipeline;
 pub mod qvga;
 pub mod recorded;
