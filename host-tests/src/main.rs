@@ -32,6 +32,7 @@ mod pose_cmd;
 mod sfm_cmd;
 mod twoview_cmd;
 mod undistort_cmd;
+mod vanishing_cmd;
 mod warp_cmd;
 
 /// Exit status of a usage or input error (as clap uses for usage errors).
@@ -137,6 +138,16 @@ enum Command {
     ///
     /// Writes the image to --out and prints JSON `{"new_camera_matrix": [9], ..}`.
     Undistort(undistort_cmd::UndistortArgs),
+    /// Vanishing points of line segments and the horizon (sequential RANSAC over segment
+    /// pairs, least squares per point; the horizon from two horizontal points, or from the
+    /// vertical one and the camera).
+    ///
+    /// Reads rows `x1,y1,x2,y2[,group]` (CSV) and prints JSON `{"segments": N,
+    /// "vanishing_points": [{"x", "y", "ideal", "direction_deg", "segments", "rms_px",
+    /// "vertical", ..}], "horizon": {"line", "from", "roll_deg"} or null, "horizon_reason"}`;
+    /// with --intrinsics each point's direction in the camera frame and the angles between
+    /// them. --overlay draws the segments coloured by point and the horizon.
+    Vanishing(vanishing_cmd::VanishingArgs),
 }
 
 /// A world-to-camera pose as OpenCV gives it (solvePnP, calibrateCamera).
@@ -265,6 +276,7 @@ fn run(command: &Command) -> Result<String> {
         Command::Sfm(a) => sfm_cmd::run(a),
         Command::Calibrate(a) => calibrate_cmd::run(a),
         Command::Undistort(a) => undistort_cmd::run(a),
+        Command::Vanishing(a) => vanishing_cmd::run(a),
     }
 }
 

@@ -31,5 +31,6 @@ mod sfm_cli;
 mod twoview_chessboard;
 mod twoview_cli;
 mod undistort;
+mod vanishing;
 mod video;
 mod warp;
