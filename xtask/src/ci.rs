@@ -149,6 +149,7 @@ fn steps() -> Vec<Step> {
                 "planar_pose",
                 "klt_two_frames",
                 "track_box",
+                "vanishing",
             ] {
                 let mut cmd = Command::new(dir.join(example));
                 run(cmd.current_dir(root()))?;
