@@ -420,7 +420,9 @@ pub fn find_vanishing_points<T: Real>(
     let c = params.config;
     for (l, s) in labels.iter_mut().zip(segments) {
         crate::scalar::check_finite(&[s.a.x, s.a.y, s.b.x, s.b.y])?;
-        let long = s.length() >= c.min_length && s.length() > T::zero();
+        // A segment without a line (endpoints equal to working precision, though apart) would
+        // pass the residual test and then fail the fit: left out with the short ones.
+        let long = s.length() >= c.min_length && s.length() > T::zero() && s.line().is_ok();
         *l = if long { 0 } else { NO_POINT };
     }
     // Free segments carry label 0 until assigned; assigned ones carry their point's index
@@ -462,6 +464,12 @@ pub fn find_vanishing_points<T: Real>(
             }
         }
         let Ok(point) = fit_vanishing_point(segments, |i| labels.get(i) == Some(&tag)) else {
+            // No point after all: its segments go back (unassigned at the end), so that no
+            // label names a point that is not returned.
+            labels
+                .iter_mut()
+                .filter(|l| **l == tag)
+                .for_each(|l| *l = 0);
             break;
         };
         let Some(slot) = out.get_mut(found) else {
@@ -687,6 +695,41 @@ mod tests {
         let fitted = angle(&fit_vanishing_point(&segs, |_| true).unwrap().point);
         assert!(fitted < 0.2, "reweighted {fitted}°, plain {plain}°");
         assert!(plain > 2.0 * fitted, "reweighted {fitted}°, plain {plain}°");
+    }
+
+    /// Segments whose endpoints differ but coincide to working precision have no line: they
+    /// are left out (label `NO_POINT`) instead of joining a point's inliers and failing its
+    /// fit, which stopped the search and left them labelled with a point never returned (the
+    /// fuzz target found it).
+    #[test]
+    fn segments_without_a_line_are_left_out() {
+        let mut segs = [Segment::new(Point2::new(0.0f32, 0.0), Point2::new(1.0, 1.0)); 14];
+        for (i, s) in segs.iter_mut().enumerate() {
+            let k = i as f32;
+            *s = if i < 10 {
+                let a = Point2::new(10.0 + 5.0 * k, 300.0 - 20.0 * k);
+                Segment::new(a, a + (Point2::new(400.0, 100.0) - a) * 0.3)
+            } else {
+                // One f32 step apart at 1000: a length, but no line.
+                let a = Point2::new(1000.0f32, 1000.0 + k);
+                Segment::new(a, Point2::new(f32::from_bits(a.x.to_bits() + 1), a.y))
+            };
+        }
+        assert!(segs[12].length() > 0.0 && segs[12].line().is_err());
+        let params = VanishingConfig {
+            min_length: 0.0,
+            ..VanishingConfig::default()
+        }
+        .check()
+        .unwrap();
+        let (mut labels, mut index, mut mask) = ([0u8; 14], [0u32; 14], [false; 14]);
+        let mut out = [VanishingPoint::default(); 3];
+        let n = find_vanishing_points(&segs, &params, &mut labels, &mut index, &mut mask, &mut out)
+            .unwrap();
+        assert_eq!(n, 1);
+        assert!(labels[..10].iter().all(|&l| l == 0), "{labels:?}");
+        assert!(labels[10..].iter().all(|&l| l == NO_POINT), "{labels:?}");
+        assert_eq!(out[0].segments, 10);
     }
 
     #[test]
