@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 3;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 10] = [
+pub const TARGETS: [&str; 11] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -36,6 +36,7 @@ pub const TARGETS: [&str; 10] = [
     "apriltag",
     "remap",
     "sfm",
+    "vanishing",
 ];
 
 /// Build flags: release with debug assertions (so integer overflow panics), no sanitizer (the
