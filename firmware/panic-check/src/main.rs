@@ -969,6 +969,47 @@ fn run_remap<T: Real>() {
     }
 }
 
+// ---------------------------------------------------------------- vanishing
+
+/// Vanishing points of opaque segments (buffers of opaque lengths), the grouped fit and the
+/// horizon with and without intrinsics.
+#[cfg(feature = "vanishing")]
+fn run_vanishing<T: Real>() {
+    use camgeom::vanishing::{
+        MAX_POINTS, Segment, VanishingConfig, VanishingPoint, find_vanishing_points,
+        fit_vanishing_point, horizon,
+    };
+    let ends = points2::<T, N>();
+    let mut segments = [Segment::new(pt2(0.0, 0.0), pt2(1.0, 0.0)); N / 2];
+    for (s, pair) in segments.iter_mut().zip(ends.chunks_exact(2)) {
+        if let [a, b] = pair {
+            *s = Segment::new(*a, *b);
+        }
+    }
+    let segments = black_box(segments);
+    let Ok(params) = black_box(VanishingConfig::<T>::default()).check() else {
+        return;
+    };
+    let mut labels = [0u8; N / 2];
+    let mut index = [0u32; N / 2];
+    let mut mask = [false; N / 2];
+    let mut out = [VanishingPoint::<T>::default(); MAX_POINTS];
+    let found = find_vanishing_points(
+        black_box(&segments[..]),
+        &params,
+        black_box(&mut labels[..]),
+        black_box(&mut index[..]),
+        black_box(&mut mask[..]),
+        black_box(&mut out[..]),
+    );
+    if let Ok(count) = found {
+        let points = out.get(..count).unwrap_or(&[]);
+        black_box(horizon(points, None).ok());
+        black_box(horizon(points, intrinsics::<T>().as_ref()).ok());
+    }
+    black_box(fit_vanishing_point(black_box(&segments[..]), |i| i % 2 == 0).ok());
+}
+
 // ---------------------------------------------------------------- resize
 
 #[cfg(feature = "resize")]
@@ -1026,6 +1067,8 @@ fn run_generic<T: Real>() {
     run_calib::<T>();
     #[cfg(feature = "remap")]
     run_remap::<T>();
+    #[cfg(feature = "vanishing")]
+    run_vanishing::<T>();
 }
 
 /// The entry points of every selected area that have no scalar parameter (integer or
