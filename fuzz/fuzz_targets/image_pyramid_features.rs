@@ -18,7 +18,7 @@ use camgeom::arith::Fixed;
 use camgeom::corners::{Corner, CornerConfig, good_features};
 use camgeom::features::{
     Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect, hamming,
-    match_descriptors, orb_detect, orb_detect_into,
+    match_descriptors, match_descriptors_guided, orb_detect, orb_detect_into,
 };
 use camgeom::heapless::Vec;
 use camgeom::homography::Homography;
@@ -67,6 +67,8 @@ struct Input {
     cross_check: bool,
     max_distance: u16,
     match_slack: i16,
+    /// The pairs `match_descriptors_guided` admits: `(i, j)` when bit `(7 i + j) mod 64` is set.
+    admit: u64,
 }
 
 fn grow(len: usize, slack: i16) -> usize {
@@ -342,6 +344,39 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
                 "distance"
             );
             assert!(m.distance <= inp.max_distance, "match beyond max_distance");
+        }
+    }
+
+    // Guided: only admitted pairs come out, with their distance; admitting every pair is the
+    // unguided matcher.
+    let admit = |i: usize, j: usize| inp.admit >> ((7 * i + j) % 64) & 1 == 1;
+    let mut guided = std::vec![Match::default(); out.len()];
+    if let Ok(mparams) = mcfg.check()
+        && let Ok(n) =
+            match_descriptors_guided(&query, &train, &mparams, admit, &mut mscratch, &mut guided)
+    {
+        assert!(n <= query.len(), "more guided matches than queries");
+        for m in &guided[..n] {
+            let (q, t) = (usize::from(m.query), usize::from(m.train));
+            assert!(
+                q < query.len() && t < train.len() && admit(q, t),
+                "guided match not admitted"
+            );
+            assert_eq!(
+                u32::from(m.distance),
+                hamming(&query[q], &train[t]),
+                "guided distance"
+            );
+        }
+    }
+    if let Ok(mparams) = mcfg.check() {
+        let mut all = std::vec![Match::default(); out.len()];
+        let mut s2 = mscratch.clone();
+        let a = match_descriptors(&query, &train, &mparams, &mut mscratch, &mut out);
+        let b = match_descriptors_guided(&query, &train, &mparams, |_, _| true, &mut s2, &mut all);
+        assert_eq!(a, b, "guided with every pair admitted");
+        if let Ok(n) = a {
+            assert_eq!(out[..n], all[..n], "guided with every pair admitted");
         }
     }
 }

@@ -15,6 +15,20 @@
 //! The reverse nearest neighbours of the cross-check are found in the same pass and kept in
 //! caller scratch ([`scratch_len`] `u32` words: distance and index packed), so there is no
 //! second pass over the pairs.
+//!
+//! [`match_descriptors_guided`] does the same among the pairs `(i, j)` a caller's predicate
+//! admits, and only those: the nearest, the second-nearest (for the ratio test) and the
+//! reverse nearest neighbour are taken over the admitted candidates. Structure from motion
+//! admits the pairs that a geometry already verified explains (COLMAP's guided matching): with
+//! a fundamental matrix `F` in pixels and the verification's threshold `t`, the pairs of
+//! squared Sampson distance
+//!
+//! `d²(x, y) = (yᵀ F x)² / ((F x)₁² + (F x)₂² + (Fᵀ y)₁² + (Fᵀ y)₂²) < t²`,
+//!
+//! that is, `y` within about `t` pixels of the epipolar line `F x`; with a homography `H`, the
+//! pairs of symmetric transfer error `(|H x − y|² + |H⁻¹ y − x|²) / 2 < t²`. Among the few
+//! features near a line the ratio test separates far more matches than among all of an image's
+//! (repeated texture elsewhere in the image no longer competes).
 
 use crate::{Error, Result};
 
@@ -137,6 +151,46 @@ pub fn match_descriptors(
     scratch: &mut [u32],
     out: &mut [Match],
 ) -> Result<usize> {
+    match_descriptors_guided(query, train, params, |_, _| true, scratch, out)
+}
+
+/// [`match_descriptors`] among the pairs `candidate(i, j)` admits (`i` into `query`, `j` into
+/// `train`; module docs): per query `i`, the nearest admitted train descriptor `j` (the first
+/// on ties) when `d₁ <= max_distance`, `d₁ < ratio · d₂` with `d₂` the second-nearest
+/// admitted distance (skipped when `ratio >= 1` or `i` has a single candidate), and, with
+/// cross-check, `i` is the nearest admitted query of `j`. A query without candidates has no
+/// match. `candidate` is called once per pair, before any distance, so the distances computed
+/// are those of the admitted pairs only; a predicate that admits every pair gives
+/// [`match_descriptors`] exactly.
+///
+/// Buffers and errors as [`match_descriptors`].
+///
+/// ```
+/// use camgeom::features::matching::{Descriptor, Match, MatchParams, match_descriptors_guided};
+///
+/// // Three queries and three train descriptors; train 1 and 2 are query 0 with two bits
+/// // flipped: unguided, they are too alike for the ratio test, and nothing else matches.
+/// let q = [Descriptor([0; 8]), Descriptor([u32::MAX; 8]), Descriptor([0xFFFF; 8])];
+/// let t = [Descriptor([0xF0F0_F0F0; 8]), Descriptor([3, 0, 0, 0, 0, 0, 0, 0]),
+///          Descriptor([5, 0, 0, 0, 0, 0, 0, 0])];
+/// let (mut out, mut scratch) = ([Match::default(); 3], [0u32; 3]);
+/// let p = MatchParams::default();
+/// assert_eq!(match_descriptors_guided(&q, &t, &p, |_, _| true, &mut scratch, &mut out)?, 0);
+/// // A geometry that puts query 0 near train 1 only (say, its epipolar line) keeps the match.
+/// let near = |i: usize, j: usize| (i, j) == (0, 1);
+/// let n = match_descriptors_guided(&q, &t, &p, near, &mut scratch, &mut out)?;
+/// assert_eq!(out[..n], [Match { query: 0, train: 1, distance: 2 }]);
+/// # Ok::<(), camgeom::Error>(())
+/// ```
+#[doc(alias = "BFMatcher")]
+pub fn match_descriptors_guided(
+    query: &[Descriptor],
+    train: &[Descriptor],
+    params: &MatchParams,
+    mut candidate: impl FnMut(usize, usize) -> bool,
+    scratch: &mut [u32],
+    out: &mut [Match],
+) -> Result<usize> {
     let config = params.config();
     if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS {
         return Err(Error::InvalidParameter("descriptors"));
@@ -158,6 +212,9 @@ pub fn match_descriptors(
     for (i, q) in query.iter().enumerate() {
         let (mut d1, mut d2, mut j1) = (u32::MAX, u32::MAX, 0usize);
         for (j, t) in train.iter().enumerate() {
+            if !candidate(i, j) {
+                continue;
+            }
             let d = hamming(q, t);
             if d < d1 {
                 d2 = d1;
@@ -317,6 +374,91 @@ mod tests {
                 .iter()
                 .all(|m| usize::from(m.train) == 2 * usize::from(m.query) && m.distance == 3)
         );
+    }
+
+    /// The guided matcher against the definition applied to the admitted pairs only: each
+    /// query's candidates and each train descriptor's candidate queries, as separate sets.
+    #[test]
+    fn guided_agrees_with_the_definition_on_the_admitted_pairs() {
+        let train = random(60, 3);
+        let mut query: Vec<Descriptor> = train
+            .iter()
+            .step_by(2)
+            .enumerate()
+            .map(|(k, d)| flip(d, &[k, 40 + 3 * k]))
+            .collect();
+        query.extend(random(30, 4));
+        // A band: pairs whose indices are close (as features near an epipolar line).
+        let admit = |i: usize, j: usize| (2 * i).abs_diff(j) <= 7 || (i + j).is_multiple_of(11);
+        for cfg in [
+            MatchConfig::default(),
+            MatchConfig {
+                ratio: 1.0,
+                cross_check: false,
+                max_distance: 256,
+            },
+            MatchConfig {
+                ratio: 0.7,
+                cross_check: true,
+                max_distance: 120,
+            },
+        ] {
+            let mut expect = Vec::new();
+            let nearest = |d: &Descriptor, set: &[(usize, &Descriptor)]| {
+                let mut ds: Vec<(u32, usize)> =
+                    set.iter().map(|(j, s)| (hamming(d, s), *j)).collect();
+                ds.sort();
+                (ds.first().copied(), ds.get(1).map_or(u32::MAX, |x| x.0))
+            };
+            for (i, q) in query.iter().enumerate() {
+                let cands: Vec<(usize, &Descriptor)> = train
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| admit(i, *j))
+                    .collect();
+                let (Some((d1, j)), d2) = nearest(q, &cands) else {
+                    continue;
+                };
+                if d1 > u32::from(cfg.max_distance)
+                    || (cfg.ratio < 1.0 && d2 != u32::MAX && d1 as f32 >= cfg.ratio * d2 as f32)
+                {
+                    continue;
+                }
+                let back: Vec<(usize, &Descriptor)> = query
+                    .iter()
+                    .enumerate()
+                    .filter(|(k, _)| admit(*k, j))
+                    .collect();
+                if cfg.cross_check && nearest(&train[j], &back).0.map(|x| x.1) != Some(i) {
+                    continue;
+                }
+                expect.push(Match {
+                    query: i as u16,
+                    train: j as u16,
+                    distance: d1 as u16,
+                });
+            }
+            let mut out = std::vec![Match::default(); query.len()];
+            let mut scratch = std::vec![0u32; scratch_len(train.len())];
+            let params = cfg.check().unwrap();
+            let n =
+                match_descriptors_guided(&query, &train, &params, admit, &mut scratch, &mut out)
+                    .unwrap();
+            assert_eq!(out[..n], expect[..], "{cfg:?}");
+        }
+        // Admitting every pair is the unguided matcher; admitting none matches nothing.
+        let params = MatchParams::default();
+        let (mut a, mut b) = (
+            std::vec![Match::default(); query.len()],
+            std::vec![Match::default(); query.len()],
+        );
+        let mut s = std::vec![0u32; train.len()];
+        let n = match_descriptors(&query, &train, &params, &mut s, &mut a).unwrap();
+        let m =
+            match_descriptors_guided(&query, &train, &params, |_, _| true, &mut s, &mut b).unwrap();
+        assert_eq!(a[..n], b[..m]);
+        let none = match_descriptors_guided(&query, &train, &params, |_, _| false, &mut s, &mut b);
+        assert_eq!(none, Ok(0));
     }
 
     #[test]

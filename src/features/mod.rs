@@ -10,7 +10,7 @@
 //! |---|---|
 //! | [`fast`] | FAST-9 corners on the 16-pixel Bresenham circle with 3x3 non-maximum suppression, integer Harris response |
 //! | [`orb`] | ORB: multi-scale FAST + Harris selection (optionally spread by a grid), intensity-centroid orientation, steered 256-bit BRIEF, optional sub-pixel positions |
-//! | [`matching`] | Hamming distance, brute-force matching with Lowe's ratio test and cross-check |
+//! | [`matching`] | Hamming distance, brute-force matching with Lowe's ratio test and cross-check, optionally among the pairs a geometry admits (guided) |
 //!
 //! ORB features of a drawn scene and of the same scene moved by `(+5, +3)` pixels, matched:
 //!
@@ -62,7 +62,10 @@ pub mod matching;
 pub mod orb;
 
 pub use fast::{Corner, FastConfig, FastParams, fast_detect, harris_response};
-pub use matching::{Descriptor, Match, MatchConfig, MatchParams, hamming, match_descriptors};
+pub use matching::{
+    Descriptor, Match, MatchConfig, MatchParams, hamming, match_descriptors,
+    match_descriptors_guided,
+};
 pub use orb::{Feature, Keypoint, OrbConfig, OrbParams, orb_detect, orb_detect_into};
 
 /// Keeps the `heap.len()`-bounded best items of a stream in a min-heap on `key` (the root is
