@@ -103,7 +103,7 @@ pub const AREAS: [Area; 20] = [
     area(
         "features",
         false,
-        "`fast_detect`, `orb_detect`, `match_descriptors`",
+        "`fast_detect`, `orb_detect`, `match_descriptors`, `match_descriptors_guided`",
     ),
     area(
         "warp",

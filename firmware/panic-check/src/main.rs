@@ -539,7 +539,7 @@ fn run_draw<T: Real>() {
 fn run_features() {
     use camgeom::features::{
         Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect,
-        match_descriptors, orb_detect, orb_detect_into,
+        match_descriptors, match_descriptors_guided, orb_detect, orb_detect_into,
     };
     use camgeom::heapless::Vec;
     let frame = black_box([0u8; W * H]);
@@ -583,6 +583,11 @@ fn run_features() {
     let mut ms = black_box([0u32; 64]);
     let mut matches = black_box([Match::default(); 8]);
     black_box(match_descriptors(&q, &t, &mparams, &mut ms, &mut matches).ok());
+    black_box(&matches);
+    // Guided: a predicate the optimiser cannot see through.
+    let band = black_box(3usize);
+    let admit = |i: usize, j: usize| i.abs_diff(j) <= band;
+    black_box(match_descriptors_guided(&q, &t, &mparams, admit, &mut ms, &mut matches).ok());
     black_box(&matches);
 }
 
