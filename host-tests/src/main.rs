@@ -28,6 +28,7 @@ mod ar_cmd;
 mod calibrate_cmd;
 mod homography_cmd;
 mod klt_cmd;
+mod monitor_cmd;
 mod pose_cmd;
 mod sfm_cmd;
 mod twoview_cmd;
@@ -84,7 +85,8 @@ enum Command {
     /// Reads rows `x,y` (CSV) and writes `x,y,status` per input point: status `ok`, or
     /// `out_of_bounds`, `small_eigenvalue`, `inconsistent` (with `--fb`), and x, y `nan`.
     Flow(klt_cmd::FlowArgs),
-    /// Track features through a folder of frames (Shi-Tomasi detection, KLT, replenishment).
+    /// Track features through a folder of frames or a video (Shi-Tomasi detection, KLT,
+    /// replenishment).
     ///
     /// Writes rows `frame,id,x,y` to --out (optionally overlay PNGs) and prints a JSON summary.
     Track(klt_cmd::TrackArgs),
@@ -148,6 +150,12 @@ enum Command {
     /// with --intrinsics each point's direction in the camera frame and the angles between
     /// them. --overlay draws the segments coloured by point and the horizon.
     Vanishing(vanishing_cmd::VanishingArgs),
+    /// Read a board's record stream: a saved stream file (--replay) or a board's socket
+    /// (--tcp), one line a frame (state, counts, pose, cost), then the link's counts.
+    ///
+    /// The stream is camgeom's framing (COBS, sequence number, CRC-32) of the board's binary
+    /// records; damaged frames are counted and skipped. --json prints one JSON object a line.
+    Monitor(monitor_cmd::MonitorArgs),
 }
 
 /// A world-to-camera pose as OpenCV gives it (solvePnP, calibrateCamera).
@@ -277,6 +285,7 @@ fn run(command: &Command) -> Result<String> {
         Command::Calibrate(a) => calibrate_cmd::run(a),
         Command::Undistort(a) => undistort_cmd::run(a),
         Command::Vanishing(a) => vanishing_cmd::run(a),
+        Command::Monitor(a) => monitor_cmd::run(a),
     }
 }
 

@@ -225,6 +225,12 @@ pub fn to_json<S: serde::Serialize>(value: &S) -> String {
     s
 }
 
+/// The CLI's JSON as one line (no final newline): one object a line for streams (JSON Lines),
+/// the numbers as in [`to_json`].
+pub fn to_json_line<S: serde::Serialize>(value: &S) -> String {
+    serde_json::to_string(value).unwrap_or_default()
+}
+
 /// Formats a float for CSV output: the shortest text that reads back to the same value, `nan`
 /// for NaN (also used for a point that has no value).
 pub fn format_float<T: Debug + PartialEq>(v: T) -> String {

@@ -182,6 +182,15 @@ pub fn run_on_qemu_in(
         // One virtual nanosecond per instruction: SysTick then counts instructions (see
         // firmware/README.md), and runs are deterministic.
         .args(["-icount", "shift=0"])
+        // UART0 (the record stream of the jobs that stream, `firmware/emulated/src/uart.rs`)
+        // to `serial.bin` in the run's directory; the monitor nowhere, so that stdout carries
+        // only the defmt log.
+        .args(["-monitor", "none", "-serial"])
+        .arg(if dir.is_some() {
+            "file:serial.bin"
+        } else {
+            "null"
+        })
         .arg("-kernel")
         .arg(elf)
         .current_dir(dir.unwrap_or(&root()))

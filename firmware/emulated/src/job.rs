@@ -27,6 +27,16 @@ pub use camgeom_fw_app::run::{CANDIDATES, LEVELS, TRACKS, WIN};
 /// The file the records go to, in QEMU's working directory.
 pub const REPORT_FILE: &str = "report.bin";
 
+/// Where the records go besides [`REPORT_FILE`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stream {
+    /// Only to [`REPORT_FILE`].
+    Off,
+    /// Also as the framed record stream ([`camgeom_fw_app::link`]) over UART0
+    /// ([`crate::uart`]; Arm `mps2-an500` and `mps2-an385` only).
+    Uart0,
+}
+
 /// SysTick, in instructions (QEMU `-icount`) or cycles (hardware).
 struct SysTickClock;
 
@@ -119,11 +129,13 @@ fn read_spec() -> RunSpec {
 
 /// Runs the main job on `app` (a `static`) for `W x H` frames, the target found by what
 /// `acquisition` makes of the run description (`None`: this firmware cannot acquire the
-/// run's target, a failed run); exits the emulator.
+/// run's target, a failed run), the records also streamed as `stream` says; exits the
+/// emulator.
 pub fn run<A: Acquire>(
     app: &mut impl FrameLoop,
     width: usize,
     height: usize,
+    stream: Stream,
     acquisition: impl FnOnce(&RunSpec) -> Option<A>,
 ) -> ! {
     cost::start();
@@ -184,13 +196,16 @@ pub fn run<A: Acquire>(
         }
     };
     let mut summary = SummaryRecord::default();
+    let mut link = Link::open(stream);
     let mut record = |r: &FrameRecord| {
         log_frame(r);
         summary.frames += 1;
         summary.tracking += u32::from(r.state == TargetState::Tracking && r.error.is_none());
-        if let Err(e) = report.write_all(&r.encode()) {
+        let bytes = r.encode();
+        if let Err(e) = report.write_all(&bytes) {
             fail_host(REPORT_FILE, e)
         }
+        link.send(&bytes);
     };
     let Some(mut acquire) = acquisition(&spec) else {
         defmt::error!("run.bin asks for a target this firmware cannot acquire");
@@ -215,9 +230,12 @@ pub fn run<A: Acquire>(
     summary.stack_used = stack;
     summary.stack_size = stack_size;
     summary.overlays = saved;
-    if let Err(e) = report.write_all(&summary.encode()) {
+    let bytes = summary.encode();
+    if let Err(e) = report.write_all(&bytes) {
         fail_host(REPORT_FILE, e)
     }
+    link.send(&bytes);
+    link.log();
     defmt::info!(
         "main job: {=u32} frames, {=u32} tracking, pipeline RAM {=u32} bytes, stack {=u32} of {=u32} bytes, {=u32} overlays",
         summary.frames,
@@ -236,5 +254,66 @@ pub fn given_corners(spec: &RunSpec) -> Option<GivenCorners> {
     match spec.acquisition {
         Acquisition::Corners => Some(GivenCorners::new(spec.start_corners())),
         Acquisition::Tag { .. } => None,
+    }
+}
+
+/// The record stream of a run, with what it cost.
+struct Link {
+    #[cfg(target_arch = "arm")]
+    uart: Option<crate::uart::RecordLink>,
+    frames: u32,
+    bytes: u32,
+    instructions: u64,
+}
+
+impl Link {
+    fn open(stream: Stream) -> Self {
+        #[cfg(target_arch = "arm")]
+        let uart = (stream == Stream::Uart0).then(crate::uart::RecordLink::open);
+        #[cfg(not(target_arch = "arm"))]
+        if stream != Stream::Off {
+            defmt::error!("this board has no record stream");
+            board::exit_failure()
+        }
+        Self {
+            #[cfg(target_arch = "arm")]
+            uart,
+            frames: 0,
+            bytes: 0,
+            instructions: 0,
+        }
+    }
+
+    /// Sends `record` as the next frame (a failure ends the run: the host checks the stream).
+    fn send(&mut self, record: &[u8]) {
+        #[cfg(target_arch = "arm")]
+        if let Some(uart) = &mut self.uart {
+            let mut clock = SysTickClock;
+            let start = clock.now();
+            match uart.send(record) {
+                Ok(n) => {
+                    self.frames += 1;
+                    self.bytes += n as u32;
+                    self.instructions += clock.now().saturating_sub(start);
+                }
+                Err(e) => {
+                    defmt::error!("record stream: {}", e);
+                    board::exit_failure()
+                }
+            }
+        }
+        #[cfg(not(target_arch = "arm"))]
+        let _ = record;
+    }
+
+    fn log(&self) {
+        if self.frames > 0 {
+            defmt::info!(
+                "record stream: {=u32} frames, {=u32} bytes over UART0, {=u64} instructions a frame to frame and send",
+                self.frames,
+                self.bytes,
+                self.instructions / u64::from(self.frames)
+            );
+        }
     }
 }

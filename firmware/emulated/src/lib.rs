@@ -6,6 +6,7 @@
 //! - [`cost`]: SysTick as an instruction counter under QEMU `-icount`, and a cost table;
 //! - [`semihost`]: host files over semihosting and the recorded sequence as a camera;
 //! - [`job`]: the main job, the `camgeom-fw-app` pipeline over a recorded sequence;
+//! - `uart` (Arm): UART0, the transport of the record stream;
 //! - [`chessboard`]: the bundled chessboard camera and OpenCV's projections, for the checks.
 //!
 //! Binaries: `camgeom-fw-emulated` (the main job at 320x240, `src/main.rs`) and the others in
@@ -18,6 +19,8 @@ pub mod chessboard;
 pub mod cost;
 pub mod job;
 pub mod semihost;
+#[cfg(target_arch = "arm")]
+pub mod uart;
 
 // The defmt global logger: every binary of this crate logs over semihosting.
 use defmt_semihosting as _;

@@ -22,6 +22,8 @@ pub struct BoardRun {
     pub summary: SummaryRecord,
     /// The overlays it wrote back.
     pub overlays: Overlays,
+    /// Its defmt log, one message a line.
+    pub log: Vec<String>,
 }
 
 /// The records of `report.bin`: frames in order, then exactly one summary.
@@ -89,11 +91,11 @@ pub fn run_board(
     // Outputs of an earlier run must not be mistaken for this one's.
     for e in fs::read_dir(dir)?.flatten() {
         let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with("overlay-") || n == "report.bin" {
+        if n.starts_with("overlay-") || n == "report.bin" || n == "serial.bin" {
             fs::remove_file(e.path())?;
         }
     }
-    run_on_qemu_in(board, elf, Some(dir), "main job: ", " frames, ", None)?;
+    let (_, log) = run_on_qemu_in(board, elf, Some(dir), "main job: ", " frames, ", None)?;
     let (frames, summary) = read_report(&dir.join("report.bin"))?;
     let overlays = read_overlays(dir, size, stride)?;
     ensure!(
@@ -112,5 +114,6 @@ pub fn run_board(
         frames,
         summary,
         overlays,
+        log,
     })
 }

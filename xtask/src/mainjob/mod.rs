@@ -27,6 +27,7 @@ mod emulate;
 mod faults;
 mod prepare;
 mod replay;
+mod stream;
 mod table;
 mod tag;
 

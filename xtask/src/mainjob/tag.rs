@@ -25,7 +25,7 @@ use camgeom_host::images::load_gray;
 use camgeom_host::load_camera;
 use camgeom_host::points::format_csv;
 
-use super::{compare, emulate, replay};
+use super::{compare, emulate, replay, stream};
 use crate::firmware::{build_bin_for, size_of};
 use crate::jobs::{M7, Size};
 use crate::util::root;
@@ -225,6 +225,7 @@ pub fn run(stride: u32) -> Result<String> {
     let (flash, ram, _) = size_of(M7, &elf)?;
     let board = emulate::run_board(M7, &elf, &dir, SIZE, stride)?;
     let verdict = compare::compare(&board.frames, &host.0, &board.overlays, &host.1)?;
+    let link = stream::check(&dir, &board.log)?;
     let frames = &board.frames;
     ensure!(
         frames.values().all(|r| r.error.is_none()),
@@ -292,5 +293,6 @@ pub fn run(stride: u32) -> Result<String> {
         quantile(&mut dt, 1.0),
         board.summary.stack_used
     );
+    let _ = write!(s, "\n{link}");
     Ok(s)
 }

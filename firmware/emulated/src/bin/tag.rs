@@ -2,7 +2,8 @@
 //! `cargo xtask run` prepares). The target is acquired by the tag detector
 //! ([`camgeom::apriltag::TagTarget`], the loop's acquisition step) on the first frame, after a
 //! loss and every `reacquire_every` frames, and tracked by the same pipeline as the box job in
-//! between; the host replays it bit for bit.
+//! between; the host replays it bit for bit. Its records also stream over UART0 ([`job::Stream`]),
+//! as a real board's do over its link.
 #![no_std]
 #![no_main]
 
@@ -24,23 +25,25 @@ static DETECTOR: StaticCell<Detector> = StaticCell::new();
 #[entry]
 fn main() -> ! {
     let workspace = WORKSPACE.take();
-    job::run(APP.take(), W, H, |spec| match spec.acquisition {
-        Acquisition::Tag { family, id } => {
-            let family = *TAG_FAMILIES.get(usize::from(family))?;
-            let detector = match Detector::new(DetectorConfig::default(), &[family]) {
-                Ok(d) => DETECTOR.init(d),
-                Err(e) => {
-                    defmt::error!("tag detector: {}", e);
-                    board::exit_failure()
-                }
-            };
-            Some(TagTarget::new(
-                detector,
-                workspace.as_mut_view(),
-                family,
-                id,
-            ))
+    job::run(APP.take(), W, H, job::Stream::Uart0, |spec| {
+        match spec.acquisition {
+            Acquisition::Tag { family, id } => {
+                let family = *TAG_FAMILIES.get(usize::from(family))?;
+                let detector = match Detector::new(DetectorConfig::default(), &[family]) {
+                    Ok(d) => DETECTOR.init(d),
+                    Err(e) => {
+                        defmt::error!("tag detector: {}", e);
+                        board::exit_failure()
+                    }
+                };
+                Some(TagTarget::new(
+                    detector,
+                    workspace.as_mut_view(),
+                    family,
+                    id,
+                ))
+            }
+            Acquisition::Corners => None,
         }
-        Acquisition::Corners => None,
     })
 }
