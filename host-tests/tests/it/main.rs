@@ -23,6 +23,7 @@ mod homography_sweep;
 mod klt;
 mod klt_cli;
 mod loaders;
+mod monitor;
 mod pose_chessboard;
 mod pose_cli;
 mod pose_sequence;
