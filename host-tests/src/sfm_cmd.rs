@@ -7,12 +7,21 @@
 //! 2. each pair's matches verified by an essential matrix (5-point RANSAC on undistorted
 //!    pixels) or, when it explains more, a homography (a plane, a camera that only turned): a
 //!    pair keeps that model's inliers when there are at least `--min-pair-inliers`, else none;
-//! 3. tracks: the connected components of the verified matches
-//!    ([`camgeom::sfm::TrackBuilder`]), a component with two features of one image dropped;
-//!    or, with `--matches`, the tracks of a CSV file (`track,view,x,y`);
+//!    with `--guided`, a verified pair is then matched again under its model (COLMAP's guided
+//!    matching, [`guided_pair`]): each feature's candidates are only the features within
+//!    `--verify-threshold` of its epipolar line (Sampson distance) or of its homography
+//!    transfer, the ratio test and the mutual check among those, no farther in Hamming distance
+//!    than the pair's first verified matches, and the matches found are verified again by the
+//!    same kind of model;
+//! 3. tracks: the verified matches joined strongest first (pairs with more verified matches,
+//!    then smaller distances), a match that would give a track two features of one image left
+//!    out ([`consistent_tracks`]); each track aligned by KLT to its finest keypoint
+//!    ([`refine_tracks`]); or, with `--matches`, the tracks of a CSV file (`track,view,x,y`);
 //! 4. [`camgeom::sfm::reconstruct`]: the initial pair (refused when planar, low-parallax or
 //!    short of inliers), PnP-RANSAC registration of each next view, triangulation, bundle
-//!    adjustments of every view and point, outlier filtering;
+//!    adjustments of every view and point, outlier filtering; then, unless `--no-extend`, the
+//!    tracks are completed by projecting each point into the registered views that lack it
+//!    ([`extend_tracks`]) and the reconstruction runs again on them;
 //! 5. prints JSON: per image in the order given, `registered`, the `reason` when not, `R`
 //!    (row-major), `t` (`X_cam = R X_world + t`), `center`, `inliers`, `reprojection_rms_px`;
 //!    writes `DIR/points.ply` (points coloured from the images, then the camera centres) and
@@ -28,18 +37,21 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use camgeom::camera::Camera;
+use camgeom::features::matching::{Match, match_descriptors_guided, scratch_len};
 use camgeom::features::orb::Feature;
+use camgeom::features::{Descriptor, hamming};
 use camgeom::homography::find_homography;
-use camgeom::nalgebra::{Point2, Point3};
-use camgeom::ransac::RansacConfig;
+use camgeom::nalgebra::{Matrix3, Point2, Point3};
+use camgeom::ransac::{RansacConfig, RansacParams};
 use camgeom::sfm::{
-    BundleScratch, IncrementalConfig, InitialRefusal, NO_TRACK, Observation, PointScratch, Scene,
-    TrackBuilder, TrackSet, ViewRefusal, ViewResult, ViewState, Workspace, reconstruct,
+    BundleScratch, IncrementalConfig, IncrementalParams, InitialRefusal, Observation, PointScratch,
+    Reconstruction, Scene, TrackSet, ViewRefusal, ViewResult, ViewState, Workspace, reconstruct,
 };
+use camgeom::transform::Pose;
 use camgeom::twoview::find_essential;
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
-use camgeom_host::cli::matches::{match_features, orb_features};
+use camgeom_host::cli::matches::{RATIO_MUTUAL, match_features, orb_features};
 use camgeom_host::figures::{
     CAMERA_COLOURS, SceneCamera, correspondences_plot, reprojection_plot, scene_plot,
 };
@@ -81,6 +93,15 @@ pub struct SfmArgs {
     /// Fewest verified matches for a pair of images to count.
     #[arg(long, value_name = "N", default_value_t = 15)]
     pub min_pair_inliers: usize,
+    /// Match each verified pair again under its geometry (COLMAP's guided matching): off by
+    /// default, since with ORB it finds more wrong matches along epipolar lines than it adds
+    /// right ones (BENCHMARKS.md, "Structure from motion on real buildings").
+    #[arg(long)]
+    pub guided: bool,
+    /// One reconstruction: no extension of the tracks by the first one's points projected
+    /// into its registered views.
+    #[arg(long)]
+    pub no_extend: bool,
     /// Keep the ORB keypoints where the detector put them (no KLT alignment of each track to
     /// its finest observation).
     #[arg(long)]
@@ -127,8 +148,11 @@ pub struct Pair {
     pub views: [usize; 2],
     /// Matches (ratio test and mutual check).
     pub matches: usize,
-    /// Of which the essential matrix explains (0 when below `--min-pair-inliers`).
+    /// Matches verified: of the first pass, or of the guided pass when there was one (0 when
+    /// below `--min-pair-inliers`).
     pub verified: usize,
+    /// Matches of the guided pass, before their verification (0 without one).
+    pub guided: usize,
 }
 
 /// The JSON summary.
@@ -142,6 +166,9 @@ pub struct SfmOutput {
     pub points: usize,
     /// Tracks given to the reconstruction.
     pub tracks: usize,
+    /// Observations added to the tracks by projecting the first reconstruction's points into
+    /// its registered views (0 with `--no-extend`; then one reconstruction).
+    pub extended: usize,
     /// Observations used.
     pub observations: usize,
     /// RMS reprojection error of those, pixels.
@@ -152,7 +179,8 @@ pub struct SfmOutput {
     pub initial_inliers: u32,
     /// Pairwise matching (absent with `--matches`).
     pub pairs: Vec<Pair>,
-    /// Wall time, seconds: features and matching, then the reconstruction.
+    /// Wall time, seconds: features and matching, then the reconstruction (both, with the
+    /// track completion).
     pub seconds: [f64; 2],
     /// The files written.
     pub ply: String,
@@ -174,16 +202,156 @@ fn pixel(f: &Feature) -> Point2<f64> {
     Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y))
 }
 
-/// Steps 1-3 of the module docs from images.
 /// Each pair's matches (pixels in the first and the second image, verified), by `(i, j)`, `i < j`.
 type PairMatches = BTreeMap<(usize, usize), Vec<(Point2<f64>, Point2<f64>, bool)>>;
 
+/// The geometry a pair of images was verified with, on undistorted pixels.
+#[derive(Clone, Copy, Debug)]
+enum PairModel {
+    /// The fundamental matrix `F = K⁻ᵀ E K⁻¹` of the essential matrix.
+    Fundamental(Matrix3<f64>),
+    /// A homography `y ~ H x` and its inverse.
+    Homography(Matrix3<f64>, Matrix3<f64>),
+}
+
+/// Step 2's verification of matches `x1[k] ↔ x2[k]` (undistorted pixels): the essential
+/// matrix, or the homography when it explains more. The inlier mask and the model, or `None`
+/// when neither has `min` inliers.
+fn verify_pair(
+    camera: &Camera<f64>,
+    x1: &[Point2<f64>],
+    x2: &[Point2<f64>],
+    params: &RansacParams<f64>,
+    min: usize,
+) -> Option<(Vec<bool>, PairModel)> {
+    let k = camera.intrinsics;
+    if x1.len() < min.max(5) {
+        return None;
+    }
+    // The model that explains more: the essential matrix for a pair that moved, a homography
+    // for a plane or a camera that only turned (whose matches still make tracks, though such a
+    // pair cannot start the reconstruction).
+    let (mut mask, mut mask_h) = (vec![false; x1.len()], vec![false; x1.len()]);
+    let e = find_essential(&k, &k, x1, x2, params, &mut mask).ok();
+    let h = find_homography(x1, x2, params, &mut mask_h).ok();
+    let (ne, nh) = (
+        e.as_ref().map_or(0, |r| r.1.inliers),
+        h.as_ref().map_or(0, |r| r.1.inliers),
+    );
+    let model = if nh > ne {
+        mask = mask_h;
+        let (h, _) = h?;
+        PairModel::Homography(*h.matrix(), *h.inverse().ok()?.matrix())
+    } else {
+        let (e, _) = e?;
+        PairModel::Fundamental(*e.to_fundamental(&k, &k).ok()?.matrix())
+    };
+    (mask.iter().filter(|&&b| b).count() >= min).then_some((mask, model))
+}
+
+/// COLMAP's guided matching of features `a` and `b` (undistorted pixels `ua`, `ub`; `None`
+/// outside the lens model) under a pair's verified geometry: the candidates of a feature are
+/// the features of the other image within `threshold` pixels, the verification's inlier test
+/// (squared Sampson distance to `F`, or symmetric transfer error of `H`, `< threshold²`); among
+/// them the ratio test and the mutual check as in the first pass
+/// ([`match_descriptors_guided`]). Per feature of `a` the epipolar line `F x` (or the transfer
+/// `H x`) is computed once, per feature of `b` `Fᵀ y` (or `H⁻¹ y`), so each pair costs a few
+/// multiplications before any Hamming distance.
+fn guided_pair(
+    a: &[Feature],
+    b: &[Feature],
+    ua: &[Option<Point2<f64>>],
+    ub: &[Option<Point2<f64>>],
+    model: &PairModel,
+    threshold: f64,
+    what: &str,
+) -> Result<Vec<(usize, usize)>> {
+    let t2 = threshold * threshold;
+    let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
+    let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
+    let nan = [f64::NAN; 4];
+    // Per feature of `a`: `[l₀, l₁, l₂, l₀² + l₁²]` with `l = F x`, or `[Hx, x]`; of `b`:
+    // `[y, m₀² + m₁²]` with `m = Fᵀ y` (the third entry unused), or `[y, H⁻¹ y]`. NaN outside
+    // the lens model: never a candidate.
+    let lift = |p: &Point2<f64>| camgeom::nalgebra::Vector3::new(p.x, p.y, 1.0);
+    let (pa, pb): (Vec<[f64; 4]>, Vec<[f64; 4]>) = match model {
+        PairModel::Fundamental(f) => (
+            ua.iter()
+                .map(|x| {
+                    x.map_or(nan, |x| {
+                        let l = f * lift(&x);
+                        [l.x, l.y, l.z, l.x * l.x + l.y * l.y]
+                    })
+                })
+                .collect(),
+            ub.iter()
+                .map(|y| {
+                    y.map_or(nan, |y| {
+                        let m = f.transpose() * lift(&y);
+                        [y.x, y.y, 0.0, m.x * m.x + m.y * m.y]
+                    })
+                })
+                .collect(),
+        ),
+        PairModel::Homography(h, hinv) => {
+            let transfer = |m: &Matrix3<f64>, p: &Point2<f64>| {
+                let q = m * lift(p);
+                Point2::new(q.x / q.z, q.y / q.z)
+            };
+            (
+                ua.iter()
+                    .map(|x| {
+                        x.map_or(nan, |x| {
+                            let q = transfer(h, &x);
+                            [q.x, q.y, x.x, x.y]
+                        })
+                    })
+                    .collect(),
+                ub.iter()
+                    .map(|y| {
+                        y.map_or(nan, |y| {
+                            let q = transfer(hinv, &y);
+                            [y.x, y.y, q.x, q.y]
+                        })
+                    })
+                    .collect(),
+            )
+        }
+    };
+    let fundamental = matches!(model, PairModel::Fundamental(_));
+    // NaN compares false: a feature outside the lens model is never admitted.
+    let admit = |i: usize, j: usize| -> bool {
+        let (Some(p), Some(q)) = (pa.get(i), pb.get(j)) else {
+            return false;
+        };
+        if fundamental {
+            let e = q[0] * p[0] + q[1] * p[1] + p[2];
+            e * e < t2 * (p[3] + q[3])
+        } else {
+            let f = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+            let g = (q[2] - p[2]).powi(2) + (q[3] - p[3]).powi(2);
+            (f + g) * 0.5 < t2
+        }
+    };
+    let params = RATIO_MUTUAL
+        .check()
+        .map_err(|e| Error::camgeom(format!("{what}: match configuration"), e))?;
+    let mut out = vec![Match::default(); da.len()];
+    let mut scratch = vec![0u32; scratch_len(db.len())];
+    let n = match_descriptors_guided(&da, &db, &params, admit, &mut scratch, &mut out)
+        .map_err(|e| Error::camgeom(format!("{what}: guided matching failed"), e))?;
+    Ok(out[..n]
+        .iter()
+        .map(|m| (usize::from(m.query), usize::from(m.train)))
+        .collect())
+}
+
+/// Steps 1-3 of the module docs from images.
 fn tracks_from_images(
     a: &SfmArgs,
     camera: &Camera<f64>,
     features: &[Vec<Feature>],
-) -> Result<(Tracks, Vec<Pair>, PairMatches)> {
-    let k = camera.intrinsics;
+) -> Result<(Tracks, Vec<Pair>, PairMatches, Members)> {
     let mut verify = RansacConfig::<f64> {
         threshold: a.verify_threshold,
         confidence: 0.999,
@@ -199,92 +367,370 @@ fn tracks_from_images(
             Some(*acc)
         }))
         .collect();
-    let nodes = *offsets.last().unwrap_or(&0) as usize;
-    let (mut parent, mut scratch) = (vec![0u32; nodes], vec![0u32; nodes]);
-    let mut builder = TrackBuilder::new(&mut parent, &mut scratch)
-        .map_err(|e| Error::camgeom("track building", e))?;
+    // Undistorted pixels of every feature (`None` outside the lens model).
+    let undistorted: Vec<Vec<Option<Point2<f64>>>> = features
+        .iter()
+        .map(|fs| {
+            fs.iter()
+                .map(|f| camera.undistort_pixel(&pixel(f)).ok())
+                .collect()
+        })
+        .collect();
     let mut pairs = Vec::new();
     let mut pair_matches = PairMatches::new();
+    // Every verified match: its pair's verified count, its distance, its two nodes.
+    let mut joins: Vec<(usize, u32, u32, u32)> = Vec::new();
     for i in 0..features.len() {
         for j in i + 1..features.len() {
             let what = format!("{} - {}", a.images[i].display(), a.images[j].display());
-            let m = match_features(&features[i], &features[j], &what)?;
-            let und = |f: &Feature| camera.undistort_pixel(&pixel(f)).ok();
-            // (index into m, undistorted pixels)
-            let pts: Vec<(usize, Point2<f64>, Point2<f64>)> = m
-                .iter()
-                .enumerate()
-                .filter_map(|(n, &(p, q))| Some((n, und(&features[i][p])?, und(&features[j][q])?)))
-                .collect();
-            let mut inlier = vec![false; m.len()];
-            if pts.len() >= a.min_pair_inliers.max(5) {
-                let x1: Vec<Point2<f64>> = pts.iter().map(|p| p.1).collect();
-                let x2: Vec<Point2<f64>> = pts.iter().map(|p| p.2).collect();
-                // The model that explains more: the essential matrix for a pair that moved,
-                // a homography for a plane or a camera that only turned (whose matches still
-                // make tracks, though such a pair cannot start the reconstruction).
-                let (mut mask, mut mask_h) = (vec![false; pts.len()], vec![false; pts.len()]);
-                let e = find_essential(&k, &k, &x1, &x2, verify, &mut mask).map(|r| r.1.inliers);
-                let h = find_homography(&x1, &x2, verify, &mut mask_h).map(|r| r.1.inliers);
-                if h.unwrap_or(0) > e.unwrap_or(0) {
-                    mask = mask_h;
-                }
-                let n = mask.iter().filter(|&&b| b).count();
-                if (e.is_ok() || h.is_ok()) && n >= a.min_pair_inliers {
-                    for (pt, _) in pts.iter().zip(&mask).filter(|(_, b)| **b) {
-                        inlier[pt.0] = true;
+            let first = match_features(&features[i], &features[j], &what)?;
+            let (ui, uj) = (&undistorted[i], &undistorted[j]);
+            // The matches with both pixels in the lens model, and the verified ones.
+            let verified = |m: &[(usize, usize)]| {
+                let pts: Vec<&(usize, usize)> = m
+                    .iter()
+                    .filter(|&&(p, q)| ui[p].is_some() && uj[q].is_some())
+                    .collect();
+                let x1: Vec<Point2<f64>> = pts.iter().filter_map(|&&(p, _)| ui[p]).collect();
+                let x2: Vec<Point2<f64>> = pts.iter().filter_map(|&&(_, q)| uj[q]).collect();
+                verify_pair(camera, &x1, &x2, verify, a.min_pair_inliers).map(|(mask, model)| {
+                    let kept: Vec<(usize, usize)> = pts
+                        .iter()
+                        .zip(&mask)
+                        .filter(|(_, b)| **b)
+                        .map(|(&&pq, _)| pq)
+                        .collect();
+                    (kept, model)
+                })
+            };
+            let mut m = first.clone();
+            let mut inliers: Vec<(usize, usize)> = Vec::new();
+            let mut guided = 0;
+            if let Some((kept, model)) = verified(&first) {
+                inliers = kept;
+                if a.guided {
+                    let bound = inliers
+                        .iter()
+                        .map(|&(p, q)| {
+                            hamming(&features[i][p].descriptor, &features[j][q].descriptor)
+                        })
+                        .max()
+                        .unwrap_or(0);
+                    let mut g = guided_pair(
+                        &features[i],
+                        &features[j],
+                        ui,
+                        uj,
+                        &model,
+                        a.verify_threshold,
+                        &what,
+                    )?;
+                    // No farther than the first pass's verified matches of this pair.
+                    g.retain(|&(p, q)| {
+                        hamming(&features[i][p].descriptor, &features[j][q].descriptor) <= bound
+                    });
+                    guided = g.len();
+                    if let Some((kept, _)) = verified(&g) {
+                        inliers = kept;
+                        m = g;
                     }
                 }
             }
-            for (&(p, q), _) in m.iter().zip(&inlier).filter(|(_, b)| **b) {
-                builder
-                    .join(offsets[i] + p as u32, offsets[j] + q as u32)
-                    .map_err(|e| Error::camgeom("track building", e))?;
+            for &(p, q) in &inliers {
+                let d = hamming(&features[i][p].descriptor, &features[j][q].descriptor);
+                joins.push((
+                    inliers.len(),
+                    d,
+                    offsets[i] + p as u32,
+                    offsets[j] + q as u32,
+                ));
             }
-            let verified = inlier.iter().filter(|&&b| b).count();
+            let kept: std::collections::BTreeSet<(usize, usize)> =
+                inliers.iter().copied().collect();
             pair_matches.insert(
                 (i, j),
                 m.iter()
-                    .zip(&inlier)
-                    .map(|(&(p, q), &ok)| (pixel(&features[i][p]), pixel(&features[j][q]), ok))
+                    .map(|&(p, q)| {
+                        let ok = kept.contains(&(p, q));
+                        (pixel(&features[i][p]), pixel(&features[j][q]), ok)
+                    })
                     .collect(),
             );
             pairs.push(Pair {
                 views: [i, j],
-                matches: m.len(),
-                verified,
+                matches: first.len(),
+                verified: inliers.len(),
+                guided,
             });
         }
     }
-    let mut labels = vec![0u32; nodes];
-    let n = builder
-        .label(&offsets, &mut labels)
-        .map_err(|e| Error::camgeom("track building", e))?;
-    let mut members: Vec<Vec<(usize, usize)>> = vec![Vec::new(); n];
-    for (v, w) in offsets.windows(2).enumerate() {
-        for node in w[0]..w[1] {
-            let l = labels[node as usize];
-            if l != NO_TRACK {
-                members[l as usize].push((v, (node - w[0]) as usize));
-            }
-        }
-    }
+    let mut members = consistent_tracks(&offsets, &mut joins);
+    // `compress` keeps the tracks of two or more observations: so do the members.
+    members.retain(|m| m.len() >= 2);
     let tracks = if a.no_refine {
-        members
-            .iter()
-            .map(|m| {
-                m.iter()
-                    .map(|&(v, f)| Observation {
-                        view: v as u16,
-                        pixel: pixel(&features[v][f]),
-                    })
-                    .collect()
-            })
-            .collect()
+        plain_tracks(features, &members)
     } else {
         refine_tracks(&a.images, features, &members)?
     };
-    Ok((compress(tracks), pairs, pair_matches))
+    Ok((compress(tracks), pairs, pair_matches, members))
+}
+
+/// Tracks from verified matches `(pair's verified count, distance, node, node)` that never
+/// hold two features of one image: the matches are joined strongest first (pairs with more
+/// verified matches, then smaller distances), and a match that would put two features of one
+/// image into one track is left out (instead of dropping the whole component).
+fn consistent_tracks(offsets: &[u32], joins: &mut [(usize, u32, u32, u32)]) -> Members {
+    let nodes = offsets.last().copied().unwrap_or(0) as usize;
+    let view_of = |n: u32| offsets.partition_point(|&o| o <= n) - 1;
+    let mut parent: Vec<u32> = (0..nodes as u32).collect();
+    let mut views: Vec<Vec<u16>> = (0..nodes as u32).map(|n| vec![view_of(n) as u16]).collect();
+    fn root(parent: &mut [u32], mut n: u32) -> u32 {
+        while parent[n as usize] != n {
+            let up = parent[parent[n as usize] as usize];
+            parent[n as usize] = up;
+            n = up;
+        }
+        n
+    }
+    joins.sort_by(|x, y| {
+        y.0.cmp(&x.0)
+            .then(x.1.cmp(&y.1))
+            .then(x.2.cmp(&y.2))
+            .then(x.3.cmp(&y.3))
+    });
+    for &(_, _, p, q) in joins.iter() {
+        let (rp, rq) = (root(&mut parent, p), root(&mut parent, q));
+        if rp == rq
+            || views[rp as usize]
+                .iter()
+                .any(|v| views[rq as usize].contains(v))
+        {
+            continue;
+        }
+        let (big, small) = if views[rp as usize].len() >= views[rq as usize].len() {
+            (rp, rq)
+        } else {
+            (rq, rp)
+        };
+        parent[small as usize] = big;
+        let moved = std::mem::take(&mut views[small as usize]);
+        views[big as usize].extend(moved);
+    }
+    // Label components in order of their first node.
+    let mut label: BTreeMap<u32, usize> = BTreeMap::new();
+    let mut members: Members = Vec::new();
+    for n in 0..nodes as u32 {
+        let r = root(&mut parent, n);
+        if views[r as usize].len() < 2 {
+            continue;
+        }
+        let l = *label.entry(r).or_insert_with(|| {
+            members.push(Vec::new());
+            members.len() - 1
+        });
+        let v = view_of(n);
+        members[l].push((v, (n - offsets[v]) as usize));
+    }
+    members
+}
+
+/// Each track's features, `(view, index into that view's features)`.
+type Members = Vec<Vec<(usize, usize)>>;
+
+/// Tracks at the features' keypoints (`--no-refine`).
+fn plain_tracks(
+    features: &[Vec<Feature>],
+    members: &[Vec<(usize, usize)>],
+) -> Vec<Vec<Observation<f64>>> {
+    members
+        .iter()
+        .map(|m| {
+            m.iter()
+                .map(|&(v, f)| Observation {
+                    view: v as u16,
+                    pixel: pixel(&features[v][f]),
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A reconstruction's outcome, owned.
+struct Solved {
+    poses: Vec<Option<Pose<f64>>>,
+    results: Vec<ViewResult<f64>>,
+    points: Vec<Option<Point3<f64>>>,
+    used: Vec<bool>,
+    r: Reconstruction<f64>,
+}
+
+/// Step 4: [`reconstruct`] with buffers sized for `tracks`.
+fn solve(
+    camera: &Camera<f64>,
+    tracks: &Tracks,
+    views: usize,
+    params: &IncrementalParams<f64>,
+) -> Result<Solved> {
+    let set = TrackSet::new_checked(&tracks.starts, &tracks.observations, views)
+        .map_err(|e| Error::camgeom("tracks", e))?;
+    let (v, nt, no) = (set.views(), set.len(), set.observations().len());
+    let mut poses = vec![None; v];
+    let mut results = vec![ViewResult::<f64>::default(); v];
+    let mut points = vec![None; nt];
+    let mut used = vec![false; no];
+    let mut normalized = vec![None; no];
+    let mut covisibility = vec![0u32; v * v];
+    let mut tried = vec![0u32; v];
+    let mut next_counts = vec![0u32; v];
+    let mut free = vec![true; v];
+    let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
+    let mut world = vec![Point3::origin(); nt];
+    let mut index = vec![0u32; nt];
+    let (mut mask, mut mask2) = (vec![false; nt], vec![false; nt]);
+    let mut angles = vec![0.0; nt];
+    let mut system = vec![0.0; BundleScratch::<f64>::system_len(v)];
+    let (mut rhs, mut gradient) = (vec![0.0; 6 * v], vec![0.0; 6 * v]);
+    let mut bindex = vec![0u16; v];
+    let mut trial = vec![None; v];
+    let mut coupling = vec![Default::default(); no];
+    let mut pscratch = vec![PointScratch::default(); nt];
+    let mut scene = Scene {
+        poses: &mut poses,
+        views: &mut results,
+        points: &mut points,
+        used: &mut used,
+    };
+    let mut ws = Workspace {
+        normalized: &mut normalized,
+        covisibility: &mut covisibility,
+        tried: &mut tried,
+        counts: &mut next_counts,
+        first: &mut first,
+        second: &mut second,
+        world: &mut world,
+        index: &mut index,
+        mask: &mut mask,
+        mask2: &mut mask2,
+        angles: &mut angles,
+        bundle: BundleScratch {
+            system: &mut system,
+            rhs: &mut rhs,
+            gradient: &mut gradient,
+            index: &mut bindex,
+            free: &mut free,
+            trial: &mut trial,
+            coupling: &mut coupling,
+            points: &mut pscratch,
+        },
+    };
+    let r = reconstruct(camera, &set, params, &mut scene, &mut ws)
+        .map_err(|e| Error::camgeom("sfm: reconstruct", e))?;
+    Ok(Solved {
+        poses,
+        results,
+        points,
+        used,
+        r,
+    })
+}
+
+/// Track completion by projection (the search by projection of ORB-SLAM): each reconstructed
+/// point `X` of a track is projected into every registered view the track does not see,
+/// `x = π(K, R X + t)`; the features of that view within `radius` pixels of `x` (the
+/// reconstruction's own inlier threshold, `--pnp-threshold`) that belong to no track are its
+/// candidates, scored by the Hamming distance to the nearest of the track's descriptors. The
+/// nearest candidate joins the track when it passes the first pass's ratio test against the
+/// second-nearest candidate and is no farther than the track's own descriptors are from each
+/// other (the largest distance between two of them: no threshold of its own), and when no other
+/// track claims the same feature. Returns the grown members and the observations added.
+fn extend_tracks(
+    camera: &Camera<f64>,
+    features: &[Vec<Feature>],
+    members: &[Vec<(usize, usize)>],
+    solved: &Solved,
+    radius: f64,
+) -> (Members, usize) {
+    let ratio = f64::from(RATIO_MUTUAL.ratio);
+    let mut taken: Vec<Vec<bool>> = features.iter().map(|f| vec![false; f.len()]).collect();
+    for m in members {
+        for &(v, f) in m {
+            taken[v][f] = true;
+        }
+    }
+    // The free features of each view in cells of `radius` pixels.
+    let cell = radius.max(1.0);
+    let key = |x: f64, y: f64| ((x / cell).floor() as i64, (y / cell).floor() as i64);
+    let grids: Vec<BTreeMap<(i64, i64), Vec<usize>>> = features
+        .iter()
+        .zip(&taken)
+        .map(|(fs, tk)| {
+            let mut g: BTreeMap<(i64, i64), Vec<usize>> = BTreeMap::new();
+            for (k, f) in fs.iter().enumerate().filter(|(k, _)| !tk[*k]) {
+                let p = pixel(f);
+                g.entry(key(p.x, p.y)).or_default().push(k);
+            }
+            g
+        })
+        .collect();
+    // (view, feature) -> the tracks that claim it.
+    let mut claims: BTreeMap<(usize, usize), Vec<usize>> = BTreeMap::new();
+    for (t, m) in members.iter().enumerate() {
+        let Some(x) = solved.points.get(t).copied().flatten() else {
+            continue;
+        };
+        let descriptors: Vec<&Descriptor> =
+            m.iter().map(|&(v, f)| &features[v][f].descriptor).collect();
+        let spread = descriptors
+            .iter()
+            .enumerate()
+            .flat_map(|(k, a)| descriptors[k + 1..].iter().map(move |b| hamming(a, b)))
+            .max()
+            .unwrap_or(0);
+        for (v, pose) in solved.poses.iter().enumerate() {
+            let Some(pose) = pose else { continue };
+            if m.iter().any(|&(w, _)| w == v) {
+                continue;
+            }
+            let Ok(p) = camera.project(pose, &x) else {
+                continue;
+            };
+            let (cx, cy) = key(p.x, p.y);
+            let (mut d1, mut d2, mut best) = (u32::MAX, u32::MAX, usize::MAX);
+            for gx in cx - 1..=cx + 1 {
+                for gy in cy - 1..=cy + 1 {
+                    for &k in grids[v].get(&(gx, gy)).map_or(&[][..], Vec::as_slice) {
+                        let f = &features[v][k];
+                        if (pixel(f) - p).norm() >= radius {
+                            continue;
+                        }
+                        let d = descriptors
+                            .iter()
+                            .map(|e| hamming(e, &f.descriptor))
+                            .min()
+                            .unwrap_or(u32::MAX);
+                        if d < d1 {
+                            (d2, d1, best) = (d1, d, k);
+                        } else if d < d2 {
+                            d2 = d;
+                        }
+                    }
+                }
+            }
+            let ratio_ok = d2 == u32::MAX || f64::from(d1) < ratio * f64::from(d2);
+            if best != usize::MAX && d1 <= spread && ratio_ok {
+                claims.entry((v, best)).or_default().push(t);
+            }
+        }
+    }
+    let mut grown = members.to_vec();
+    let mut added = 0;
+    for ((v, f), c) in claims {
+        if let [t] = c[..] {
+            grown[t].push((v, f));
+            added += 1;
+        }
+    }
+    (grown, added)
 }
 
 /// One alignment of [`refine_tracks`]: track, member, reference pixel, initial guess.
@@ -480,12 +926,14 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         return Err(Error::usage("too many images"));
     }
     let t0 = Instant::now();
-    let (tracks, pairs, counts, pair_matches) = match &a.matches {
+    let (mut tracks, pairs, counts, pair_matches, features, members) = match &a.matches {
         Some(path) => (
             tracks_from_csv(path, a.images.len())?,
             Vec::new(),
             vec![0; a.images.len()],
             PairMatches::new(),
+            Vec::new(),
+            Vec::new(),
         ),
         None => {
             let features: Vec<Vec<Feature>> = a
@@ -494,23 +942,12 @@ pub fn run(a: &SfmArgs) -> Result<String> {
                 .map(|p| orb_features(p))
                 .collect::<Result<_>>()?;
             let counts = features.iter().map(Vec::len).collect();
-            let (t, p, m) = tracks_from_images(a, &camera, &features)?;
-            (t, p, counts, m)
+            let (t, p, m, members) = tracks_from_images(a, &camera, &features)?;
+            (t, p, counts, m, features, members)
         }
     };
     let t_match = t0.elapsed().as_secs_f64();
-    if let Some(path) = &a.tracks_out {
-        let mut csv = String::from("track,view,x,y\n");
-        for (t, w) in tracks.starts.windows(2).enumerate() {
-            for o in &tracks.observations[w[0] as usize..w[1] as usize] {
-                let _ = writeln!(csv, "{t},{},{},{}", o.view, o.pixel.x, o.pixel.y);
-            }
-        }
-        write_file(path, csv)?;
-    }
     let t1 = Instant::now();
-    let set = TrackSet::new_checked(&tracks.starts, &tracks.observations, a.images.len())
-        .map_err(|e| Error::camgeom("tracks", e))?;
     let mut config = IncrementalConfig::<f64>::default();
     config.essential.threshold = a.threshold;
     config.essential.seed = a.seed;
@@ -523,58 +960,41 @@ pub fn run(a: &SfmArgs) -> Result<String> {
             "sfm configuration (--threshold, --pnp-threshold): {e}"
         ))
     })?;
-    let (v, nt, no) = (set.views(), set.len(), set.observations().len());
-    let mut poses = vec![None; v];
-    let mut results = vec![ViewResult::<f64>::default(); v];
-    let mut points = vec![None; nt];
-    let mut used = vec![false; no];
-    let mut normalized = vec![None; no];
-    let mut covisibility = vec![0u32; v * v];
-    let mut tried = vec![0u32; v];
-    let mut next_counts = vec![0u32; v];
-    let mut free = vec![true; v];
-    let (mut first, mut second) = (vec![Point2::origin(); nt], vec![Point2::origin(); nt]);
-    let mut world = vec![Point3::origin(); nt];
-    let mut index = vec![0u32; nt];
-    let (mut mask, mut mask2) = (vec![false; nt], vec![false; nt]);
-    let mut angles = vec![0.0; nt];
-    let mut system = vec![0.0; BundleScratch::<f64>::system_len(v)];
-    let (mut rhs, mut gradient) = (vec![0.0; 6 * v], vec![0.0; 6 * v]);
-    let mut bindex = vec![0u16; v];
-    let mut trial = vec![None; v];
-    let mut coupling = vec![Default::default(); no];
-    let mut pscratch = vec![PointScratch::default(); nt];
-    let mut scene = Scene {
-        poses: &mut poses,
-        views: &mut results,
-        points: &mut points,
-        used: &mut used,
-    };
-    let mut ws = Workspace {
-        normalized: &mut normalized,
-        covisibility: &mut covisibility,
-        tried: &mut tried,
-        counts: &mut next_counts,
-        first: &mut first,
-        second: &mut second,
-        world: &mut world,
-        index: &mut index,
-        mask: &mut mask,
-        mask2: &mut mask2,
-        angles: &mut angles,
-        bundle: BundleScratch {
-            system: &mut system,
-            rhs: &mut rhs,
-            gradient: &mut gradient,
-            index: &mut bindex,
-            free: &mut free,
-            trial: &mut trial,
-            coupling: &mut coupling,
-            points: &mut pscratch,
-        },
-    };
-    let r = reconstruct(&camera, &set, &params, &mut scene, &mut ws)
-        .map_err(|e| Error::camgeom("sfm: reconstruct", e))?;
+    let views_n = a.images.len();
+    let mut solved = solve(&camera, &tracks, views_n, &params)?;
+    let mut extended = 0;
+    if !a.no_extend && !features.is_empty() && solved.r.initial.is_ok() {
+        let (grown, added) = extend_tracks(&camera, &features, &members, &solved, a.pnp_threshold);
+        if added > 0 {
+            let observations = if a.no_refine {
+                plain_tracks(&features, &grown)
+            } else {
+                refine_tracks(&a.images, &features, &grown)?
+            };
+            tracks = compress(observations);
+            solved = solve(&camera, &tracks, views_n, &params)?;
+            extended = added;
+        }
+    }
+    if let Some(path) = &a.tracks_out {
+        let mut csv = String::from("track,view,x,y\n");
+        for (t, w) in tracks.starts.windows(2).enumerate() {
+            for o in &tracks.observations[w[0] as usize..w[1] as usize] {
+                let _ = writeln!(csv, "{t},{},{},{}", o.view, o.pixel.x, o.pixel.y);
+            }
+        }
+        write_file(path, csv)?;
+    }
+    let set = TrackSet::new_checked(&tracks.starts, &tracks.observations, views_n)
+        .map_err(|e| Error::camgeom("tracks", e))?;
+    let (v, nt) = (set.views(), set.len());
+    let Solved {
+        poses,
+        results,
+        points,
+        used,
+        r,
+    } = solved;
     let t_rec = t1.elapsed().as_secs_f64();
     let initial = match r.initial {
         Ok(p) => p,
@@ -726,6 +1146,7 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         registered: r.registered,
         points: r.points,
         tracks: nt,
+        extended,
         observations: r.observations,
         reprojection_rms_px: r.rms_px,
         initial_pair: [usize::from(initial.0), usize::from(initial.1)],

@@ -122,7 +122,7 @@ fn matches_with(
 
 /// Lowe's ratio test and the mutual check together: what structure from motion matches with
 /// (a cross-check alone keeps many wrong matches on repeated building texture).
-const RATIO_MUTUAL: MatchConfig = MatchConfig {
+pub const RATIO_MUTUAL: MatchConfig = MatchConfig {
     ratio: 0.8,
     cross_check: true,
     max_distance: 256,
