@@ -22,7 +22,7 @@ fn frame(index: u32) -> FrameRecord {
         state: TargetState::Tracking,
         tracked: 20 + index as u16,
         inliers: 18,
-        pose: (index % 2 == 0).then_some((pose, pose)),
+        pose: index.is_multiple_of(2).then_some((pose, pose)),
         ..FrameRecord::default()
     }
 }
