@@ -128,7 +128,7 @@ pub const AREAS: [Area; 20] = [
     area(
         "chessboard",
         false,
-        "`ChessboardDetector::detect` with each `Refinement`; `corner_subpix`, `saddle_subpix`",
+        "`ChessboardDetector::detect` with each `Refinement`, `detect_any_scale`; `corner_subpix`, `saddle_subpix`",
     ),
     area(
         "apriltag",
