@@ -16,6 +16,7 @@
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace sized for each frame, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
+//! | [`monitor`] | a board's record stream (link frames of report records) decoded and printed a line a frame (`monitor`, the main job) |
 //! | [`video`] | video files in and out through the system's ffmpeg: probed, decoded one frame at a time, encoded from frames |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
@@ -32,6 +33,7 @@ pub mod images;
 pub mod intrinsics;
 pub mod klt;
 pub mod known_motion;
+pub mod monitor;
 pub mod points;
 pub mod rgb;
 pub mod storage;

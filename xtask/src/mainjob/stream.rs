@@ -12,14 +12,12 @@ use std::fmt::Write as _;
 use std::fs;
 use std::path::Path;
 
-use std::process::Command;
-
 use anyhow::{Context, Result, ensure};
 use camgeom::rng::Pcg32;
 use camgeom_fw_app::link::{Deframer, LinkStats, max_frame_len};
 use camgeom_fw_app::report::{RECORD_LEN, Record};
 
-use crate::util::{cargo, locked, root, run};
+use crate::util::root;
 
 /// The receiver of the stream: room for one frame of the longest record.
 type Receiver = Deframer<{ max_frame_len(RECORD_LEN) }>;
@@ -177,29 +175,21 @@ pub fn check(dir: &Path, log: &[String]) -> Result<String> {
     Ok(s)
 }
 
-/// `camgeom monitor --replay serial.bin --json`, as a user runs it: one JSON object a frame
-/// record, each the board's record of `report.bin` (frame, state, counts, poses to the bit),
-/// then the summary and the link's counts.
+/// `camgeom monitor --replay serial.bin --json`'s code ([`camgeom_host::monitor`], which the
+/// command only wraps): one JSON object a frame record, each the board's record of
+/// `report.bin` (frame, counts, poses to the bit), then the summary and the link's counts.
 fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
-    let mut build = cargo();
-    build
-        .current_dir(root())
-        .args(["build", "--quiet", "-p", "camgeom-host", "--bin", "camgeom"]);
-    run(locked(&mut build))?;
-    let target = std::env::var_os("CARGO_TARGET_DIR")
-        .map_or_else(|| root().join("target"), |d| root().join(d));
-    let exe = target.join("debug").join("camgeom");
-    let out = Command::new(&exe)
-        .args(["monitor", "--json", "--replay"])
-        .arg(serial)
-        .output()
-        .with_context(|| format!("cannot run {}", exe.display()))?;
-    ensure!(
-        out.status.success(),
-        "camgeom monitor: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout)?;
+    let mut file = fs::File::open(serial)?;
+    let mut out = Vec::new();
+    let last = camgeom_host::monitor::monitor(
+        &mut file,
+        &serial.display().to_string(),
+        true,
+        &mut out,
+        None,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let text = String::from_utf8(out)? + &last;
     let lines: Vec<serde_json::Value> = text
         .lines()
         .map(serde_json::from_str)
@@ -244,7 +234,7 @@ fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
         "camgeom monitor: {link}"
     );
     Ok(format!(
-        "camgeom monitor --replay {} --json: {} JSON lines, {} frames equal to the board's records (poses to the bit), then the summary and the link's counts",
+        "camgeom monitor --replay {} --json (its code): {} JSON lines, {} frames equal to the board's records (poses to the bit), then the summary and the link's counts",
         serial.strip_prefix(root()).unwrap_or(serial).display(),
         lines.len(),
         frames.len()
