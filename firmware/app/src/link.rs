@@ -92,13 +92,17 @@ pub struct Frame<'a> {
 /// The receiving end of the stream: feed it bytes as they come, take frames out. Holds at
 /// most `N` encoded bytes of one frame (the longest record it accepts is about `N` −
 /// [`FRAME_OVERHEAD`] − `N / 254` − 2 bytes; [`max_frame_len`] of the longest record is enough).
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Deframer<const N: usize> {
+    /// The current frame, unstuffed as its bytes arrive.
     buf: [u8; N],
+    /// Its decoded bytes (beyond `N` when it outgrew the buffer).
     len: usize,
-    /// The current frame outgrew the buffer: skip to the next delimiter.
-    overflow: bool,
-    /// At least one delimiter was seen (bytes before the first are a partial frame).
+    /// Its bytes on the link (for [`LinkStats::bytes_discarded`]).
+    raw: usize,
+    /// The stuffing's state (the `cobs` crate's byte-at-a-time decoder).
+    cobs: cobs::DecoderState,
+    /// At least one delimiter was seen (bytes before the first may be a partial frame).
     synced: bool,
     last_seq: Option<u16>,
     stats: LinkStats,
@@ -116,7 +120,8 @@ impl<const N: usize> Deframer<N> {
         Self {
             buf: [0; N],
             len: 0,
-            overflow: false,
+            raw: 0,
+            cobs: cobs::DecoderState::Idle,
             synced: false,
             last_seq: None,
             stats: LinkStats {
@@ -140,67 +145,71 @@ impl<const N: usize> Deframer<N> {
     /// when the stream was read from its start, else the tail of one begun before the receiver
     /// listened: delivered if they check, discarded without counting a damaged frame if not.
     pub fn push<'s>(&'s mut self, input: &mut &[u8]) -> Option<Frame<'s>> {
+        use cobs::DecodeResult;
         while let Some((&b, rest)) = input.split_first() {
             *input = rest;
             if b != 0 {
-                match self.buf.get_mut(self.len) {
-                    Some(slot) if !self.overflow => {
-                        *slot = b;
-                        self.len += 1;
-                    }
-                    _ => {
-                        self.overflow = true;
-                        self.len = self.len.saturating_add(1);
-                    }
-                }
-                continue;
+                self.raw = self.raw.saturating_add(1);
             }
-            let (len, overflow, synced) = (self.len, self.overflow, self.synced);
+            // The decoder ends a frame only at a delimiter: complete, or (an error) cut short.
+            let complete = match self.cobs.feed(b) {
+                Ok(DecodeResult::DataContinue(x)) => {
+                    if let Some(slot) = self.buf.get_mut(self.len) {
+                        *slot = x;
+                    }
+                    self.len = self.len.saturating_add(1);
+                    continue;
+                }
+                Ok(DecodeResult::DataStart | DecodeResult::NoData) => {
+                    if b == 0 {
+                        // A delimiter between frames.
+                        self.synced = true;
+                    }
+                    continue;
+                }
+                Ok(DecodeResult::DataComplete) => true,
+                Err(_) => false,
+            };
+            let (len, raw, synced) = (self.len, self.raw, self.synced);
             self.len = 0;
-            self.overflow = false;
+            self.raw = 0;
             self.synced = true;
-            if len == 0 {
-                continue;
-            }
-            match self.check(len, overflow, synced) {
-                Some((seq, n)) => {
-                    return Some(Frame {
-                        seq,
-                        record: self.buf.get(2..n).unwrap_or(&[]),
-                    });
-                }
-                None => continue,
+            if let Some((seq, n)) = self.check(len, complete, synced, raw) {
+                return Some(Frame {
+                    seq,
+                    record: self.buf.get(2..n).unwrap_or(&[]),
+                });
             }
         }
         None
     }
 
-    /// Decodes the `len` bytes held and checks the frame: its sequence number and the end of
-    /// its record, or `None` (counted) for a damaged or repeated frame. Before the first
-    /// delimiter (`synced` false) a frame that does not check is the tail of one sent before
-    /// the receiver listened: its bytes are discarded without counting a damaged frame.
-    fn check(&mut self, len: usize, overflow: bool, synced: bool) -> Option<(u16, usize)> {
-        let decoded = if overflow {
-            None
-        } else {
-            self.buf
-                .get_mut(..len)
-                .and_then(|b| cobs::decode_in_place(b).ok())
-        };
-        let good = decoded.filter(|&n| n >= FRAME_OVERHEAD).and_then(|n| {
-            let body = self.buf.get(..n)?;
-            let (data, crc) = body.split_at(n - 4);
+    /// Checks the frame of `len` decoded bytes (`raw` on the link) that just ended, `complete`
+    /// if its stuffing was whole: its sequence number and the end of its record, or `None`
+    /// (counted) for a damaged or repeated frame. Before the first delimiter (`synced` false)
+    /// a frame that does not check is the tail of one sent before the receiver listened: its
+    /// bytes are discarded without counting a damaged frame.
+    fn check(
+        &mut self,
+        len: usize,
+        complete: bool,
+        synced: bool,
+        raw: usize,
+    ) -> Option<(u16, usize)> {
+        let body = if complete { self.buf.get(..len) } else { None };
+        let end = body.filter(|b| b.len() >= FRAME_OVERHEAD).and_then(|b| {
+            let (data, crc) = b.split_at_checked(b.len() - 4)?;
             let crc = u32::from_le_bytes(crc.try_into().ok()?);
-            (CRC.checksum(data) == crc).then_some(n - 4)
+            (CRC.checksum(data) == crc).then_some(data.len())
         });
-        let Some(end) = good else {
+        let Some(end) = end else {
             if synced {
                 self.stats.damaged = self.stats.damaged.saturating_add(1);
             }
             self.stats.bytes_discarded = self
                 .stats
                 .bytes_discarded
-                .saturating_add(u32::try_from(len).unwrap_or(u32::MAX));
+                .saturating_add(u32::try_from(raw).unwrap_or(u32::MAX));
             return None;
         };
         let seq = u16::from_le_bytes([
