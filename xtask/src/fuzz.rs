@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 3;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 11] = [
+pub const TARGETS: [&str; 12] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -37,6 +37,7 @@ pub const TARGETS: [&str; 11] = [
     "remap",
     "sfm",
     "vanishing",
+    "link",
 ];
 
 /// Build flags: release with debug assertions (so integer overflow panics), no sanitizer (the

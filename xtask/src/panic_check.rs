@@ -49,7 +49,7 @@ const fn area(feature: &'static str, generic: bool, entry_points: &'static str) 
 
 /// Every public no_std entry point of the core, by area (`firmware/panic-check/src/main.rs`
 /// calls them).
-pub const AREAS: [Area; 20] = [
+pub const AREAS: [Area; 21] = [
     area(
         "camera",
         true,
@@ -141,6 +141,11 @@ pub const AREAS: [Area; 20] = [
         "`new_camera_matrix`, `build_map` + `remap` (Q10.5 and wide maps, grey and RGB), `GridMap::build` + `GridMap::remap`; Brown-Conrady and fisheye",
     ),
     area("resize", false, "`resize_bilinear`"),
+    area(
+        "link",
+        false,
+        "the board application's record stream: `camgeom_fw_app::link::encode_frame`, `Deframer::push`",
+    ),
     area(
         "vanishing",
         true,

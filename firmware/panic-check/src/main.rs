@@ -1029,6 +1029,27 @@ fn run_resize() {
     }
 }
 
+// ---------------------------------------------------------------- link
+
+/// The board application's record stream: a frame written, then bytes of unknown content and
+/// length through the receiver (what a board reads from its link).
+#[cfg(feature = "link")]
+fn run_link() {
+    use camgeom_fw_app::link::{Deframer, encode_frame, max_frame_len};
+    let record = black_box([0u8; 152]);
+    let mut out = black_box([0u8; max_frame_len(152)]);
+    let n = black_box(usize::MAX).min(out.len());
+    black_box(encode_frame(black_box(7), &record, out.get_mut(..n).unwrap_or(&mut [])).ok());
+    let bytes = black_box([0u8; 512]);
+    let len = black_box(usize::MAX).min(bytes.len());
+    let mut input = bytes.get(..len).unwrap_or(&[]);
+    let mut rx = black_box(Deframer::<{ max_frame_len(152) }>::new());
+    while let Some(f) = rx.push(&mut input) {
+        black_box((f.seq, f.record.len()));
+    }
+    black_box(rx.stats());
+}
+
 /// The planar pose with integer per-point arithmetic (`f32` only).
 #[cfg(feature = "pose")]
 fn run_pose_integer() {
@@ -1101,6 +1122,8 @@ fn run_f32_only() {
     run_resize();
     #[cfg(feature = "pose")]
     run_pose_integer();
+    #[cfg(feature = "link")]
+    run_link();
 }
 
 #[entry]
