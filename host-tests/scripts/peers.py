@@ -573,10 +573,11 @@ def run_benches(args):
     env = dict(os.environ, CARGO_TARGET_DIR=args.target_dir)
     names = [a for n in BENCHES for a in ("--bench", n)]
     if args.smoke:
-        # criterion's test mode: each bench body once, in the test profile (no timing). With
-        # `--workspace` the features resolve as in CI's `cargo test --workspace`, whose
-        # dependencies (nalgebra, camgeom, ...) are then reused: only the benches compile.
-        cmd = ["cargo", "test", "--workspace"] + names
+        # criterion's test mode: each bench body once, in the test profile (no timing). Every
+        # bench (`--benches`), not the list: naming benches (`--bench NAME`) resolves the
+        # workspace's features otherwise than CI's `cargo test --workspace` and rebuilds the host
+        # crate and a dozen dependencies (90 s); `--workspace --benches` reuses that build whole.
+        cmd = ["cargo", "test", "--workspace", "--benches"]
     else:
         cmd = ["cargo", "bench", "-p", "camgeom-host"] + names
     if os.environ.get("CI") in ("true", "1"):
