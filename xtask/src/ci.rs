@@ -134,23 +134,21 @@ fn steps() -> Vec<Step> {
         "examples: each runs (the test step built them: cargo test builds every example)",
         Box::new(|| {
             // `cargo run -p camgeom --example NAME` would resolve camgeom's features alone and
-            // rebuild it and its dependencies (about 30 s); the binaries `cargo test
-            // --workspace` left in the target directory are the same programs. The build
-            // below is a no-op after the test step and builds them on a step run alone.
-            run(locked(&mut root_cargo(&[
-                "build",
-                "--workspace",
-                "--examples",
-            ])))?;
+            // rebuild it and its dependencies; `cargo build --workspace --examples` resolves
+            // them as a build, not a test, and rebuilt the host crate and a dozen dependencies
+            // (44 s). The binaries `cargo test --workspace` left in the target directory are the
+            // same programs: they are built here only when one is missing or older than the
+            // sources (a step run alone).
             let dir = target_dir().join("debug").join("examples");
-            for example in [
-                "project_points",
-                "homography",
-                "planar_pose",
-                "klt_two_frames",
-                "track_box",
-                "vanishing",
-            ] {
+            if examples_stale(&dir, &EXAMPLES) {
+                run(locked(&mut root_cargo(&[
+                    "build",
+                    "--workspace",
+                    "--examples",
+                ])))?;
+            }
+            let dir = target_dir().join("debug").join("examples");
+            for example in EXAMPLES {
                 let mut cmd = Command::new(dir.join(example));
                 run(cmd.current_dir(root()))?;
             }
@@ -220,6 +218,55 @@ fn steps() -> Vec<Step> {
         Box::new(|| crate::mainjob::run(&crate::mainjob::Options::full())),
     );
     steps
+}
+
+/// The core's examples the examples step runs.
+const EXAMPLES: [&str; 6] = [
+    "project_points",
+    "homography",
+    "planar_pose",
+    "klt_two_frames",
+    "track_box",
+    "vanishing",
+];
+
+/// The newest modification time of the files under `dir` (recursively), if any.
+fn newest(dir: &std::path::Path) -> Option<std::time::SystemTime> {
+    let mut best = None;
+    for e in std::fs::read_dir(dir).ok()?.flatten() {
+        let p = e.path();
+        let t = if p.is_dir() {
+            newest(&p)
+        } else {
+            e.metadata().and_then(|m| m.modified()).ok()
+        };
+        best = best.max(t);
+    }
+    best
+}
+
+/// Some example binary in `dir` is missing or older than a source it may be built from (the
+/// core's `src/` and `examples/`, the manifests).
+fn examples_stale(dir: &std::path::Path, names: &[&str]) -> bool {
+    let r = root();
+    let sources = [r.join("src"), r.join("examples")]
+        .iter()
+        .filter_map(|d| newest(d))
+        .chain(
+            ["Cargo.toml", "Cargo.lock"]
+                .iter()
+                .filter_map(|f| std::fs::metadata(r.join(f)).and_then(|m| m.modified()).ok()),
+        )
+        .max();
+    names.iter().any(|n| {
+        let built = std::fs::metadata(dir.join(n))
+            .and_then(|m| m.modified())
+            .ok();
+        match (built, sources) {
+            (Some(b), Some(s)) => b < s,
+            _ => true,
+        }
+    })
 }
 
 /// The root workspace's target directory (`CARGO_TARGET_DIR`, relative to the root when
