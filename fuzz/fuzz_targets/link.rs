@@ -1,9 +1,12 @@
 //! The board's record stream (`camgeom_fw_app::link`) on arbitrary bytes: a stream of frames
 //! built from arbitrary records and sequence numbers, then damaged by arbitrary edits (flips,
 //! drops, repeats, inserted bytes) and fed to a `Deframer` in arbitrary chunks; and the same
-//! receiver on raw arbitrary bytes. Contract: no panic; a delivered frame is one that was sent
-//! (its sequence number and record), each at most once, in the order sent; the counts add up;
-//! `encode_frame` into a short buffer is an error, not a panic.
+//! receiver on raw arbitrary bytes. Contract: no panic; a clean stream decodes whole; the
+//! counts add up; `encode_frame` into a short buffer is an error, not a panic. That a damaged
+//! stream delivers only frames that were sent is a property against random damage (CRC-32
+//! misses one random error in 2^32), not against crafted bytes: the fuzzer forges frames by
+//! reading the CRC comparison (a 2-byte record behind a code byte it moved). The unit tests
+//! and the main job's link-fault table check it on seeded random damage.
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -76,7 +79,7 @@ fuzz_target!(|inp: Input| {
         assert_eq!(got, sent);
         assert_eq!(damaged, 0);
     }
-    // Damaged: every delivered frame was sent, in order, each at most once.
+    // Damaged: anything but a panic; every delivered frame is counted.
     for e in inp.edits.iter().take(32) {
         if stream.is_empty() {
             break;
@@ -97,19 +100,8 @@ fuzz_target!(|inp: Input| {
             Edit::Insert(i, b) => stream.insert(at(i), b),
         }
     }
-    for rx in [
-        feed::<{ max_frame_len(MAX_RECORD) }>(&stream, &inp.chunks).0,
-        feed::<64>(&stream, &inp.chunks).0,
-    ] {
-        let mut next = 0;
-        for f in &rx {
-            let k = sent[next..]
-                .iter()
-                .position(|s| s == f)
-                .unwrap_or_else(|| panic!("delivered a frame never sent: {f:?}"));
-            next += k + 1;
-        }
-    }
+    let _ = feed::<{ max_frame_len(MAX_RECORD) }>(&stream, &inp.chunks);
+    let _ = feed::<64>(&stream, &inp.chunks);
     // Raw bytes: anything, never a panic.
     let _ = feed::<{ max_frame_len(MAX_RECORD) }>(&inp.raw, &inp.chunks);
     let _ = feed::<1>(&inp.raw, &inp.chunks);
