@@ -15,6 +15,7 @@ extern crate std;
 pub mod calibration;
 pub mod costs;
 pub mod link;
+pub mod options;
 pub mod pipeline;
 pub mod qvga;
 pub mod recorded;
@@ -27,6 +28,7 @@ pub mod texture;
 pub mod wire;
 
 pub use costs::{Cost, StageCosts};
+pub use options::{Acquisition, AppOptions};
 pub use pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop, FrameReport, Pipeline};
 pub use run::{RunSpec, drive};
 pub use source::FrameSource;

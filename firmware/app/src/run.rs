@@ -12,19 +12,18 @@
 //! | 7..16 | `f32`: `fx fy cx cy` and OpenCV's distortion `k1 k2 p1 p2 k3` |
 //! | 16, 17 | `f32`: the target's width and height (metres) |
 //! | 18..26 | `f32`: the target's corners in the start frame, `x y` of `(0, 0), (w, 0), (w, h), (0, h)` (given corners only) |
-//! | 26..30 | `u32`: how the target is acquired ([`Acquisition`]: 0 given corners, 1 an AprilTag), the tag's family ([`TAG_FAMILIES`] index), its id, and `reacquire_every` ([`TargetConfig::reacquire_every`]) |
+//! | 26..30 | `u32`: how the target is acquired ([`Acquisition`]: 0 given corners, 1 an AprilTag), the tag's family ([`TAG_FAMILIES`] index), its id, and `reacquire_every` ([`camgeom::target::TargetConfig::reacquire_every`]) |
 //! | 30 | `u32`: 1 for the forward-backward check ([`RunSpec::forward_backward`]), else 0 |
 
 use camgeom::Error;
 use camgeom::camera::{Camera, Distortion, Intrinsics};
-use camgeom::draw::WireframeParams;
 use camgeom::nalgebra::Point2;
-use camgeom::target::{TargetConfig, TargetParams};
 
 use camgeom::image::ImageView;
 use camgeom::target::Acquire;
 
-use crate::pipeline::{AppConfig, AppError, Clock, CubePlacement, FrameLoop};
+pub use crate::options::{Acquisition, AppOptions, LEVELS, TAG_FAMILIES};
+use crate::pipeline::{AppConfig, AppError, Clock, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
 use crate::report::{ErrorCode, FrameRecord};
 use crate::wire::{Reader, WireError, Writer, tag};
@@ -35,38 +34,12 @@ pub const MAGIC: u32 = tag(b"CRUN");
 pub const VERSION: u32 = 3;
 /// Bytes of a run description.
 pub const RUN_SPEC_LEN: usize = 31 * 4;
-/// The tag families a run can name, by index.
-pub const TAG_FAMILIES: [&camgeom::apriltag::Family; 4] = [
-    &camgeom::apriltag::families::TAG36H11,
-    &camgeom::apriltag::families::TAG25H9,
-    &camgeom::apriltag::families::TAG16H5,
-    &camgeom::apriltag::families::TAG_STANDARD41H12,
-];
-
-/// How a run's target is found.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Acquisition {
-    /// From the corners given for the first frame ([`camgeom::target::GivenCorners`]).
-    Corners,
-    /// From an AprilTag ([`camgeom::apriltag::TagTarget`]): the target is the tag's black
-    /// square, `target_size[0]` a side.
-    Tag {
-        /// Index in [`TAG_FAMILIES`].
-        family: u8,
-        /// The tag's id.
-        id: u16,
-    },
-}
-/// Pyramid levels the application uses (`TargetConfig`'s default coarsest level is 2).
-pub const LEVELS: usize = 3;
 /// KLT window side of the main job ([`camgeom::target::TargetConfig`]'s default).
 pub const WIN: usize = 15;
 /// Candidate corners the detector may hold (before its minimum-distance selection).
 pub const CANDIDATES: usize = 512;
 /// Tracks of the main job's target.
 pub const TRACKS: usize = 32;
-/// Side of the AR cube as a share of the target's shorter side.
-const CUBE_SHARE: f32 = 0.4;
 
 /// A decoded run description.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,7 +67,7 @@ pub struct RunSpec {
     /// Ask the acquisition again every this many frames while tracking (0: never).
     pub reacquire_every: u32,
     /// Check each flow by tracking it back (`fb_threshold` 1 px): off by default on the board
-    /// (see [`Self::app_config`]); on for the forward-backward job.
+    /// (see [`AppConfig::new`]); on for the forward-backward job.
     pub forward_backward: bool,
 }
 
@@ -171,51 +144,32 @@ impl RunSpec {
         self.corners.map(|[x, y]| Point2::new(x, y))
     }
 
-    /// The application's configuration for this run: its camera and target, the default
-    /// tracking parameters, [`LEVELS`] pyramid levels, and a cube of side 0.4 x the target's
-    /// shorter side standing in the target's middle, all checked once. Errors: as
-    /// [`Intrinsics::new`], [`Distortion::from_opencv`] and [`TargetParams::new`].
+    /// What the run tracks: its target's size, its acquisition, `reacquire_every` and the
+    /// forward-backward check.
+    pub fn options(&self) -> AppOptions {
+        AppOptions {
+            target_size: self.target_size,
+            acquisition: self.acquisition,
+            reacquire_every: self.reacquire_every,
+            forward_backward: self.forward_backward,
+        }
+    }
+
+    /// The application's configuration for this run: [`AppConfig::new`] with its camera, its
+    /// frame size and its [`Self::options`], the constructor every board uses. Errors: as
+    /// [`Intrinsics::new`], [`Distortion::from_opencv`] and [`AppConfig::new`].
     pub fn app_config(&self) -> Result<AppConfig, Error> {
         let [fx, fy, cx, cy] = self.intrinsics;
         let camera = Camera::new(
             Intrinsics::new(fx, fy, cx, cy)?,
             Distortion::from_opencv(self.distortion)?,
         );
-        let [tw, th] = self.target_size;
-        let size = CUBE_SHARE * tw.min(th);
-        // The defaults are for 320x240; a smaller frame shows the target smaller, so the
-        // corner spacing and the border margin shrink with it (not below 3 and 2 px).
-        let mut target = TargetConfig::default();
-        // No forward-backward check on the board unless the run asks for it: it tracks every
-        // feature twice and on the recorded sequence it rejected nothing the homography's
-        // RANSAC did not (the host `camgeom ar --fb 0` run gives the same poses on all 150
-        // frames). A caller who expects occlusions turns it on (`fb_threshold: Some(1.0)`,
-        // about +2.8M instructions a frame at 320x240; +2.1M with kept templates, the
-        // forward-backward job of `cargo xtask run`).
-        target.lk.fb_threshold = self.forward_backward.then_some(1.0);
-        target.reacquire_every = self.reacquire_every;
-        if let Acquisition::Tag { .. } = self.acquisition {
-            target = target.for_detector();
-        }
-        let scale = self.width as f32 / 320.0;
-        if scale < 1.0 {
-            target.corners.min_distance =
-                ((target.corners.min_distance as f32 * scale) as u32).max(3);
-            target.border = (target.border * scale).max(2.0);
-        }
-        Ok(AppConfig {
-            width: self.width as usize,
-            height: self.height as usize,
-            levels: LEVELS,
-            target: TargetParams::new(&target, camera, self.target_size)?,
-            cube: CubePlacement {
-                x: 0.5 * (tw - size),
-                y: 0.5 * (th - size),
-                size,
-            },
-            wire: WireframeParams::default(),
-            outline_value: 255,
-        })
+        AppConfig::new(
+            camera,
+            self.width as usize,
+            self.height as usize,
+            &self.options(),
+        )
     }
 }
 
