@@ -79,6 +79,9 @@ enum Command {
     },
     /// Build the OpenMV Cam H7 firmware (release), check its memory map, print its size.
     BuildOpenmv,
+    /// Build the OpenMV Cam H7 firmware and write it to the board over USB DFU (dfu-util),
+    /// the board started in its ROM bootloader (BOOT to 3.3 V; see firmware/README.md).
+    FlashOpenmv,
     /// Main-job firmware flash and static RAM against firmware/size-snapshot.txt.
     Size {
         /// Rewrite the snapshot with the sizes measured (the stack bounds are kept).
@@ -146,6 +149,7 @@ fn run(command: Command) -> Result<()> {
             setup::setup().and_then(|()| profile::profile(&bin, dir.as_deref()))
         }
         Command::BuildOpenmv => openmv::build_and_check(),
+        Command::FlashOpenmv => openmv::flash(),
         Command::Size { update } => setup::setup().and_then(|()| size::size(update)),
         Command::Stack => setup::setup().and_then(|()| firmware::stack()),
         Command::PanicCheck { locate: None } => panic_check::check(),
@@ -205,6 +209,7 @@ mod tests {
             "profile-fw camgeom-fw-bench",
             "profile-fw camgeom-fw-emulated target/camgeom-run/320x240",
             "build-openmv",
+            "flash-openmv",
             "size",
             "size --update",
             "stack",

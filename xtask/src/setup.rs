@@ -61,25 +61,28 @@ fn rustup() -> Result<()> {
     Ok(())
 }
 
-/// Every system tool the commands need, with the Debian package that has it: the emulators of
-/// the boards, and ffmpeg/ffprobe, through which the CLI reads and writes videos (a
-/// `--no-install-recommends` install of ffmpeg took 18 s on Debian 12, 57 MB of packages).
-const APT_TOOLS: [(&str, &str); 4] = [
-    ("qemu-system-arm", "qemu-system-arm"),
-    ("qemu-system-riscv32", "qemu-system-misc"),
-    ("ffmpeg", "ffmpeg"),
-    ("ffprobe", "ffmpeg"),
+/// Every system tool the commands need, with the Debian package that has it and the flag that
+/// makes it print its version: the emulators of the boards, ffmpeg/ffprobe, through which the
+/// CLI reads and writes videos (a `--no-install-recommends` install of ffmpeg took 18 s on
+/// Debian 12, 57 MB of packages), and dfu-util, which `flash-openmv` writes the OpenMV Cam H7
+/// with (`-version` would be a list of its short options to dfu-util).
+const APT_TOOLS: [(&str, &str, &str); 5] = [
+    ("qemu-system-arm", "qemu-system-arm", "-version"),
+    ("qemu-system-riscv32", "qemu-system-misc", "-version"),
+    ("ffmpeg", "ffmpeg", "-version"),
+    ("ffprobe", "ffmpeg", "-version"),
+    ("dfu-util", "dfu-util", "--version"),
 ];
 
 fn apt_tools() -> Result<()> {
-    let missing: Vec<(&str, &str)> = APT_TOOLS
+    let missing: Vec<(&str, &str, &str)> = APT_TOOLS
         .into_iter()
-        .filter(|(bin, _)| output(bin, ["-version"]).is_none())
+        .filter(|(bin, _, version)| output(bin, [version]).is_none())
         .collect();
     if missing.is_empty() {
         return Ok(());
     }
-    let mut packages: Vec<&str> = missing.iter().map(|(_, p)| *p).collect();
+    let mut packages: Vec<&str> = missing.iter().map(|(_, p, _)| *p).collect();
     packages.dedup();
     let root = output("id", ["-u"]).is_some_and(|u| u.trim() == "0");
     let apt = output("apt-get", ["--version"]).is_some();
@@ -88,7 +91,7 @@ fn apt_tools() -> Result<()> {
             "{} missing: install (Debian/Ubuntu) `sudo apt-get install -y {}`, then run again",
             missing
                 .iter()
-                .map(|(b, _)| *b)
+                .map(|(b, _, _)| *b)
                 .collect::<Vec<_>>()
                 .join(", "),
             packages.join(" ")
@@ -102,8 +105,8 @@ fn apt_tools() -> Result<()> {
         .args(["install", "-y", "-q", "--no-install-recommends"])
         .args(&packages)
         .env("DEBIAN_FRONTEND", "noninteractive"))?;
-    for (bin, _) in &missing {
-        if output(bin, ["--version"]).is_none() {
+    for (bin, _, version) in &missing {
+        if output(bin, [version]).is_none() {
             bail!("{bin} still does not run after installing it");
         }
     }
