@@ -1,5 +1,8 @@
-//! camgeom on the OpenMV Cam H7 (STM32H743VI, OV7725): captures 320x240 grayscale frames and
-//! tracks a planar target in them, logging its pose over defmt (RTT).
+//! camgeom on the OpenMV Cam H7 (STM32H743VI, OV7725): captures 320x240 grayscale frames,
+//! finds an AprilTag in them (or, with the `card` feature, a card held in the middle of the
+//! view) and tracks it, and sends one record per frame (state, pose, per-stage cycles) over
+//! the micro-USB port ([`stream`]: a USB serial port, no debug probe needed); the RGB LED shows
+//! searching, tracking or lost ([`led`]). With a probe, defmt also logs each frame over RTT.
 //!
 //! Board wiring, from the OpenMV firmware's board description (`boards/OPENMV4/
 //! board_config.h` and `board_config.mk` in the openmv/openmv repository):
@@ -14,35 +17,60 @@
 //! | camera reset (`RESETB`, low = reset) | PA10 |
 //! | DCMI data D0-D7 | PC6, PC7, PE0, PE1, PE4, PB6, PE5, PE6 |
 //! | DCMI HSYNC, VSYNC, PIXCLK | PA4, PB7, PA6 |
+//! | USB OTG FS (the micro-USB port) | D+ PA12, D- PA11, VBUS PA9; 48 MHz from HSI48 |
+//! | RGB LED (active low; `mpconfigboard.h`) | red PC0, green PC1, blue PC2 |
 //!
 //! (D5 is PB6 on this board, not the PD3 of ST's evaluation boards.)
 #![no_std]
 #![no_main]
 
 mod camera;
+mod led;
+mod stream;
 mod tracker;
 
 use camgeom::target::Stage;
+use camgeom_fw_app::report::{ErrorCode, FrameRecord};
 use camgeom_fw_app::{AppError, Cost, FrameLoop, FrameReport};
 use defmt_rtt as _;
-use embassy_executor::Spawner;
+use embassy_executor::{InterruptExecutor, Spawner};
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::i2c::{self, I2c};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
-use embassy_stm32::{Config, bind_interrupts, dcmi, dma, peripherals};
+use embassy_stm32::{Config, bind_interrupts, dcmi, dma, peripherals, usb};
 use embassy_time::{Delay, Timer};
 use panic_probe as _;
 use static_cell::ConstStaticCell;
 
 use crate::camera::{CAPTURE_WORDS, Camera};
+use crate::led::Led;
+use crate::stream::RecordStream;
 use crate::tracker::DwtClock;
 
-bind_interrupts!(struct Irqs {
+bind_interrupts!(pub struct Irqs {
     DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
     DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+    OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
 });
+
+/// The executor of the USB stack ([`stream::usb`]), run from the otherwise unused `UART4`
+/// interrupt at a priority above thread mode: the tracking loop, which never yields, runs in
+/// thread mode and is preempted whenever USB has work.
+static USB_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+#[interrupt]
+unsafe fn UART4() {
+    // SAFETY: `UART4` is this executor's interrupt (`USB_EXECUTOR.start(UART4)` in `main`)
+    // and nothing else; the UART itself is never enabled.
+    unsafe { USB_EXECUTOR.on_interrupt() }
+}
+
+/// Log the record stream's counts every this many frames (about 10 s at 30 fps).
+const STREAM_LOG_EVERY: u32 = 300;
 
 /// The camera's `XCLK`, as the OpenMV firmware drives it for the OV7725.
 const XCLK_HZ: u32 = 12_000_000;
@@ -76,6 +104,12 @@ fn clocks() -> Config {
     // 480 MHz needs VOS0 (revision V silicon, which the OpenMV Cam H7 has); the H743 is
     // powered from its LDO (the reset default, as on the OpenMV Cam H7).
     config.rcc.voltage_scale = VoltageScale::Scale0;
+    // USB's 48 MHz: HSI48 trimmed by the clock recovery system to the host's start-of-frame
+    // packets, as the OpenMV firmware does (`OMV_OSC_USB_CLKSOURCE`).
+    config.rcc.hsi48 = Some(Hsi48Config {
+        sync_from_usb: true,
+    });
+    config.rcc.mux.usbsel = mux::Usbsel::HSI48;
     config
 }
 
@@ -91,6 +125,15 @@ async fn main(_spawner: Spawner) {
         core.DWT.enable_cycle_counter();
     }
     defmt::info!("camgeom on OpenMV Cam H7: 480 MHz");
+    let mut led = Led::new(p.PC0, p.PC1, p.PC2);
+
+    // The record stream: USB runs from now on, whatever the camera does.
+    interrupt::UART4.set_priority(Priority::P6);
+    let usb_spawner = USB_EXECUTOR.start(interrupt::UART4);
+    match stream::usb(p.USB_OTG_FS, p.PA12, p.PA11) {
+        Ok(task) => usb_spawner.spawn(task),
+        Err(e) => defmt::panic!("usb task: {}", e),
+    }
 
     // Camera power and reset: PWDN low (on), RESETB pulsed low.
     let _pwdn = Output::new(p.PD7, Level::Low, Speed::Low);
@@ -153,20 +196,46 @@ async fn main(_spawner: Spawner) {
     };
     let app = tracker::pipeline();
     let mut clock = DwtClock::default();
-    // The card held in the middle half of the view; after a second lost, held there again.
-    let mut acquire = tracker::acquire();
+    // An AprilTag (or, with the `card` feature, the card held in the middle half of the view).
+    let mut acquire = match tracker::acquire() {
+        Ok(a) => a,
+        Err(e) => defmt::panic!("acquisition: {}", e),
+    };
+    let mut records = RecordStream::default();
+    led.show(app.state());
     // The first frame that arrives starts the target; a frame that fails leaves the pipeline
-    // as it was.
+    // as it was. Frames are numbered as the camera is asked for them.
+    let mut index = 0u32;
     loop {
-        match app.step(&cfg, &mut cam, &mut acquire, &mut clock, &mut |_, _| {}) {
-            Ok(Some(r)) => log(&r),
+        let record = match app.step(&cfg, &mut cam, &mut acquire, &mut clock, &mut |_, _| {}) {
+            Ok(Some(r)) => {
+                log(&r);
+                FrameRecord {
+                    index,
+                    ..FrameRecord::of(&r)
+                }
+            }
             // The configuration does not fit the buffers: nothing to run.
             Err(e @ AppError::Geometry) => defmt::panic!("start: {=str}", e.name()),
             // A camera never ends.
-            Ok(None) => {}
+            Ok(None) => continue,
             // A failed capture (or a frame the core rejects) leaves the pipeline as it was: go
             // on with the next frame.
-            Err(e) => tracker::log_error("frame", &e),
+            Err(e) => {
+                tracker::log_error("frame", &e);
+                FrameRecord::failed(index, app.state(), ErrorCode::of(&e))
+            }
+        };
+        led.show(record.state);
+        records.send(&record);
+        index = index.wrapping_add(1);
+        if index.is_multiple_of(STREAM_LOG_EVERY) {
+            defmt::info!(
+                "record stream: {=u32} frames queued for USB, {=u32} dropped (queue full), {=u32} discarded (port closed)",
+                records.queued(),
+                records.dropped(),
+                records.discarded()
+            );
         }
     }
 }
