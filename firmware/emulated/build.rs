@@ -28,4 +28,10 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", src.display());
     println!("cargo:rerun-if-changed=build.rs");
+    // The M7 build sends MAVLink (Cargo.toml turns on camgeom-fw-app's `mavlink` for it alone:
+    // the messages' generated code costs about 12 s of build per target).
+    println!("cargo::rustc-check-cfg=cfg(mavlink)");
+    if target == "thumbv7em-none-eabihf" {
+        println!("cargo:rustc-cfg=mavlink");
+    }
 }

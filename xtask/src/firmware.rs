@@ -183,13 +183,12 @@ pub fn run_on_qemu_in(
         // firmware/README.md), and runs are deterministic.
         .args(["-icount", "shift=0"])
         // UART0 (the record stream of the jobs that stream, `firmware/emulated/src/uart.rs`)
-        // to `serial.bin` in the run's directory; the monitor nowhere, so that stdout carries
-        // only the defmt log.
-        .args(["-monitor", "none", "-serial"])
-        .arg(if dir.is_some() {
-            "file:serial.bin"
-        } else {
-            "null"
+        // to `serial.bin` in the run's directory and UART1 (MAVLink) to `mavlink.bin`; the
+        // monitor nowhere, so that stdout carries only the defmt log.
+        .args(["-monitor", "none"])
+        .args(match dir {
+            Some(_) => ["-serial", "file:serial.bin", "-serial", "file:mavlink.bin"],
+            None => ["-serial", "null", "-serial", "null"],
         })
         .arg("-kernel")
         .arg(elf)

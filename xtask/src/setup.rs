@@ -124,8 +124,10 @@ pub fn cargo_fuzz() -> Result<()> {
 }
 
 /// OpenCV for Python, the peer the host tests compare with where a comparison cannot be
-/// recorded once (e.g. `cv2.FileStorage` reading a file camgeom has just written), installed
-/// with pip when missing: the version `host-tests/scripts/peers.py` pins.
+/// recorded once (e.g. `cv2.FileStorage` reading a file camgeom has just written), and
+/// pymavlink, the autopilot side's MAVLink parser that reads the tag job's MAVLink stream
+/// (`host-tests/scripts/check_mavlink.py`), installed with pip when missing (OpenCV at the
+/// version `host-tests/scripts/peers.py` pins).
 fn opencv() -> Result<()> {
     let has = |m: &str| {
         Command::new("python3")
@@ -137,10 +139,10 @@ fn opencv() -> Result<()> {
         println!("setup: python3 not found; the host tests that compare with OpenCV will skip");
         return Ok(());
     }
-    if has("cv2") && has("numpy") {
+    if has("cv2") && has("numpy") && has("pymavlink") {
         return Ok(());
     }
-    println!("setup: installing opencv-python-headless and numpy with pip");
+    println!("setup: installing opencv-python-headless, numpy and pymavlink with pip");
     if let Err(e) = run(Command::new("python3").args([
         "-m",
         "pip",
@@ -148,6 +150,7 @@ fn opencv() -> Result<()> {
         "--quiet",
         "opencv-python-headless==5.0.0.93",
         "numpy",
+        "pymavlink==2.4.50",
     ])) {
         // Not fatal: those comparisons then say they skipped (peers.py tries again).
         println!("setup: pip could not install OpenCV ({e}); the OpenCV comparisons will skip");

@@ -15,6 +15,8 @@ extern crate std;
 pub mod calibration;
 pub mod costs;
 pub mod link;
+#[cfg(feature = "mavlink")]
+pub mod mavlink;
 pub mod options;
 pub mod pipeline;
 pub mod qvga;

@@ -35,6 +35,11 @@ pub enum Stream {
     /// Also as the framed record stream ([`camgeom_fw_app::link`]) over UART0
     /// ([`crate::uart`]; Arm `mps2-an500` and `mps2-an385` only).
     Uart0,
+    /// The record stream over UART0, and MAVLink for an autopilot over UART1: a `HEARTBEAT`
+    /// a second and a `LANDING_TARGET` for every frame with a pose
+    /// ([`camgeom_fw_app::mavlink`], default [`camgeom_fw_app::mavlink::MavlinkConfig`]; the
+    /// Cortex-M7 build only).
+    Uart0Mavlink1,
 }
 
 /// SysTick, in instructions (QEMU `-icount`) or cycles (hardware).
@@ -206,6 +211,7 @@ pub fn run<A: Acquire>(
             fail_host(REPORT_FILE, e)
         }
         link.send(&bytes);
+        link.mavlink(r, spec.target_size);
     };
     let Some(mut acquire) = acquisition(&spec) else {
         defmt::error!("run.bin asks for a target this firmware cannot acquire");
@@ -261,26 +267,54 @@ pub fn given_corners(spec: &RunSpec) -> Option<GivenCorners> {
 struct Link {
     #[cfg(target_arch = "arm")]
     uart: Option<crate::uart::RecordLink>,
+    #[cfg(mavlink)]
+    mavlink: Option<crate::uart::MavlinkLink>,
     frames: u32,
     bytes: u32,
     instructions: u64,
+    /// MAVLink: heartbeats, landing targets, bytes, the next heartbeat's time (microseconds).
+    heartbeats: u32,
+    targets: u32,
+    mavlink_bytes: u32,
+    next_heartbeat_us: u64,
+}
+
+/// Microseconds since boot: SysTick counts instructions, one a virtual nanosecond under
+/// QEMU's `-icount shift=0`.
+fn now_us() -> u64 {
+    SysTickClock.now() / 1000
 }
 
 impl Link {
     fn open(stream: Stream) -> Self {
         #[cfg(target_arch = "arm")]
-        let uart = (stream == Stream::Uart0).then(crate::uart::RecordLink::open);
+        let uart = (stream != Stream::Off).then(crate::uart::RecordLink::open);
         #[cfg(not(target_arch = "arm"))]
         if stream != Stream::Off {
             defmt::error!("this board has no record stream");
             board::exit_failure()
         }
+        #[cfg(mavlink)]
+        let mavlink = (stream == Stream::Uart0Mavlink1).then(|| {
+            crate::uart::MavlinkLink::open(camgeom_fw_app::mavlink::MavlinkConfig::default())
+        });
+        #[cfg(not(mavlink))]
+        if stream == Stream::Uart0Mavlink1 {
+            defmt::error!("this build sends no MAVLink (the Cortex-M7's does)");
+            board::exit_failure()
+        }
         Self {
             #[cfg(target_arch = "arm")]
             uart,
+            #[cfg(mavlink)]
+            mavlink,
             frames: 0,
             bytes: 0,
             instructions: 0,
+            heartbeats: 0,
+            targets: 0,
+            mavlink_bytes: 0,
+            next_heartbeat_us: 0,
         }
     }
 
@@ -306,6 +340,27 @@ impl Link {
         let _ = record;
     }
 
+    /// The MAVLink of frame `r`, a target of `size`: a heartbeat when one is due, the
+    /// landing target when the frame has a pose.
+    fn mavlink(&mut self, r: &FrameRecord, size: [f32; 2]) {
+        #[cfg(mavlink)]
+        if let Some(m) = &mut self.mavlink {
+            let now = now_us();
+            if now >= self.next_heartbeat_us {
+                self.mavlink_bytes += m.heartbeat() as u32;
+                self.heartbeats += 1;
+                self.next_heartbeat_us = now + 1_000_000;
+            }
+            if let (Some((best, _)), None) = (r.pose, r.error) {
+                let n = m.landing_target(now, &best, size);
+                self.mavlink_bytes += n as u32;
+                self.targets += u32::from(n > 0);
+            }
+        }
+        #[cfg(not(mavlink))]
+        let _ = (r, size, now_us);
+    }
+
     fn log(&self) {
         if self.frames > 0 {
             defmt::info!(
@@ -313,6 +368,14 @@ impl Link {
                 self.frames,
                 self.bytes,
                 self.instructions / u64::from(self.frames)
+            );
+        }
+        if self.heartbeats > 0 {
+            defmt::info!(
+                "mavlink: {=u32} LANDING_TARGET, {=u32} HEARTBEAT, {=u32} bytes over UART1",
+                self.targets,
+                self.heartbeats,
+                self.mavlink_bytes
             );
         }
     }

@@ -1,10 +1,12 @@
-//! The record stream's transport on the emulated Arm boards: UART0, the CMSDK APB UART of QEMU's
-//! `mps2-an500` (Cortex-M7) and `mps2-an385` (Cortex-M3), transmit only.
+//! The emulated Arm boards' serial ports: the CMSDK APB UARTs of QEMU's `mps2-an500`
+//! (Cortex-M7) and `mps2-an385` (Cortex-M3), transmit only. UART0 carries the record stream,
+//! UART1 the MAVLink messages to an autopilot.
 //!
 //! A real board's record stream goes out of its UART or USB; the emulated board's goes out of
-//! this one, which QEMU connects to a file or socket (`-serial file:serial.bin`), and the host
-//! reads it with the same [`camgeom_fw_app::link::Deframer`] a real board's monitor uses.
-//! Semihosting stays for what comes in (the recorded frames, the run description).
+//! UART0, which QEMU connects to a file or socket (the first `-serial file:serial.bin`), and
+//! the host reads it with the same [`camgeom_fw_app::link::Deframer`] a real board's monitor
+//! uses; UART1 goes to the second `-serial` (`mavlink.bin`). Semihosting stays for what comes
+//! in (the recorded frames, the run description).
 //!
 //! Registers (CMSDK technical reference manual, ARM DDI 0479C, table 4-3):
 //!
@@ -18,8 +20,11 @@
 use camgeom_fw_app::link::{LinkError, encode_frame, max_frame_len};
 use camgeom_fw_app::report::RECORD_LEN;
 
-/// UART0's base address on `mps2-an385` and `mps2-an500`.
+/// UART0's and UART1's base addresses on `mps2-an385` and `mps2-an500` (the AN385 and AN500
+/// application notes' memory maps).
 const UART0: usize = 0x4000_4000;
+#[cfg(mavlink)]
+const UART1: usize = 0x4000_5000;
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
@@ -29,20 +34,43 @@ const TX_ENABLE: u32 = 1;
 /// The board's clock over 16: the fastest rate the UART allows (QEMU sends at once anyway).
 const DIVIDER: u32 = 16;
 
-fn write(offset: usize, v: u32) {
-    // SAFETY: UART0's registers on the mps2 machines this firmware runs on; word writes are
-    // what the peripheral takes, and nothing else maps that address.
-    unsafe { ((UART0 + offset) as *mut u32).write_volatile(v) }
-}
+/// One UART, by its base address.
+struct Uart(usize);
 
-fn read(offset: usize) -> u32 {
-    // SAFETY: as in `write`.
-    unsafe { ((UART0 + offset) as *const u32).read_volatile() }
+impl Uart {
+    fn write(&self, offset: usize, v: u32) {
+        // SAFETY: the registers of a UART of the mps2 machines this firmware runs on (`self.0`
+        // is one of the constants above); word writes are what the peripheral takes, and
+        // nothing else maps that address.
+        unsafe { ((self.0 + offset) as *mut u32).write_volatile(v) }
+    }
+
+    fn read(&self, offset: usize) -> u32 {
+        // SAFETY: as in `write`.
+        unsafe { ((self.0 + offset) as *const u32).read_volatile() }
+    }
+
+    /// Enables the transmitter.
+    fn open(base: usize) -> Self {
+        let uart = Self(base);
+        uart.write(BAUDDIV, DIVIDER);
+        uart.write(CTRL, TX_ENABLE);
+        uart
+    }
+
+    /// Sends `bytes`, waiting while the transmit buffer is full.
+    fn send(&self, bytes: &[u8]) {
+        for &b in bytes {
+            while self.read(STATE) & TX_FULL != 0 {}
+            self.write(DATA, u32::from(b));
+        }
+    }
 }
 
 /// UART0 as the record stream: each record goes out as one frame of
 /// [`camgeom_fw_app::link`], numbered in order.
 pub struct RecordLink {
+    uart: Uart,
     seq: u16,
     frame: [u8; max_frame_len(RECORD_LEN)],
 }
@@ -50,9 +78,8 @@ pub struct RecordLink {
 impl RecordLink {
     /// Enables UART0's transmitter.
     pub fn open() -> Self {
-        write(BAUDDIV, DIVIDER);
-        write(CTRL, TX_ENABLE);
         Self {
+            uart: Uart::open(UART0),
             seq: 0,
             frame: [0; max_frame_len(RECORD_LEN)],
         }
@@ -62,10 +89,50 @@ impl RecordLink {
     pub fn send(&mut self, record: &[u8]) -> Result<usize, LinkError> {
         let n = encode_frame(self.seq, record, &mut self.frame)?;
         self.seq = self.seq.wrapping_add(1);
-        for &b in self.frame.get(..n).unwrap_or(&[]) {
-            while read(STATE) & TX_FULL != 0 {}
-            write(DATA, u32::from(b));
-        }
+        self.uart.send(self.frame.get(..n).unwrap_or(&[]));
         Ok(n)
+    }
+}
+
+/// UART1 as the autopilot's link: MAVLink 2 messages ([`camgeom_fw_app::mavlink`]).
+#[cfg(mavlink)]
+pub struct MavlinkLink {
+    uart: Uart,
+    mavlink: camgeom_fw_app::mavlink::Mavlink,
+}
+
+#[cfg(mavlink)]
+impl MavlinkLink {
+    /// Enables UART1's transmitter.
+    pub fn open(config: camgeom_fw_app::mavlink::MavlinkConfig) -> Self {
+        Self {
+            uart: Uart::open(UART1),
+            mavlink: camgeom_fw_app::mavlink::Mavlink::new(config),
+        }
+    }
+
+    /// Sends a `HEARTBEAT`; returns the bytes sent.
+    pub fn heartbeat(&mut self) -> usize {
+        let bytes = self.mavlink.heartbeat();
+        self.uart.send(bytes);
+        bytes.len()
+    }
+
+    /// Sends the `LANDING_TARGET` of a pose (see
+    /// [`camgeom_fw_app::mavlink::Mavlink::landing_target`]); returns the bytes sent, 0 when
+    /// the pose gives none.
+    pub fn landing_target(
+        &mut self,
+        time_usec: u64,
+        pose: &camgeom_fw_app::report::PoseRecord,
+        size: [f32; 2],
+    ) -> usize {
+        match self.mavlink.landing_target(time_usec, pose, size) {
+            Some(bytes) => {
+                self.uart.send(bytes);
+                bytes.len()
+            }
+            None => 0,
+        }
     }
 }

@@ -91,7 +91,8 @@ pub fn run_board(
     // Outputs of an earlier run must not be mistaken for this one's.
     for e in fs::read_dir(dir)?.flatten() {
         let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with("overlay-") || n == "report.bin" || n == "serial.bin" {
+        if n.starts_with("overlay-") || n == "report.bin" || n == "serial.bin" || n == "mavlink.bin"
+        {
             fs::remove_file(e.path())?;
         }
     }

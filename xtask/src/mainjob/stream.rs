@@ -11,13 +11,14 @@
 use std::fmt::Write as _;
 use std::fs;
 use std::path::Path;
+use std::process::Command;
 
 use anyhow::{Context, Result, ensure};
 use camgeom::rng::Pcg32;
 use camgeom_fw_app::link::{Deframer, LinkStats, max_frame_len};
 use camgeom_fw_app::report::{RECORD_LEN, Record};
 
-use crate::util::root;
+use crate::util::{in_ci, root};
 
 /// The receiver of the stream: room for one frame of the longest record.
 type Receiver = Deframer<{ max_frame_len(RECORD_LEN) }>;
@@ -84,8 +85,9 @@ impl Fault {
 }
 
 /// Checks `serial.bin` against `report.bin` (the same records in the same order, none damaged),
-/// runs the damaged-link cases, and returns the lines to print and the BENCHMARKS table.
-pub fn check(dir: &Path, log: &[String]) -> Result<String> {
+/// `mavlink.bin` with pymavlink (a target of `size`, metres), runs the damaged-link cases, and
+/// returns the lines to print and the BENCHMARKS table.
+pub fn check(dir: &Path, log: &[String], size: [f32; 2]) -> Result<String> {
     let serial = dir.join("serial.bin");
     let bytes =
         fs::read(&serial).with_context(|| format!("the board streamed no {}", serial.display()))?;
@@ -110,6 +112,7 @@ pub fn check(dir: &Path, log: &[String]) -> Result<String> {
         );
     }
     let monitored = monitor(&serial, &records)?;
+    let mavlink = mavlink(dir, log, size)?;
     let per_frame = bytes.len() as f64 / records.len() as f64;
     // The board's own count: "record stream: F frames, B bytes over UART0, I instructions a
     // frame to frame and send".
@@ -129,6 +132,7 @@ pub fn check(dir: &Path, log: &[String]) -> Result<String> {
         per_frame * 10.0 * 100.0
     );
     let _ = writeln!(s, "{monitored}");
+    let _ = writeln!(s, "{mavlink}");
     let _ = writeln!(
         s,
         "\n| link fault (seeded, over the {} bytes) | bytes affected | frames delivered | damaged | lost | repeated | delivered wrong |\n|---|---|---|---|---|---|---|",
@@ -190,6 +194,10 @@ fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
     let text = String::from_utf8(out)? + &last;
+    // What `camgeom monitor --replay serial.bin --json` prints, kept beside the stream (the
+    // MAVLink check reads the poses from it).
+    let jsonl = serial.with_file_name("monitor.jsonl");
+    fs::write(&jsonl, &text).with_context(|| format!("cannot write {}", jsonl.display()))?;
     let lines: Vec<serde_json::Value> = text
         .lines()
         .map(serde_json::from_str)
@@ -239,4 +247,48 @@ fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
         lines.len(),
         frames.len()
     ))
+}
+
+/// `mavlink.bin` (UART1) read by pymavlink, the autopilot side's parser
+/// (`host-tests/scripts/check_mavlink.py`): every byte parses, a HEARTBEAT, one LANDING_TARGET
+/// a frame with a pose whose distance and position are the pose's to 1 mm. Without pymavlink
+/// it says so and skips, except in CI (`CI=true`), where it is a failure.
+fn mavlink(dir: &Path, log: &[String], [w, h]: [f32; 2]) -> Result<String> {
+    let bin = dir.join("mavlink.bin");
+    ensure!(
+        fs::metadata(&bin).is_ok_and(|m| m.len() > 0),
+        "the board sent no MAVLink ({} is empty)",
+        bin.display()
+    );
+    let board = log
+        .iter()
+        .find_map(|m| m.strip_prefix("mavlink: "))
+        .context("the board's log has no mavlink line")?;
+    let has_pymavlink = Command::new("python3")
+        .args(["-c", "import pymavlink, numpy"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_pymavlink {
+        ensure!(
+            !in_ci(),
+            "pymavlink is missing (`cargo xtask setup` installs it)"
+        );
+        return Ok(format!(
+            "mavlink over UART1: {board}; pymavlink not installed, its check skipped (`cargo xtask setup`)"
+        ));
+    }
+    let out = Command::new("python3")
+        .arg(root().join("host-tests/scripts/check_mavlink.py"))
+        .arg(&bin)
+        .arg(dir.join("monitor.jsonl"))
+        .args([w.to_string(), h.to_string()])
+        .output()
+        .context("cannot run python3")?;
+    let said = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    ensure!(
+        out.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    Ok(format!("mavlink over UART1: {board}\n{said}"))
 }

@@ -225,7 +225,7 @@ pub fn run(stride: u32) -> Result<String> {
     let (flash, ram, _) = size_of(M7, &elf)?;
     let board = emulate::run_board(M7, &elf, &dir, SIZE, stride)?;
     let verdict = compare::compare(&board.frames, &host.0, &board.overlays, &host.1)?;
-    let link = stream::check(&dir, &board.log)?;
+    let link = stream::check(&dir, &board.log, spec.target_size)?;
     let frames = &board.frames;
     ensure!(
         frames.values().all(|r| r.error.is_none()),

@@ -25,8 +25,12 @@ static DETECTOR: StaticCell<Detector> = StaticCell::new();
 #[entry]
 fn main() -> ! {
     let workspace = WORKSPACE.take();
-    job::run(APP.take(), W, H, job::Stream::Uart0, |spec| {
-        match spec.acquisition {
+    job::run(
+        APP.take(),
+        W,
+        H,
+        job::Stream::Uart0Mavlink1,
+        |spec| match spec.acquisition {
             Acquisition::Tag { family, id } => {
                 let family = *TAG_FAMILIES.get(usize::from(family))?;
                 let detector = match Detector::new(DetectorConfig::default(), &[family]) {
@@ -44,6 +48,6 @@ fn main() -> ! {
                 ))
             }
             Acquisition::Corners => None,
-        }
-    })
+        },
+    )
 }
