@@ -24,6 +24,13 @@
 //!    target up where it was last seen ([`TargetConfig::relocate`]; with a detector the next
 //!    frames only acquire).
 //!
+//! An [`Acquire`] step that can find the target near a prediction ([`Acquire::tracks`], as a
+//! tag detector does: [`crate::apriltag::TagTarget`]) replaces steps 2 to 5 by **tracking by
+//! detection**: each frame the target is looked for near its corners predicted from the last
+//! two frames ([`Acquire::track`]), else acquired afresh (and every
+//! [`TargetConfig::reacquire_every`] frames as a guard); the pose comes from the four corners
+//! found, as an acquisition's does, with the planar ambiguity resolved by the last rotation.
+//!
 //! The configuration is checked once ([`TargetParams::new`]) and kept apart from the state
 //! ([`PlanarTarget`]), which holds `N` tracks and every work buffer of the loop, sized by
 //! `const` parameters from [`flow_scratch_len`] and [`corner_scratch_len`]. A
@@ -67,7 +74,7 @@
 //! ```
 
 use heapless::Vec;
-use nalgebra::{Point2, Point3, UnitQuaternion};
+use nalgebra::{Point2, Point3, UnitQuaternion, Vector2};
 
 use crate::camera::Camera;
 use crate::corners::{Corner, CornerConfig, CornerParams, good_features};
@@ -304,6 +311,25 @@ pub trait Acquire {
         frame: &ImageView<'_, u8>,
         lost_frames: u32,
     ) -> Result<Option<[Point2<f32>; 4]>>;
+
+    /// Whether [`Self::track`] finds the target near a prediction: the loop then tracks by
+    /// it instead of by KLT (default: no). See [`PlanarTarget::step`].
+    fn tracks(&self) -> bool {
+        false
+    }
+
+    /// Finds the target in `frame` near `predicted`, its corners predicted for this frame
+    /// (the order of [`TargetParams::corners`]), as a detector does in a region around them;
+    /// `None` when it is not there (the loop then asks [`Self::acquire`]). The default finds
+    /// nothing. Errors are the detector's own (they end the frame).
+    fn track(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        predicted: &[Point2<f32>; 4],
+    ) -> Result<Option<[Point2<f32>; 4]>> {
+        let _ = (frame, predicted);
+        Ok(None)
+    }
 }
 
 impl Acquire for () {
@@ -396,7 +422,8 @@ pub struct TargetFrame {
     pub pose: Option<PlanarPose<f32>>,
     /// The target's corners `(0, 0), (w, 0), (w, h), (0, h)` in this frame, when tracking.
     pub outline: Option<[Point2<f32>; 4]>,
-    /// Tracks that survived the flow (0 on an acquisition).
+    /// Tracks that survived the flow (0 on an acquisition; 4, the corners, when
+    /// [`Acquire::track`] found the target).
     pub tracked: usize,
     /// Homography inliers (the tracks kept; on an acquisition the features detected).
     pub inliers: usize,
@@ -558,6 +585,10 @@ pub struct PlanarTarget<
     lost_frames: u32,
     /// The best pose's rotation of the last frame that had one (for the ambiguity rule).
     last_rotation: Option<UnitQuaternion<f32>>,
+    /// The last frame's outline when it was tracked, and each corner's motion from the frame
+    /// before (zero when that one had none): the prediction of tracking by detection.
+    corners: Option<[Point2<f32>; 4]>,
+    motion: [Vector2<f32>; 4],
     flow_scratch: [i16; S],
     corner_scratch: [u32; C],
     candidates: [Corner; K],
@@ -590,6 +621,8 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             since_acquired: 0,
             lost_frames: 0,
             last_rotation: None,
+            corners: None,
+            motion: [Vector2::new(0.0, 0.0); 4],
             flow_scratch: [0; S],
             corner_scratch: [0; C],
             candidates: [Corner {
@@ -613,6 +646,8 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         self.since_acquired = 0;
         self.lost_frames = 0;
         self.last_rotation = None;
+        self.corners = None;
+        self.motion = [Vector2::zeros(); 4];
     }
 
     /// Features currently tracked: `(image position, target-plane position)`.
@@ -665,6 +700,10 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         let every = params.cfg.reacquire_every;
         let due =
             self.state == TargetState::Uninitialised || (every > 0 && self.since_acquired >= every);
+        if acquire.tracks() {
+            self.step_by_detection(params, &frame, acquire, probe, due, &mut out)?;
+            return Ok(out);
+        }
         if due && self.try_acquire(params, &frame, acquire, probe, &mut out)? {
             return Ok(out);
         }
@@ -708,6 +747,79 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         Ok(out)
     }
 
+    /// One frame of tracking by detection ([`Acquire::tracks`]): while tracking, and unless
+    /// the guard's full acquisition is `due`, the target is looked for near its corners
+    /// predicted from the last two frames (constant motion of each corner;
+    /// [`Acquire::track`]); when that fails (or after a loss) it is acquired afresh
+    /// ([`Acquire::acquire`]), and when the guard's acquisition misses a tracked target, it is
+    /// looked for near the prediction. The pose comes from the four corners found, as an
+    /// acquisition's does, the ambiguity resolved by the last rotation; no features are
+    /// tracked.
+    fn step_by_detection<Q: Acquire + ?Sized, P: StageProbe<Stage> + ?Sized>(
+        &mut self,
+        params: &TargetParams,
+        frame: &ImageView<'_, u8>,
+        acquire: &mut Q,
+        probe: &mut P,
+        due: bool,
+        out: &mut TargetFrame,
+    ) -> Result<()> {
+        let predicted = match (self.state, self.corners) {
+            (TargetState::Tracking, Some(last)) => {
+                let mut p = last;
+                for (p, m) in p.iter_mut().zip(self.motion.iter()) {
+                    *p += m;
+                }
+                Some(p)
+            }
+            _ => None,
+        };
+        let mut found = None;
+        if let Some(p) = predicted.as_ref()
+            && !due
+        {
+            found = acquire.track(frame, p)?;
+            probe.stage_done(Stage::Acquire);
+        }
+        let mut tracked = found.is_some();
+        if !tracked {
+            let lost = match self.state {
+                TargetState::Lost => self.lost_frames.saturating_add(1),
+                _ => 0,
+            };
+            found = acquire.acquire(frame, lost)?;
+            probe.stage_done(Stage::Acquire);
+            if found.is_some() {
+                self.since_acquired = 0;
+                out.acquired = true;
+            } else if let Some(p) = predicted.as_ref()
+                && due
+            {
+                // The guard's detection missed a target that was tracked: look where it must be.
+                found = acquire.track(frame, p)?;
+                probe.stage_done(Stage::Acquire);
+                tracked = found.is_some();
+            }
+        }
+        self.features.clear();
+        self.state = TargetState::Lost;
+        if let Some(corners) = found
+            && let Ok(h) = Homography::from_four_points(&params.corners(), &corners)
+        {
+            self.h = Some(h);
+            out.tracked = if tracked { 4 } else { 0 };
+            out.inliers = 4;
+            out.pose = self.solve_corners(params, &corners);
+            probe.stage_done(Stage::Pose);
+            if out.pose.is_some() {
+                self.state = TargetState::Tracking;
+                out.outline = Some(corners);
+            }
+        }
+        self.end_frame(params, out);
+        Ok(())
+    }
+
     /// Records the frame's outcome in the state and in `out`, after the ambiguity rule
     /// ([`TargetConfig::ambiguity_ratio`]) has picked between the two poses.
     fn end_frame(&mut self, params: &TargetParams, out: &mut TargetFrame) {
@@ -729,6 +841,19 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             TargetState::Lost => self.lost_frames.saturating_add(1),
             _ => 0,
         };
+        // The outline's corners and their motion since the last frame (for the prediction of
+        // tracking by detection).
+        let now = match self.state {
+            TargetState::Tracking => out.outline,
+            _ => None,
+        };
+        self.motion = [Vector2::zeros(); 4];
+        if let (Some(a), Some(b)) = (self.corners, now) {
+            for ((m, p), q) in self.motion.iter_mut().zip(a.iter()).zip(b.iter()) {
+                *m = q - p;
+            }
+        }
+        self.corners = now;
         out.state = self.state;
         out.features = self.features.len();
     }
@@ -1219,6 +1344,110 @@ mod tests {
             Ok((!self.blind.contains(&self.frame))
                 .then(|| true_corners(self.k, self.params, self.frame as f64)))
         }
+    }
+
+    /// An oracle that also tracks: the true corners near the prediction, except on the frames
+    /// of `blind` and `miss` (where only the full acquisition finds the target).
+    struct TrackingOracle<'a> {
+        oracle: Oracle<'a>,
+        miss: &'a [usize],
+        tracked: StdVec<(usize, [Point2<f32>; 4])>,
+    }
+
+    impl Acquire for TrackingOracle<'_> {
+        fn acquire(
+            &mut self,
+            f: &ImageView<'_, u8>,
+            lost: u32,
+        ) -> Result<Option<[Point2<f32>; 4]>> {
+            self.oracle.acquire(f, lost)
+        }
+
+        fn tracks(&self) -> bool {
+            true
+        }
+
+        fn track(
+            &mut self,
+            _: &ImageView<'_, u8>,
+            predicted: &[Point2<f32>; 4],
+        ) -> Result<Option<[Point2<f32>; 4]>> {
+            let t = self.oracle.frame;
+            self.tracked.push((t, *predicted));
+            let o = &self.oracle;
+            let hidden = o.blind.contains(&t) || self.miss.contains(&t);
+            Ok((!hidden).then(|| true_corners(o.k, o.params, t as f64)))
+        }
+    }
+
+    #[test]
+    fn tracks_by_detection_with_a_guard_and_falls_back_to_acquisition() {
+        let k = Intrinsics::new(200.0f64, 200.0, 79.5, 59.5).unwrap();
+        let cam = Camera::pinhole(k.cast::<f32>());
+        let cfg = TargetConfig {
+            reacquire_every: 4,
+            ..config()
+        };
+        let params = TargetParams::new(&cfg, cam, [SIZE as f32; 2]).unwrap();
+        let frames: StdVec<StdVec<u8>> = (0..10).map(|t| render(&k, &pose_at(t as f64))).collect();
+        let mut acq = TrackingOracle {
+            oracle: Oracle {
+                k: &k,
+                params: &params,
+                frame: 0,
+                blind: &[6],
+                calls: StdVec::new(),
+            },
+            miss: &[2],
+            tracked: StdVec::new(),
+        };
+        let run = run_with(&params, &frames, &mut acq, |o, t| o.oracle.frame = t);
+        let mut states = StdVec::new();
+        for (t, (r, stages)) in run.iter().enumerate() {
+            if r.state == TargetState::Tracking {
+                let (dr, dt) = pose_error(&r.pose.unwrap().best.pose, t as f64);
+                assert!(dr < 0.5 && dt < 0.01, "frame {t}: {dr} deg, {dt}");
+                assert_eq!(r.outline, Some(true_corners(&k, &params, t as f64)));
+            }
+            // No KLT: no flow, no features.
+            assert!(
+                !stages.contains(&Stage::Flow) && r.features == 0,
+                "frame {t}"
+            );
+            states.push((r.state, r.acquired, r.tracked));
+        }
+        use TargetState::{Lost, Tracking};
+        assert_eq!(
+            states,
+            [
+                (Tracking, true, 0),
+                (Tracking, false, 4),
+                // Missed where it must be: the full acquisition finds it.
+                (Tracking, true, 0),
+                (Tracking, false, 4),
+                (Tracking, false, 4),
+                (Tracking, false, 4),
+                // Four frames after the last acquisition the guard runs, finds nothing, and
+                // the target is not where it must be either.
+                (Lost, false, 0),
+                // After a loss: acquisition only.
+                (Tracking, true, 0),
+                (Tracking, false, 4),
+                (Tracking, false, 4),
+            ]
+        );
+        assert_eq!(acq.oracle.calls, [0, 2, 6, 7]);
+        let asked: StdVec<usize> = acq.tracked.iter().map(|(t, _)| *t).collect();
+        assert_eq!(asked, [1, 2, 3, 4, 5, 6, 8, 9]);
+        // The prediction: the last corners moved as they moved the frame before (frame 4 from
+        // frames 2 and 3), the last corners alone after an acquisition that follows a loss.
+        let c = |t: usize| true_corners(&k, &params, t as f64);
+        let (_, p4) = acq.tracked[3];
+        for ((p, a), b) in p4.iter().zip(c(3)).zip(c(2)) {
+            let want = a + (a - b);
+            assert!((p - want).norm() < 1e-4, "{p} vs {want}");
+        }
+        assert_eq!(acq.tracked[6].1, c(7));
     }
 
     #[test]

@@ -17,14 +17,37 @@ use crate::target::Acquire;
 /// black square, AprilTag's `tag_size`) has its origin at the tag's top-left outer corner and
 /// its pose is the tag's, moved by `R (s/2, s/2, 0)`.
 ///
-/// With [`crate::target::TargetConfig::reacquire_every`] set, the loop asks again while
-/// tracking, so the detection bounds the tracks' drift; after a loss it asks on every frame.
+/// It tracks the tag by detecting it where it must be ([`Acquire::tracks`], on unless
+/// [`Self::track_by_detection`] turns it off): each [`Acquire::track`] refines the predicted
+/// quad's edges and decodes it ([`Detector::refine_target`]), else detects the tag in the
+/// region around the prediction ([`Detector::find_target_near`]); the loop falls back to a
+/// full detection when both fail, and with
+/// [`crate::target::TargetConfig::reacquire_every`] set runs one every that many frames as a
+/// guard. Off, the loop tracks the tag with KLT between detections (every `reacquire_every`
+/// frames and after a loss). [`Self::counts`] tells which search found the tag how often.
 /// `L`: the workspace's label type ([`Label`]).
 pub struct TagTarget<'a, L: Label = u16> {
     detector: &'a Detector,
     workspace: WorkspaceView<'a, L>,
     family: &'static Family,
     id: u16,
+    by_detection: bool,
+    counts: TrackCounts,
+}
+
+/// How often each search of a [`TagTarget`] found its tag.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackCounts {
+    /// Found by refining the predicted quad ([`Detector::refine_target`]).
+    pub refined: u32,
+    /// Found by a detection in the region around the prediction
+    /// ([`Detector::find_target_near`]).
+    pub region: u32,
+    /// Found by a full detection ([`Acquire::acquire`]).
+    pub full: u32,
+    /// Full detections run.
+    pub full_runs: u32,
 }
 
 impl<'a, L: Label> TagTarget<'a, L> {
@@ -41,7 +64,26 @@ impl<'a, L: Label> TagTarget<'a, L> {
             workspace,
             family,
             id,
+            by_detection: true,
+            counts: TrackCounts {
+                refined: 0,
+                region: 0,
+                full: 0,
+                full_runs: 0,
+            },
         }
+    }
+
+    /// Tracks by detection (`true`, the default) or lets the loop track with KLT between
+    /// acquisitions (`false`).
+    pub fn track_by_detection(mut self, on: bool) -> Self {
+        self.by_detection = on;
+        self
+    }
+
+    /// Which search found the tag how often, since [`Self::new`].
+    pub fn counts(&self) -> TrackCounts {
+        self.counts
     }
 
     /// The workspace (its [`super::Stats`] after the last detection).
@@ -56,7 +98,34 @@ impl<L: Label> Acquire for TagTarget<'_, L> {
         frame: &ImageView<'_, u8>,
         _lost: u32,
     ) -> Result<Option<[Point2<f32>; 4]>> {
-        self.detector
-            .find_target(frame, &mut self.workspace, self.family, self.id)
+        let found = self
+            .detector
+            .find_target(frame, &mut self.workspace, self.family, self.id)?;
+        self.counts.full_runs = self.counts.full_runs.saturating_add(1);
+        if found.is_some() {
+            self.counts.full = self.counts.full.saturating_add(1);
+        }
+        Ok(found)
+    }
+
+    fn tracks(&self) -> bool {
+        self.by_detection
+    }
+
+    fn track(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        predicted: &[Point2<f32>; 4],
+    ) -> Result<Option<[Point2<f32>; 4]>> {
+        let (det, fam, id) = (self.detector, self.family, self.id);
+        if let Some(c) = det.refine_target(frame, fam, id, predicted) {
+            self.counts.refined = self.counts.refined.saturating_add(1);
+            return Ok(Some(c));
+        }
+        let found = det.find_target_near(frame, &mut self.workspace, fam, id, predicted)?;
+        if found.is_some() {
+            self.counts.region = self.counts.region.saturating_add(1);
+        }
+        Ok(found)
     }
 }

@@ -34,6 +34,30 @@ const MAX_ALONG: usize = 8 * (8 + 1) + 9;
 /// Refines the corners of `q` (full-resolution coordinates) on `img` (module docs). A corner
 /// whose two lines cannot be intersected stays where it was.
 pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usize) {
+    let _ = refine_edges_with(img, q, decimate, 16);
+}
+
+/// How well the edges of [`refine_edges_with`] were measured.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EdgeFit {
+    /// The largest mean squared distance of an edge's points from its fitted line (px²).
+    pub(crate) worst_mse: f32,
+    /// The smallest share of an edge's sample positions that gave an edge point.
+    pub(crate) fewest: f32,
+}
+
+/// [`refine_edges`] with at least `min_points` edge points an edge (AprilTag: 16); tells how
+/// well the edges were measured.
+pub(crate) fn refine_edges_with(
+    img: &ImageView<'_, u8>,
+    q: &mut Quad,
+    decimate: usize,
+    min_points: usize,
+) -> EdgeFit {
+    let mut fit = EdgeFit {
+        worst_mse: 0.0,
+        fewest: 1.0,
+    };
     let mut lines = [Line::ZERO; 4];
     let range = decimate as f32 + 1.0;
     let steps = 2 * 4 * (decimate + 1) + 1;
@@ -48,6 +72,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
                 nx: 0.0,
                 ny: 0.0,
             };
+            fit.fewest = 0.0;
             continue;
         }
         nx /= mag;
@@ -63,7 +88,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
             nx,
             ny,
         };
-        let nsamples = ((mag / 8.0) as usize).max(16);
+        let nsamples = ((mag / 8.0) as usize).max(min_points);
         let (mut mx, mut my, mut mxx, mut mxy, mut myy, mut cnt) =
             (0f32, 0f32, 0f32, 0f32, 0f32, 0u32);
         for s in 0..nsamples {
@@ -107,6 +132,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
             myy += by * by;
             cnt += 1;
         }
+        fit.fewest = fit.fewest.min(cnt as f32 / nsamples as f32);
         if cnt < 2 {
             continue;
         }
@@ -115,10 +141,11 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
         // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
         // direction from the eigenvectors, as the quad fit computes it).
-        let (_, _, nx, ny) = eigen(cxx, cxy, cyy);
+        let (mse, _, nx, ny) = eigen(cxx, cxy, cyy);
         if nx == 0.0 && ny == 0.0 {
             continue;
         }
+        fit.worst_mse = fit.worst_mse.max(mse);
         *line = Line {
             ex: ex + line.ex,
             ey: ey + line.ey,
@@ -131,6 +158,7 @@ pub(crate) fn refine_edges(img: &ImageView<'_, u8>, q: &mut Quad, decimate: usiz
         // Corner i joins edge i - 1 (from corner i - 1) and edge i.
         *p = intersect(&at4(&lines, i + 3), &at4(&lines, i)).unwrap_or(at4(&old, i));
     }
+    fit
 }
 
 /// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.

@@ -21,7 +21,9 @@
 //! [`Detector::detect`] returns the [`Detection`]s in a `heapless::Vec`; [`tag_pose`] gives the
 //! metric pose; [`Detector::find_target`] the four corners of one tag in a planar target's
 //! corner order, and [`TagTarget`] makes that the AR loop's acquisition step
-//! ([`crate::target::PlanarTarget::step`]).
+//! ([`crate::target::PlanarTarget::step`]), which also tracks the tag by detecting it where it
+//! must be: [`Detector::refine_target`] (the edge refinement and decoding from a predicted
+//! quad) and [`Detector::find_target_near`] (the whole pipeline in the region around it).
 //!
 //! **Memory** (the [`Workspace`] table): no byte per pixel is stored. At 320x240 and
 //! decimation 1, [`Workspace320x240`] is 119 KB (AprilTag 3 allocates 8 bytes a pixel for its
@@ -80,11 +82,12 @@ pub mod label;
 mod pose;
 pub mod quad;
 pub mod segment;
+mod track;
 mod workspace;
 
 /// What [`Detector::detect_into`] tells as each [`Stage`] ends (`StageProbe<Stage>`).
 pub use crate::probe::StageProbe;
-pub use acquire::TagTarget;
+pub use acquire::{TagTarget, TrackCounts};
 pub use detector::{
     APRILTAG_PIXEL_OFFSET, CORNER_TAG_COORDS, Detection, Detector, DetectorConfig, MAX_FAMILIES,
     Stage,

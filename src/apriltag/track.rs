@@ -1,0 +1,362 @@
+//! Tracking a tag by detecting it where it must be: the detector's own steps run around a
+//! predicted quad only.
+//!
+//! Given the corners a tag is predicted to have in a frame (from the last frames' corners, or
+//! a homography), two searches of increasing cost find it again:
+//!
+//! 1. **Edge refinement from the prediction** ([`Detector::refine_target`]): the detector's
+//!    edge refinement ([`super::decode`]) runs on the predicted quad, first across `±4` and
+//!    `±3` px of each edge (8 edge points an edge), then across `±2` px (24 points an edge) as
+//!    it runs on a fitted quad, until no corner moves more than 0.02 px (at most 4 times); the
+//!    quad is kept when the last pass moved no corner more than 0.1 px, every edge's points lie
+//!    within 0.05 px² (mean squared) of its line and gave a point at 3 of 4 positions (an
+//!    occluder crossing an edge fails this), and the code read is the tag's own in the
+//!    predicted orientation within the detector's `max_hamming` bits. A few thousand bilinear
+//!    samples: no pass over the frame.
+//! 2. **Detection in a region of interest** ([`Detector::find_target_near`]): the whole
+//!    pipeline (threshold, components, quad fit, edge refinement, decoding) on the rectangle
+//!    around the prediction, widened by a quarter of the tag's side and 8 px, its origin on the
+//!    detector's tile grid (a multiple of `4 · decimate`).
+//!
+//! Both keep the detector's rules (`reject_clipped`, `min_decision_margin`): a corner they give
+//! is measured as a detection's is, so a pose from it is as good as a detection's.
+
+use heapless::Vec;
+use nalgebra::Point2;
+
+use super::decode::{read_code, refine_edges_with};
+use super::detector::{Detection, Detector};
+use super::family::Family;
+use super::label::Label;
+use super::quad::Quad;
+use super::workspace::WorkspaceView;
+use crate::Result;
+use crate::homography::Homography;
+use crate::image::ImageView;
+
+/// Edge refinement passes from a prediction, the `decimate` argument of the refinement (its
+/// search runs across `±(d + 1)` px of the edge): two wide passes for the prediction's error.
+const WIDE: [usize; 2] = [3, 2];
+
+/// Edge points an edge in the wide passes (at least; the narrow passes take AprilTag's 16):
+/// they only bring the quad within the narrow passes' reach.
+const WIDE_POINTS: usize = 8;
+
+/// Edge points an edge in the narrow passes (at least).
+const NARROW_POINTS: usize = 24;
+
+/// Then passes at the detector's own width (`d = 1`, `±2` px) until no corner moves more than
+/// [`CONVERGED`] px, at most this many.
+const NARROW: usize = 4;
+
+/// A narrow pass that moves no corner more than this (pixels) ends the refinement; the quad is
+/// rejected when the last one still moved more than [`UNSETTLED`].
+const CONVERGED: f32 = 0.02;
+
+/// See [`CONVERGED`].
+const UNSETTLED: f32 = 0.1;
+
+/// An edge whose points lie further from their line than this, mean squared (px²), was not
+/// measured on the tag's edge alone (an occluder crosses it): the quad is rejected. On the
+/// rendered tag sequence the edges of the frames tracked lie within 0.009 px², those crossed by
+/// the bar at 0.22 to 0.49 px².
+const MAX_EDGE_MSE: f32 = 0.05;
+
+/// The smallest share of an edge's sample positions that must give an edge point.
+const MIN_EDGE_SHARE: f32 = 0.75;
+
+/// A refined corner may move at most this many pixels from the prediction (the wide passes'
+/// reach, 4 + 3 px, and a pixel).
+const MAX_SHIFT: f32 = 8.0;
+
+/// Tag coordinates of the target's corners `(0, 0), (w, 0), (w, h), (0, h)`: the upright tag's
+/// top-left, top-right, bottom-right, bottom-left ([`Detection::target_corners`]).
+const TARGET_TAG_COORDS: [Point2<f32>; 4] = [
+    Point2::new(-1.0, -1.0),
+    Point2::new(1.0, -1.0),
+    Point2::new(1.0, 1.0),
+    Point2::new(-1.0, 1.0),
+];
+
+/// The region [`Detector::find_target_near`] searches for `predicted` in a `w x h` frame:
+/// `(x, y, width, height)`, `None` when the prediction is not finite or the region is empty.
+fn region(
+    predicted: &[Point2<f32>; 4],
+    w: usize,
+    h: usize,
+    align: usize,
+) -> Option<(usize, usize, usize, usize)> {
+    if !predicted.iter().all(|p| p.x.is_finite() && p.y.is_finite()) {
+        return None;
+    }
+    let (mut x0, mut y0, mut x1, mut y1) = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    let mut side = 0.0f32;
+    for (i, p) in predicted.iter().enumerate() {
+        x0 = x0.min(p.x);
+        y0 = y0.min(p.y);
+        x1 = x1.max(p.x);
+        y1 = y1.max(p.y);
+        let q = predicted.get((i + 1) % 4).copied().unwrap_or(*p);
+        side = side.max((q - p).norm());
+    }
+    let margin = 0.25 * side + 8.0;
+    let (wf, hf) = (w as f32, h as f32);
+    // Clamped to the frame before the casts (saturating, and NaN-free from the check above).
+    let xa = (x0 - margin).clamp(0.0, wf) as usize;
+    let ya = (y0 - margin).clamp(0.0, hf) as usize;
+    let xb = libm::ceilf((x1 + margin).clamp(0.0, wf)) as usize;
+    let yb = libm::ceilf((y1 + margin).clamp(0.0, hf)) as usize;
+    let align = align.max(1);
+    let (xa, ya) = (xa - xa % align, ya - ya % align);
+    let (xb, yb) = (xb.min(w), yb.min(h));
+    if xb <= xa || yb <= ya {
+        return None;
+    }
+    Some((xa, ya, xb - xa, yb - ya))
+}
+
+impl Detector {
+    /// Tag `id` of `family` found again from `predicted`, its four corners predicted for this
+    /// frame in a planar target's order ([`Detection::target_corners`]): the detector's edge
+    /// refinement run from the prediction, the refined quad decoded (module docs). Returns the
+    /// refined corners in the same order when the code read is the tag's own in that
+    /// orientation, within the detector's `max_hamming` bits and `min_decision_margin`, with
+    /// the quiet zone in view when the detector rejects clipped tags, the edges' fits as the
+    /// module docs say, and no corner moved more than 8 px; `None` otherwise (a prediction that
+    /// is not finite included).
+    ///
+    /// Cost: `2 · 4 · max(8, side / 8)` edge points of 33 to 41 bilinear samples, then up to
+    /// `4 · 4 · max(24, side / 8)` of 25, and one decoding; no pass over the frame.
+    pub fn refine_target(
+        &self,
+        frame: &ImageView<'_, u8>,
+        family: &Family,
+        id: u16,
+        predicted: &[Point2<f32>; 4],
+    ) -> Option<[Point2<f32>; 4]> {
+        if !predicted.iter().all(|p| p.x.is_finite() && p.y.is_finite()) {
+            return None;
+        }
+        let code = *family.codes.get(usize::from(id))?;
+        let mut q = Quad {
+            p: *predicted,
+            reversed_border: family.reversed_border,
+        };
+        for d in WIDE {
+            let _ = refine_edges_with(frame, &mut q, d, WIDE_POINTS);
+        }
+        let mut moved = f32::INFINITY;
+        let mut fit = None;
+        for _ in 0..NARROW {
+            let before = q.p;
+            fit = Some(refine_edges_with(frame, &mut q, 1, NARROW_POINTS));
+            moved =
+                q.p.iter()
+                    .zip(before.iter())
+                    .map(|(a, b)| (a - b).norm())
+                    .fold(0.0, f32::max);
+            if moved <= CONVERGED {
+                break;
+            }
+        }
+        if !crate::scalar::at_most(moved, UNSETTLED) {
+            return None;
+        }
+        let fit = fit?;
+        if !(fit.worst_mse <= MAX_EDGE_MSE && fit.fewest >= MIN_EDGE_SHARE) {
+            return None;
+        }
+        for (p, o) in q.p.iter().zip(predicted) {
+            if !(p.x.is_finite() && p.y.is_finite()) || (p - o).norm() > MAX_SHIFT {
+                return None;
+            }
+        }
+        let h = Homography::from_four_points(&TARGET_TAG_COORDS, &q.p).ok()?;
+        let cfg = self.config();
+        let reading = read_code(frame, h.matrix(), family, cfg.decode_sharpening)?;
+        if cfg.reject_clipped && !reading.ring_in_view {
+            return None;
+        }
+        if !crate::scalar::at_most(cfg.min_decision_margin.max(0.0), reading.margin) {
+            return None;
+        }
+        if (reading.rcode ^ code).count_ones() > u32::from(cfg.max_hamming) {
+            return None;
+        }
+        Some(q.p)
+    }
+
+    /// Tag `id` of `family` detected in the region around `predicted` (its corners predicted
+    /// for this frame, in a planar target's order): the whole detection
+    /// ([`Detector::detect_into`]) on the prediction's bounding box widened by a quarter of its
+    /// longest side and 8 px, clipped to the frame, its origin a multiple of `4 · decimate`
+    /// (the threshold's tiles then fall as on the full frame). Returns the corners in the
+    /// target's order, in frame coordinates, of the copy whose centre is nearest the
+    /// prediction's; `None` when the region holds none (or the prediction is not finite).
+    ///
+    /// Cost: a detection's per pixel of the region, not of the frame.
+    ///
+    /// Errors: as [`Detector::detect`] for the region.
+    pub fn find_target_near(
+        &self,
+        frame: &ImageView<'_, u8>,
+        ws: &mut WorkspaceView<'_, impl Label>,
+        family: &Family,
+        id: u16,
+        predicted: &[Point2<f32>; 4],
+    ) -> Result<Option<[Point2<f32>; 4]>> {
+        let align = 4 * usize::from(self.config().decimate);
+        let Some((x, y, w, h)) = region(predicted, frame.width(), frame.height(), align) else {
+            return Ok(None);
+        };
+        let roi = frame.sub(x, y, w, h)?;
+        let mut out: Vec<Detection, 2> = Vec::new();
+        self.detect_into(&roi, ws, &mut (), |f, i| f == family && i == id, &mut out)?;
+        let centre = |c: &[Point2<f32>; 4]| {
+            c.iter()
+                .fold(Point2::origin(), |s: Point2<f32>, p| s + p.coords * 0.25)
+        };
+        let want = centre(predicted);
+        let (dx, dy) = (x as f32, y as f32);
+        let best = out
+            .iter()
+            .map(|d| d.target_corners().map(|p| Point2::new(p.x + dx, p.y + dy)))
+            .min_by(|a, b| {
+                let (da, db) = ((centre(a) - want).norm(), (centre(b) - want).norm());
+                da.total_cmp(&db)
+            });
+        Ok(best)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+
+    use super::*;
+    use crate::apriltag::{Workspace320x240, families};
+
+    /// A 320x240 frame with tag36h11 `id` drawn `cell` pixels a cell from `(x0, y0)` on a
+    /// grey ramp, blurred by a 3x3 box (edges between pixels, as a camera's).
+    fn frame(id: u16, x0: usize, y0: usize, cell: usize) -> std::vec::Vec<u8> {
+        let mut px: std::vec::Vec<u8> =
+            (0..320 * 240).map(|i| (90 + (i % 320) / 8) as u8).collect();
+        for y in -1..9i32 {
+            for x in -1..9i32 {
+                let white = families::TAG36H11.cell(id, x, y).unwrap();
+                for dy in 0..cell {
+                    for dx in 0..cell {
+                        let u = (x0 as i32 + cell as i32 * x + dx as i32) as usize;
+                        let v = (y0 as i32 + cell as i32 * y + dy as i32) as usize;
+                        px[v * 320 + u] = if white { 220 } else { 30 };
+                    }
+                }
+            }
+        }
+        let mut out = px.clone();
+        for v in 1..239 {
+            for u in 1..319 {
+                let mut s = 0u32;
+                for (du, dv) in [
+                    (0, 0),
+                    (1, 0),
+                    (2, 0),
+                    (0, 1),
+                    (1, 1),
+                    (2, 1),
+                    (0, 2),
+                    (1, 2),
+                    (2, 2),
+                ] {
+                    s += u32::from(px[(v + dv - 1) * 320 + u + du - 1]);
+                }
+                out[v * 320 + u] = (s / 9) as u8;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_shifted_prediction_refines_to_the_detections_corners_and_only_for_its_tag() {
+        let px = frame(7, 120, 80, 6);
+        let img = ImageView::packed(&px, 320, 240).unwrap();
+        let det = Detector::new(Default::default(), &[&families::TAG36H11]).unwrap();
+        let mut ws = std::boxed::Box::new(Workspace320x240::new());
+        let mut view = ws.as_mut_view();
+        let found = det
+            .find_target(&img, &mut view, &families::TAG36H11, 7)
+            .unwrap()
+            .unwrap();
+        for (sx, sy) in [(0.0, 0.0), (2.5, -1.5), (-3.0, 2.0)] {
+            let predicted = found.map(|p| Point2::new(p.x + sx, p.y + sy));
+            let refined = det
+                .refine_target(&img, &families::TAG36H11, 7, &predicted)
+                .unwrap();
+            for (a, b) in refined.iter().zip(found.iter()) {
+                assert!((a - b).norm() < 0.1, "shift ({sx}, {sy}): {a} vs {b}");
+            }
+            // Another tag's code, or the tag turned a quarter: not this tag.
+            assert!(
+                det.refine_target(&img, &families::TAG36H11, 8, &predicted)
+                    .is_none()
+            );
+            let turned = [predicted[1], predicted[2], predicted[3], predicted[0]];
+            assert!(
+                det.refine_target(&img, &families::TAG36H11, 7, &turned)
+                    .is_none()
+            );
+            // The region search finds it too, in frame coordinates.
+            let near = det
+                .find_target_near(&img, &mut view, &families::TAG36H11, 7, &predicted)
+                .unwrap()
+                .unwrap();
+            for (a, b) in near.iter().zip(found.iter()) {
+                assert!(
+                    (a - b).norm() < 0.1,
+                    "region, shift ({sx}, {sy}): {a} vs {b}"
+                );
+            }
+        }
+        // Too far for the refinement, or nowhere near the tag: nothing.
+        let far = found.map(|p| Point2::new(p.x + 30.0, p.y));
+        assert!(
+            det.refine_target(&img, &families::TAG36H11, 7, &far)
+                .is_none()
+        );
+        let away = found.map(|p| Point2::new(p.x - 110.0, p.y + 100.0));
+        let none = det.find_target_near(&img, &mut view, &families::TAG36H11, 7, &away);
+        assert_eq!(none.unwrap(), None);
+        let nan = found.map(|p| Point2::new(p.x, f32::NAN));
+        assert!(
+            det.refine_target(&img, &families::TAG36H11, 7, &nan)
+                .is_none()
+        );
+        let none = det.find_target_near(&img, &mut view, &families::TAG36H11, 7, &nan);
+        assert_eq!(none.unwrap(), None);
+    }
+
+    #[test]
+    fn the_region_is_aligned_clipped_and_refuses_non_finite_predictions() {
+        let sq = |x: f32, y: f32, s: f32| {
+            [
+                Point2::new(x, y),
+                Point2::new(x + s, y),
+                Point2::new(x + s, y + s),
+                Point2::new(x, y + s),
+            ]
+        };
+        // 40 px side: margin 18 px.
+        let (x, y, w, h) = region(&sq(100.0, 50.0, 40.0), 320, 240, 4).unwrap();
+        assert_eq!((x % 4, y % 4), (0, 0));
+        assert!(x as f32 <= 82.0 && y as f32 <= 32.0);
+        assert!((x + w) as f32 >= 158.0 && (y + h) as f32 >= 108.0);
+        // Clipped at the frame's edges.
+        let (x, y, w, h) = region(&sq(-30.0, 220.0, 40.0), 320, 240, 4).unwrap();
+        assert_eq!((x, y + h), (0, 240));
+        assert!(w > 0);
+        // Wholly outside, or not finite: nothing.
+        assert!(region(&sq(400.0, 50.0, 40.0), 320, 240, 4).is_none());
+        assert!(region(&sq(f32::NAN, 50.0, 40.0), 320, 240, 4).is_none());
+        assert!(region(&sq(f32::INFINITY, 50.0, 40.0), 320, 240, 4).is_none());
+    }
+}
