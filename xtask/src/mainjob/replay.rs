@@ -64,7 +64,12 @@ fn replay(
             let family = *TAG_FAMILIES
                 .get(usize::from(family))
                 .ok_or_else(|| anyhow!("run.bin: no such tag family"))?;
-            detector = Detector::new(DetectorConfig::default(), &[family])?;
+            // The tag binary's detector (decimation 2 for its full detections).
+            let cfg = DetectorConfig {
+                decimate: 2,
+                ..DetectorConfig::default()
+            };
+            detector = Detector::new(cfg, &[family])?;
             workspace = Box::new(Workspace320x240::new());
             tag = TagTarget::new(&detector, workspace.as_mut_view(), family, id);
             &mut tag

@@ -1,9 +1,9 @@
 //! The second main job: the AR loop on an AprilTag at 320x240 (the rendered tag sequence that
 //! `cargo xtask run` prepares). The target is acquired by the tag detector
 //! ([`camgeom::apriltag::TagTarget`], the loop's acquisition step) on the first frame, after a
-//! loss and every `reacquire_every` frames, and tracked by the same pipeline as the box job in
-//! between; the host replays it bit for bit. Its records also stream over UART0 ([`job::Stream`]),
-//! as a real board's do over its link.
+//! loss and every `reacquire_every` frames, and tracked in between by detecting it where it
+//! must be (`TagTarget`'s tracking by detection); the host replays it bit for bit. Its records
+//! also stream over UART0 ([`job::Stream`]), as a real board's do over its link.
 #![no_std]
 #![no_main]
 
@@ -33,7 +33,14 @@ fn main() -> ! {
         |spec| match spec.acquisition {
             Acquisition::Tag { family, id } => {
                 let family = *TAG_FAMILIES.get(usize::from(family))?;
-                let detector = match Detector::new(DetectorConfig::default(), &[family]) {
+                // Decimation 2: the full detections (the first frame, after a loss, the
+                // guard) search for quads on a quarter of the pixels; tracking refines edges
+                // and decodes in the full frame (xtask's replay makes the same detector).
+                let cfg = DetectorConfig {
+                    decimate: 2,
+                    ..DetectorConfig::default()
+                };
+                let detector = match Detector::new(cfg, &[family]) {
                     Ok(d) => DETECTOR.init(d),
                     Err(e) => {
                         defmt::error!("tag detector: {}", e);
