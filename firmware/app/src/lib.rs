@@ -13,6 +13,7 @@
 extern crate std;
 
 pub mod calibration;
+pub mod command;
 pub mod costs;
 pub mod link;
 #[cfg(feature = "mavlink")]
@@ -23,6 +24,7 @@ pub mod qvga;
 pub mod recorded;
 pub mod report;
 pub mod run;
+pub mod settings;
 pub mod sizes;
 pub mod slot;
 pub mod source;

@@ -22,10 +22,12 @@ use camgeom::nalgebra::Point2;
 use camgeom::image::ImageView;
 use camgeom::target::Acquire;
 
+use crate::command::Mode;
 pub use crate::options::{Acquisition, AppOptions, LEVELS, TAG_FAMILIES};
 use crate::pipeline::{AppConfig, AppError, Clock, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
 use crate::report::{ErrorCode, FrameRecord};
+use crate::settings::Settings;
 use crate::wire::{Reader, WireError, Writer, tag};
 
 /// `"CRUN"`.
@@ -155,6 +157,41 @@ impl RunSpec {
         }
     }
 
+    /// The run's description as board settings (the defaults a board without stored settings
+    /// starts from): its mode, tag and camera.
+    pub fn settings(&self) -> Settings {
+        let (mode, family, id) = match self.acquisition {
+            Acquisition::Corners => (Mode::TrackCorners, 0, 0),
+            Acquisition::Tag { family, id } => (Mode::TrackTag, family, id),
+        };
+        Settings {
+            mode,
+            family,
+            id,
+            tag_size: self.target_size[0],
+            intrinsics: self.intrinsics,
+            distortion: self.distortion,
+        }
+    }
+
+    /// The run with `settings` in force: their camera, and their target when they track one
+    /// (a tag: a square of their side; given corners: this run's corners and size). `None`
+    /// for a mode that does not track.
+    pub fn with_settings(&self, settings: &Settings) -> Option<Self> {
+        let options = settings.options(
+            self.target_size,
+            self.reacquire_every,
+            self.forward_backward,
+        )?;
+        Some(Self {
+            intrinsics: settings.intrinsics,
+            distortion: settings.distortion,
+            target_size: options.target_size,
+            acquisition: options.acquisition,
+            ..*self
+        })
+    }
+
     /// The application's configuration for this run: [`AppConfig::new`] with its camera, its
     /// frame size and its [`Self::options`], the constructor every board uses. Errors: as
     /// [`Intrinsics::new`], [`Distortion::from_opencv`] and [`AppConfig::new`].
@@ -236,6 +273,35 @@ mod tests {
             reacquire_every: 30,
             forward_backward,
         }
+    }
+
+    /// A run's own settings give the run back; a stored tag of another side changes the
+    /// target and nothing else; a mode that does not track gives no run.
+    #[test]
+    fn settings_give_the_run_they_set() {
+        let tag = Acquisition::Tag { family: 1, id: 7 };
+        // A tag is square: its run's target is.
+        let square = |s: RunSpec| RunSpec {
+            target_size: [0.2, 0.2],
+            ..s
+        };
+        for s in [spec(Acquisition::Corners, false), square(spec(tag, true))] {
+            assert_eq!(s.with_settings(&s.settings()), Some(s));
+        }
+        let s = square(spec(tag, false));
+        let mut stored = s.settings();
+        stored.tag_size = 0.3;
+        let run = s.with_settings(&stored).unwrap();
+        assert_eq!(run.target_size, [0.3, 0.3]);
+        assert_eq!(
+            RunSpec {
+                target_size: s.target_size,
+                ..run
+            },
+            s
+        );
+        stored.mode = Mode::StreamFrames;
+        assert_eq!(s.with_settings(&stored), None);
     }
 
     /// Every field survives the bytes, the forward-backward flag both ways; a wrong length,

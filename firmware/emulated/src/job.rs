@@ -11,12 +11,16 @@
 
 use camgeom::image::ImageView;
 use camgeom::target::{Acquire, GivenCorners, TargetState};
+use camgeom_fw_app::command::{Ack, AckStatus, COMMAND_LEN, Command};
 use camgeom_fw_app::drive;
+use camgeom_fw_app::link::{Deframer, max_frame_len};
 use camgeom_fw_app::pipeline::{AppError, Clock, FrameLoop};
 use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 use camgeom_fw_app::run::{Acquisition, RUN_SPEC_LEN, RunSpec};
+use camgeom_fw_app::settings::{Applied, Settings};
 
+use crate::flash::{FLASH_FILE, FlashModel};
 use crate::semihost::{HostError, HostFile, HostFrames};
 use crate::{board, cost};
 
@@ -27,6 +31,11 @@ pub use camgeom_fw_app::run::{CANDIDATES, LEVELS, TRACKS, WIN};
 /// The file the records go to, in QEMU's working directory.
 pub const REPORT_FILE: &str = "report.bin";
 
+/// The commands the board receives at boot: the host's side of the link, framed as on a
+/// UART ([`camgeom_fw_app::link`]); read over semihosting, as QEMU 7's file serial ports
+/// carry only what the board sends.
+pub const COMMANDS_FILE: &str = "commands.bin";
+
 /// Where the records go besides [`REPORT_FILE`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stream {
@@ -35,11 +44,27 @@ pub enum Stream {
     /// Also as the framed record stream ([`camgeom_fw_app::link`]) over UART0
     /// ([`crate::uart`]; Arm `mps2-an500` and `mps2-an385` only).
     Uart0,
-    /// The record stream over UART0, and MAVLink for an autopilot over UART1: a `HEARTBEAT`
-    /// a second and a `LANDING_TARGET` for every frame with a pose
-    /// ([`camgeom_fw_app::mavlink`], default [`camgeom_fw_app::mavlink::MavlinkConfig`]; the
-    /// Cortex-M7 build only).
-    Uart0Mavlink1,
+}
+
+/// What else a job does with each frame's record: the tag job sends MAVLink
+/// ([`crate::uart::MavlinkLink`]); `()` does nothing, and costs nothing in the binaries that
+/// pass it.
+pub trait RecordSink {
+    /// Frame `r`'s record, of a target of `size` (metres).
+    fn record(&mut self, r: &FrameRecord, size: [f32; 2]);
+    /// The run is over: log what was sent.
+    fn finish(&self);
+}
+
+impl RecordSink for () {
+    fn record(&mut self, _: &FrameRecord, _: [f32; 2]) {}
+    fn finish(&self) {}
+}
+
+/// Microseconds since boot: SysTick counts instructions, one a virtual nanosecond under
+/// QEMU's `-icount shift=0`.
+pub fn now_us() -> u64 {
+    SysTickClock.now() / 1000
 }
 
 /// SysTick, in instructions (QEMU `-icount`) or cycles (hardware).
@@ -141,10 +166,28 @@ pub fn run<A: Acquire>(
     width: usize,
     height: usize,
     stream: Stream,
+    mut sink: impl RecordSink,
     acquisition: impl FnOnce(&RunSpec) -> Option<A>,
 ) -> ! {
     cost::start();
-    let spec = read_spec();
+    let run = read_spec();
+    let mut flash = match FlashModel::boot() {
+        Some(Ok(f)) => f,
+        Some(Err(e)) => fail_host(FLASH_FILE, e),
+        None => {
+            defmt::error!("the flash is already in use");
+            board::exit_failure()
+        }
+    };
+    let mut link = Link::open(stream);
+    let settings = settings(&run, &mut flash, &mut link);
+    let Some(spec) = run.with_settings(&settings) else {
+        defmt::error!(
+            "this firmware tracks; the settings say {=str}",
+            settings.mode.name()
+        );
+        board::exit_failure()
+    };
     let cfg = match spec.app_config() {
         Ok(c) => c,
         Err(e) => {
@@ -201,7 +244,6 @@ pub fn run<A: Acquire>(
         }
     };
     let mut summary = SummaryRecord::default();
-    let mut link = Link::open(stream);
     let mut record = |r: &FrameRecord| {
         log_frame(r);
         summary.frames += 1;
@@ -211,7 +253,7 @@ pub fn run<A: Acquire>(
             fail_host(REPORT_FILE, e)
         }
         link.send(&bytes);
-        link.mavlink(r, spec.target_size);
+        sink.record(r, spec.target_size);
     };
     let Some(mut acquire) = acquisition(&spec) else {
         defmt::error!("run.bin asks for a target this firmware cannot acquire");
@@ -242,6 +284,7 @@ pub fn run<A: Acquire>(
     }
     link.send(&bytes);
     link.log();
+    sink.finish();
     defmt::info!(
         "main job: {=u32} frames, {=u32} tracking, pipeline RAM {=u32} bytes, stack {=u32} of {=u32} bytes, {=u32} overlays",
         summary.frames,
@@ -252,6 +295,99 @@ pub fn run<A: Acquire>(
         saved
     );
     board::exit_success()
+}
+
+/// The board's settings: those stored in the flash, else the run's own; then the commands in
+/// [`COMMANDS_FILE`] applied in order, each answered on the record stream
+/// ([`camgeom_fw_app::command`]), a save stored in the flash and persisted.
+fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings {
+    let mut settings = match flash.settings() {
+        Some(s) => {
+            defmt::info!("settings: loaded from flash: {}", s);
+            s
+        }
+        None => run.settings(),
+    };
+    let Ok(mut file) = HostFile::open_read(COMMANDS_FILE) else {
+        return settings;
+    };
+    let len = match file.file_len() {
+        Ok(n) => n,
+        Err(e) => fail_host(COMMANDS_FILE, e),
+    };
+    // The bytes as a UART delivers them: a few at a time, into the receiver.
+    let mut rx = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+    let mut chunk = [0u8; 64];
+    let mut at = 0;
+    while at < len {
+        let n = (len - at).min(chunk.len());
+        let got = chunk.get_mut(..n).unwrap_or(&mut []);
+        if let Err(e) = file.read_exact(got) {
+            fail_host(COMMANDS_FILE, e)
+        }
+        at += n;
+        let mut input: &[u8] = got;
+        while let Some(frame) = rx.push(&mut input) {
+            let (kind, status) = match Command::decode(frame.record) {
+                Err(e) => {
+                    defmt::warn!("command {=u16}: {}", frame.seq, e);
+                    (0, AckStatus::Invalid)
+                }
+                Ok(c) => (c.kind(), command(c, &mut settings, run, flash)),
+            };
+            defmt::info!(
+                "command {=u16}: kind {=u32}, {=str}",
+                frame.seq,
+                kind,
+                status.name()
+            );
+            link.send(
+                &Ack {
+                    seq: frame.seq,
+                    kind,
+                    status,
+                }
+                .encode(),
+            );
+        }
+    }
+    let st = rx.stats();
+    defmt::info!(
+        "commands: {=u32} frames, {=u32} damaged, {=u32} lost; flash {=u32} erases, {=u32} words written",
+        st.frames,
+        st.damaged,
+        st.lost,
+        flash.erases,
+        flash.writes
+    );
+    settings
+}
+
+/// Carries out one command: this firmware tracks, so a mode that does not is refused.
+fn command(
+    c: Command,
+    settings: &mut Settings,
+    run: &RunSpec,
+    flash: &mut FlashModel,
+) -> AckStatus {
+    let mut next = *settings;
+    match next.apply(&c) {
+        Applied::Changed if run.with_settings(&next).is_none() => AckStatus::Unsupported,
+        Applied::Changed => {
+            *settings = next;
+            AckStatus::Done
+        }
+        Applied::Save => match settings.save(flash, 0) {
+            Err(e) => {
+                defmt::error!("settings: not saved: {}", e);
+                AckStatus::FlashFailed
+            }
+            Ok(()) => match flash.persist() {
+                Ok(()) => AckStatus::Done,
+                Err(e) => fail_host(FLASH_FILE, e),
+            },
+        },
+    }
 }
 
 /// The acquisition of the box job: the corners the run gives (no tag detector in this
@@ -267,22 +403,9 @@ pub fn given_corners(spec: &RunSpec) -> Option<GivenCorners> {
 struct Link {
     #[cfg(target_arch = "arm")]
     uart: Option<crate::uart::RecordLink>,
-    #[cfg(mavlink)]
-    mavlink: Option<crate::uart::MavlinkLink>,
     frames: u32,
     bytes: u32,
     instructions: u64,
-    /// MAVLink: heartbeats, landing targets, bytes, the next heartbeat's time (microseconds).
-    heartbeats: u32,
-    targets: u32,
-    mavlink_bytes: u32,
-    next_heartbeat_us: u64,
-}
-
-/// Microseconds since boot: SysTick counts instructions, one a virtual nanosecond under
-/// QEMU's `-icount shift=0`.
-fn now_us() -> u64 {
-    SysTickClock.now() / 1000
 }
 
 impl Link {
@@ -294,27 +417,12 @@ impl Link {
             defmt::error!("this board has no record stream");
             board::exit_failure()
         }
-        #[cfg(mavlink)]
-        let mavlink = (stream == Stream::Uart0Mavlink1).then(|| {
-            crate::uart::MavlinkLink::open(camgeom_fw_app::mavlink::MavlinkConfig::default())
-        });
-        #[cfg(not(mavlink))]
-        if stream == Stream::Uart0Mavlink1 {
-            defmt::error!("this build sends no MAVLink (the Cortex-M7's does)");
-            board::exit_failure()
-        }
         Self {
             #[cfg(target_arch = "arm")]
             uart,
-            #[cfg(mavlink)]
-            mavlink,
             frames: 0,
             bytes: 0,
             instructions: 0,
-            heartbeats: 0,
-            targets: 0,
-            mavlink_bytes: 0,
-            next_heartbeat_us: 0,
         }
     }
 
@@ -340,27 +448,6 @@ impl Link {
         let _ = record;
     }
 
-    /// The MAVLink of frame `r`, a target of `size`: a heartbeat when one is due, the
-    /// landing target when the frame has a pose.
-    fn mavlink(&mut self, r: &FrameRecord, size: [f32; 2]) {
-        #[cfg(mavlink)]
-        if let Some(m) = &mut self.mavlink {
-            let now = now_us();
-            if now >= self.next_heartbeat_us {
-                self.mavlink_bytes += m.heartbeat() as u32;
-                self.heartbeats += 1;
-                self.next_heartbeat_us = now + 1_000_000;
-            }
-            if let (Some((best, _)), None) = (r.pose, r.error) {
-                let n = m.landing_target(now, &best, size);
-                self.mavlink_bytes += n as u32;
-                self.targets += u32::from(n > 0);
-            }
-        }
-        #[cfg(not(mavlink))]
-        let _ = (r, size, now_us);
-    }
-
     fn log(&self) {
         if self.frames > 0 {
             defmt::info!(
@@ -368,14 +455,6 @@ impl Link {
                 self.frames,
                 self.bytes,
                 self.instructions / u64::from(self.frames)
-            );
-        }
-        if self.heartbeats > 0 {
-            defmt::info!(
-                "mavlink: {=u32} LANDING_TARGET, {=u32} HEARTBEAT, {=u32} bytes over UART1",
-                self.targets,
-                self.heartbeats,
-                self.mavlink_bytes
             );
         }
     }

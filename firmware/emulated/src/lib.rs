@@ -6,6 +6,7 @@
 //! - [`cost`]: SysTick as an instruction counter under QEMU `-icount`, and a cost table;
 //! - [`semihost`]: host files over semihosting and the recorded sequence as a camera;
 //! - [`job`]: the main job, the `camgeom-fw-app` pipeline over a recorded sequence;
+//! - [`flash`]: the settings flash, a NOR sector kept between boots in a host file;
 //! - `uart` (Arm): UART0, the transport of the record stream;
 //! - [`chessboard`]: the bundled chessboard camera and OpenCV's projections, for the checks.
 //!
@@ -17,6 +18,7 @@
 pub mod board;
 pub mod chessboard;
 pub mod cost;
+pub mod flash;
 pub mod job;
 pub mod semihost;
 #[cfg(target_arch = "arm")]

@@ -22,5 +22,5 @@ static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 
 #[entry]
 fn main() -> ! {
-    job::run(APP.take(), W, H, job::Stream::Off, job::given_corners)
+    job::run(APP.take(), W, H, job::Stream::Off, (), job::given_corners)
 }

@@ -94,11 +94,16 @@ impl RecordLink {
     }
 }
 
-/// UART1 as the autopilot's link: MAVLink 2 messages ([`camgeom_fw_app::mavlink`]).
+/// UART1 as the autopilot's link: MAVLink 2 messages ([`camgeom_fw_app::mavlink`]), a
+/// `HEARTBEAT` a second and a `LANDING_TARGET` for every frame with a pose.
 #[cfg(mavlink)]
 pub struct MavlinkLink {
     uart: Uart,
     mavlink: camgeom_fw_app::mavlink::Mavlink,
+    heartbeats: u32,
+    targets: u32,
+    bytes: u32,
+    next_heartbeat_us: u64,
 }
 
 #[cfg(mavlink)]
@@ -108,31 +113,44 @@ impl MavlinkLink {
         Self {
             uart: Uart::open(UART1),
             mavlink: camgeom_fw_app::mavlink::Mavlink::new(config),
+            heartbeats: 0,
+            targets: 0,
+            bytes: 0,
+            next_heartbeat_us: 0,
+        }
+    }
+}
+
+#[cfg(mavlink)]
+impl crate::job::RecordSink for MavlinkLink {
+    fn record(&mut self, r: &camgeom_fw_app::report::FrameRecord, size: [f32; 2]) {
+        let now = crate::job::now_us();
+        if now >= self.next_heartbeat_us {
+            let hb = self.mavlink.heartbeat();
+            self.uart.send(hb);
+            self.bytes += hb.len() as u32;
+            self.heartbeats += 1;
+            self.next_heartbeat_us = now + 1_000_000;
+        }
+        if let (Some((best, _)), None) = (r.pose, r.error) {
+            let sent = match self.mavlink.landing_target(now, &best, size) {
+                Some(b) => {
+                    self.uart.send(b);
+                    self.bytes += b.len() as u32;
+                    true
+                }
+                None => false,
+            };
+            self.targets += u32::from(sent);
         }
     }
 
-    /// Sends a `HEARTBEAT`; returns the bytes sent.
-    pub fn heartbeat(&mut self) -> usize {
-        let bytes = self.mavlink.heartbeat();
-        self.uart.send(bytes);
-        bytes.len()
-    }
-
-    /// Sends the `LANDING_TARGET` of a pose (see
-    /// [`camgeom_fw_app::mavlink::Mavlink::landing_target`]); returns the bytes sent, 0 when
-    /// the pose gives none.
-    pub fn landing_target(
-        &mut self,
-        time_usec: u64,
-        pose: &camgeom_fw_app::report::PoseRecord,
-        size: [f32; 2],
-    ) -> usize {
-        match self.mavlink.landing_target(time_usec, pose, size) {
-            Some(bytes) => {
-                self.uart.send(bytes);
-                bytes.len()
-            }
-            None => 0,
-        }
+    fn finish(&self) {
+        defmt::info!(
+            "mavlink: {=u32} LANDING_TARGET, {=u32} HEARTBEAT, {=u32} bytes over UART1",
+            self.targets,
+            self.heartbeats,
+            self.bytes
+        );
     }
 }

@@ -22,6 +22,7 @@
 //!    calibration job.
 
 mod calibration;
+mod commands;
 mod compare;
 mod emulate;
 mod faults;
@@ -281,7 +282,9 @@ pub fn run(opts: &Options) -> Result<()> {
     let extra = if opts.boards.contains(&M7) {
         fault_job(opts.stride)?;
         let fb = forward_backward_job(opts.stride)?;
-        Some((fb, tag::run(opts.stride)?, calibration::run()?))
+        let t = tag::run(opts.stride)?;
+        println!("{}", commands::run()?);
+        Some((fb, t, calibration::run()?))
     } else {
         None
     };

@@ -277,10 +277,12 @@ fn mavlink(dir: &Path, log: &[String], [w, h]: [f32; 2]) -> Result<String> {
             "mavlink over UART1: {board}; pymavlink not installed, its check skipped (`cargo xtask setup`)"
         ));
     }
+    let rel = |p: &Path| p.strip_prefix(root()).unwrap_or(p).to_path_buf();
     let out = Command::new("python3")
-        .arg(root().join("host-tests/scripts/check_mavlink.py"))
-        .arg(&bin)
-        .arg(dir.join("monitor.jsonl"))
+        .current_dir(root())
+        .arg("host-tests/scripts/check_mavlink.py")
+        .arg(rel(&bin))
+        .arg(rel(&dir.join("monitor.jsonl")))
         .args([w.to_string(), h.to_string()])
         .output()
         .context("cannot run python3")?;

@@ -18,5 +18,5 @@ static APP: ConstStaticCell<Qqvga> = ConstStaticCell::new(Qqvga::new());
 
 #[entry]
 fn main() -> ! {
-    job::run(APP.take(), W, H, job::Stream::Off, job::given_corners)
+    job::run(APP.take(), W, H, job::Stream::Off, (), job::given_corners)
 }

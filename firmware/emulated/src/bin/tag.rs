@@ -23,13 +23,26 @@ static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Works
 static DETECTOR: StaticCell<Detector> = StaticCell::new();
 
 #[entry]
+/// MAVLink to an autopilot over UART1 (the Cortex-M7 build; the mounting: camera looking
+/// down, top of the image toward the nose).
+#[cfg(mavlink)]
+fn mavlink() -> camgeom_fw_emulated::uart::MavlinkLink {
+    let config = camgeom_fw_app::mavlink::MavlinkConfig::default();
+    camgeom_fw_emulated::uart::MavlinkLink::open(config)
+}
+
+/// No MAVLink where the build has none.
+#[cfg(not(mavlink))]
+fn mavlink() {}
+
 fn main() -> ! {
     let workspace = WORKSPACE.take();
     job::run(
         APP.take(),
         W,
         H,
-        job::Stream::Uart0Mavlink1,
+        job::Stream::Uart0,
+        mavlink(),
         |spec| match spec.acquisition {
             Acquisition::Tag { family, id } => {
                 let family = *TAG_FAMILIES.get(usize::from(family))?;

@@ -1,0 +1,222 @@
+//! The commands job: the host sets the tag job's board over its link and the board keeps what
+//! it was told in flash.
+//!
+//! Two boots of `camgeom-fw-tag` on the first [`FRAMES`] frames of the tag job's sequence, in
+//! `target/camgeom-run/commands`:
+//!
+//! 1. The board boots with an erased flash and receives, framed as on the link
+//!    ([`camgeom_fw_app::link`]), a new tag side (twice the true one), the same camera, a mode
+//!    this firmware does not have, a damaged frame, a tag side no board takes, and a save. It
+//!    must answer each readable command on its record stream (done, done, unsupported,
+//!    invalid, done), count the damaged frame, and leave in `flash.bin` exactly the settings
+//!    record (erased bytes after it).
+//! 2. The board boots again without commands: it must load the settings from the flash.
+//!
+//! Both boots must track with the commanded side: against the tag job's poses (the true side)
+//! every translation twice as long (a target twice the size at the same image), the rotations
+//! equal; and the two boots' records equal.
+
+use std::fs;
+use std::path::Path;
+
+use anyhow::{Context, Result, ensure};
+use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, Command, Mode};
+use camgeom_fw_app::link::{encode_frame, max_frame_len};
+use camgeom_fw_app::report::FrameRecord;
+use camgeom_fw_app::run::{Acquisition, RunSpec};
+use camgeom_fw_app::settings::{SETTINGS_LEN, Settings};
+
+use super::emulate::{self, read_report};
+use super::stream::decode;
+use super::tag::SIZE;
+use crate::firmware::build_bin_for;
+use crate::jobs::M7;
+use crate::util::root;
+
+/// Frames of each boot.
+const FRAMES: u32 = 24;
+
+/// An answer as the check compares it: the command's sequence number, kind, status.
+type Answer = (u16, u32, AckStatus);
+
+fn frame(seq: u16, record: &[u8]) -> Result<Vec<u8>> {
+    let mut out = vec![0u8; max_frame_len(record.len())];
+    let n = encode_frame(seq, record, &mut out).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    out.truncate(n);
+    Ok(out)
+}
+
+/// The commands of the first boot, and the answers they must get (sequence, kind, status).
+fn commands(spec: &RunSpec) -> Result<(Vec<u8>, Vec<Answer>, Settings)> {
+    let Acquisition::Tag { family, id } = spec.acquisition else {
+        anyhow::bail!("the tag job's run does not acquire a tag");
+    };
+    let size = 2.0 * spec.target_size[0];
+    let set_tag = Command::SetTag { family, id, size };
+    let camera = Command::SetCamera {
+        intrinsics: spec.intrinsics,
+        distortion: spec.distortion,
+    };
+    let no_side = Command::SetTag {
+        family,
+        id,
+        size: -1.0,
+    };
+    let mut bytes = Vec::new();
+    bytes.extend(frame(0, &set_tag.encode())?);
+    bytes.extend(frame(1, &camera.encode())?);
+    bytes.extend(frame(2, &Command::SetMode(Mode::Calibrate).encode())?);
+    let mut damaged = frame(3, &set_tag.encode())?;
+    let mid = damaged.len() / 2;
+    damaged[mid] ^= 0x10;
+    bytes.extend(damaged);
+    bytes.extend(frame(4, &no_side.encode())?);
+    bytes.extend(frame(5, &Command::Save.encode())?);
+    let want = vec![
+        (0, set_tag.kind(), AckStatus::Done),
+        (1, camera.kind(), AckStatus::Done),
+        (
+            2,
+            Command::SetMode(Mode::Calibrate).kind(),
+            AckStatus::Unsupported,
+        ),
+        (4, 0, AckStatus::Invalid),
+        (5, Command::Save.kind(), AckStatus::Done),
+    ];
+    let mut settings = spec.settings();
+    settings.tag_size = size;
+    Ok((bytes, want, settings))
+}
+
+/// The answers at the head of a boot's record stream, and the number of damaged frames.
+fn acks(dir: &Path) -> Result<(Vec<Answer>, usize)> {
+    let serial = dir.join("serial.bin");
+    let bytes = fs::read(&serial).with_context(|| format!("no {}", serial.display()))?;
+    let (frames, stats) = decode(&bytes);
+    ensure!(
+        stats.damaged == 0 && stats.lost == 0,
+        "{}: {stats:?}",
+        serial.display()
+    );
+    let mut out = Vec::new();
+    for (_, rec) in frames.iter().take_while(|(_, r)| r.len() == ACK_LEN) {
+        let a = Ack::decode(rec).map_err(|e| anyhow::anyhow!("{}: {e}", serial.display()))?;
+        out.push((a.seq, a.kind, a.status));
+    }
+    Ok((out, frames.len()))
+}
+
+/// Translations twice the tag job's, rotations equal: the worst relative error of the length
+/// ratio and the worst rotation-vector difference, over the frames both have a pose for.
+fn scaled(
+    got: &[FrameRecord],
+    truth: &std::collections::BTreeMap<u32, FrameRecord>,
+) -> (usize, f64, f64) {
+    let (mut n, mut ratio, mut rot) = (0, 0f64, 0f64);
+    for g in got {
+        let (Some((p, _)), Some((q, _))) = (g.pose, truth.get(&g.index).and_then(|t| t.pose))
+        else {
+            continue;
+        };
+        let norm = |v: [f32; 3]| v.iter().map(|x| f64::from(*x).powi(2)).sum::<f64>().sqrt();
+        ratio = ratio.max((norm(p.t) / norm(q.t) / 2.0 - 1.0).abs());
+        rot = rot.max(
+            p.r.iter()
+                .zip(q.r)
+                .map(|(a, b)| f64::from(a - b).abs())
+                .fold(0.0, f64::max),
+        );
+        n += 1;
+    }
+    (n, ratio, rot)
+}
+
+/// `cargo xtask run`'s commands job (after the tag job, whose run it reuses); returns its line.
+pub fn run() -> Result<String> {
+    let tag_dir = root().join("target/camgeom-run/tag");
+    let dir = root().join("target/camgeom-run/commands");
+    fs::create_dir_all(&dir)?;
+    for name in [
+        "report.bin",
+        "serial.bin",
+        "mavlink.bin",
+        "flash.bin",
+        "commands.bin",
+        "run.bin",
+    ] {
+        let _ = fs::remove_file(dir.join(name));
+    }
+    let tag_spec =
+        RunSpec::parse(&fs::read(tag_dir.join("run.bin"))?).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec = RunSpec {
+        frames: FRAMES,
+        overlay_every: 0,
+        ..tag_spec
+    };
+    fs::write(dir.join("run.bin"), spec.to_bytes())?;
+    let frames = dir.join("frames.raw");
+    if !frames.exists() {
+        fs::hard_link(tag_dir.join("frames.raw"), &frames)
+            .or_else(|_| fs::copy(tag_dir.join("frames.raw"), &frames).map(|_| ()))?;
+    }
+    let (truth, _) = read_report(&tag_dir.join("report.bin"))?;
+    let (bytes, want, settings) = commands(&spec)?;
+    fs::write(dir.join("commands.bin"), &bytes)?;
+    let elf = build_bin_for(M7, SIZE.bin, &[])?;
+
+    // Boot 1: the commands, then the run.
+    let first = emulate::run_board(M7, &elf, &dir, SIZE, 1)?;
+    let (got, _) = acks(&dir)?;
+    ensure!(got == want, "the board answered {got:?}, not {want:?}");
+    ensure!(
+        first
+            .log
+            .iter()
+            .any(|l| l.starts_with("commands: 5 frames, 1 damaged")),
+        "the board did not count the damaged command frame: {:?}",
+        first.log.iter().find(|l| l.starts_with("commands: "))
+    );
+    let flash = fs::read(dir.join("flash.bin")).context("the board saved no flash.bin")?;
+    ensure!(
+        flash.len() == 4096 && flash[SETTINGS_LEN..].iter().all(|&b| b == 0xFF),
+        "flash.bin: {} bytes, not the settings record and erased bytes",
+        flash.len()
+    );
+    let stored = Settings::decode(&flash[..SETTINGS_LEN]).map_err(|e| anyhow::anyhow!("{e}"))?;
+    ensure!(
+        stored == settings,
+        "flash holds {stored:?}, not {settings:?}"
+    );
+
+    // Boot 2: no commands; the settings come from the flash.
+    fs::remove_file(dir.join("commands.bin"))?;
+    let second = emulate::run_board(M7, &elf, &dir, SIZE, 1)?;
+    ensure!(
+        second
+            .log
+            .iter()
+            .any(|l| l.starts_with("settings: loaded from flash")),
+        "the second boot did not load the settings from the flash"
+    );
+    let (_, n_second) = acks(&dir)?;
+    ensure!(
+        n_second == second.frames.len() + 1,
+        "the second boot answered commands it was not sent"
+    );
+    let a: Vec<FrameRecord> = first.frames.values().copied().collect();
+    let b: Vec<FrameRecord> = second.frames.values().copied().collect();
+    let same = |r: &FrameRecord| (r.index, r.state, r.tracked, r.inliers, r.checksum, r.pose);
+    ensure!(
+        a.iter().map(same).eq(b.iter().map(same)),
+        "the two boots tracked differently"
+    );
+    let (n, ratio, rot) = scaled(&a, &truth);
+    ensure!(
+        n >= (FRAMES as usize) / 2 && ratio < 1e-3 && rot < 1e-3,
+        "with the tag side doubled, {n} poses: |t| ratio off by {ratio:.2e}, rotation by {rot:.2e}"
+    );
+    Ok(format!(
+        "commands job: {} command frames (1 damaged, counted), answered done/done/unsupported/invalid/done; flash.bin holds the settings record, erased after it; the second boot loaded them; {n} poses with the tag side doubled: |t| x2 within {ratio:.1e}, rotations within {rot:.1e} rad of the tag job's",
+        want.len() + 1
+    ))
+}
