@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 3;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 12] = [
+pub const TARGETS: [&str; 13] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -38,6 +38,7 @@ pub const TARGETS: [&str; 12] = [
     "sfm",
     "vanishing",
     "link",
+    "command",
 ];
 
 /// Build flags: release with debug assertions (so integer overflow panics), no sanitizer (the

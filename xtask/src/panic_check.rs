@@ -49,7 +49,7 @@ const fn area(feature: &'static str, generic: bool, entry_points: &'static str) 
 
 /// Every public no_std entry point of the core, by area (`firmware/panic-check/src/main.rs`
 /// calls them).
-pub const AREAS: [Area; 21] = [
+pub const AREAS: [Area; 22] = [
     area(
         "camera",
         true,
@@ -133,7 +133,7 @@ pub const AREAS: [Area; 21] = [
     area(
         "apriltag",
         false,
-        "`Detector::detect` (all four families; `u16` and `u32` labels), `find_target`, `Family::decode`, `tag_pose`",
+        "`Detector::detect` (all four families; `u16` and `u32` labels), `find_target`, `refine_target`, `find_target_near`, `Family::decode`, `tag_pose`",
     ),
     area(
         "remap",
@@ -145,6 +145,11 @@ pub const AREAS: [Area; 21] = [
         "link",
         false,
         "the board application's record stream: `camgeom_fw_app::link::encode_frame`, `Deframer::push`",
+    ),
+    area(
+        "command",
+        false,
+        "commands to the board and its stored settings: `Command::decode`, `Settings::apply`, `Settings::decode`, `Settings::encode`, `Ack::decode`",
     ),
     area(
         "vanishing",

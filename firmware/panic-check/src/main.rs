@@ -883,6 +883,20 @@ fn run_apriltag() {
             .find_target(&v, &mut ws.as_mut_view(), &families::TAG25H9, black_box(2))
             .ok(),
     );
+    // Tracking by detection: the refinement and the region search from an opaque prediction.
+    let predicted = black_box([Point2::new(black_box(3.5f32), black_box(-2.0)); 4]);
+    black_box(detector.refine_target(&v, &families::TAG36H11, black_box(7), &predicted));
+    black_box(
+        detector
+            .find_target_near(
+                &v,
+                &mut ws.as_mut_view(),
+                &families::TAG36H11,
+                black_box(7),
+                &predicted,
+            )
+            .ok(),
+    );
     for f in families::ALL {
         black_box(f.decode(black_box(0x1234_5678_9abc), black_box(2)));
     }
@@ -1050,6 +1064,28 @@ fn run_link() {
     black_box(rx.stats());
 }
 
+// ---------------------------------------------------------------- command
+
+/// Commands to the board and its stored settings: command records of unknown content decoded
+/// and applied, the settings encoded, and a stored sector of unknown content decoded.
+#[cfg(feature = "command")]
+fn run_command() {
+    use camgeom_fw_app::command::{Ack, COMMAND_LEN, Command};
+    use camgeom_fw_app::settings::{SETTINGS_LEN, Settings};
+    let bytes = black_box([0u8; COMMAND_LEN]);
+    let len = black_box(usize::MAX).min(bytes.len());
+    let Ok(mut settings) = Settings::decode(&black_box([0u8; SETTINGS_LEN])) else {
+        return;
+    };
+    if let Ok(c) = Command::decode(bytes.get(..len).unwrap_or(&[])) {
+        black_box(settings.apply(&c));
+        black_box(c.encode());
+    }
+    black_box(settings.encode());
+    black_box(settings.camera().ok());
+    black_box(Ack::decode(&black_box([0u8; 20])).ok());
+}
+
 /// The planar pose with integer per-point arithmetic (`f32` only).
 #[cfg(feature = "pose")]
 fn run_pose_integer() {
@@ -1124,6 +1160,8 @@ fn run_f32_only() {
     run_pose_integer();
     #[cfg(feature = "link")]
     run_link();
+    #[cfg(feature = "command")]
+    run_command();
 }
 
 #[entry]

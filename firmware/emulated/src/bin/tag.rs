@@ -3,7 +3,8 @@
 //! ([`camgeom::apriltag::TagTarget`], the loop's acquisition step) on the first frame, after a
 //! loss and every `reacquire_every` frames, and tracked in between by detecting it where it
 //! must be (`TagTarget`'s tracking by detection); the host replays it bit for bit. Its records
-//! also stream over UART0 ([`job::Stream`]), as a real board's do over its link.
+//! also stream over UART0 ([`job::Stream`]), as a real board's do over its link, and its poses
+//! go to an autopilot as MAVLink over UART1 (`mavlink`).
 #![no_std]
 #![no_main]
 
@@ -22,7 +23,6 @@ static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
 static DETECTOR: StaticCell<Detector> = StaticCell::new();
 
-#[entry]
 /// MAVLink to an autopilot over UART1 (the Cortex-M7 build; the mounting: camera looking
 /// down, top of the image toward the nose).
 #[cfg(mavlink)]
@@ -35,6 +35,7 @@ fn mavlink() -> camgeom_fw_emulated::uart::MavlinkLink {
 #[cfg(not(mavlink))]
 fn mavlink() {}
 
+#[entry]
 fn main() -> ! {
     let workspace = WORKSPACE.take();
     job::run(

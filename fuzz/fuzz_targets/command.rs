@@ -1,0 +1,67 @@
+//! Commands to the board (`camgeom_fw_app::command`) and its stored settings
+//! (`camgeom_fw_app::settings`) on arbitrary bytes: the bytes as a link delivers them, framed
+//! and fed in arbitrary chunks to the board's receiver, each frame decoded as a command and
+//! applied to settings, which must stay settings a board can run with; and arbitrary bytes
+//! read as stored settings (a sector with anything in it). Contract: no panic; every command
+//! that decodes round-trips through its bytes and leaves a camera that builds and a tag side
+//! that is finite and positive; stored settings that decode encode to the same bytes.
+#![no_main]
+
+use arbitrary::Arbitrary;
+use camgeom_fw_app::command::{COMMAND_LEN, Command, Mode};
+use camgeom_fw_app::link::{Deframer, max_frame_len};
+use camgeom_fw_app::settings::{Applied, SETTINGS_LEN, Settings};
+use libfuzzer_sys::fuzz_target;
+
+#[derive(Debug, Arbitrary)]
+struct Input {
+    link: Vec<u8>,
+    chunks: Vec<u8>,
+    commands: Vec<[u8; COMMAND_LEN]>,
+    stored: [u8; SETTINGS_LEN],
+}
+
+fn start() -> Settings {
+    Settings {
+        mode: Mode::TrackTag,
+        family: 0,
+        id: 0,
+        tag_size: 0.08,
+        intrinsics: [300.0, 300.0, 160.0, 120.0],
+        distortion: [0.0; 5],
+    }
+}
+
+fn apply(settings: &mut Settings, record: &[u8]) {
+    let Ok(c) = Command::decode(record) else {
+        return;
+    };
+    assert_eq!(Command::decode(&c.encode()), Ok(c));
+    if settings.apply(&c) == Applied::Save {
+        assert_eq!(Settings::decode(&settings.encode()), Ok(*settings));
+    }
+    assert!(settings.camera().is_ok());
+    assert!(settings.tag_size.is_finite() && settings.tag_size > 0.0);
+}
+
+fuzz_target!(|input: Input| {
+    let mut settings = start();
+    let mut rx = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+    let mut rest = input.link.as_slice();
+    let mut sizes = input.chunks.iter().cycle();
+    while !rest.is_empty() {
+        let n = (usize::from(sizes.next().copied().unwrap_or(255)) + 1).min(rest.len());
+        let (mut chunk, tail) = rest.split_at(n);
+        rest = tail;
+        while let Some(f) = rx.push(&mut chunk) {
+            apply(&mut settings, f.record);
+        }
+    }
+    for c in &input.commands {
+        apply(&mut settings, c);
+    }
+    if let Ok(s) = Settings::decode(&input.stored) {
+        assert_eq!(s.encode(), input.stored);
+        assert!(s.camera().is_ok());
+    }
+});
