@@ -88,7 +88,11 @@ pub(crate) fn refine_edges_with(
             nx,
             ny,
         };
-        let nsamples = ((mag / 8.0) as usize).max(min_points);
+        // An edge of a quad the caller predicted can be any length; one in the image is
+        // shorter than its width plus height, and samples outside it read nothing: the bound
+        // keeps the loop finite for any quad and changes nothing for one in the image.
+        let longest = (img.width() + img.height()) as f32;
+        let nsamples = ((mag.min(longest) / 8.0) as usize).max(min_points);
         let (mut mx, mut my, mut mxx, mut mxy, mut myy, mut cnt) =
             (0f32, 0f32, 0f32, 0f32, 0f32, 0u32);
         for s in 0..nsamples {
