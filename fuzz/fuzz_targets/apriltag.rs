@@ -11,6 +11,12 @@
 //! `≤ min(max_hamming, 3)` and equal to the distance between the code and the word in the
 //! rotation reported; a code with at most `max_hamming` flipped bits (`2 max_hamming <
 //! min_distance`) decodes to its own id.
+//!
+//! Tracking by detection on the same frames: `Detector::refine_target` and `find_target_near`
+//! from an arbitrary prediction (any floats, non-finite ones included, or a rendered tag's
+//! corners moved by the fuzzer) of an arbitrary family and id. Contract (their docs): no
+//! panic; `refine_target` gives finite corners within 8 px of a finite prediction;
+//! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners.
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -23,6 +29,7 @@ use camgeom::apriltag::{
     rotate90, sort_len, tiles_len,
 };
 use camgeom::image::ImageView;
+use camgeom::nalgebra::Point2;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
@@ -80,6 +87,9 @@ struct Input {
     host: Option<([u8; 5], u16, u16, u16)>,
     words: std::vec::Vec<(u8, u64, u8)>,
     flips: std::vec::Vec<(u8, u16, u8, [u8; 3])>,
+    /// Predictions for the tracking calls: family, id, four corners (arbitrary numbers, or
+    /// with `near` the first tag's square corners moved by them, in 1/16 px).
+    predictions: std::vec::Vec<(u8, u16, [(Num, Num); 4], Option<[(i8, i8); 4]>)>,
 }
 
 fn family(i: u8) -> &'static Family {
@@ -184,6 +194,61 @@ fn detect(det: &Detector, view: &ImageView<'_, u8>, ws: &mut WorkspaceView<'_, i
     }
 }
 
+/// The first tag's outer border corners (top-left, top-right, bottom-right, bottom-left of
+/// the unrotated tag), where `render` draws it.
+fn tag_square(inp: &Input) -> Option<[Point2<f32>; 4]> {
+    let t = inp.tags.first()?;
+    let f = family(t.family);
+    let s = 1.0 + f32::from(t.cell % 12);
+    let a = f32::from(t.angle) / 256.0 * std::f32::consts::TAU;
+    let (c, sn) = (a.cos(), a.sin());
+    let side = s * f32::from(f.width_at_border());
+    let lo = s * (f32::from(f.total_width()) - f32::from(f.width_at_border())) / 2.0;
+    Some(
+        [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(|(u, v)| {
+            let (u, v) = (lo + u * side, lo + v * side);
+            // `render`'s inverse rotation.
+            Point2::new(
+                f32::from(t.origin.0) + c * u - sn * v - 0.5,
+                f32::from(t.origin.1) + sn * u + c * v - 0.5,
+            )
+        }),
+    )
+}
+
+fn track(
+    inp: &Input,
+    det: &Detector,
+    view: &ImageView<'_, u8>,
+    ws: &mut WorkspaceView<'_, impl Label>,
+) {
+    for (f, id, pts, near) in inp.predictions.iter().take(4) {
+        let f = family(*f);
+        let mut predicted = pts.map(common::pt2);
+        if let (Some(moves), Some(square)) = (near, tag_square(inp)) {
+            for ((p, q), (dx, dy)) in predicted.iter_mut().zip(square).zip(moves) {
+                *p = Point2::new(q.x + f32::from(*dx) / 16.0, q.y + f32::from(*dy) / 16.0);
+            }
+        }
+        if let Some(c) = det.refine_target(view, f, *id, &predicted) {
+            for (p, q) in c.iter().zip(predicted.iter()) {
+                assert!(p.x.is_finite() && p.y.is_finite(), "refined {p:?}");
+                assert!((p - q).norm() <= 8.0 + 1e-3, "refined {p:?} from {q:?}");
+            }
+        }
+        match det.find_target_near(view, ws, f, *id, &predicted) {
+            Ok(Some(c)) => {
+                for p in &c {
+                    assert!(p.x.is_finite() && p.y.is_finite(), "region {p:?}");
+                }
+            }
+            Ok(None) => {}
+            Err(Error::BufferTooSmall(b)) => assert!(b.starts_with("workspace."), "buffer {b}"),
+            Err(e) => panic!("find_target_near: undocumented error {e:?}"),
+        }
+    }
+}
+
 /// A workspace of `u32` labels sized at run time (a host's): the frame's sizes (decimated
 /// width, tiles, sort keys) each scaled by `(frac + 1) / 8`, at most 10/8.
 fn host(
@@ -241,9 +306,11 @@ fuzz_target!(|inp: Input| {
             } else if inp.small_workspace {
                 let mut ws = std::boxed::Box::new(Small::new());
                 detect(&det, &view, &mut ws.as_mut_view());
+                track(&inp, &det, &view, &mut ws.as_mut_view());
             } else {
                 let mut ws = std::boxed::Box::new(Full::new());
                 detect(&det, &view, &mut ws.as_mut_view());
+                track(&inp, &det, &view, &mut ws.as_mut_view());
             }
         }
     }

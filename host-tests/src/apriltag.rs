@@ -204,12 +204,16 @@ impl HostWorkspace {
 }
 
 /// Tag `id` of `family` as the AR loop's acquisition step (`camgeom ar --tag`): the core's
-/// [`camgeom::apriltag::TagTarget`] with a [`HostWorkspace`] grown for each frame.
+/// [`camgeom::apriltag::TagTarget`] with a [`HostWorkspace`] grown for each frame. It tracks
+/// the tag by detection as `TagTarget` does (the same core calls:
+/// [`Detector::refine_target`], then [`Detector::find_target_near`]) unless
+/// [`Self::track_by_detection`] turns it off.
 pub struct HostTagTarget<'a> {
     detector: &'a Detector,
     workspace: HostWorkspace,
     family: &'static Family,
     id: u16,
+    by_detection: bool,
 }
 
 impl<'a> HostTagTarget<'a> {
@@ -220,7 +224,15 @@ impl<'a> HostTagTarget<'a> {
             workspace: HostWorkspace::new(),
             family,
             id,
+            by_detection: true,
         }
+    }
+
+    /// Tracks by detection (`true`, the default) or lets the loop track with KLT between
+    /// acquisitions (`false`).
+    pub fn track_by_detection(mut self, on: bool) -> Self {
+        self.by_detection = on;
+        self
     }
 
     /// The workspace (its [`Stats`] after the last detection).
@@ -238,6 +250,24 @@ impl Acquire for HostTagTarget<'_> {
         let (det, family, id) = (self.detector, self.family, self.id);
         self.workspace.run(frame, det.config().decimate, |ws| {
             det.find_target(frame, ws, family, id)
+        })
+    }
+
+    fn tracks(&self) -> bool {
+        self.by_detection
+    }
+
+    fn track(
+        &mut self,
+        frame: &ImageView<'_, u8>,
+        predicted: &[Point2<f32>; 4],
+    ) -> camgeom::Result<Option<[Point2<f32>; 4]>> {
+        let (det, family, id) = (self.detector, self.family, self.id);
+        if let Some(c) = det.refine_target(frame, family, id, predicted) {
+            return Ok(Some(c));
+        }
+        self.workspace.run(frame, det.config().decimate, |ws| {
+            det.find_target_near(frame, ws, family, id, predicted)
         })
     }
 }

@@ -62,10 +62,14 @@ pub struct ArArgs {
     #[arg(long, default_value_t = 1, value_name = "D")]
     decimate: u8,
     /// While tracking, run the acquisition again every N frames (0: only before the first
-    /// acquisition and after a loss). Default 5 with --tag (the board's tag job), 0 with
-    /// --corners (given corners answer once).
+    /// acquisition and after a loss). Default 30 with --tag (the board's tag job's guard), 5
+    /// with --tag --klt, 0 with --corners (given corners answer once).
     #[arg(long, value_name = "N")]
     reacquire_every: Option<u32>,
+    /// With --tag: track the tag with KLT between detections (the loop before tracking by
+    /// detection) instead of detecting it where it must be on every frame.
+    #[arg(long, requires = "tag")]
+    klt: bool,
     /// Edge of the cube drawn on the target (default: the target's smaller side).
     #[arg(long, value_name = "S")]
     cube: Option<f32>,
@@ -258,7 +262,11 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
             ..d.ransac
         },
         min_inliers,
-        reacquire_every: a.reacquire_every.unwrap_or(if tag { 5 } else { 0 }),
+        reacquire_every: a.reacquire_every.unwrap_or(match (tag, a.klt) {
+            (false, _) => 0,
+            (true, true) => 5,
+            (true, false) => 30,
+        }),
         ..d
     };
     // With a tag, the board's tag-job policy (`TargetConfig::for_detector`); what the
@@ -314,7 +322,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
             &mut given
         }
         Acquisition::Tag(det, family, id) => {
-            tag_target = HostTagTarget::new(det, family, *id);
+            tag_target = HostTagTarget::new(det, family, *id).track_by_detection(!a.klt);
             &mut tag_target
         }
     };
