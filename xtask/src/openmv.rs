@@ -19,7 +19,8 @@ use crate::jobs::M7;
 use crate::util::{locked, output, run};
 
 const PACKAGE: &str = "camgeom-fw-openmv-h7";
-const FLASH: (u64, u64) = (0x0800_0000, 2 * 1024 * 1024);
+/// memory.x's `FLASH`: the 2 MiB but the last 128 KiB sector, which holds the board's settings.
+const FLASH: (u64, u64) = (0x0800_0000, 2 * 1024 * 1024 - 128 * 1024);
 const AXI_SRAM: (u64, u64) = (0x2400_0000, 512 * 1024);
 /// Top of DTCM (128 KiB at 0x2000_0000): the stack.
 const STACK_TOP: u32 = 0x2002_0000;

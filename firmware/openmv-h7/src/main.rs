@@ -4,6 +4,11 @@
 //! the micro-USB port ([`stream`]: a USB serial port, no debug probe needed); the RGB LED shows
 //! searching, tracking or lost ([`led`]). With a probe, defmt also logs each frame over RTT.
 //!
+//! An autopilot on UART3 gets a MAVLink `HEARTBEAT` a second and a `LANDING_TARGET` for every
+//! frame with a pose ([`autopilot`]). The host sends commands over the USB port (mode, tag,
+//! camera, save; answered on the record stream); the settings they make are kept in a
+//! reserved flash sector and loaded at boot ([`settings`]).
+//!
 //! Board wiring, from the OpenMV firmware's board description (`boards/OPENMV4/
 //! board_config.h` and `board_config.mk` in the openmv/openmv repository):
 //!
@@ -19,21 +24,29 @@
 //! | DCMI HSYNC, VSYNC, PIXCLK | PA4, PB7, PA6 |
 //! | USB OTG FS (the micro-USB port) | D+ PA12, D- PA11, VBUS PA9; 48 MHz from HSI48 |
 //! | RGB LED (active low; `mpconfigboard.h`) | red PC0, green PC1, blue PC2 |
+//! | UART3 to an autopilot (header P4, P5) | TX PB10, RX PB11 (unused); TX by DMA1 stream 1 |
+//! | settings | flash bank 2, sector 7 (`0x081E_0000`, 128 KiB), kept out of `memory.x` |
 //!
 //! (D5 is PB6 on this board, not the PD3 of ST's evaluation boards.)
 #![no_std]
 #![no_main]
 
+mod autopilot;
 mod camera;
 mod led;
+mod settings;
 mod stream;
 mod tracker;
 
-use camgeom::target::Stage;
+use camgeom::apriltag::TagTarget;
+use camgeom::target::{Acquire, Stage};
+use camgeom_fw_app::command::{Ack, AckStatus};
 use camgeom_fw_app::report::{ErrorCode, FrameRecord};
+use camgeom_fw_app::settings::{Applied, Settings};
 use camgeom_fw_app::{AppError, Cost, FrameLoop, FrameReport};
 use defmt_rtt as _;
 use embassy_executor::{InterruptExecutor, Spawner};
+use embassy_stm32::flash::Flash;
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::i2c::{self, I2c};
 use embassy_stm32::interrupt;
@@ -41,19 +54,23 @@ use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+use embassy_stm32::usart::{self, UartTx};
 use embassy_stm32::{Config, bind_interrupts, dcmi, dma, peripherals, usb};
 use embassy_time::{Delay, Timer};
 use panic_probe as _;
 use static_cell::ConstStaticCell;
 
+use crate::autopilot::MavlinkLink;
 use crate::camera::{CAPTURE_WORDS, Camera};
 use crate::led::Led;
-use crate::stream::RecordStream;
-use crate::tracker::DwtClock;
+use crate::settings::Store;
+use crate::stream::{Incoming, RecordStream};
+use crate::tracker::{DwtClock, Unfit};
 
 bind_interrupts!(pub struct Irqs {
     DCMI => dcmi::InterruptHandler<peripherals::DCMI>;
     DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+    DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
     OTG_FS => usb::InterruptHandler<peripherals::USB_OTG_FS>;
 });
 
@@ -127,12 +144,36 @@ async fn main(_spawner: Spawner) {
     defmt::info!("camgeom on OpenMV Cam H7: 480 MHz");
     let mut led = Led::new(p.PC0, p.PC1, p.PC2);
 
+    // The settings saved in flash, else the compiled ones.
+    let mut store = Store::new(Flash::new_blocking(p.FLASH));
+    let mut settings = match store.load() {
+        Some(s) if tracker::config(&s).is_ok() => {
+            defmt::info!("settings: loaded from flash");
+            s
+        }
+        Some(_) => {
+            defmt::warn!("settings: those in flash give no configuration; the defaults");
+            tracker::defaults()
+        }
+        None => tracker::defaults(),
+    };
+
     // The record stream: USB runs from now on, whatever the camera does.
     interrupt::UART4.set_priority(Priority::P6);
     let usb_spawner = USB_EXECUTOR.start(interrupt::UART4);
     match stream::usb(p.USB_OTG_FS, p.PA12, p.PA11) {
         Ok(task) => usb_spawner.spawn(task),
         Err(e) => defmt::panic!("usb task: {}", e),
+    }
+    // MAVLink to an autopilot: UART3 TX on P4 (PB10), by DMA, on the same executor.
+    let mut uart_config = usart::Config::default();
+    uart_config.baudrate = autopilot::BAUD;
+    match UartTx::new(p.USART3, p.PB10, p.DMA1_CH1, Irqs, uart_config) {
+        Ok(tx) => match autopilot::uart(tx) {
+            Ok(task) => usb_spawner.spawn(task),
+            Err(e) => defmt::panic!("uart task: {}", e),
+        },
+        Err(e) => defmt::panic!("UART3: {}", e),
     }
 
     // Camera power and reset: PWDN low (on), RESETB pulsed low.
@@ -190,54 +231,131 @@ async fn main(_spawner: Spawner) {
         Err(e) => defmt::warn!("camera: cannot read the exposure: {}", e),
     }
 
-    let cfg = match tracker::config() {
-        Ok(c) => c,
-        Err(e) => defmt::panic!("configuration: {}", e),
-    };
     let app = tracker::pipeline();
+    let workspace = tracker::workspace();
     let mut clock = DwtClock::default();
-    // An AprilTag (or, with the `card` feature, the card held in the middle half of the view).
-    let mut acquire = match tracker::acquire() {
-        Ok(a) => a,
-        Err(e) => defmt::panic!("acquisition: {}", e),
-    };
     let mut records = RecordStream::default();
-    led.show(app.state());
-    // The first frame that arrives starts the target; a frame that fails leaves the pipeline
-    // as it was. Frames are numbered as the camera is asked for them.
+    let mut autopilot = MavlinkLink::new();
+    // Frames are numbered as the camera is asked for them, across configurations.
     let mut index = 0u32;
     loop {
-        let record = match app.step(&cfg, &mut cam, &mut acquire, &mut clock, &mut |_, _| {}) {
-            Ok(Some(r)) => {
-                log(&r);
-                FrameRecord {
-                    index,
-                    ..FrameRecord::of(&r)
-                }
+        // One configuration, built from the settings (checked before they were taken) and run
+        // until a command changes them; then the target starts again on the next frame.
+        let (cfg, options) = match tracker::config(&settings) {
+            Ok(c) => c,
+            Err(e) => defmt::panic!("configuration: {}", e),
+        };
+        let tag_spec = match tracker::tag(&options) {
+            Ok(t) => t,
+            Err(e) => defmt::panic!("tag detector: {}", e),
+        };
+        let (mut tag, mut card);
+        let acquire: &mut dyn Acquire = match &tag_spec {
+            Some(t) => {
+                tag = TagTarget::new(&t.detector, workspace.as_mut_view(), t.family, t.id);
+                &mut tag
             }
-            // The configuration does not fit the buffers: nothing to run.
-            Err(e @ AppError::Geometry) => defmt::panic!("start: {=str}", e.name()),
-            // A camera never ends.
-            Ok(None) => continue,
-            // A failed capture (or a frame the core rejects) leaves the pipeline as it was: go
-            // on with the next frame.
-            Err(e) => {
-                tracker::log_error("frame", &e);
-                FrameRecord::failed(index, app.state(), ErrorCode::of(&e))
+            None => {
+                card = tracker::card();
+                &mut card
             }
         };
-        led.show(record.state);
-        records.send(&record);
-        index = index.wrapping_add(1);
-        if index.is_multiple_of(STREAM_LOG_EVERY) {
-            defmt::info!(
-                "record stream: {=u32} frames queued for USB, {=u32} dropped (queue full), {=u32} discarded (port closed)",
-                records.queued(),
-                records.dropped(),
-                records.discarded()
-            );
+        defmt::info!("settings: {}", settings);
+        app.reset();
+        led.show(app.state());
+        loop {
+            let record = match app.step(&cfg, &mut cam, acquire, &mut clock, &mut |_, _| {}) {
+                Ok(Some(r)) => {
+                    log(&r);
+                    FrameRecord {
+                        index,
+                        ..FrameRecord::of(&r)
+                    }
+                }
+                // The configuration does not fit the buffers: nothing to run.
+                Err(e @ AppError::Geometry) => defmt::panic!("start: {=str}", e.name()),
+                // A camera never ends.
+                Ok(None) => continue,
+                // A failed capture (or a frame the core rejects) leaves the pipeline as it
+                // was: go on with the next frame.
+                Err(e) => {
+                    tracker::log_error("frame", &e);
+                    FrameRecord::failed(index, app.state(), ErrorCode::of(&e))
+                }
+            };
+            led.show(record.state);
+            records.send(&record.encode());
+            autopilot.frame(&record, options.target_size);
+            index = index.wrapping_add(1);
+            if index.is_multiple_of(STREAM_LOG_EVERY) {
+                defmt::info!(
+                    "record stream: {=u32} frames queued for USB, {=u32} dropped (queue full), {=u32} discarded (port closed); {=u32} commands dropped",
+                    records.queued(),
+                    records.dropped(),
+                    records.discarded(),
+                    stream::commands_dropped()
+                );
+                autopilot.log();
+            }
+            // Commands, between frames.
+            let mut restart = false;
+            while let Some(incoming) = stream::next_command() {
+                let (kind, status) = command(incoming, &mut settings, &mut store, &mut restart);
+                defmt::info!(
+                    "command {=u16}: kind {=u32}, {=str}",
+                    incoming.seq,
+                    kind,
+                    status.name()
+                );
+                let ack = Ack {
+                    seq: incoming.seq,
+                    kind,
+                    status,
+                };
+                records.send(&ack.encode());
+            }
+            if restart {
+                break;
+            }
         }
     }
+}
+
+/// Carries out a command from the host: its kind and how it went. A change is checked by
+/// building its configuration first (a mode this firmware does not have is `Unsupported`, a
+/// camera or target it refuses `Invalid`); a change that takes sets `restart`.
+fn command(
+    incoming: Incoming,
+    settings: &mut Settings,
+    store: &mut Store,
+    restart: &mut bool,
+) -> (u32, AckStatus) {
+    let Some(c) = incoming.command else {
+        return (0, AckStatus::Invalid);
+    };
+    let mut next = *settings;
+    let status = match next.apply(&c) {
+        Applied::Changed => match tracker::config(&next) {
+            Err(Unfit::Mode) => AckStatus::Unsupported,
+            Err(Unfit::Config(e)) => {
+                defmt::warn!("command {=u16}: {}", incoming.seq, e);
+                AckStatus::Invalid
+            }
+            Ok(_) => {
+                *restart |= next != *settings;
+                *settings = next;
+                AckStatus::Done
+            }
+        },
+        Applied::Save => match store.save(settings) {
+            Ok(()) => AckStatus::Done,
+            Err(e) => {
+                defmt::error!("settings: not saved: {}", e);
+                AckStatus::FlashFailed
+            }
+        },
+    };
+    (c.kind(), status)
 }
 
 /// One defmt line per frame: the pose (target frame to camera: `t` in metres, rotation vector

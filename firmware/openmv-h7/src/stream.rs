@@ -10,19 +10,25 @@
 //! in an interrupt-priority executor and takes frames from the queue as the host reads them;
 //! while no program has the port open (DTR low) it discards them (counted too), so a host that
 //! opens the port gets current frames, not a queue of old ones.
+//!
+//! The other way, the host sends [`Command`] records framed the same way; the USB task
+//! deframes and decodes them and queues each ([`COMMAND_QUEUE`] deep, dropped and counted when
+//! full) for the tracking loop, which takes them between frames ([`next_command`]) and answers
+//! each with an [`camgeom_fw_app::command::Ack`] record on this stream.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
-use camgeom_fw_app::link::{encode_frame, max_frame_len};
-use camgeom_fw_app::report::{FrameRecord, RECORD_LEN};
-use embassy_futures::join::join;
+use camgeom_fw_app::command::{COMMAND_LEN, Command};
+use camgeom_fw_app::link::{Deframer, encode_frame, max_frame_len};
+use camgeom_fw_app::report::RECORD_LEN;
+use embassy_futures::join::join3;
 use embassy_stm32::Peri;
 use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::usb::Driver;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::{Channel, TrySendError};
 use embassy_usb::Builder;
-use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
+use embassy_usb::class::cdc_acm::{CdcAcmClass, Receiver, Sender, State};
 use embassy_usb::driver::EndpointError;
 
 use crate::Irqs;
@@ -31,6 +37,8 @@ use crate::Irqs;
 pub const FRAME_MAX: usize = max_frame_len(RECORD_LEN);
 /// Frames the queue holds between the tracking loop and USB: a quarter of a second at 30 fps.
 pub const QUEUE_FRAMES: usize = 8;
+/// Commands received and not yet taken by the tracking loop (it takes them every frame).
+pub const COMMAND_QUEUE: usize = 4;
 /// USB full speed's bulk packet size.
 const PACKET: usize = 64;
 /// pid.codes' test VID/PID (1209:0001): fine on a development board, not in a product.
@@ -47,6 +55,31 @@ static QUEUE: Channel<CriticalSectionRawMutex, Frame, QUEUE_FRAMES> = Channel::n
 /// Frames the USB task took from the queue and discarded: no program had the port open.
 static DISCARDED: AtomicU32 = AtomicU32::new(0);
 
+/// A command frame from the host: its sequence number and the command, `None` when its record
+/// did not decode (answered `Invalid`).
+#[derive(Debug, Clone, Copy)]
+pub struct Incoming {
+    /// The frame's sequence number, which the answer repeats.
+    pub seq: u16,
+    /// The command, checked.
+    pub command: Option<Command>,
+}
+
+/// The queue from the USB task to the tracking loop.
+static COMMANDS: Channel<CriticalSectionRawMutex, Incoming, COMMAND_QUEUE> = Channel::new();
+/// Commands dropped because [`COMMANDS`] was full.
+static COMMANDS_DROPPED: AtomicU32 = AtomicU32::new(0);
+
+/// The next command from the host, if one came; never waits.
+pub fn next_command() -> Option<Incoming> {
+    COMMANDS.try_receive().ok()
+}
+
+/// Commands dropped so far because the tracking loop had not taken the ones before.
+pub fn commands_dropped() -> u32 {
+    COMMANDS_DROPPED.load(Ordering::Relaxed)
+}
+
 /// The tracking loop's end of the stream.
 #[derive(Debug, Default)]
 pub struct RecordStream {
@@ -56,18 +89,20 @@ pub struct RecordStream {
 }
 
 impl RecordStream {
-    /// Frames `record` as the next frame and queues it for USB; never waits. A full queue
+    /// Frames `record` (a frame record, or an answer to a command: any record up to
+    /// [`RECORD_LEN`] bytes) as the next frame and queues it for USB; never waits. A full queue
     /// drops it ([`Self::dropped`]).
-    pub fn send(&mut self, record: &FrameRecord) {
+    pub fn send(&mut self, record: &[u8]) {
         let seq = self.seq;
         self.seq = seq.wrapping_add(1);
         let mut frame = Frame {
             len: 0,
             bytes: [0; FRAME_MAX],
         };
-        match encode_frame(seq, &record.encode(), &mut frame.bytes) {
+        match encode_frame(seq, record, &mut frame.bytes) {
             Ok(n) => frame.len = n,
-            // FRAME_MAX is the longest frame of a record: cannot happen.
+            // FRAME_MAX is the longest frame of a record: only a record longer than
+            // RECORD_LEN, which this firmware does not send.
             Err(e) => {
                 defmt::warn!("record stream: {}", e);
                 return;
@@ -96,7 +131,8 @@ impl RecordStream {
 }
 
 /// The USB device: USB OTG FS on PA12 (D+) and PA11 (D-), VBUS sensed on PA9 (as the OpenMV
-/// firmware does), one CDC-ACM function that sends the queued frames. Runs forever.
+/// firmware does), one CDC-ACM function that sends the queued frames and receives commands.
+/// Runs forever.
 #[embassy_executor::task]
 pub async fn usb(otg: Peri<'static, USB_OTG_FS>, dp: Peri<'static, PA12>, dm: Peri<'static, PA11>) {
     // Everything here lives in the task's static storage.
@@ -122,13 +158,43 @@ pub async fn usb(otg: Peri<'static, USB_OTG_FS>, dp: Peri<'static, PA12>, dm: Pe
         &mut [],
         &mut control,
     );
-    let mut class = CdcAcmClass::new(&mut builder, &mut state, PACKET as u16);
+    let class = CdcAcmClass::new(&mut builder, &mut state, PACKET as u16);
     let mut device = builder.build();
-    join(device.run(), forward(&mut class)).await;
+    let (mut tx, mut rx) = class.split();
+    join3(device.run(), forward(&mut tx), receive(&mut rx)).await;
+}
+
+/// Deframes what the host sends and queues the commands for the tracking loop.
+async fn receive<'d, D: embassy_usb::driver::Driver<'d>>(rx: &mut Receiver<'d, D>) {
+    let mut packet = [0u8; PACKET];
+    let mut deframer = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+    loop {
+        rx.wait_connection().await;
+        // Unplugged or reset ends the loop: wait for the host to configure the device again.
+        while let Ok(n) = rx.read_packet(&mut packet).await {
+            let mut input = packet.get(..n).unwrap_or(&[]);
+            while let Some(frame) = deframer.push(&mut input) {
+                let command = match Command::decode(frame.record) {
+                    Ok(c) => Some(c),
+                    Err(e) => {
+                        defmt::warn!("command {=u16}: {}", frame.seq, e);
+                        None
+                    }
+                };
+                let incoming = Incoming {
+                    seq: frame.seq,
+                    command,
+                };
+                if COMMANDS.try_send(incoming).is_err() {
+                    COMMANDS_DROPPED.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    }
 }
 
 /// Sends the queued frames while a program has the port open, discards them otherwise.
-async fn forward<'d, D: embassy_usb::driver::Driver<'d>>(class: &mut CdcAcmClass<'d, D>) {
+async fn forward<'d, D: embassy_usb::driver::Driver<'d>>(class: &mut Sender<'d, D>) {
     loop {
         class.wait_connection().await;
         loop {
@@ -149,7 +215,7 @@ async fn forward<'d, D: embassy_usb::driver::Driver<'d>>(class: &mut CdcAcmClass
 /// Writes `bytes` in full-size packets, then a short (possibly empty) one, so that the host
 /// hands the frame over at once rather than waiting for more.
 async fn write<'d, D: embassy_usb::driver::Driver<'d>>(
-    class: &mut CdcAcmClass<'d, D>,
+    class: &mut Sender<'d, D>,
     bytes: &[u8],
 ) -> Result<(), EndpointError> {
     for packet in bytes.chunks(PACKET) {
