@@ -1,13 +1,17 @@
 //! A board's record stream read on the host (`camgeom monitor`, and the main job's check of the
 //! emulated board's stream): [`camgeom_fw_app::link`] frames of [`camgeom_fw_app::report`]
 //! records, decoded by the board's own receiver, printed a line a frame record (a table row or
-//! one JSON object), then the summary and the link's counts.
+//! one JSON object), then the summary and the link's counts. The board's answers to commands
+//! ([`camgeom_fw_app::command::Ack`], `CACK` records on the same stream) are printed as they
+//! come and returned ([`monitor_link`]) for the caller to check against the commands it sent
+//! ([`command_bytes`], [`check_acks`]).
 
 use std::io::{Read, Write};
 
 use camgeom::target::TargetState;
+use camgeom_fw_app::command::{ACK_LEN, ACK_TAG, Ack, AckStatus, COMMAND_LEN, Command};
 use camgeom_fw_app::costs::STAGES;
-use camgeom_fw_app::link::{Deframer, LinkStats, max_frame_len};
+use camgeom_fw_app::link::{Deframer, LinkStats, encode_frame, max_frame_len};
 use camgeom_fw_app::report::{FrameRecord, RECORD_LEN, Record, SummaryRecord};
 use serde::Serialize;
 
@@ -56,6 +60,19 @@ struct JsonSummaryBody {
     overlays: u32,
 }
 
+/// A board's answer as JSON: `{"ack":{"seq":0,"kind":"tag","status":"done"}}`.
+#[derive(Serialize)]
+struct JsonAck {
+    ack: JsonAckBody,
+}
+
+#[derive(Serialize)]
+struct JsonAckBody {
+    seq: u16,
+    kind: &'static str,
+    status: &'static str,
+}
+
 #[derive(Serialize)]
 struct JsonLink {
     link: JsonLinkBody,
@@ -70,6 +87,116 @@ struct JsonLinkBody {
     bytes_discarded: u32,
     /// Frames whose record did not decode (another layout version, say).
     unreadable: u32,
+}
+
+/// The name of a command kind ([`Command::kind`]; `"unknown"` for 0, the kind of a command the
+/// board could not decode, or any other).
+pub fn kind_name(kind: u32) -> &'static str {
+    match kind {
+        1 => "mode",
+        2 => "tag",
+        3 => "camera",
+        4 => "save",
+        _ => "unknown",
+    }
+}
+
+/// The commands as the board reads them: each a [`Command`] record in a link frame, numbered
+/// from 0 in order (an emulated board's `commands.bin`, or the bytes sent to a live board).
+pub fn command_bytes(commands: &[Command]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut buf = [0u8; max_frame_len(COMMAND_LEN)];
+    for (seq, c) in (0u16..).zip(commands) {
+        // The buffer is `max_frame_len` of the record: encoding cannot fail.
+        if let Ok(n) = encode_frame(seq, &c.encode(), &mut buf) {
+            out.extend_from_slice(buf.get(..n).unwrap_or(&[]));
+        }
+    }
+    out
+}
+
+/// A command that was not carried out: its number and kind, and the board's answer
+/// (`None`: no answer came).
+#[derive(Debug, Serialize)]
+pub struct NotDone {
+    /// The command frame's number.
+    pub seq: u16,
+    /// Its kind ([`kind_name`]).
+    pub kind: &'static str,
+    /// The board's answer ([`AckStatus::name`]), `None` when none came.
+    pub status: Option<&'static str>,
+}
+
+/// What came of the commands sent to a board ([`check_acks`]).
+#[derive(Debug, Serialize)]
+pub struct CommandsReport {
+    /// Commands sent.
+    pub sent: usize,
+    /// Answered `done`.
+    pub done: usize,
+    /// Answered with anything else, or not answered.
+    pub not_done: Vec<NotDone>,
+}
+
+#[derive(Serialize)]
+struct JsonCommands<'a> {
+    commands: &'a CommandsReport,
+}
+
+impl CommandsReport {
+    /// Every command was answered `done`.
+    pub fn all_done(&self) -> bool {
+        self.done == self.sent
+    }
+
+    /// The report as a line: `{"commands":{...}}` with `json`, else `commands: N sent, N done`
+    /// and each command not done (`0 tag invalid`, `3 save unanswered`).
+    pub fn line(&self, json: bool) -> String {
+        if json {
+            return to_json_line(&JsonCommands { commands: self });
+        }
+        let mut line = format!("commands: {} sent, {} done", self.sent, self.done);
+        for n in &self.not_done {
+            line += &format!(
+                ", {} {} {}",
+                n.seq,
+                n.kind,
+                n.status.unwrap_or("unanswered")
+            );
+        }
+        line
+    }
+}
+
+/// Checks `acks` against the commands `sent` (numbered from 0 as [`command_bytes`] numbers
+/// them): the last answer to a number counts.
+pub fn check_acks(sent: &[Command], acks: &[Ack]) -> CommandsReport {
+    let mut done = 0;
+    let mut not_done = Vec::new();
+    for (seq, c) in (0u16..).zip(sent) {
+        match acks.iter().rev().find(|a| a.seq == seq) {
+            Some(a) if a.status == AckStatus::Done => done += 1,
+            answer => not_done.push(NotDone {
+                seq,
+                kind: kind_name(c.kind()),
+                status: answer.map(|a| a.status.name()),
+            }),
+        }
+    }
+    CommandsReport {
+        sent: sent.len(),
+        done,
+        not_done,
+    }
+}
+
+/// What [`monitor_link`] saw.
+#[derive(Debug)]
+pub struct Monitored {
+    /// The last line (the link's counts), for the caller to print.
+    pub last: String,
+    /// The board's answers to commands, in the order they came.
+    pub acks: Vec<Ack>,
 }
 
 fn state(s: TargetState) -> &'static str {
@@ -136,13 +263,27 @@ pub const COLUMNS: [&str; 14] = [
 /// table row with a header first, or with `json` one JSON object a line) and each row as CSV to
 /// `csv`; then the summary record's line, if the stream had one. Returns the last line, the
 /// link's counts (the caller prints it). A closed `out` (a pipe to `head`) is not an error.
+/// The board's answers to commands are printed too ([`monitor_link`] also returns them).
 pub fn monitor(
     input: &mut dyn Read,
     name: &str,
     json: bool,
     out: &mut dyn Write,
-    mut csv: Option<(&std::path::Path, &mut dyn Write)>,
+    csv: Option<(&std::path::Path, &mut dyn Write)>,
 ) -> Result<String> {
+    monitor_link(input, name, json, out, csv).map(|m| m.last)
+}
+
+/// [`monitor`], also returning the board's answers to commands: each printed as it comes, a
+/// line `ack: command SEQ KIND STATUS` in the table, `{"ack":{"seq":..,"kind":..,"status":..}}`
+/// with `json`.
+pub fn monitor_link(
+    input: &mut dyn Read,
+    name: &str,
+    json: bool,
+    out: &mut dyn Write,
+    mut csv: Option<(&std::path::Path, &mut dyn Write)>,
+) -> Result<Monitored> {
     let print = |out: &mut dyn Write, line: String| {
         let _ = writeln!(out, "{line}");
     };
@@ -152,10 +293,13 @@ pub fn monitor(
     if let Some((p, w)) = &mut csv {
         writeln!(w, "{}", COLUMNS.join(",")).map_err(|e| Error::new(*p, ErrorKind::Io(e)))?;
     }
+    // Frame records are the longest on the stream.
+    const _: () = assert!(ACK_LEN <= RECORD_LEN);
     let mut rx = Deframer::<{ max_frame_len(RECORD_LEN) }>::new();
     let mut buf = vec![0u8; 4096];
     let mut unreadable = 0u32;
     let mut summary: Option<SummaryRecord> = None;
+    let mut acks = Vec::new();
     loop {
         let n = input
             .read(&mut buf)
@@ -166,6 +310,28 @@ pub fn monitor(
         let mut bytes = buf.get(..n).unwrap_or(&[]);
         while let Some(frame) = rx.push(&mut bytes) {
             let seq = frame.seq;
+            if frame.record.get(..4) == Some(&ACK_TAG.to_le_bytes()[..]) {
+                match Ack::decode(frame.record) {
+                    Ok(a) => {
+                        let body = JsonAckBody {
+                            seq: a.seq,
+                            kind: kind_name(a.kind),
+                            status: a.status.name(),
+                        };
+                        if json {
+                            print(out, to_json_line(&JsonAck { ack: body }));
+                        } else {
+                            print(
+                                out,
+                                format!("ack: command {} {} {}", body.seq, body.kind, body.status),
+                            );
+                        }
+                        acks.push(a);
+                    }
+                    Err(_) => unreadable += 1,
+                }
+                continue;
+            }
             match Record::decode(frame.record) {
                 Ok(Record::Frame(f)) => {
                     if json {
@@ -219,11 +385,12 @@ pub fn monitor(
         bytes_discarded,
         unreadable,
     };
-    Ok(if json {
+    let last = if json {
         to_json_line(&JsonLink { link })
     } else {
         format!(
             "link: {frames} frames, {damaged} damaged, {lost} lost, {repeated} repeated, {bytes_discarded} bytes discarded, {unreadable} unreadable"
         )
-    })
+    };
+    Ok(Monitored { last, acks })
 }

@@ -1,29 +1,70 @@
-//! `camgeom monitor`: the host end of a board's record stream, from a saved stream file or a
-//! TCP socket (an emulated board's UART: QEMU `-serial tcp:...`); the decoding and printing are
+//! `camgeom monitor`: the host end of a board's record stream, from a saved stream file, a TCP
+//! socket (an emulated board's UART: QEMU `-serial tcp:...`) or a serial port (a board's USB
+//! CDC-ACM or UART); with commands from the command line sent to the board first (or written
+//! to a file for the emulated board). The decoding and printing are
 //! [`camgeom_host::monitor`].
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
 use std::net::TcpStream;
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
-use camgeom_host::monitor::monitor;
-use camgeom_host::{Error, ErrorKind, Result};
+use camgeom::camera::Lens;
+use camgeom_fw_app::command::{Command, Mode};
+use camgeom_fw_app::options::TAG_FAMILIES;
+use camgeom_host::monitor::{check_acks, command_bytes, monitor_link};
+use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 
+/// The tag family a `--set tag-id`/`tag-size` without `tag-family` sends.
+const DEFAULT_FAMILY: &str = "tag36h11";
+/// The serial port's speed unless `--baud` says otherwise (a USB CDC-ACM port ignores it).
+const DEFAULT_BAUD: u32 = 115_200;
+/// How long one read of a live source waits before it looks at the clock again.
+const POLL: Duration = Duration::from_millis(100);
+
 #[derive(Args, Debug)]
-#[command(group(clap::ArgGroup::new("source").required(true).args(["replay", "tcp"])))]
+#[command(group(clap::ArgGroup::new("source").args(["replay", "tcp", "serial"])))]
 pub struct MonitorArgs {
     /// A saved record stream (an emulated board's `serial.bin`, or bytes captured from a real
-    /// board's port).
+    /// board's port). Nothing is sent to it.
     #[arg(long, value_name = "FILE")]
     replay: Option<PathBuf>,
     /// Connect to a board's stream at HOST:PORT (an emulated board started with QEMU
     /// `-serial tcp:HOST:PORT,server`) and read until it closes.
     #[arg(long, value_name = "HOST:PORT")]
     tcp: Option<String>,
-    /// One JSON object a frame record (and one for the summary, one for the link counts)
-    /// instead of a table.
+    /// Read a board's serial port (`/dev/ttyACM0`, `COM3`: the OpenMV Cam's USB, or a UART
+    /// adapter) until it closes or `--seconds` pass.
+    #[arg(long, value_name = "PORT")]
+    serial: Option<String>,
+    /// The serial port's speed, bits a second (default 115200; a USB CDC-ACM port ignores it).
+    #[arg(long, value_name = "N", requires = "serial")]
+    baud: Option<u32>,
+    /// Stop reading a live board (`--tcp`, `--serial`) after this many seconds.
+    #[arg(long, value_name = "S")]
+    seconds: Option<f64>,
+    /// A setting to send to the board, repeatable: `tag-size=METRES` (the side of the tag's
+    /// black square), `tag-family=NAME` (tag36h11, tag25h9, tag16h5, tagStandard41h12;
+    /// default tag36h11), `tag-id=N` (default 0), `camera=FILE` (intrinsics and distortion from
+    /// a camgeom or OpenCV camera file). The tag's keys travel as one command, which needs
+    /// `tag-size`.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+    /// Switch the board to this mode.
+    #[arg(long, value_name = "MODE", value_parser = clap::builder::PossibleValuesParser::new(Mode::ALL.map(Mode::name)))]
+    mode: Option<String>,
+    /// Have the board store its settings in flash (sent after the other commands), where it
+    /// loads them at boot.
+    #[arg(long)]
+    save: bool,
+    /// Write the framed commands to this file instead of sending them (an emulated board's
+    /// `commands.bin`).
+    #[arg(long, value_name = "FILE")]
+    commands_out: Option<PathBuf>,
+    /// One JSON object a frame record (and one for each answer to a command, the summary, the
+    /// link counts and the commands' outcome) instead of a table.
     #[arg(long)]
     json: bool,
     /// Also write every frame record as a CSV row to this file.
@@ -31,21 +72,188 @@ pub struct MonitorArgs {
     csv: Option<PathBuf>,
 }
 
-/// `camgeom monitor`: decodes the stream, printing as it goes; returns the link's counts.
+/// The commands the arguments ask for, in the order the board applies them: camera, tag,
+/// mode, save.
+fn commands(a: &MonitorArgs) -> Result<Vec<Command>> {
+    let (mut size, mut family, mut id, mut camera) = (None, None, None, None);
+    for s in &a.set {
+        let (key, value) = s
+            .split_once('=')
+            .ok_or_else(|| Error::usage(format!("--set {s}: expected KEY=VALUE")))?;
+        let bad = |what: &str| Error::usage(format!("--set {s}: {what}"));
+        let twice = || Error::usage(format!("--set {key} given twice"));
+        match key {
+            "tag-size" => {
+                let v: f32 = value
+                    .parse()
+                    .ok()
+                    .filter(|v: &f32| v.is_finite() && *v > 0.0)
+                    .ok_or_else(|| bad("the size must be a positive number of metres"))?;
+                size.replace(v).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            "tag-family" => {
+                let names: Vec<&str> = TAG_FAMILIES.iter().map(|f| f.name()).collect();
+                let k = names
+                    .iter()
+                    .position(|n| *n == value)
+                    .ok_or_else(|| bad(&format!("the family is one of {}", names.join(", "))))?;
+                let k = u8::try_from(k).map_err(|_| bad("family index"))?;
+                family.replace(k).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            "tag-id" => {
+                let v: u16 = value
+                    .parse()
+                    .map_err(|_| bad("the id is a number from 0 to 65535"))?;
+                id.replace(v).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            "camera" => {
+                let spec = load_camera(value)?;
+                let k = spec.camera.intrinsics;
+                let distortion = match spec.camera.lens {
+                    Lens::BrownConrady(d) => d.to_opencv().map(|v| v as f32),
+                    Lens::KannalaBrandt(_) => {
+                        return Err(Error::new(
+                            value,
+                            ErrorKind::Unsupported(
+                                "a fisheye camera: the board models k1 k2 p1 p2 k3".into(),
+                            ),
+                        ));
+                    }
+                };
+                let c = Command::SetCamera {
+                    intrinsics: [k.fx(), k.fy(), k.cx(), k.cy()].map(|v| v as f32),
+                    distortion,
+                };
+                camera.replace(c).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            _ => {
+                return Err(bad("the keys are tag-size, tag-family, tag-id and camera"));
+            }
+        }
+    }
+    let mut out: Vec<Command> = camera.into_iter().collect();
+    if family.is_some() || id.is_some() || size.is_some() {
+        let size = size.ok_or_else(|| {
+            Error::usage("--set tag-family/tag-id: the tag also needs --set tag-size=METRES")
+        })?;
+        let family = match family {
+            Some(f) => f,
+            None => TAG_FAMILIES
+                .iter()
+                .position(|f| f.name() == DEFAULT_FAMILY)
+                .and_then(|k| u8::try_from(k).ok())
+                .unwrap_or(0),
+        };
+        out.push(Command::SetTag {
+            family,
+            id: id.unwrap_or(0),
+            size,
+        });
+    }
+    if let Some(m) = &a.mode {
+        let mode = Mode::ALL
+            .into_iter()
+            .find(|x| x.name() == m)
+            .ok_or_else(|| Error::usage(format!("--mode {m}")))?;
+        out.push(Command::SetMode(mode));
+    }
+    if a.save {
+        out.push(Command::Save);
+    }
+    Ok(out)
+}
+
+/// A live source read with a short timeout, so that `--seconds` can end it: a read that
+/// times out is tried again until the deadline, then reads as the end of the stream.
+struct Live<R> {
+    inner: R,
+    deadline: Option<Instant>,
+}
+
+impl<R: Read> Read for Live<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        loop {
+            if self.deadline.is_some_and(|d| Instant::now() >= d) {
+                return Ok(0);
+            }
+            match self.inner.read(buf) {
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                    ) => {}
+                r => return r,
+            }
+        }
+    }
+}
+
+/// Sends `bytes` (the framed commands) to a live board.
+fn send(w: &mut dyn Write, bytes: &[u8], name: &str) -> Result<()> {
+    w.write_all(bytes)
+        .and_then(|()| w.flush())
+        .map_err(|e| Error::new(name, ErrorKind::Write(e)))
+}
+
+/// `camgeom monitor`: sends the commands (or writes them to `--commands-out`), then decodes
+/// the stream, printing as it goes; returns the link's counts and, when commands were sent,
+/// what came of them. A command the board refused or did not answer is an error (exit 1),
+/// after the link's counts are printed.
 pub fn run(a: &MonitorArgs) -> Result<String> {
-    let (name, mut input): (String, Box<dyn Read>) = match (&a.replay, &a.tcp) {
-        (Some(p), _) => (
+    let commands = commands(a)?;
+    let bytes = command_bytes(&commands);
+    if let Some(p) = &a.commands_out {
+        std::fs::write(p, &bytes).map_err(|e| Error::new(p, ErrorKind::Write(e)))?;
+    } else if !commands.is_empty() && a.replay.is_some() {
+        return Err(Error::usage(
+            "--set/--mode/--save go to a live board (--tcp, --serial) or to --commands-out; \
+             nothing is sent to a --replay",
+        ));
+    }
+    // Commands go on the link unless they went to a file.
+    let live_commands = a.commands_out.is_none() && !commands.is_empty();
+    let deadline = a
+        .seconds
+        .map(|s| {
+            Duration::try_from_secs_f64(s)
+                .map(|d| Instant::now() + d)
+                .map_err(|_| Error::usage(format!("--seconds {s}: not a duration")))
+        })
+        .transpose()?;
+    let (name, mut input): (String, Box<dyn Read>) = match (&a.replay, &a.tcp, &a.serial) {
+        (Some(p), _, _) => (
             p.display().to_string(),
             Box::new(File::open(p).map_err(|e| Error::new(p, ErrorKind::Io(e)))?),
         ),
-        (None, Some(addr)) => (
-            addr.clone(),
-            Box::new(
-                TcpStream::connect(addr)
-                    .map_err(|e| Error::new(addr.as_str(), ErrorKind::Io(e)))?,
-            ),
-        ),
-        (None, None) => return Err(Error::usage("give --replay FILE or --tcp HOST:PORT")),
+        (None, Some(addr), _) => {
+            let io = |e| Error::new(addr.as_str(), ErrorKind::Io(e));
+            let mut s = TcpStream::connect(addr).map_err(io)?;
+            if live_commands {
+                send(&mut s, &bytes, addr)?;
+            }
+            if deadline.is_some() {
+                s.set_read_timeout(Some(POLL)).map_err(io)?;
+            }
+            (addr.clone(), Box::new(Live { inner: s, deadline }))
+        }
+        (None, None, Some(port)) => {
+            let mut s = serialport::new(port, a.baud.unwrap_or(DEFAULT_BAUD))
+                .timeout(POLL)
+                .open()
+                .map_err(|e| Error::new(port.as_str(), ErrorKind::Io(e.into())))?;
+            if live_commands {
+                send(&mut s, &bytes, port)?;
+            }
+            (port.clone(), Box::new(Live { inner: s, deadline }))
+        }
+        (None, None, None) if a.commands_out.is_some() => return Ok(String::new()),
+        (None, None, None) => {
+            return Err(Error::usage(
+                "give --replay FILE, --tcp HOST:PORT or --serial PORT (or --commands-out FILE)",
+            ));
+        }
     };
     let mut csv = match &a.csv {
         Some(p) => Some((
@@ -56,7 +264,7 @@ pub fn run(a: &MonitorArgs) -> Result<String> {
     };
     let stdout = std::io::stdout();
     let mut out = stdout.lock();
-    let last = monitor(
+    let seen = monitor_link(
         &mut input,
         &name,
         a.json,
@@ -64,7 +272,24 @@ pub fn run(a: &MonitorArgs) -> Result<String> {
         csv.as_mut().map(|(p, w)| (*p, w as &mut dyn Write)),
     )?;
     if let Some((p, mut w)) = csv {
-        w.flush().map_err(|e| Error::new(p, ErrorKind::Io(e)))?;
+        w.flush().map_err(|e| Error::new(p, ErrorKind::Write(e)))?;
     }
-    Ok(last + "\n")
+    if !live_commands {
+        return Ok(seen.last + "\n");
+    }
+    let report = check_acks(&commands, &seen.acks);
+    let text = format!("{}\n{}\n", seen.last, report.line(a.json));
+    if report.all_done() {
+        return Ok(text);
+    }
+    // The counts still reach standard output; the error says which commands failed.
+    let _ = out.write_all(text.as_bytes()).and_then(|()| out.flush());
+    Err(Error::new(
+        name,
+        ErrorKind::Undetermined(format!(
+            "{} of {} commands not done",
+            report.sent - report.done,
+            report.sent
+        )),
+    ))
 }

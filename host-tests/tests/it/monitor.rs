@@ -3,9 +3,20 @@
 //! line with the record's numbers; a damaged frame is counted and skipped, the rest still
 //! decode; a missing file is an input error. The emulated board's real stream is checked by
 //! the main job (`cargo xtask run`, the tag job).
+//!
+//! Commands: `--commands-out` writes frames the board's receiver (`Deframer`,
+//! `Command::decode`) reads back as the commands asked for, the camera's values as the camera
+//! file has them (read here with `serde_json`, not camgeom's loader); the board's answers
+//! (`CACK`) in a stream are printed; over `--tcp` a local listener plays the board: it reads
+//! the commands, answers each, sends frame records, and the monitor's exit status says whether
+//! every command was done.
+
+use std::io::{Read, Write};
+use std::net::TcpListener;
 
 use camgeom::target::TargetState;
-use camgeom_fw_app::link::{encode_frame, max_frame_len};
+use camgeom_fw_app::command::{Ack, AckStatus, COMMAND_LEN, Command, Mode};
+use camgeom_fw_app::link::{Deframer, encode_frame, max_frame_len};
 use camgeom_fw_app::report::{FrameRecord, PoseRecord, RECORD_LEN, SummaryRecord};
 use serde_json::Value;
 
@@ -103,4 +114,264 @@ fn a_missing_stream_is_an_input_error() {
     let out = camgeom(&["monitor", "--replay", "no/such/stream.bin"]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("stream.bin"));
+}
+
+/// Frames each record in order, numbered from `first`.
+fn framed(first: u16, records: &[Vec<u8>]) -> Vec<u8> {
+    let mut out = Vec::new();
+    let mut buf = [0u8; max_frame_len(RECORD_LEN)];
+    for (seq, rec) in (first..).zip(records) {
+        let m = encode_frame(seq, rec, &mut buf).unwrap();
+        out.extend_from_slice(&buf[..m]);
+    }
+    out
+}
+
+/// The commands in framed bytes, with their sequence numbers, as the board's receiver reads
+/// them.
+fn read_commands(bytes: &[u8]) -> Vec<(u16, Command)> {
+    let mut rx = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+    let mut input = bytes;
+    let mut out = Vec::new();
+    while let Some(f) = rx.push(&mut input) {
+        out.push((f.seq, Command::decode(f.record).unwrap()));
+    }
+    assert_eq!(rx.stats().damaged, 0);
+    out
+}
+
+fn ack(seq: u16, kind: u32, status: AckStatus) -> Vec<u8> {
+    Ack { seq, kind, status }.encode().to_vec()
+}
+
+#[test]
+fn commands_out_frames_the_commands_the_board_reads() {
+    let camera = crate::common::chessboard("camera.json");
+    let out_file = scratch_file("commands", "").with_extension("bin");
+    let out = camgeom(&[
+        "monitor",
+        "--set",
+        "tag-size=0.08",
+        "--set",
+        "tag-family=tag25h9",
+        "--set",
+        "tag-id=7",
+        "--set",
+        &format!("camera={}", camera.display()),
+        "--mode",
+        "track-corners",
+        "--save",
+        "--commands-out",
+        out_file.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got = read_commands(&std::fs::read(&out_file).unwrap());
+    let json: Value = serde_json::from_str(&std::fs::read_to_string(&camera).unwrap()).unwrap();
+    let f = |k: &str| json[k].as_f64().unwrap() as f32;
+    let distortion: Vec<f32> = json["distortion"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
+    let want = [
+        Command::SetCamera {
+            intrinsics: [f("fx"), f("fy"), f("cx"), f("cy")],
+            distortion: distortion.try_into().unwrap(),
+        },
+        Command::SetTag {
+            family: 1,
+            id: 7,
+            size: 0.08,
+        },
+        Command::SetMode(Mode::TrackCorners),
+        Command::Save,
+    ];
+    assert_eq!(got, (0..).zip(want).collect::<Vec<_>>());
+
+    // The documented defaults: tag36h11 (family 0), id 0; the size has none.
+    let out = camgeom(&[
+        "monitor",
+        "--set",
+        "tag-size=0.1",
+        "--commands-out",
+        out_file.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let got = read_commands(&std::fs::read(&out_file).unwrap());
+    let tag = Command::SetTag {
+        family: 0,
+        id: 0,
+        size: 0.1,
+    };
+    assert_eq!(got, [(0, tag)]);
+    for bad in [
+        &["--set", "tag-id=3"][..],
+        &["--set", "tag-family=tag99h1", "--set", "tag-size=0.1"],
+        &["--set", "tag-size=-1"],
+        &["--set", "colour=red"],
+        &["--mode", "dance"],
+    ] {
+        let mut args = vec!["monitor", "--commands-out", out_file.to_str().unwrap()];
+        args.extend_from_slice(bad);
+        let out = camgeom(&args);
+        assert_eq!(out.status.code(), Some(2), "{bad:?}");
+    }
+    // Nothing is sent to a replayed stream.
+    let out = camgeom(&["monitor", "--replay", out_file.to_str().unwrap(), "--save"]);
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn answers_in_a_replayed_stream_are_printed() {
+    let records = [
+        ack(0, 2, AckStatus::Done),
+        frame(0).encode().to_vec(),
+        ack(1, 4, AckStatus::FlashFailed),
+        frame(1).encode().to_vec(),
+    ];
+    let got = lines(&framed(0, &records));
+    assert_eq!(got[0]["ack"]["seq"], 0);
+    assert_eq!(got[0]["ack"]["kind"], "tag");
+    assert_eq!(got[0]["ack"]["status"], "done");
+    assert_eq!(got[1]["frame"], 0);
+    assert_eq!(got[2]["ack"]["kind"], "save");
+    assert_eq!(got[2]["ack"]["status"], "flash_failed");
+    assert_eq!(got[3]["frame"], 1);
+    let link = &got[4]["link"];
+    assert_eq!(link["frames"], 4);
+    assert_eq!(link["unreadable"], 0, "{link}");
+    // No commands were sent: a refusal in a replay is printed, not checked.
+    assert_eq!(got.len(), 5);
+
+    let path = scratch_file("acks", "").with_extension("bin");
+    std::fs::write(&path, framed(0, &records)).unwrap();
+    let out = camgeom(&["monitor", "--replay", path.to_str().unwrap()]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let acks: Vec<&str> = text.lines().filter(|l| l.starts_with("ack:")).collect();
+    assert_eq!(
+        acks,
+        [
+            "ack: command 0 tag done",
+            "ack: command 1 save flash_failed"
+        ]
+    );
+}
+
+/// A board on a local socket: reads `n` command frames, answers each with `status(seq,
+/// command)`, sends three frame records and closes. Returns the commands it read and the
+/// monitor's output.
+fn board_session(
+    n: usize,
+    args: &[&str],
+    status: fn(u16) -> AckStatus,
+) -> (Vec<(u16, Command)>, std::process::Output) {
+    let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    let board = std::thread::spawn(move || {
+        let (mut s, _) = listener.accept().unwrap();
+        s.set_read_timeout(Some(std::time::Duration::from_secs(20)))
+            .unwrap();
+        let mut rx = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+        let mut got = Vec::new();
+        let mut buf = [0u8; 64];
+        while got.len() < n {
+            let k = s.read(&mut buf).unwrap();
+            assert!(k > 0, "the monitor closed before sending {n} commands");
+            let mut input = &buf[..k];
+            while let Some(f) = rx.push(&mut input) {
+                got.push((f.seq, Command::decode(f.record).unwrap()));
+            }
+        }
+        let mut records: Vec<Vec<u8>> = got
+            .iter()
+            .map(|(seq, c)| ack(*seq, c.kind(), status(*seq)))
+            .collect();
+        records.extend((0..3).map(|k| frame(k).encode().to_vec()));
+        s.write_all(&framed(100, &records)).unwrap();
+        got
+    });
+    let mut all = vec!["monitor", "--tcp", &addr];
+    all.extend_from_slice(args);
+    let out = camgeom(&all);
+    (board.join().unwrap(), out)
+}
+
+#[test]
+fn commands_go_to_a_board_over_tcp_and_its_answers_are_checked() {
+    let args = [
+        "--set",
+        "tag-size=0.05",
+        "--set",
+        "tag-id=12",
+        "--mode",
+        "track-tag",
+        "--save",
+    ];
+    let (got, out) = board_session(3, &args, |_| AckStatus::Done);
+    assert_eq!(
+        got,
+        [
+            (
+                0,
+                Command::SetTag {
+                    family: 0,
+                    id: 12,
+                    size: 0.05
+                }
+            ),
+            (1, Command::SetMode(Mode::TrackTag)),
+            (2, Command::Save),
+        ]
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines.contains(&"ack: command 0 tag done"), "{text}");
+    assert!(lines.contains(&"ack: command 1 mode done"), "{text}");
+    assert!(lines.contains(&"ack: command 2 save done"), "{text}");
+    // The three frame rows (the table's columns), after the header.
+    assert_eq!(
+        lines
+            .iter()
+            .filter(|l| l.split('\t').count() == 14 && !l.starts_with("seq"))
+            .count(),
+        3
+    );
+    assert_eq!(lines.last(), Some(&"commands: 3 sent, 3 done"), "{text}");
+
+    // The board refuses the mode: the monitor still prints everything, and fails.
+    let (_, out) = board_session(2, &["--json", "--mode", "calibrate", "--save"], |seq| {
+        if seq == 0 {
+            AckStatus::Unsupported
+        } else {
+            AckStatus::Done
+        }
+    });
+    assert_eq!(out.status.code(), Some(1));
+    let text = String::from_utf8(out.stdout).unwrap();
+    let got: Vec<Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(got[0]["ack"]["status"], "unsupported");
+    assert_eq!(got.iter().filter(|v| v.get("frame").is_some()).count(), 3);
+    let commands = &got.last().unwrap()["commands"];
+    assert_eq!(commands["sent"], 2, "{commands}");
+    assert_eq!(commands["done"], 1, "{commands}");
+    assert_eq!(commands["not_done"][0]["kind"], "mode", "{commands}");
+    assert_eq!(
+        commands["not_done"][0]["status"], "unsupported",
+        "{commands}"
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("1 of 2 commands not done"));
 }
