@@ -5,8 +5,8 @@
 //! ([`crate::tracker::defaults`]). [`Settings::save`] erases the sector, writes the 64-byte
 //! record (two 32-byte flash words) and reads it back.
 //!
-//! Erasing the sector takes the tracking loop's time (a sector erase is up to about 2 s on the
-//! STM32H743, datasheet DS12110 `t_ERASE128KB`) but not USB's: the code runs from bank 1, so
+//! Erasing the sector takes the tracking loop's time (a 128 KiB sector erase can take seconds:
+//! the STM32H743 datasheet's `t_ERASE128KB`) but not USB's: the code runs from bank 1, so
 //! the interrupt-priority USB executor keeps running while bank 2 erases.
 
 use camgeom_fw_app::settings::{SaveError, Settings};
