@@ -8,6 +8,12 @@
 //! Erasing the sector takes the tracking loop's time (a 128 KiB sector erase can take seconds:
 //! the STM32H743 datasheet's `t_ERASE128KB`) but not USB's: the code runs from bank 1, so
 //! the interrupt-priority USB executor keeps running while bank 2 erases.
+//!
+//! Not handled (and untested without a board): a reset in the middle of a flash word's
+//! programming can leave a word whose ECC does not check, and the H7 answers the read of such a
+//! word with a bus error (RM0433, "Flash memory error protections") rather than bytes that fail
+//! the record's CRC; the board would then fault at boot until the sector is erased from the
+//! host (a probe, or a full erase over DFU).
 
 use camgeom_fw_app::settings::{SaveError, Settings};
 use embassy_stm32::flash::{Blocking, Flash};
