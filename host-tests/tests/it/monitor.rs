@@ -9,7 +9,7 @@
 //! file has them (read here with `serde_json`, not camgeom's loader); the board's answers
 //! (`CACK`) in a stream are printed; over `--tcp` a local listener plays the board: it reads
 //! the commands, answers each, sends frame records, and the monitor's exit status says whether
-//! every command was done.
+//! every command was done; over `--serial` a pseudo-terminal's other end plays the board.
 
 use std::io::{Read, Write};
 use std::net::TcpListener;
@@ -374,4 +374,82 @@ fn commands_go_to_a_board_over_tcp_and_its_answers_are_checked() {
         "{commands}"
     );
     assert!(String::from_utf8_lossy(&out.stderr).contains("1 of 2 commands not done"));
+}
+
+/// `--serial`: a pseudo-terminal plays the board's port (its other end the board), which reads
+/// the commands, answers them and sends frame records; the monitor stops after `--seconds`.
+#[cfg(target_os = "linux")]
+#[test]
+fn commands_go_to_a_board_over_a_serial_port() {
+    use rustix::pty::{OpenptFlags, grantpt, openpt, ptsname, unlockpt};
+    let master = openpt(OpenptFlags::RDWR | OpenptFlags::NOCTTY).unwrap();
+    grantpt(&master).unwrap();
+    unlockpt(&master).unwrap();
+    let port = ptsname(&master, Vec::new()).unwrap().into_string().unwrap();
+    // Held open so that the board's end never sees the port hang up between the monitor's
+    // open and close.
+    let _slave = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&port)
+        .unwrap();
+    let mut master = std::fs::File::from(master);
+    // The board, on its own thread: a monitor that fails leaves it waiting, not the test.
+    let board = std::thread::spawn(move || {
+        let mut rx = Deframer::<{ max_frame_len(COMMAND_LEN) }>::new();
+        let mut got = Vec::new();
+        let mut buf = [0u8; 64];
+        while got.len() < 2 {
+            let k = master.read(&mut buf).unwrap();
+            let mut input = &buf[..k];
+            while let Some(f) = rx.push(&mut input) {
+                got.push((f.seq, Command::decode(f.record).unwrap()));
+            }
+        }
+        let records = [
+            ack(0, 2, AckStatus::Done),
+            ack(1, 4, AckStatus::Done),
+            frame(0).encode().to_vec(),
+        ];
+        master.write_all(&framed(0, &records)).unwrap();
+        // The port stays open until the monitor has read it.
+        (got, master)
+    });
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_camgeom"))
+        .args([
+            "monitor",
+            "--serial",
+            &port,
+            "--baud",
+            "921600",
+            "--seconds",
+            "4",
+            "--set",
+            "tag-size=0.08",
+            "--save",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (got, _master) = board.join().unwrap();
+    let tag = Command::SetTag {
+        family: 0,
+        id: 0,
+        size: 0.08,
+    };
+    assert_eq!(got, [(0, tag), (1, Command::Save)]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines.contains(&"ack: command 1 save done"), "{text}");
+    assert_eq!(lines.last(), Some(&"commands: 2 sent, 2 done"), "{text}");
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.starts_with("link: 3 frames, 0 damaged")),
+        "{text}"
+    );
 }
