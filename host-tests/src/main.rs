@@ -150,11 +150,14 @@ enum Command {
     /// with --intrinsics each point's direction in the camera frame and the angles between
     /// them. --overlay draws the segments coloured by point and the horizon.
     Vanishing(vanishing_cmd::VanishingArgs),
-    /// Read a board's record stream: a saved stream file (--replay) or a board's socket
-    /// (--tcp), one line a frame (state, counts, pose, cost), then the link's counts.
+    /// Read a board's record stream: a saved stream file (--replay), a board's socket (--tcp)
+    /// or serial port (--serial), one line a frame (state, counts, pose, cost), then the
+    /// link's counts; send it commands first (--set, --mode, --save).
     ///
     /// The stream is camgeom's framing (COBS, sequence number, CRC-32) of the board's binary
     /// records; damaged frames are counted and skipped. --json prints one JSON object a line.
+    /// The board's answers to commands are printed as they come; a command it refused or did
+    /// not answer makes the exit status 1.
     Monitor(monitor_cmd::MonitorArgs),
 }
 
