@@ -21,7 +21,7 @@ use camgeom::camera::{Camera, Distortion, Intrinsics};
 use crc::{CRC_32_ISO_HDLC, Crc};
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 
-use crate::command::{Command, Mode};
+use crate::command::{AckStatus, Command, Mode};
 use crate::options::{Acquisition, AppOptions};
 use crate::wire::{Reader, WireError, Writer, tag};
 
@@ -83,6 +83,33 @@ impl Settings {
             Command::Save => return Applied::Save,
         }
         Applied::Changed
+    }
+
+    /// Carries out a (decoded, so checked) command the way every board does, and says how it
+    /// went: a change is kept only when `fits` accepts the settings it makes (the board can
+    /// run them; `Err(status)` says why not, e.g. [`AckStatus::Unsupported`] for a mode the
+    /// firmware does not have), a save goes to `save` ([`AckStatus::FlashFailed`] when it
+    /// fails).
+    pub fn carry_out(
+        &mut self,
+        command: &Command,
+        fits: impl FnOnce(&Settings) -> Result<(), AckStatus>,
+        save: impl FnOnce(&Settings) -> Result<(), SaveError>,
+    ) -> AckStatus {
+        let mut next = *self;
+        match next.apply(command) {
+            Applied::Changed => match fits(&next) {
+                Ok(()) => {
+                    *self = next;
+                    AckStatus::Done
+                }
+                Err(status) => status,
+            },
+            Applied::Save => match save(self) {
+                Ok(()) => AckStatus::Done,
+                Err(_) => AckStatus::FlashFailed,
+            },
+        }
     }
 
     /// The camera. Errors: as [`Intrinsics::new`] and [`Distortion::from_opencv`].
@@ -337,6 +364,28 @@ mod tests {
             Settings::decode(&bad.encode()),
             Err(WireError::Field { field: "size", .. })
         ));
+    }
+
+    #[test]
+    fn a_change_the_board_cannot_run_is_not_kept() {
+        let mut s = settings();
+        let before = s;
+        let calibrate = Command::SetMode(Mode::Calibrate);
+        let refuse = |_: &Settings| Err(AckStatus::Unsupported);
+        let no_save = |_: &Settings| -> Result<(), SaveError> { unreachable!() };
+        assert_eq!(
+            s.carry_out(&calibrate, refuse, no_save),
+            AckStatus::Unsupported
+        );
+        assert_eq!(s, before);
+        let accept = |_: &Settings| Ok(());
+        assert_eq!(s.carry_out(&calibrate, accept, no_save), AckStatus::Done);
+        assert_eq!(s.mode, Mode::Calibrate);
+        let fail = |_: &Settings| Err(SaveError::Verify);
+        assert_eq!(
+            s.carry_out(&Command::Save, accept, fail),
+            AckStatus::FlashFailed
+        );
     }
 
     #[test]

@@ -18,7 +18,7 @@ use camgeom_fw_app::pipeline::{AppError, Clock, FrameLoop};
 use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
 use camgeom_fw_app::report::{FrameRecord, SummaryRecord};
 use camgeom_fw_app::run::{Acquisition, RUN_SPEC_LEN, RunSpec};
-use camgeom_fw_app::settings::{Applied, Settings};
+use camgeom_fw_app::settings::Settings;
 
 use crate::flash::{FLASH_FILE, FlashModel};
 use crate::semihost::{HostError, HostFile, HostFrames};
@@ -363,31 +363,28 @@ fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings 
     settings
 }
 
-/// Carries out one command: this firmware tracks, so a mode that does not is refused.
+/// Carries out one command ([`Settings::carry_out`]): this firmware tracks, so a mode that
+/// does not is refused; a save is stored in the flash and persisted.
 fn command(
     c: Command,
     settings: &mut Settings,
     run: &RunSpec,
     flash: &mut FlashModel,
 ) -> AckStatus {
-    let mut next = *settings;
-    match next.apply(&c) {
-        Applied::Changed if run.with_settings(&next).is_none() => AckStatus::Unsupported,
-        Applied::Changed => {
-            *settings = next;
-            AckStatus::Done
+    let fits = |s: &Settings| {
+        run.with_settings(s)
+            .map(|_| ())
+            .ok_or(AckStatus::Unsupported)
+    };
+    settings.carry_out(&c, fits, |s| {
+        s.save(flash, 0).inspect_err(|e| {
+            defmt::error!("settings: not saved: {}", e);
+        })?;
+        if let Err(e) = flash.persist() {
+            fail_host(FLASH_FILE, e)
         }
-        Applied::Save => match settings.save(flash, 0) {
-            Err(e) => {
-                defmt::error!("settings: not saved: {}", e);
-                AckStatus::FlashFailed
-            }
-            Ok(()) => match flash.persist() {
-                Ok(()) => AckStatus::Done,
-                Err(e) => fail_host(FLASH_FILE, e),
-            },
-        },
-    }
+        Ok(())
+    })
 }
 
 /// The acquisition of the box job: the corners the run gives (no tag detector in this

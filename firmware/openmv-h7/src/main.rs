@@ -42,7 +42,7 @@ use camgeom::apriltag::TagTarget;
 use camgeom::target::{Acquire, Stage};
 use camgeom_fw_app::command::{Ack, AckStatus};
 use camgeom_fw_app::report::{ErrorCode, FrameRecord};
-use camgeom_fw_app::settings::{Applied, Settings};
+use camgeom_fw_app::settings::Settings;
 use camgeom_fw_app::{AppError, Cost, FrameLoop, FrameReport};
 use defmt_rtt as _;
 use embassy_executor::{InterruptExecutor, Spawner};
@@ -333,28 +333,21 @@ fn command(
     let Some(c) = incoming.command else {
         return (0, AckStatus::Invalid);
     };
-    let mut next = *settings;
-    let status = match next.apply(&c) {
-        Applied::Changed => match tracker::config(&next) {
-            Err(Unfit::Mode) => AckStatus::Unsupported,
-            Err(Unfit::Config(e)) => {
-                defmt::warn!("command {=u16}: {}", incoming.seq, e);
-                AckStatus::Invalid
-            }
-            Ok(_) => {
-                *restart |= next != *settings;
-                *settings = next;
-                AckStatus::Done
-            }
-        },
-        Applied::Save => match store.save(settings) {
-            Ok(()) => AckStatus::Done,
-            Err(e) => {
-                defmt::error!("settings: not saved: {}", e);
-                AckStatus::FlashFailed
-            }
-        },
+    let before = *settings;
+    let fits = |s: &Settings| match tracker::config(s) {
+        Err(Unfit::Mode) => Err(AckStatus::Unsupported),
+        Err(Unfit::Config(e)) => {
+            defmt::warn!("command {=u16}: {}", incoming.seq, e);
+            Err(AckStatus::Invalid)
+        }
+        Ok(_) => Ok(()),
     };
+    let status = settings.carry_out(&c, fits, |s| {
+        store.save(s).inspect_err(|e| {
+            defmt::error!("settings: not saved: {}", e);
+        })
+    });
+    *restart |= *settings != before;
     (c.kind(), status)
 }
 
