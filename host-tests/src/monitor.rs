@@ -92,13 +92,7 @@ struct JsonLinkBody {
 /// The name of a command kind ([`Command::kind`]; `"unknown"` for 0, the kind of a command the
 /// board could not decode, or any other).
 pub fn kind_name(kind: u32) -> &'static str {
-    match kind {
-        1 => "mode",
-        2 => "tag",
-        3 => "camera",
-        4 => "save",
-        _ => "unknown",
-    }
+    camgeom_fw_app::command::Command::kind_name(kind)
 }
 
 /// The commands as the board reads them: each a [`Command`] record in a link frame, numbered

@@ -132,6 +132,18 @@ impl Command {
         }
     }
 
+    /// The name of a wire kind ([`Command::kind`]; `"unknown"` for another, e.g. the 0 of
+    /// an answer to a command that did not decode).
+    pub fn kind_name(kind: u32) -> &'static str {
+        match kind {
+            1 => "mode",
+            2 => "tag",
+            3 => "camera",
+            4 => "save",
+            _ => "unknown",
+        }
+    }
+
     /// The [`COMMAND_LEN`] bytes.
     pub fn encode(&self) -> [u8; COMMAND_LEN] {
         Writer::fill(COMMAND_TAG, VERSION, |w| {
