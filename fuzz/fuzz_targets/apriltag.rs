@@ -12,10 +12,11 @@
 //! rotation reported; a code with at most `max_hamming` flipped bits (`2 max_hamming <
 //! min_distance`) decodes to its own id.
 //!
-//! Tracking by detection on the same frames: `Detector::refine_target` and `find_target_near`
-//! from an arbitrary prediction (any floats, non-finite ones included, or a rendered tag's
-//! corners moved by the fuzzer) of an arbitrary family and id. Contract (their docs): no
-//! panic; `refine_target` gives finite corners within 8 px of a finite prediction;
+//! Tracking by detection on the same frames: `Detector::refine_target`, `refine_detection` and
+//! `find_target_near` from an arbitrary prediction (any floats, non-finite ones included, or a
+//! rendered tag's corners moved by the fuzzer) of an arbitrary family and id. Contract (their docs): no
+//! panic; `refine_target` gives finite corners within 8 px of a finite prediction and
+//! `refine_detection` the same corners in AprilTag's order, the id and `hamming ≤ max_hamming`;
 //! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners.
 #![no_main]
 
@@ -230,11 +231,27 @@ fn track(
                 *p = Point2::new(q.x + f32::from(*dx) / 16.0, q.y + f32::from(*dy) / 16.0);
             }
         }
-        if let Some(c) = det.refine_target(view, f, *id, &predicted) {
+        let refined = det.refine_target(view, f, *id, &predicted);
+        if let Some(c) = refined {
             for (p, q) in c.iter().zip(predicted.iter()) {
                 assert!(p.x.is_finite() && p.y.is_finite(), "refined {p:?}");
                 assert!((p - q).norm() <= 8.0 + 1e-3, "refined {p:?} from {q:?}");
             }
+        }
+        // As a detection: the same corners (AprilTag's order), its id, within max_hamming.
+        let again = det.refine_detection(view, f, *id, &predicted);
+        assert_eq!(
+            again.is_some(),
+            refined.is_some(),
+            "refine_detection vs refine_target"
+        );
+        if let (Some(d), Some(c)) = (again, refined) {
+            assert_eq!(d.corners, [c[3], c[2], c[1], c[0]], "corner order");
+            assert!(
+                d.id == *id && d.hamming <= det.config().max_hamming,
+                "{d:?}"
+            );
+            assert!(d.center.x.is_finite() && d.center.y.is_finite(), "{d:?}");
         }
         match det.find_target_near(view, ws, f, *id, &predicted) {
             Ok(Some(c)) => {

@@ -3,12 +3,15 @@
 
 use std::path::PathBuf;
 
+use camgeom::apriltag::{Detection, Detector};
+use camgeom::nalgebra::Vector2;
 use camgeom_host::apriltag::{
     Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags_on, families_list, json_tag,
     pose_inputs,
 };
 use camgeom_host::cli::files::create_dir;
 use camgeom_host::cli::frames::{Frame, FrameSource};
+use camgeom_host::images::GrayImage;
 use camgeom_host::images::{load_gray_and_rgb, require_size};
 use camgeom_host::points::to_json;
 use camgeom_host::rgb::{Overlay, RgbImage};
@@ -67,6 +70,81 @@ pub struct ApriltagArgs {
     /// Frame rate of --video-out for a folder of frames (a video keeps its own).
     #[arg(long, default_value_t = 30.0, value_name = "F")]
     fps: f64,
+    /// With --frames: track the last frame's tags by detecting them where they must be (the
+    /// core's `Detector::refine_detection` from their corners predicted from the last two
+    /// frames, as the board's tag job tracks its tag); a full detection runs on the first
+    /// frame, when a tag is not found again (or none was seen) and every --guard-every frames.
+    #[arg(long, requires = "frames")]
+    track: bool,
+    /// With --track: a full detection at least every N frames (new tags are found then).
+    #[arg(long, default_value_t = 30, value_name = "N", requires = "track")]
+    guard_every: usize,
+}
+
+/// The tags of the last frame and each corner's motion since the frame before (--track).
+#[derive(Default)]
+struct Tracked {
+    last: Vec<(Detection, [Vector2<f32>; 4])>,
+    since_full: usize,
+}
+
+impl Tracked {
+    /// This frame's tags: the last frame's found where they must be, or a full detection.
+    fn step(
+        &mut self,
+        det: &Detector,
+        ws: &mut HostWorkspace,
+        gray: &GrayImage,
+        at: &std::path::Path,
+        guard: usize,
+    ) -> Result<Vec<Detection>> {
+        let view = gray.view().ok_or_else(|| {
+            Error::camgeom(format!("{}", at.display()), camgeom::Error::InvalidImage)
+        })?;
+        let mut found = Vec::new();
+        if !self.last.is_empty() && self.since_full + 1 < guard.max(1) {
+            for (d, motion) in &self.last {
+                let mut p = d.target_corners();
+                for (p, m) in p.iter_mut().zip(motion) {
+                    *p += m;
+                }
+                match det.refine_detection(&view, d.family, d.id, &p) {
+                    Some(again) => found.push(again),
+                    None => {
+                        found.clear();
+                        break;
+                    }
+                }
+            }
+        }
+        if found.is_empty() {
+            found = detect(det, ws, gray, at)?.into_iter().collect();
+            self.since_full = 0;
+        } else {
+            self.since_full += 1;
+        }
+        self.last = found
+            .iter()
+            .map(|d| {
+                let before = self
+                    .last
+                    .iter()
+                    .find(|(o, _)| std::ptr::eq(o.family, d.family) && o.id == d.id);
+                let mut motion = [Vector2::zeros(); 4];
+                if let Some((o, _)) = before {
+                    for ((m, a), b) in motion
+                        .iter_mut()
+                        .zip(d.target_corners())
+                        .zip(o.target_corners())
+                    {
+                        *m = a - b;
+                    }
+                }
+                (*d, motion)
+            })
+            .collect();
+        Ok(found)
+    }
 }
 
 /// A frame of the JSON with --frames: the frame's detections, with its index and time for a
@@ -136,6 +214,7 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
     let video = source.is_video();
     let mut writer: Option<VideoWriter> = None;
     let mut frames = Vec::with_capacity(source.len());
+    let mut tracked = Tracked::default();
     while let Some(frame) = source.next_frame()? {
         let Frame {
             index,
@@ -147,7 +226,11 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
         } = frame;
         let at = file.clone().unwrap_or_else(|| input.clone());
         require_size(&gray, &at, MIN_SIDE, "the smallest tag AprilTag can find")?;
-        let found = detect(&det, &mut ws, &gray, &at)?;
+        let found: Vec<Detection> = if a.track {
+            tracked.step(&det, &mut ws, &gray, &at, a.guard_every)?
+        } else {
+            detect(&det, &mut ws, &gray, &at)?.into_iter().collect()
+        };
         let png = a.overlay.as_ref().filter(|_| index.is_multiple_of(every));
         if png.is_some() || a.video_out.is_some() {
             let canvas = rgb.unwrap_or_else(|| RgbImage::from_gray(&gray));

@@ -27,6 +27,7 @@ use nalgebra::Point2;
 use super::decode::{read_code, refine_edges_with};
 use super::detector::{Detection, Detector};
 use super::family::Family;
+use super::geom::project;
 use super::label::Label;
 use super::quad::Quad;
 use super::workspace::WorkspaceView;
@@ -77,6 +78,15 @@ const TARGET_TAG_COORDS: [Point2<f32>; 4] = [
     Point2::new(1.0, 1.0),
     Point2::new(-1.0, 1.0),
 ];
+
+/// What the refinement from a prediction found: the corners in the target's order, `H` (tag
+/// coordinates to pixels), the Hamming distance to the tag's code and the decision margin.
+struct Refined {
+    corners: [Point2<f32>; 4],
+    homography: Homography<f32>,
+    hamming: u8,
+    margin: f32,
+}
 
 /// The region [`Detector::find_target_near`] searches for `predicted` in a `w x h` frame:
 /// `(x, y, width, height)`, `None` when the prediction is not finite or the region is empty.
@@ -134,6 +144,48 @@ impl Detector {
         id: u16,
         predicted: &[Point2<f32>; 4],
     ) -> Option<[Point2<f32>; 4]> {
+        self.refine(frame, family, id, predicted).map(|r| r.corners)
+    }
+
+    /// [`Self::refine_target`] as a [`Detection`]: the tag `id` of `family` found again from
+    /// `predicted` (a planar target's corner order, e.g. the last frame's
+    /// [`Detection::target_corners`]), with its Hamming distance to the tag's code, the
+    /// decision margin, the corners in AprilTag's order, the centre and `H`, as
+    /// [`Detector::detect`] reports a tag. `None` as [`Self::refine_target`].
+    pub fn refine_detection(
+        &self,
+        frame: &ImageView<'_, u8>,
+        family: &'static Family,
+        id: u16,
+        predicted: &[Point2<f32>; 4],
+    ) -> Option<Detection> {
+        let Refined {
+            corners: t,
+            homography,
+            hamming,
+            margin: decision_margin,
+        } = self.refine(frame, family, id, predicted)?;
+        let center = project(homography.matrix(), 0.0, 0.0)?;
+        let [a, b, c, d] = t;
+        Some(Detection {
+            family,
+            id,
+            hamming,
+            decision_margin,
+            corners: [d, c, b, a],
+            center,
+            homography,
+        })
+    }
+
+    /// The refinement of [`Self::refine_target`].
+    fn refine(
+        &self,
+        frame: &ImageView<'_, u8>,
+        family: &Family,
+        id: u16,
+        predicted: &[Point2<f32>; 4],
+    ) -> Option<Refined> {
         if !predicted.iter().all(|p| p.x.is_finite() && p.y.is_finite()) {
             return None;
         }
@@ -180,10 +232,16 @@ impl Detector {
         if !crate::scalar::at_most(cfg.min_decision_margin.max(0.0), reading.margin) {
             return None;
         }
-        if (reading.rcode ^ code).count_ones() > u32::from(cfg.max_hamming) {
+        let hamming = (reading.rcode ^ code).count_ones();
+        if hamming > u32::from(cfg.max_hamming) {
             return None;
         }
-        Some(q.p)
+        Some(Refined {
+            corners: q.p,
+            homography: h,
+            hamming: hamming as u8,
+            margin: reading.margin,
+        })
     }
 
     /// Tag `id` of `family` detected in the region around `predicted` (its corners predicted
@@ -287,8 +345,27 @@ mod tests {
             .find_target(&img, &mut view, &families::TAG36H11, 7)
             .unwrap()
             .unwrap();
+        let full: heapless::Vec<Detection, 2> = det.detect(&img, &mut view).unwrap();
         for (sx, sy) in [(0.0, 0.0), (2.5, -1.5), (-3.0, 2.0)] {
             let predicted = found.map(|p| Point2::new(p.x + sx, p.y + sy));
+            // As a detection: AprilTag's corner order, the centre, the same code.
+            let again = det
+                .refine_detection(&img, &families::TAG36H11, 7, &predicted)
+                .unwrap();
+            let d = &full[0];
+            assert_eq!((again.id, again.hamming), (d.id, d.hamming));
+            assert!((again.decision_margin - d.decision_margin).abs() < 2.0);
+            for (a, b) in again
+                .corners
+                .iter()
+                .chain([&again.center])
+                .zip(d.corners.iter().chain([&d.center]))
+            {
+                assert!(
+                    (a - b).norm() < 0.1,
+                    "detection, shift ({sx}, {sy}): {a} vs {b}"
+                );
+            }
             let refined = det
                 .refine_target(&img, &families::TAG36H11, 7, &predicted)
                 .unwrap();

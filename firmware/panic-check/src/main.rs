@@ -886,6 +886,7 @@ fn run_apriltag() {
     // Tracking by detection: the refinement and the region search from an opaque prediction.
     let predicted = black_box([Point2::new(black_box(3.5f32), black_box(-2.0)); 4]);
     black_box(detector.refine_target(&v, &families::TAG36H11, black_box(7), &predicted));
+    black_box(detector.refine_detection(&v, &families::TAG36H11, black_box(7), &predicted));
     black_box(
         detector
             .find_target_near(

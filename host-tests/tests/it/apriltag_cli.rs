@@ -143,9 +143,20 @@ fn cli_on_the_apriltag_test_photos_gives_the_expected_tags() {
 /// view (tag-free) give no detection.
 #[test]
 fn cli_poses_on_the_tag_sequence_match_the_truth() {
+    poses_on_the_tag_sequence(&[]);
+}
+
+/// The same with `--track`: the tag found again where it must be between full detections
+/// (the core's `Detector::refine_detection`) meets the same bounds on the same frames.
+#[test]
+fn cli_tracked_poses_on_the_tag_sequence_match_the_truth() {
+    poses_on_the_tag_sequence(&["--track"]);
+}
+
+fn poses_on_the_tag_sequence(extra: &[&str]) {
     let dir = tag_dir();
     let cam = dir.join("camera.yml");
-    let v = run_json(&[
+    let mut args = vec![
         "apriltag",
         "--frames",
         path(&dir),
@@ -153,7 +164,9 @@ fn cli_poses_on_the_tag_sequence_match_the_truth() {
         path(&cam),
         "--tag-size",
         "0.08",
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let v = run_json(&args);
     let frames = v["frames"].as_array().unwrap();
     let truth = tag_sequence();
     assert_eq!(frames.len(), truth.len());
@@ -198,8 +211,8 @@ fn cli_poses_on_the_tag_sequence_match_the_truth() {
         checked += 1;
     }
     println!(
-        "{checked} frames with the tag whole: worst rotation {worst_r:.3} deg, translation \
-         {worst_t:.2} mm; {empty} frames without the tag"
+        "{extra:?}: {checked} frames with the tag whole: worst rotation {worst_r:.3} deg, \
+         translation {worst_t:.2} mm; {empty} frames without the tag"
     );
     assert_eq!(checked, 120);
     assert!(empty > 0);
