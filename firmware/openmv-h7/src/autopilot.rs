@@ -11,8 +11,8 @@
 //!
 //! The tracking loop never waits for the UART: [`MavlinkLink::frame`] builds the messages and
 //! puts them in a queue of [`QUEUE_MESSAGES`]; a task ([`uart`]) writes them out by DMA. A full
-//! queue (the UART behind: at 115,200 baud a `LANDING_TARGET` takes 7 ms) drops the message and
-//! counts it.
+//! queue (the UART behind: at 115,200 baud a 72-byte `LANDING_TARGET` takes 6.25 ms) drops the
+//! message and counts it.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
