@@ -18,6 +18,13 @@
 //! panic; `refine_target` gives finite corners within 8 px of a finite prediction and
 //! `refine_detection` the same corners in AprilTag's order, the id and `hamming ≤ max_hamming`;
 //! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners.
+//!
+//! ArUco: the families include OpenCV's dictionaries (`families::ARUCO`, drawn by
+//! `Family::cell` like the AprilTag families, mixed into the detector's set), with arbitrary
+//! `error_correction_rate` and `max_erroneous_bits_in_border_rate`. Contract: a detection's
+//! `hamming` is within `Detector::max_hamming_for` its family; a decode is exact (OpenCV's
+//! `identify`): the smallest id within `min(max_hamming, max_correctable)` bits in some
+//! rotation, and `None` only when there is none (checked against every code).
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -91,10 +98,36 @@ struct Input {
     /// Predictions for the tracking calls: family, id, four corners (arbitrary numbers, or
     /// with `near` the first tag's square corners moved by them, in 1/16 px).
     predictions: std::vec::Vec<(u8, u16, [(Num, Num); 4], Option<[(i8, i8); 4]>)>,
+    /// ArUco dictionaries added to the detector's families: indices into `families::ARUCO`.
+    aruco: std::vec::Vec<u8>,
+    /// `Some((e, b))`: `error_correction_rate` and `max_erroneous_bits_in_border_rate`.
+    aruco_rates: Option<(Num, Num)>,
 }
 
+/// Family `i` of the AprilTag families and then OpenCV's ArUco dictionaries.
 fn family(i: u8) -> &'static Family {
-    families::ALL[usize::from(i) % families::ALL.len()]
+    let n = families::ALL.len() + families::ARUCO.len();
+    let i = usize::from(i) % n;
+    match families::ALL.get(i) {
+        Some(f) => f,
+        None => families::ARUCO[i - families::ALL.len()],
+    }
+}
+
+/// The smallest id within `maxh` bits of `word` in some rotation, by comparing every code.
+fn brute_decode(f: &Family, word: u64, maxh: u8) -> Option<u16> {
+    let mut r = word;
+    let mut best: Option<u16> = None;
+    for _ in 0..4 {
+        for id in 0..f.ncodes() as u16 {
+            let c = f.code(id).unwrap_or(0);
+            if (c ^ r).count_ones() <= u32::from(maxh) && best.is_none_or(|b| id < b) {
+                best = Some(id);
+            }
+        }
+        r = rotate90(r, f.nbits());
+    }
+    best
 }
 
 fn config(inp: &Input) -> DetectorConfig {
@@ -119,7 +152,12 @@ fn config(inp: &Input) -> DetectorConfig {
             max_batches: c.max_batches % 6,
             // At most 64 quads: each is an edge refinement and a decode per family.
             max_quads: c.max_quads % 64,
+            ..cfg
         };
+    }
+    if let Some((e, b)) = inp.aruco_rates {
+        cfg.error_correction_rate = f64::from(e.get());
+        cfg.max_erroneous_bits_in_border_rate = f64::from(b.get());
     }
     cfg
 }
@@ -162,11 +200,11 @@ fn check(dets: &[Detection], det: &Detector, w: usize, h: usize) {
             d.id,
             d.family.name()
         );
+        let bound = det.max_hamming_for(d.family);
         assert!(
-            d.hamming <= cfg.max_hamming,
-            "hamming {} > {}",
+            d.hamming <= bound && (d.family.is_aruco() || bound == cfg.max_hamming),
+            "hamming {} > {bound}",
             d.hamming,
-            cfg.max_hamming
         );
         assert!(
             d.decision_margin.is_finite() && d.decision_margin >= cfg.min_decision_margin,
@@ -247,10 +285,7 @@ fn track(
         );
         if let (Some(d), Some(c)) = (again, refined) {
             assert_eq!(d.corners, [c[3], c[2], c[1], c[0]], "corner order");
-            assert!(
-                d.id == *id && d.hamming <= det.config().max_hamming,
-                "{d:?}"
-            );
+            assert!(d.id == *id && d.hamming <= det.max_hamming_for(f), "{d:?}");
             assert!(d.center.x.is_finite() && d.center.y.is_finite(), "{d:?}");
         }
         match det.find_target_near(view, ws, f, *id, &predicted) {
@@ -310,6 +345,12 @@ fuzz_target!(|inp: Input| {
     let fams: std::vec::Vec<&'static Family> = (0..4)
         .filter(|i| inp.families & (1 << i) != 0)
         .map(|i| families::ALL[i])
+        .chain(
+            inp.aruco
+                .iter()
+                .take(4)
+                .map(|&k| families::ARUCO[usize::from(k) % families::ARUCO.len()]),
+        )
         .collect();
     let cfg = config(&inp);
     if let Ok(det) = Detector::new(cfg, &fams) {
@@ -335,12 +376,17 @@ fuzz_target!(|inp: Input| {
     // The decoders.
     for &(f, word, mh) in inp.words.iter().take(8) {
         let f = family(f);
-        if let Some(d) = f.decode(word, mh) {
+        let got = f.decode(word, mh);
+        let bound = mh.min(f.max_correctable());
+        assert_eq!(
+            got.map(|d| d.id),
+            brute_decode(f, word, bound),
+            "decode: {} not the smallest id within {bound}",
+            f.name()
+        );
+        if let Some(d) = got {
             assert!(usize::from(d.id) < f.ncodes(), "decode: id {}", d.id);
-            assert!(
-                d.hamming <= mh.min(MAX_CORRECTABLE) && d.rotation < 4,
-                "decode: {d:?}"
-            );
+            assert!(d.hamming <= bound && d.rotation < 4, "decode: {d:?}");
             let mut r = word;
             for _ in 0..d.rotation {
                 r = rotate90(r, f.nbits());
@@ -367,7 +413,7 @@ fuzz_target!(|inp: Input| {
             flipped |= 1 << (u32::from(*b) % f.nbits());
         }
         let mh = flipped.count_ones() as u8;
-        if 2 * u32::from(mh) < u32::from(f.min_distance()) {
+        if 2 * u32::from(mh) < u32::from(f.min_distance()) && mh <= f.max_correctable() {
             let d = f.decode(word ^ flipped, mh);
             assert_eq!(d.map(|d| d.id), Some(id), "{}: {mh} flipped bits", f.name());
         }

@@ -15,6 +15,10 @@
 //! sharpened (`v + s ∇²v`, the 4-neighbour Laplacian over the cell grid) and their signs give
 //! the code. The decision margin is `min(mean white excess, mean black excess)`.
 //!
+//! For an ArUco dictionary the border cells are read the same way (centre, against the
+//! models, sharpened with the payload): those read white are OpenCV's border errors
+//! (`_getBorderErrors`), which the detector bounds by `maxErroneousBitsInBorderRate`.
+//!
 //! Coordinates are camgeom's: pixel `(i, j)` has its centre at `(i, j)`. AprilTag's pixel
 //! centres are at `(i + 0.5, j + 0.5)`; the sampling positions here are AprilTag's shifted by
 //! that half pixel, so both read the same pixels.
@@ -228,13 +232,17 @@ impl GrayModel {
 /// Largest `total_width` the decoder's cell grid holds.
 pub const MAX_TOTAL_WIDTH: usize = 12;
 
-/// A read payload: the word, the decision margin, and whether every sample of the ring just
-/// outside the detection border (the quiet zone) was inside the image.
+/// A read payload: the word, the decision margin, whether every sample of the ring just
+/// outside the detection border (the quiet zone) was inside the image, and (ArUco
+/// dictionaries; 0 for AprilTag families) the border cells read white, and the contrast of
+/// the quiet zone over the border at the centre (the two models' difference, grey levels).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Reading {
     pub(crate) rcode: u64,
     pub(crate) margin: f32,
     pub(crate) ring_in_view: bool,
+    pub(crate) border_errors: u16,
+    pub(crate) contrast: f32,
 }
 
 /// Reads the payload of the quad `h` maps to (module docs), `None` when the border does not
@@ -303,18 +311,36 @@ pub(crate) fn read_code(
         }
         Some(cy as usize * tw + cx as usize)
     };
-    for b in family.layout {
-        let tx = 2.0 * ((f32::from(b.x) + 0.5) / wabf - 0.5);
-        let ty = 2.0 * ((f32::from(b.y) + 0.5) / wabf - 0.5);
+    let read = |x: i8, y: i8, values: &mut [f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH]| {
+        let tx = 2.0 * ((f32::from(x) + 0.5) / wabf - 0.5);
+        let ty = 2.0 * ((f32::from(y) + 0.5) / wabf - 0.5);
         let Some(p) = project(h, tx, ty) else {
-            continue;
+            return;
         };
         let Some(v) = img.sample_bilinear(p.x, p.y) else {
-            continue;
+            return;
         };
         let thresh = 0.5 * (black.at(tx, ty) + white.at(tx, ty));
-        if let Some(slot) = cell(b.x, b.y).and_then(|i| values.get_mut(i)) {
+        if let Some(slot) = cell(x, y).and_then(|i| values.get_mut(i)) {
             *slot = v - thresh;
+        }
+    };
+    for b in family.layout {
+        read(b.x, b.y, &mut values);
+    }
+    // The border ring of an ArUco marker: cells (x, y) of 0..wab with x or y at 0 or wab - 1.
+    let aruco = family.is_aruco();
+    let last = (wab - 1) as i8;
+    let ring = move || {
+        (0..=last).flat_map(move |i| {
+            let side = [(i, 0), (i, last)];
+            let inner = (1..last).contains(&i).then_some([(0, i), (last, i)]);
+            side.into_iter().chain(inner.into_iter().flatten())
+        })
+    };
+    if aruco {
+        for (x, y) in ring() {
+            read(x, y, &mut values);
         }
     }
     if sharpening != 0.0 {
@@ -358,9 +384,44 @@ pub(crate) fn read_code(
             bc += 1.0;
         }
     }
+    let border_errors = if aruco {
+        // OpenCV thresholds a marker's cells by Otsu over the marker itself (border and
+        // payload), not against its surround: one step of two-means from the models' split
+        // does the same, `t = (mean of the cells above 0 + mean of those at or below) / 2`.
+        // A real marker's cells sit near its two levels and `t` stays near 0; a patch of
+        // texture inside a bright surround has its split moved down, and its border cells
+        // no longer all read black.
+        let at = |(x, y): (i8, i8)| cell(x, y).and_then(|i| values.get(i)).copied();
+        let cells = family
+            .layout
+            .iter()
+            .map(|b| (b.x, b.y))
+            .chain(ring())
+            .filter_map(at);
+        let (mut hi, mut nhi, mut lo, mut nlo) = (0f32, 0u32, 0f32, 0u32);
+        for v in cells {
+            if v > 0.0 {
+                hi += v;
+                nhi += 1;
+            } else {
+                lo += v;
+                nlo += 1;
+            }
+        }
+        let t = if nhi > 0 && nlo > 0 {
+            0.5 * (hi / nhi as f32 + lo / nlo as f32)
+        } else {
+            0.0
+        };
+        ring().filter(|&c| at(c).is_some_and(|v| v > t)).count() as u16
+    } else {
+        0
+    };
     Some(Reading {
         rcode,
         margin: (ws / wc).min(bs / bc),
         ring_in_view,
+        border_errors,
+        contrast: white.at(0.0, 0.0) - black.at(0.0, 0.0),
     })
 }

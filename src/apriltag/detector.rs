@@ -4,7 +4,7 @@ use heapless::Vec;
 use nalgebra::{Matrix3, Point2};
 
 use super::decode::{read_code, refine_edges};
-use super::family::{Family, MAX_CORRECTABLE};
+use super::family::{Family, Kind, MAX_CORRECTABLE};
 use super::geom::{at4, project};
 use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
@@ -70,6 +70,29 @@ pub struct DetectorConfig {
     /// Quads decoded per frame at most (default 256; each costs an edge refinement and a
     /// decode per family).
     pub max_quads: u16,
+    /// ArUco dictionaries: a marker is dropped when more than
+    /// `⌊markerSize² · rate⌋` of its border cells read white (OpenCV's
+    /// `maxErroneousBitsInBorderRate`, default 0.35: 5 of the 20 border cells of a 4x4
+    /// marker, 12 of the 28 of a 6x6). In `[0, 1]`. AprilTag families do not use it.
+    #[doc(alias = "maxErroneousBitsInBorderRate")]
+    pub max_erroneous_bits_in_border_rate: f64,
+    /// ArUco dictionaries: bits corrected, `⌊maxCorrectionBits · rate⌋` (OpenCV's
+    /// `errorCorrectionRate`, default 0.6: 3 bits for DICT_6X6_250, 0 for DICT_4X4_50 and
+    /// DICT_ARUCO_ORIGINAL). In `[0, 1]`; of the codes within the bound, the smallest id is
+    /// taken (OpenCV's `Dictionary::identify`). AprilTag families use
+    /// [`Self::max_hamming`] instead.
+    #[doc(alias = "errorCorrectionRate")]
+    pub error_correction_rate: f64,
+    /// ArUco dictionaries: a marker whose white quiet zone is less than this many grey
+    /// levels brighter than its black border (the two intensity models at its centre) is
+    /// dropped (default 32, an eighth of the 8-bit range; 0 keeps every one). A printed
+    /// marker's border and quiet zone are ink and paper, far apart in any usable exposure
+    /// (the rendered bench's detections: 47 and more); low-contrast texture is not, and
+    /// DICT_4X4's codes (a random 16-bit word matches one of DICT_4X4_1000's in some
+    /// rotation with chance 6 %) would otherwise find "markers" in it: on the 231 tag-free
+    /// real frames, 5 at 0, all below 24 (OpenCV's adaptive threshold, 7 grey levels below
+    /// the local mean, does not propose such candidates). AprilTag families do not use it.
+    pub min_marker_contrast: u8,
 }
 
 impl Default for DetectorConfig {
@@ -89,6 +112,9 @@ impl Default for DetectorConfig {
             reject_clipped: true,
             max_batches: 2,
             max_quads: 256,
+            max_erroneous_bits_in_border_rate: 0.35,
+            error_correction_rate: 0.6,
+            min_marker_contrast: 32,
         }
     }
 }
@@ -136,6 +162,15 @@ impl Detection {
         let c = self.corners;
         [c[3], c[2], c[1], c[0]]
     }
+
+    /// The corners in OpenCV's `detectMarkers` order for an ArUco dictionary: the marker's
+    /// top-left (as `generateImageMarker` draws it), top-right, bottom-right, bottom-left,
+    /// clockwise on screen; tag coordinates `(-1, -1)`, `(1, -1)`, `(1, 1)`, `(-1, 1)`. The
+    /// pixel convention is already OpenCV's. (The same points as [`Self::target_corners`].)
+    #[doc(alias = "detectMarkers")]
+    pub fn aruco_corners(&self) -> [Point2<f32>; 4] {
+        self.target_corners()
+    }
 }
 
 /// The stages of a detection, in the order they first run: what a
@@ -166,32 +201,82 @@ pub enum Stage {
 /// [`WorkspaceView`]'s), so one detector serves any number of workspaces.
 #[derive(Debug, Clone)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[doc(alias = "ArucoDetector")]
 pub struct Detector {
     cfg: DetectorConfig,
     families: Vec<&'static Family, MAX_FAMILIES>,
+    /// Per family (same order): the bits corrected and the border cells that may read white.
+    limits: Vec<Limits, MAX_FAMILIES>,
     cos_critical: f32,
 }
 
+/// What a detector accepts from one family's reading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) struct Limits {
+    /// Bits corrected.
+    pub(crate) max_hamming: u8,
+    /// Border cells read white (ArUco), at most.
+    pub(crate) max_border_errors: u16,
+    /// Quiet zone over border, grey levels (ArUco), at least.
+    pub(crate) min_contrast: f32,
+}
+
 impl Detector {
-    /// Checks `cfg` against `families` (1..=[`MAX_FAMILIES`], decoded in this order).
+    /// Checks `cfg` against `families` (1..=[`MAX_FAMILIES`], decoded in this order; AprilTag
+    /// families and ArUco dictionaries may be mixed).
     ///
     /// Errors: [`Error::InvalidParameter`] naming the field (`"families"`, `"decimate"`,
-    /// `"max_hamming"` (above [`MAX_CORRECTABLE`] or not below half a family's distance),
-    /// `"min_white_black_diff"`, `"max_nmaxima"`, `"critical_angle_deg"`,
+    /// `"max_hamming"` (above [`MAX_CORRECTABLE`] or not below half an AprilTag family's
+    /// distance), `"error_correction_rate"` and `"max_erroneous_bits_in_border_rate"` (not in
+    /// `[0, 1]`), `"min_white_black_diff"`, `"max_nmaxima"`, `"critical_angle_deg"`,
     /// `"max_line_fit_mse"`, `"decode_sharpening"`, `"min_decision_margin"`, `"max_batches"`).
+    #[doc(alias = "ArucoDetector")]
     pub fn new(cfg: DetectorConfig, families: &[&'static Family]) -> Result<Self> {
         if families.is_empty() || families.len() > MAX_FAMILIES {
             return Err(Error::InvalidParameter("families"));
         }
+        if !(0.0..=1.0).contains(&cfg.error_correction_rate) {
+            return Err(Error::InvalidParameter("error_correction_rate"));
+        }
+        if !(0.0..=1.0).contains(&cfg.max_erroneous_bits_in_border_rate) {
+            return Err(Error::InvalidParameter("max_erroneous_bits_in_border_rate"));
+        }
         let mut fams = Vec::new();
+        let mut limits = Vec::new();
         for &f in families {
             if f.total_width as usize > super::decode::MAX_TOTAL_WIDTH || f.width_at_border < 3 {
                 return Err(Error::InvalidParameter("families"));
             }
-            if 2 * u32::from(cfg.max_hamming) >= u32::from(f.min_distance) {
-                return Err(Error::InvalidParameter("max_hamming"));
-            }
+            let lim = match f.kind {
+                Kind::AprilTag => {
+                    if 2 * u32::from(cfg.max_hamming) >= u32::from(f.min_distance) {
+                        return Err(Error::InvalidParameter("max_hamming"));
+                    }
+                    Limits {
+                        max_hamming: cfg.max_hamming,
+                        max_border_errors: u16::MAX,
+                        min_contrast: f32::NEG_INFINITY,
+                    }
+                }
+                // OpenCV's int(double(maxCorrectionBits) * rate) and
+                // int(markerSize * markerSize * rate), both rates in [0, 1].
+                Kind::Aruco {
+                    max_correction_bits,
+                } => {
+                    let n = f64::from(f.width_at_border.saturating_sub(2));
+                    Limits {
+                        max_hamming: (f64::from(max_correction_bits) * cfg.error_correction_rate)
+                            as u8,
+                        max_border_errors: (n * n * cfg.max_erroneous_bits_in_border_rate) as u16,
+                        min_contrast: f32::from(cfg.min_marker_contrast),
+                    }
+                }
+            };
             fams.push(f)
+                .map_err(|_| Error::InvalidParameter("families"))?;
+            limits
+                .push(lim)
                 .map_err(|_| Error::InvalidParameter("families"))?;
         }
         if !(1..=8).contains(&cfg.decimate) {
@@ -225,8 +310,31 @@ impl Detector {
         Ok(Self {
             cfg,
             families: fams,
+            limits,
             cos_critical,
         })
+    }
+
+    /// Bits corrected for `family`: [`DetectorConfig::max_hamming`] for an AprilTag family,
+    /// `⌊max_correction_bits · error_correction_rate⌋` (OpenCV's) for an ArUco dictionary of
+    /// the detector (for one it does not decode, `max_hamming`).
+    pub fn max_hamming_for(&self, family: &Family) -> u8 {
+        self.limits(family).max_hamming
+    }
+
+    /// The bits corrected and border errors allowed for `family` (one of the detector's; the
+    /// configuration's AprilTag bound otherwise).
+    pub(crate) fn limits(&self, family: &Family) -> Limits {
+        self.families
+            .iter()
+            .zip(self.limits.iter())
+            .find(|(f, _)| **f == family)
+            .map(|(_, l)| *l)
+            .unwrap_or(Limits {
+                max_hamming: self.cfg.max_hamming,
+                max_border_errors: u16::MAX,
+                min_contrast: f32::NEG_INFINITY,
+            })
     }
 
     /// The configuration.
@@ -532,7 +640,7 @@ impl Detector {
         let Ok(h) = Homography::from_four_points(&tag, &q.p) else {
             return;
         };
-        for &family in &self.families {
+        for (&family, lim) in self.families.iter().zip(self.limits.iter()) {
             if family.reversed_border != q.reversed_border {
                 continue;
             }
@@ -540,6 +648,11 @@ impl Detector {
             else {
                 continue;
             };
+            if reading.border_errors > lim.max_border_errors
+                || !crate::scalar::at_most(lim.min_contrast, reading.contrast)
+            {
+                continue;
+            }
             if self.cfg.reject_clipped && !reading.ring_in_view {
                 continue;
             }
@@ -547,7 +660,7 @@ impl Detector {
             if !crate::scalar::at_most(self.cfg.min_decision_margin.max(0.0), margin) {
                 continue;
             }
-            let Some(dec) = family.decode(rcode, self.cfg.max_hamming) else {
+            let Some(dec) = family.decode(rcode, lim.max_hamming) else {
                 continue;
             };
             if !keep(family, dec.id) {

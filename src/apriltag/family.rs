@@ -14,21 +14,80 @@
 //! code `r` decodes to id `k` in rotation `q` when `popcount(rotate90^q(r) ⊕ codes[k]) ≤
 //! max_hamming`.
 //!
-//! **Lookup** (AprilTag 3's current scheme): the code is cut into 4 chunks of
-//! `⌈nbits / 4⌉` bits; a word within 3 bits of a code agrees with it exactly on at least one
-//! chunk (pigeonhole), so only the codes sharing a chunk value with the read word are
-//! compared. The index (per chunk, the codes by chunk value) is built at compile time into
+//! **Lookup** (AprilTag 3's current scheme, generalised): the code is cut into `c` chunks of
+//! `⌈nbits / c⌉` bits (`c = 4` for the AprilTag families); a word within `e` bits of a code
+//! agrees with it exactly on at least one of any `e + 1` chunks (pigeonhole: `e` wrong bits
+//! fall in at most `e` chunks), so only the codes sharing a chunk value with the read word in
+//! the first `e + 1` chunks are compared, and a family corrects up to `c - 1` bits exactly
+//! ([`Family::max_correctable`]). The index (per chunk, the codes by chunk value) is built at compile time into
 //! flash: `4 (2^⌈nbits/4⌉ + 1) + 4 ncodes` `u16` — 8.8 KB for tag36h11, 1.3 KB for tag25h9,
 //! 0.4 KB for tag16h5, 33 KB for tagStandard41h12. (AprilTag 3.1, what pupil-apriltags ships,
 //! hashes every word within 2 bits of a code: 3 x 761,339 entries of 12 bytes, about 27 MB for
 //! tag36h11, built at start-up; the current AprilTag uses this chunk index.) A lookup compares
-//! about `4 · 4 · ncodes / 2^chunk` codes (about 18 for tag36h11).
+//! about `4 (e + 1) ncodes / 2^chunk` codes (about 14 for tag36h11 at `e = 2`).
+//!
+//! **Which code** (OpenCV's `Dictionary::identify`): of the codes within `max_hamming` of the
+//! word in some rotation, the smallest id, in the rotation that differs least. When
+//! `2 max_hamming < min_distance` there is at most one.
+//!
+//! **ArUco dictionaries** ([`Kind::Aruco`], OpenCV's predefined dictionaries in
+//! [`super::families`]) are families of the same shape: a 1-cell black border of
+//! `markerSize + 2` cells, a white quiet zone outside it, the `markerSize²` payload cells
+//! inside. Their bound on corrected bits comes from the detector's `error_correction_rate`
+//! and their `max_correction_bits` (OpenCV's `maxCorrectionBits`), and their border cells are
+//! read too (OpenCV's `maxErroneousBitsInBorderRate`): see
+//! [`super::DetectorConfig::error_correction_rate`].
 
-/// Chunks the code is cut into for the lookup (up to 3 corrected bits).
+/// Chunks the code of an AprilTag family is cut into for the lookup (up to 3 corrected
+/// bits); ArUco dictionaries have their own ([`Family::max_correctable`]).
 pub const CHUNKS: usize = 4;
 
-/// Largest number of bits the decoder corrects (the chunk lookup's pigeonhole bound).
+/// Largest number of bits the decoder corrects for an AprilTag family (the chunk lookup's
+/// pigeonhole bound, `CHUNKS - 1`).
 pub const MAX_CORRECTABLE: u8 = 3;
+
+/// What a family is: an AprilTag family or an ArUco dictionary (how its bits are corrected
+/// and its border checked, see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Kind {
+    /// AprilTag's: up to [`super::DetectorConfig::max_hamming`] bits corrected.
+    AprilTag,
+    /// OpenCV's ArUco dictionaries: `⌊max_correction_bits · errorCorrectionRate⌋` bits
+    /// corrected, at most `⌊markerSize² · maxErroneousBitsInBorderRate⌋` border cells white.
+    #[doc(alias = "Dictionary")]
+    Aruco {
+        /// OpenCV's `maxCorrectionBits` of the dictionary.
+        max_correction_bits: u8,
+    },
+}
+
+/// The codes of a family, stored in the narrowest word that holds `nbits`.
+#[derive(Debug, Clone, Copy)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub(crate) enum Codes {
+    U16(&'static [u16]),
+    U32(&'static [u32]),
+    U64(&'static [u64]),
+}
+
+impl Codes {
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            Codes::U16(c) => c.len(),
+            Codes::U32(c) => c.len(),
+            Codes::U64(c) => c.len(),
+        }
+    }
+
+    pub(crate) fn get(&self, i: usize) -> Option<u64> {
+        match self {
+            Codes::U16(c) => c.get(i).map(|&v| u64::from(v)),
+            Codes::U32(c) => c.get(i).map(|&v| u64::from(v)),
+            Codes::U64(c) => c.get(i).copied(),
+        }
+    }
+}
 
 /// A payload cell: column `x` and row `y`, counted from the detection border's outer corner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -49,8 +108,9 @@ pub struct Family {
     pub(crate) width_at_border: u8,
     pub(crate) total_width: u8,
     pub(crate) reversed_border: bool,
+    pub(crate) kind: Kind,
     pub(crate) layout: &'static [LayoutBit],
-    pub(crate) codes: &'static [u64],
+    pub(crate) codes: Codes,
     pub(crate) index: IndexRef,
 }
 
@@ -58,39 +118,46 @@ pub struct Family {
 #[derive(Debug, Clone, Copy)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub(crate) struct IndexRef {
+    /// Chunks (`max_correctable + 1`).
+    pub(crate) chunks: u8,
     /// Chunk width in bits.
     pub(crate) chunk_bits: u8,
-    /// `CHUNKS` tables of `2^chunk_bits + 1` offsets into `ids`.
+    /// Codes indexed: a dictionary that is a prefix of a larger one shares its index, and
+    /// skips the ids past its own.
+    pub(crate) stride: u16,
+    /// `chunks` tables of `2^chunk_bits + 1` offsets into `ids`.
     pub(crate) offsets: &'static [u16],
-    /// `CHUNKS` tables of `ncodes` code indices, grouped by chunk value.
+    /// `chunks` tables of `stride` code indices, grouped by chunk value, ascending within a
+    /// value.
     pub(crate) ids: &'static [u16],
 }
 
-/// The chunk index of `N` codes: `OFF = CHUNKS (2^chunk + 1)`, `IDS = CHUNKS N`.
+/// The chunk index of `N` codes in `C` chunks: `OFF = C (2^chunk + 1)`, `IDS = C N`.
 pub(crate) struct ChunkIndex<const OFF: usize, const IDS: usize> {
     pub(crate) offsets: [u16; OFF],
     pub(crate) ids: [u16; IDS],
 }
 
-/// Chunk width for `nbits`: `⌈nbits / CHUNKS⌉`.
-pub(crate) const fn chunk_bits(nbits: usize) -> usize {
-    nbits.div_ceil(CHUNKS)
+/// Chunk width for `nbits` in `chunks`: `⌈nbits / chunks⌉`.
+pub(crate) const fn chunk_bits(nbits: usize, chunks: usize) -> usize {
+    nbits.div_ceil(chunks)
 }
 
 impl<const OFF: usize, const IDS: usize> ChunkIndex<OFF, IDS> {
-    /// Builds the index at compile time (a counting sort of the codes by each chunk's value).
-    /// A size mismatch or more than `u16::MAX` codes fails the build.
+    /// Builds the index at compile time (a counting sort of the codes by each chunk's value,
+    /// stable: ids ascend within a value). A size mismatch or more than `u16::MAX` codes fails
+    /// the build.
     #[allow(clippy::indexing_slicing)] // Evaluated at compile time: a bad index fails the build.
-    pub(crate) const fn build(codes: &[u64], nbits: usize) -> Self {
-        let bits = chunk_bits(nbits);
+    pub(crate) const fn build(codes: &[u64], nbits: usize, chunks: usize) -> Self {
+        let bits = chunk_bits(nbits, chunks);
         let cap = 1usize << bits;
-        assert!(OFF == CHUNKS * (cap + 1) && IDS == CHUNKS * codes.len());
+        assert!(OFF == chunks * (cap + 1) && IDS == chunks * codes.len());
         assert!(codes.len() < u16::MAX as usize);
         let mask = (cap - 1) as u64;
         let mut offsets = [0u16; OFF];
         let mut ids = [0u16; IDS];
         let mut c = 0;
-        while c < CHUNKS {
+        while c < chunks {
             let base = c * (cap + 1);
             let mut i = 0;
             while i < codes.len() {
@@ -191,7 +258,20 @@ impl Family {
     }
     /// The code of tag `id`, `None` past the table.
     pub fn code(&self, id: u16) -> Option<u64> {
-        self.codes.get(usize::from(id)).copied()
+        self.codes.get(usize::from(id))
+    }
+    /// AprilTag family or ArUco dictionary.
+    pub fn kind(&self) -> Kind {
+        self.kind
+    }
+    /// `true` for an ArUco dictionary.
+    pub fn is_aruco(&self) -> bool {
+        matches!(self.kind, Kind::Aruco { .. })
+    }
+    /// Most bits [`Self::decode`] corrects: chunks of the lookup less one (3 for the AprilTag
+    /// families; for an ArUco dictionary at least OpenCV's `maxCorrectionBits`).
+    pub fn max_correctable(&self) -> u8 {
+        self.index.chunks.saturating_sub(1)
     }
 
     /// The colour of cell `(x, y)` of tag `id` (`true` white), cells counted as the layout's
@@ -230,20 +310,29 @@ impl Family {
         })
     }
 
-    /// Decodes a read word (module docs): the code within `max_hamming` bits of `rcode` in
-    /// some rotation, if any (`max_hamming ≤` [`MAX_CORRECTABLE`]; larger values are treated
-    /// as [`MAX_CORRECTABLE`]). With `2 max_hamming < min_distance` the answer is unique.
+    /// Decodes a read word (module docs): of the codes within `max_hamming` bits of `rcode`
+    /// in some rotation, the smallest id (OpenCV's `Dictionary::identify`), in its rotation of
+    /// fewest differing bits. `max_hamming` above [`Self::max_correctable`] is treated as it.
+    /// With `2 max_hamming < min_distance` the answer is unique.
+    ///
+    /// Work: for each of 4 rotations, the codes sharing one of the first `max_hamming + 1`
+    /// chunk values with the word (about `4 (max_hamming + 1) stride / 2^chunk_bits` codes).
+    #[doc(alias = "identify")]
     pub fn decode(&self, rcode: u64, max_hamming: u8) -> Option<Decoded> {
-        let maxh = max_hamming.min(MAX_CORRECTABLE) as u32;
+        let maxh = max_hamming.min(self.max_correctable());
+        let probe = usize::from(maxh) + 1;
+        let maxh = u32::from(maxh);
         let nbits = self.nbits();
         let bits = u32::from(self.index.chunk_bits);
-        let cap = 1usize << bits;
+        let cap = 1usize << bits.min(16);
         let mask = (cap - 1) as u64;
+        let stride = usize::from(self.index.stride);
         let n = self.codes.len();
+        let mut best: Option<Decoded> = None;
         let mut r = rcode;
         for rotation in 0..4u8 {
-            for c in 0..CHUNKS {
-                let v = ((r >> (c as u32 * bits)) & mask) as usize;
+            for c in 0..probe {
+                let v = ((r >> (c as u32 * bits).min(63)) & mask) as usize;
                 let base = c * (cap + 1) + v;
                 let (Some(&start), Some(&end)) = (
                     self.index.offsets.get(base),
@@ -254,15 +343,27 @@ impl Family {
                 let ids = self
                     .index
                     .ids
-                    .get(c * n + usize::from(start)..c * n + usize::from(end))
+                    .get(c * stride + usize::from(start)..c * stride + usize::from(end))
                     .unwrap_or(&[]);
                 for &id in ids {
+                    // Ids ascend: past this family's codes, or past the best id, nothing
+                    // better follows in this bucket.
+                    if usize::from(id) >= n || best.is_some_and(|b| id > b.id) {
+                        break;
+                    }
                     let Some(code) = self.codes.get(usize::from(id)) else {
                         continue;
                     };
                     let hamming = (code ^ r).count_ones();
-                    if hamming <= maxh {
-                        return Some(Decoded {
+                    if hamming > maxh {
+                        continue;
+                    }
+                    let better = match best {
+                        None => true,
+                        Some(b) => id < b.id || (id == b.id && hamming < u32::from(b.hamming)),
+                    };
+                    if better {
+                        best = Some(Decoded {
                             id,
                             hamming: hamming as u8,
                             rotation,
@@ -272,7 +373,7 @@ impl Family {
             }
             r = rotate90(r, nbits);
         }
-        None
+        best
     }
 }
 

@@ -43,6 +43,18 @@
 //! Coordinates are camgeom's: pixel `(i, j)` is centred at `(i, j)` (OpenCV's convention);
 //! AprilTag's are these plus [`APRILTAG_PIXEL_OFFSET`].
 //!
+//! **ArUco** (OpenCV's `ArucoDetector::detectMarkers`): OpenCV's predefined dictionaries
+//! ([`families::DICT_4X4_50`] .. [`families::DICT_ARUCO_MIP_36H12`], OpenCV's ids) are
+//! families of [`Kind::Aruco`] decoded by the same pipeline: the quad of the marker's black
+//! border against its white quiet zone, the payload read as an AprilTag's, the border cells
+//! checked and the bits corrected with OpenCV's rules
+//! ([`DetectorConfig::max_erroneous_bits_in_border_rate`],
+//! [`DetectorConfig::error_correction_rate`]), the corners in OpenCV's order by
+//! [`Detection::aruco_corners`]. A marker needs a white quiet zone around its black border
+//! (the printed page's margin; one cell is plenty): without one, on a dark background, the
+//! border joins the background, no quad is found and the marker is not detected (OpenCV's
+//! detector needs the same contrast for its contour).
+//!
 //! ```
 //! use camgeom::apriltag::{families, Detection, Detector, DetectorConfig, Workspace320x240};
 //! use camgeom::image::ImageView;
@@ -92,7 +104,7 @@ pub use detector::{
     APRILTAG_PIXEL_OFFSET, CORNER_TAG_COORDS, Detection, Detector, DetectorConfig, MAX_FAMILIES,
     Stage,
 };
-pub use family::{Decoded, Family, LayoutBit, rotate90};
+pub use family::{Decoded, Family, Kind, LayoutBit, rotate90};
 pub use label::Label;
 pub use pose::tag_pose;
 pub use segment::MAX_SIDE;

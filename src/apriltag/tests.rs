@@ -7,7 +7,10 @@ use std::vec::Vec;
 use nalgebra::{Point2, Point3, Vector3};
 use proptest::prelude::*;
 
-use super::families::{ALL, TAG_STANDARD41H12, TAG16H5, TAG25H9, TAG36H11};
+use super::families::{
+    ALL, ARUCO, DICT_4X4_50, DICT_4X4_1000, DICT_6X6_250, DICT_ARUCO_ORIGINAL, TAG_STANDARD41H12,
+    TAG16H5, TAG25H9, TAG36H11,
+};
 use super::segment::{
     BLACK, MIN_COMPONENT, Rows, Run, SKIP, Sampled, Sink, WHITE, boundary_scan, build_tiles,
     label_pass, row_runs, tile_count,
@@ -25,7 +28,7 @@ fn brute_decode(f: &Family, r: u64, maxh: u32) -> Option<(u16, u32)> {
     let mut best: Option<(u16, u32)> = None;
     let mut w = r;
     for _ in 0..4 {
-        for (id, &c) in f.codes.iter().enumerate() {
+        for (id, c) in (0..f.ncodes()).filter_map(|i| Some((i, f.codes.get(i)?))) {
             let h = (c ^ w).count_ones();
             if h <= maxh && best.is_none_or(|b| h < b.1) {
                 best = Some((id as u16, h));
@@ -96,6 +99,126 @@ fn every_id_and_rotation_decodes_exactly_and_with_one_bit_wrong() {
     }
 }
 
+/// Every code of every ArUco dictionary in every rotation decodes to the smallest id with a
+/// code equal to it in some rotation (its own but for DICT_ARUCO_ORIGINAL's rotated
+/// duplicates), with `max_correctable` wrong bits to what a search of every code gives, and a
+/// prefix dictionary never answers an id past its own.
+#[test]
+fn aruco_dictionaries_decode_as_a_search_of_every_code() {
+    let mut rng = 0x2545_f491_4f6c_dd1du64;
+    let mut next = || {
+        rng ^= rng << 13;
+        rng ^= rng >> 7;
+        rng ^= rng << 17;
+        rng
+    };
+    for f in ARUCO {
+        let n = f.nbits();
+        let e = f.max_correctable();
+        assert!(e >= 1 || f.name() == "DICT_4X4_1000", "{}", f.name());
+        let step = (f.ncodes() / 60).max(1);
+        for id in (0..f.ncodes() as u16).step_by(step) {
+            let mut w = f.code(id).unwrap();
+            for _ in 0..4 {
+                let d = f.decode(w, 0).unwrap();
+                let want = brute_decode(f, w, 0).unwrap();
+                assert_eq!((d.id, u32::from(d.hamming)), want, "{} id {id}", f.name());
+                assert!(d.id <= id);
+                // e wrong bits: the lookup finds what the search finds (the smallest id).
+                let mut flipped = w;
+                for _ in 0..e {
+                    flipped ^= 1 << (next() % u64::from(n));
+                }
+                let got = f.decode(flipped, e).map(|d| d.id);
+                let want = brute_decode_smallest(f, flipped, u32::from(e));
+                assert_eq!(got, want, "{} id {id} {e} bits", f.name());
+                w = rotate90(w, n);
+            }
+        }
+        for _ in 0..200 {
+            let w = next() & ((1u64 << n) - 1);
+            let got = f.decode(w, e).map(|d| d.id);
+            assert_eq!(
+                got,
+                brute_decode_smallest(f, w, u32::from(e)),
+                "{}",
+                f.name()
+            );
+            assert!(got.is_none_or(|id| usize::from(id) < f.ncodes()));
+        }
+    }
+    // The shared table: DICT_4X4_50's codes are DICT_4X4_1000's first 50.
+    for id in 0..50 {
+        assert_eq!(DICT_4X4_50.code(id), DICT_4X4_1000.code(id));
+    }
+    assert_eq!(DICT_4X4_50.code(50), None);
+}
+
+/// The smallest id within `maxh` bits of `r` in some rotation (OpenCV's `identify`).
+fn brute_decode_smallest(f: &Family, r: u64, maxh: u32) -> Option<u16> {
+    let mut w = r;
+    let mut best: Option<u16> = None;
+    for _ in 0..4 {
+        for id in 0..f.ncodes() as u16 {
+            if (f.code(id).unwrap() ^ w).count_ones() <= maxh && best.is_none_or(|b| id < b) {
+                best = Some(id);
+            }
+        }
+        w = rotate90(w, f.nbits());
+    }
+    best
+}
+
+/// ArUco markers drawn from their cells in every orientation: found with their ids, OpenCV's
+/// corner order turning with the marker (corner 0 is the marker's own top-left), a marker
+/// drawn on black (no quiet zone) is not found, and DICT_ARUCO_ORIGINAL's marker 1023, its
+/// own half turn, is found either way up.
+#[test]
+fn aruco_markers_are_found_in_every_orientation_with_opencvs_corner_order() {
+    let (w, h) = (160, 120);
+    for (f, id) in [
+        (&DICT_4X4_50, 7u16),
+        (&DICT_6X6_250, 201),
+        (&DICT_ARUCO_ORIGINAL, 1023),
+    ] {
+        for quarter in 0..4u8 {
+            let mut px = vec![128u8; w * h];
+            let cell = 6;
+            let (x0, y0) = (40, 20);
+            draw(&mut px, w, f, id, (x0, y0), cell, quarter);
+            let got = detect_all(&px, w, h, &[f]);
+            assert_eq!(got.len(), 1, "{} q{quarter}: {got:?}", f.name());
+            let d = &got[0];
+            assert_eq!((d.id, d.hamming), (id, 0));
+            let s = f32::from(f.width_at_border()) * cell as f32;
+            let (l, t) = (x0 as f32 - 0.5, y0 as f32 - 0.5);
+            // The upright marker's top-left, top-right, bottom-right, bottom-left; turned by
+            // q quarters clockwise, corner i sits at the square's corner (i + q) mod 4.
+            let square = [(l, t), (l + s, t), (l + s, t + s), (l, t + s)];
+            let sym = if id == 1023 { 2 } else { 4 };
+            let ok = (0..4).step_by(sym).any(|extra| {
+                d.aruco_corners().iter().enumerate().all(|(i, c)| {
+                    let (ex, ey) = square[(i + usize::from(quarter) + extra) % 4];
+                    (c.x - ex).abs() < 0.1 && (c.y - ey).abs() < 0.1
+                })
+            });
+            assert!(ok, "{} q{quarter}: {:?}", f.name(), d.aruco_corners());
+        }
+    }
+    // No quiet zone: the same marker on black.
+    let mut px = vec![25u8; w * h];
+    draw(&mut px, w, &DICT_4X4_50, 7, (40, 20), 6, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let inside = (40..40 + 36).contains(&x) && (20..20 + 36).contains(&y);
+            if !inside {
+                px[y * w + x] = 25;
+            }
+        }
+    }
+    assert!(detect_all(&px, w, h, &[&DICT_4X4_50]).is_empty());
+}
+
 /// tag16h5 has distance 5: three wrong bits can land within two of another code. Measured
 /// here so the docs' warning stays true: some 3-bit errors decode to a wrong id.
 #[test]
@@ -158,7 +281,7 @@ proptest! {
         let mask = (1u64 << n) - 1;
         let w = if near {
             let id = ((id_frac * f.ncodes() as f64) as usize).min(f.ncodes() - 1);
-            flips.iter().fold(f.codes[id], |w, &b| if b < n { w ^ (1 << b) } else { w })
+            flips.iter().fold(f.codes.get(id).unwrap(), |w, &b| if b < n { w ^ (1 << b) } else { w })
         } else {
             r & mask
         };

@@ -189,7 +189,7 @@ impl Detector {
         if !predicted.iter().all(|p| p.x.is_finite() && p.y.is_finite()) {
             return None;
         }
-        let code = *family.codes.get(usize::from(id))?;
+        let code = family.codes.get(usize::from(id))?;
         let mut q = Quad {
             p: *predicted,
             reversed_border: family.reversed_border,
@@ -232,8 +232,14 @@ impl Detector {
         if !crate::scalar::at_most(cfg.min_decision_margin.max(0.0), reading.margin) {
             return None;
         }
+        let lim = self.limits(family);
+        if reading.border_errors > lim.max_border_errors
+            || !crate::scalar::at_most(lim.min_contrast, reading.contrast)
+        {
+            return None;
+        }
         let hamming = (reading.rcode ^ code).count_ones();
-        if hamming > u32::from(cfg.max_hamming) {
+        if hamming > u32::from(lim.max_hamming) {
             return None;
         }
         Some(Refined {
