@@ -276,21 +276,22 @@ impl Acquire for HostTagTarget<'_> {
 pub const MAX_DETECTIONS: usize = 256;
 
 /// The family called `name` (AprilTag's names: `tag36h11`, `tag25h9`, `tag16h5`,
-/// `tagStandard41h12`).
+/// `tagStandard41h12`; OpenCV's ArUco dictionaries: `DICT_4X4_50` .. `DICT_7X7_1000`,
+/// `DICT_ARUCO_ORIGINAL`, `DICT_ARUCO_MIP_36h12`).
 ///
 /// Errors: a usage error naming the families there are.
 pub fn family(name: &str) -> Result<&'static Family> {
-    families::ALL
-        .iter()
-        .copied()
-        .find(|f| f.name() == name)
-        .ok_or_else(|| {
-            let names: Vec<&str> = families::ALL.iter().map(|f| f.name()).collect();
-            Error::usage(format!(
-                "--family: unknown family `{name}` (one of {})",
-                names.join(", ")
-            ))
-        })
+    families::by_name(name).ok_or_else(|| {
+        let names: Vec<&str> = families::ALL
+            .iter()
+            .chain(families::ARUCO.iter())
+            .map(|f| f.name())
+            .collect();
+        Error::usage(format!(
+            "--family: unknown family `{name}` (one of {})",
+            names.join(", ")
+        ))
+    })
 }
 
 /// A comma-separated list of families (`tag36h11,tag25h9`), each at most once.
@@ -332,6 +333,7 @@ pub fn detector(
         camgeom::Error::InvalidParameter("max_hamming") => {
             let limit = families
                 .iter()
+                .filter(|f| !f.is_aruco())
                 .map(|f| (u32::from(f.min_distance()).saturating_sub(1) / 2).min(3))
                 .min()
                 .unwrap_or(0);
@@ -462,8 +464,10 @@ pub struct JsonTag {
     pub hamming: u8,
     /// Decision margin (AprilTag's `decision_margin`).
     pub margin: f32,
-    /// Corners in AprilTag's order (tag coordinates `(-1, 1)`, `(1, 1)`, `(1, -1)`,
-    /// `(-1, -1)`), in the chosen [`Coords`].
+    /// Corners in the chosen [`Coords`]: for an AprilTag family in AprilTag's order (tag
+    /// coordinates `(-1, 1)`, `(1, 1)`, `(1, -1)`, `(-1, -1)`), for an ArUco dictionary in
+    /// OpenCV's (`detectMarkers`: the marker's top-left first, clockwise; tag coordinates
+    /// `(-1, -1)`, `(1, -1)`, `(1, 1)`, `(-1, 1)`).
     pub corners: [[f32; 2]; 4],
     /// Tag coordinates to pixels (in the chosen [`Coords`]), row-major, `h33 = 1`.
     #[serde(rename = "H")]
@@ -507,7 +511,12 @@ pub fn json_tag(d: &Detection, coords: Coords, pose: Option<&(f32, Camera<f32>)>
         family: d.family.name(),
         hamming: d.hamming,
         margin: d.decision_margin,
-        corners: d.corners.map(|c| [c.x + o, c.y + o]),
+        corners: if d.family.is_aruco() {
+            d.aruco_corners()
+        } else {
+            d.corners
+        }
+        .map(|c| [c.x + o, c.y + o]),
         h: std::array::from_fn(|k| m[(k / 3, k % 3)] / s),
         r: None,
         t: None,

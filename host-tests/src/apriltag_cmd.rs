@@ -29,14 +29,19 @@ pub struct ApriltagArgs {
     /// file (.mp4, .mov, .avi, .mkv, ..; decoded by ffmpeg one frame at a time).
     #[arg(long, visible_alias = "video", value_name = "DIR|VIDEO")]
     frames: Option<PathBuf>,
-    /// Families to decode, comma-separated: tag36h11, tag25h9, tag16h5, tagStandard41h12.
+    /// Families to decode, comma-separated (at most 4): tag36h11, tag25h9, tag16h5,
+    /// tagStandard41h12, and OpenCV's ArUco dictionaries DICT_4X4_50, DICT_4X4_100,
+    /// DICT_4X4_250, DICT_4X4_1000, DICT_5X5_*, DICT_6X6_*, DICT_7X7_* (the same sizes),
+    /// DICT_ARUCO_ORIGINAL, DICT_ARUCO_MIP_36h12 (OpenCV's ids; corners in OpenCV's order).
     #[arg(long, default_value = "tag36h11", value_name = "F[,F..]")]
     family: String,
     /// Search quads on the frame point-sampled every D pixels (1..=8; decoding uses the full
     /// frame).
     #[arg(long, default_value_t = 1, value_name = "D")]
     decimate: u8,
-    /// Bits corrected (at most 3, and below half the family's distance: 2 for tag16h5).
+    /// Bits corrected for AprilTag families (at most 3, and below half the family's
+    /// distance: 2 for tag16h5). ArUco dictionaries correct OpenCV's default,
+    /// ⌊0.6 maxCorrectionBits⌋.
     #[arg(long, default_value_t = 2, value_name = "N")]
     max_hamming: u8,
     /// Do not snap the quad's edges to the strongest gradient (AprilTag's `refine_edges = 0`,

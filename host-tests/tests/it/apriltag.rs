@@ -10,7 +10,7 @@ use camgeom::pose::PlanarConfig;
 use camgeom_host::images::load_gray;
 
 /// A workspace for the 799x533 photos at decimation 1.
-type PhotoWorkspace =
+pub(crate) type PhotoWorkspace =
     Workspace<800, { tiles_len(800, 536, 1) }, 32768, 4096, 262144, { sort_len(800, 536, 1) }>;
 
 pub(crate) fn data(sub: &str) -> std::path::PathBuf {
@@ -256,7 +256,7 @@ fn worst(a: &mut Stats, s: &Stats) {
 
 /// Every tag-free frame: the box and tree sequences (320x240) and the chessboard views
 /// (640x480).
-fn tag_free_frames() -> Vec<(&'static str, std::path::PathBuf)> {
+pub(crate) fn tag_free_frames() -> Vec<(&'static str, std::path::PathBuf)> {
     let mut v: Vec<_> = sequence("box").into_iter().map(|p| ("box", p)).collect();
     v.extend(sequence("tree").into_iter().map(|p| ("tree", p)));
     v.extend((1..=14).filter(|i| *i != 10).map(|i| {

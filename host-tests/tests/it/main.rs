@@ -6,6 +6,7 @@ mod apriltag;
 mod apriltag_cli;
 mod apriltag_large;
 mod ar_box;
+mod aruco;
 mod calib_chessboard;
 mod calib_cli;
 mod calib_real;
