@@ -6,7 +6,12 @@
 //! refinement, sharpening 0.25). Workspaces: the board's `Workspace320x240` (320x240, and
 //! 640x480 at decimation 2) and `Workspace640x480`.
 //!
-//! `cargo bench -p camgeom-host --bench apriltag`
+//! The `aruco` group (`scripts/bench_aruco.py` times OpenCV's `ArucoDetector` on the same
+//! files): the DICT_6X6_250 frame of the rendered ArUco frames (`aruco/0002.png`, 320x240,
+//! six markers of 10 to 48 px) and `left01.jpg` with DICT_4X4_50, decimation 1, OpenCV's
+//! decoding defaults.
+//!
+//! `cargo bench -p camgeom-host --bench apriltag` (`-- aruco` for that group alone)
 
 use std::hint::black_box;
 
@@ -55,5 +60,40 @@ fn bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench);
+/// The ArUco frames: `(id, path under host-tests/data/, dictionary, markers expected)`.
+const ARUCO_FRAMES: [(&str, &str, &str, usize); 2] = [
+    ("320x240_6x6_250", "aruco/0002.png", "DICT_6X6_250", 6),
+    (
+        "640x480_left01_4x4_50",
+        "chessboard/left01.jpg",
+        "DICT_4X4_50",
+        0,
+    ),
+];
+
+fn bench_aruco(c: &mut Criterion) {
+    let mut g = c.benchmark_group("aruco");
+    g.sample_size(30);
+    let mut small = Box::new(Workspace320x240::new());
+    let mut large = Box::new(Workspace640x480::new());
+    for (id, file, dict, markers) in ARUCO_FRAMES {
+        let img = load_gray(data_dir().join(file)).unwrap();
+        let view = img.view().unwrap();
+        let family = families::by_name(dict).unwrap();
+        let det = Detector::new(DetectorConfig::default(), &[family]).unwrap();
+        let big = img.width > 320;
+        let mut run = || -> camgeom::heapless::Vec<Detection, 16> {
+            if big {
+                det.detect(&view, &mut large.as_mut_view()).unwrap()
+            } else {
+                det.detect(&view, &mut small.as_mut_view()).unwrap()
+            }
+        };
+        assert_eq!(run().len(), markers, "{file} {dict}");
+        g.bench_function(BenchmarkId::new(id, "d1"), |b| b.iter(|| black_box(run())));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench, bench_aruco);
 criterion_main!(benches);
