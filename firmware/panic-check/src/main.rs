@@ -902,6 +902,51 @@ fn run_apriltag() {
         black_box(f.decode(black_box(0x1234_5678_9abc), black_box(2)));
     }
     run_apriltag_wide_labels(&detector, &v);
+    run_aruco(&v, &mut ws);
+}
+
+/// ArUco: OpenCV's dictionaries through the same detector (every group's table, mixed with an
+/// AprilTag family, OpenCV's largest correction rate), OpenCV's corner order and the bound of
+/// each detection, the tracking refinement of a marker, each dictionary's decoder and the
+/// look-up by name.
+#[cfg(feature = "apriltag")]
+fn run_aruco(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
+    use camgeom::apriltag::{Detector, DetectorConfig, families};
+    let cfg = DetectorConfig {
+        error_correction_rate: black_box(1.0),
+        ..black_box(DetectorConfig::default())
+    };
+    let sets: [[&'static camgeom::apriltag::Family; 4]; 2] = [
+        [
+            &families::DICT_4X4_50,
+            &families::DICT_5X5_1000,
+            &families::DICT_6X6_250,
+            &families::DICT_7X7_1000,
+        ],
+        [
+            &families::DICT_ARUCO_ORIGINAL,
+            &families::DICT_ARUCO_MIP_36H12,
+            &families::TAG36H11,
+            &families::DICT_4X4_1000,
+        ],
+    ];
+    let predicted = black_box([Point2::new(black_box(3.5f32), black_box(-2.0)); 4]);
+    for set in sets {
+        let Ok(det) = Detector::new(cfg, black_box(&set)) else {
+            continue;
+        };
+        if let Ok(found) = det.detect::<4>(v, &mut ws.as_mut_view()) {
+            for d in &found {
+                black_box(d.aruco_corners());
+                black_box(det.max_hamming_for(d.family));
+            }
+        }
+        black_box(det.refine_detection(v, set[0], black_box(7), &predicted));
+    }
+    for f in families::ARUCO {
+        black_box(f.decode(black_box(0x1234_5678_9abc), black_box(9)));
+    }
+    black_box(families::by_name(black_box("DICT_6X6_250")));
 }
 
 /// The same detection through a [`camgeom::apriltag::WorkspaceView`] of `u32` labels (a
