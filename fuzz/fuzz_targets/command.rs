@@ -2,13 +2,17 @@
 //! (`camgeom_fw_app::settings`) on arbitrary bytes: the bytes as a link delivers them, framed
 //! and fed in arbitrary chunks to the board's receiver, each frame decoded as a command and
 //! applied to settings, which must stay settings a board can run with; and arbitrary bytes
-//! read as stored settings (a sector with anything in it). Contract: no panic; every command
+//! read as stored settings (a sector with anything in it); and the same bytes, and arbitrary
+//! records, read as a frame's pixel chunk (what the host reads of a board streaming frames).
+//! Contract: no panic; every command
 //! that decodes round-trips through its bytes and leaves a camera that builds and a tag side
-//! that is finite and positive; stored settings that decode encode to the same bytes.
+//! that is finite and positive; stored settings that decode encode to the same bytes; a chunk
+//! that decodes lies inside its frame and encodes to a chunk that decodes the same.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom_fw_app::command::{COMMAND_LEN, Command, Mode};
+use camgeom_fw_app::frame_chunk::{CHUNK_LEN, FrameChunk};
 use camgeom_fw_app::link::{Deframer, max_frame_len};
 use camgeom_fw_app::settings::{Applied, SETTINGS_LEN, Settings};
 use libfuzzer_sys::fuzz_target;
@@ -19,6 +23,7 @@ struct Input {
     chunks: Vec<u8>,
     commands: Vec<[u8; COMMAND_LEN]>,
     stored: [u8; SETTINGS_LEN],
+    pixels: Vec<[u8; CHUNK_LEN]>,
 }
 
 fn start() -> Settings {
@@ -32,7 +37,19 @@ fn start() -> Settings {
     }
 }
 
+/// A frame's pixel chunk (`camgeom_fw_app::frame_chunk`): one that decodes lies inside its
+/// frame and round-trips through its bytes.
+fn chunk(record: &[u8]) {
+    let Ok(c) = FrameChunk::decode(record) else {
+        return;
+    };
+    assert!(c.offset as usize + c.pixels().len() <= c.frame_len());
+    assert!(c.number() < c.count() && !c.pixels().is_empty());
+    assert_eq!(FrameChunk::decode(&c.encode()), Ok(c));
+}
+
 fn apply(settings: &mut Settings, record: &[u8]) {
+    chunk(record);
     let Ok(c) = Command::decode(record) else {
         return;
     };
@@ -59,6 +76,9 @@ fuzz_target!(|input: Input| {
     }
     for c in &input.commands {
         apply(&mut settings, c);
+    }
+    for c in &input.pixels {
+        chunk(c);
     }
     if let Ok(s) = Settings::decode(&input.stored) {
         assert_eq!(s.encode(), input.stored);

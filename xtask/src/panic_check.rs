@@ -144,7 +144,7 @@ pub const AREAS: [Area; 22] = [
     area(
         "link",
         false,
-        "the board application's record stream: `camgeom_fw_app::link::encode_frame`, `Deframer::push`",
+        "the board application's record stream: `camgeom_fw_app::link::encode_frame`, `Deframer::push`; a frame's pixels: `frame_chunk::send_frame`, `FrameChunk::decode`",
     ),
     area(
         "command",

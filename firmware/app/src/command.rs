@@ -56,7 +56,8 @@ pub enum Mode {
     TrackCorners,
     /// Calibrate the camera from chessboard views.
     Calibrate,
-    /// Send frames to the host.
+    /// Track the tag as [`Mode::TrackTag`] does, and send each frame's pixels to the host
+    /// ([`crate::frame_chunk`]) before its record.
     StreamFrames,
 }
 

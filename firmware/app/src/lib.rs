@@ -15,6 +15,7 @@ extern crate std;
 pub mod calibration;
 pub mod command;
 pub mod costs;
+pub mod frame_chunk;
 pub mod link;
 #[cfg(feature = "mavlink")]
 pub mod mavlink;

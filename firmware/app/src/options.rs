@@ -18,8 +18,9 @@ use crate::pipeline::{AppConfig, CubePlacement};
 
 /// Pyramid levels the application uses (`TargetConfig`'s default coarsest level is 2).
 pub const LEVELS: usize = 3;
-/// Side of the AR cube as a share of the target's shorter side.
-const CUBE_SHARE: f32 = 0.4;
+/// Side of the AR cube as a share of the target's shorter side (a host drawing a board's
+/// frame draws the same cube).
+pub const CUBE_SHARE: f32 = 0.4;
 
 /// The tag families a target can name, by index ([`Acquisition::Tag`]).
 pub const TAG_FAMILIES: [&Family; 4] = [

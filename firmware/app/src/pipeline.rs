@@ -205,6 +205,11 @@ pub trait FrameLoop {
         overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
     ) -> Result<(), AppError<E>>;
 
+    /// Hands `f` the latest frame's pixels as the camera delivered them (between
+    /// [`Self::step`]s; the next step draws its overlay into it): `None` before the first
+    /// frame.
+    fn with_latest<R>(&mut self, f: impl FnOnce(&ImageView<'_, u8>) -> R) -> Option<R>;
+
     /// Forgets the frames and the target: the next frame starts again.
     fn reset(&mut self);
 
@@ -367,6 +372,11 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
             overlay(last.index, &img.as_view());
         }
         Ok(())
+    }
+
+    fn with_latest<R>(&mut self, f: impl FnOnce(&ImageView<'_, u8>) -> R) -> Option<R> {
+        let img = self.frames.latest_mut().ok().flatten()?;
+        Some(f(&img.as_view()))
     }
 
     fn reset(&mut self) {

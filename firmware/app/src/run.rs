@@ -213,8 +213,9 @@ impl RunSpec {
 /// Runs `pipeline` over every frame of `camera`, the same way on the board and in its host
 /// replay: every frame steps it ([`FrameLoop::step`]; the first one that arrives starts it),
 /// and the last overlay is drawn at the end. Each delivered frame gives `record` one
-/// [`FrameRecord`], numbered by delivery ([`RecordedCamera::delivered`]): the frame's report,
-/// or the error it met with the tracker's state. A frame that fails does not end the run (a
+/// [`FrameRecord`], numbered by delivery ([`RecordedCamera::delivered`]): the frame's report
+/// with its pixels as delivered ([`FrameLoop::with_latest`]), or the error it met with the
+/// tracker's state (no pixels). A frame that fails does not end the run (a
 /// faulty camera is what the fault job tests); `overlay` receives the overlays as
 /// [`FrameLoop::step`] draws them. Errors: only [`AppError::Core`] from drawing the last
 /// overlay.
@@ -224,7 +225,7 @@ pub fn drive<R: RecordedFrames>(
     camera: &mut RecordedCamera<R>,
     acquire: &mut (impl Acquire + ?Sized),
     clock: &mut impl Clock,
-    record: &mut impl FnMut(&FrameRecord),
+    record: &mut impl FnMut(&FrameRecord, Option<&ImageView<'_, u8>>),
     overlay: &mut impl FnMut(u32, &ImageView<'_, u8>),
 ) -> Result<(), AppError<CameraError<R::Error>>> {
     pipeline.reset();
@@ -234,7 +235,12 @@ pub fn drive<R: RecordedFrames>(
             Ok(Some(r)) => {
                 let mut rec = FrameRecord::of(&r);
                 rec.index = k;
-                record(&rec);
+                if pipeline
+                    .with_latest(|img| record(&rec, Some(img)))
+                    .is_none()
+                {
+                    record(&rec, None);
+                }
             }
             Ok(None) => break,
             Err(e) => {
@@ -243,7 +249,7 @@ pub fn drive<R: RecordedFrames>(
                     AppError::Source(CameraError::Read(_)) => ErrorCode::READ_FAILED,
                     other => ErrorCode::of(&other),
                 };
-                record(&FrameRecord::failed(k, pipeline.state(), code));
+                record(&FrameRecord::failed(k, pipeline.state(), code), None);
             }
         }
         if camera.delivered() == k {
@@ -300,8 +306,11 @@ mod tests {
             },
             s
         );
-        stored.mode = Mode::StreamFrames;
+        stored.mode = Mode::Calibrate;
         assert_eq!(s.with_settings(&stored), None);
+        // Streaming frames tracks the tag as track-tag does.
+        stored.mode = Mode::StreamFrames;
+        assert_eq!(s.with_settings(&stored), Some(run));
     }
 
     /// Every field survives the bytes, the forward-backward flag both ways; a wrong length,

@@ -121,8 +121,8 @@ impl Settings {
         ))
     }
 
-    /// The tracking options of a tracking mode: the tag (a square of [`Self::tag_size`]) or
-    /// given corners of a target `corners_size`; `reacquire_every` and `forward_backward` as
+    /// The tracking options of a tracking mode: the tag (a square of [`Self::tag_size`]; also
+    /// while streaming frames) or given corners of a target `corners_size`; `reacquire_every` and `forward_backward` as
     /// [`AppOptions`] has them. `None` for a mode that does not track.
     pub fn options(
         &self,
@@ -131,7 +131,8 @@ impl Settings {
         forward_backward: bool,
     ) -> Option<AppOptions> {
         let (target_size, acquisition) = match self.mode {
-            Mode::TrackTag => (
+            // Streaming frames tracks the tag too: each frame's record goes with its pixels.
+            Mode::TrackTag | Mode::StreamFrames => (
                 [self.tag_size; 2],
                 Acquisition::Tag {
                     family: self.family,
@@ -139,7 +140,7 @@ impl Settings {
                 },
             ),
             Mode::TrackCorners => (corners_size, Acquisition::Corners),
-            Mode::Calibrate | Mode::StreamFrames => return None,
+            Mode::Calibrate => return None,
         };
         Some(AppOptions {
             target_size,

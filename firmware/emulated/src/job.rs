@@ -11,8 +11,9 @@
 
 use camgeom::image::ImageView;
 use camgeom::target::{Acquire, GivenCorners, TargetState};
-use camgeom_fw_app::command::{Ack, AckStatus, COMMAND_LEN, Command};
+use camgeom_fw_app::command::{Ack, AckStatus, COMMAND_LEN, Command, Mode};
 use camgeom_fw_app::drive;
+use camgeom_fw_app::frame_chunk::send_frame;
 use camgeom_fw_app::link::{Deframer, max_frame_len};
 use camgeom_fw_app::pipeline::{AppError, Clock, FrameLoop};
 use camgeom_fw_app::recorded::{CameraError, FAULT_PLAN_LEN, FaultPlan, RecordedCamera};
@@ -181,6 +182,10 @@ pub fn run<A: Acquire>(
     };
     let mut link = Link::open(stream);
     let settings = settings(&run, &mut flash, &mut link);
+    // In stream-frames mode each frame's pixels go before its record, after the settings the
+    // host draws the overlay with.
+    let streaming = settings.mode == Mode::StreamFrames;
+    let settings_record = settings.encode();
     let Some(spec) = run.with_settings(&settings) else {
         defmt::error!(
             "this firmware tracks; the settings say {=str}",
@@ -244,8 +249,15 @@ pub fn run<A: Acquire>(
         }
     };
     let mut summary = SummaryRecord::default();
-    let mut record = |r: &FrameRecord| {
+    let mut record = |r: &FrameRecord, pixels: Option<&ImageView<'_, u8>>| {
         log_frame(r);
+        if let (true, Some(img)) = (streaming, pixels) {
+            link.send_pixels(&settings_record);
+            if let Err(e) = send_frame(r.index, img, |chunk| link.send_pixels(chunk)) {
+                defmt::error!("frame {=u32}: {}", r.index, e);
+                board::exit_failure()
+            }
+        }
         summary.frames += 1;
         summary.tracking += u32::from(r.state == TargetState::Tracking && r.error.is_none());
         let bytes = r.encode();
@@ -333,7 +345,10 @@ fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings 
                     defmt::warn!("command {=u16}: {}", frame.seq, e);
                     (0, AckStatus::Invalid)
                 }
-                Ok(c) => (c.kind(), command(c, &mut settings, run, flash)),
+                Ok(c) => (
+                    c.kind(),
+                    command(c, &mut settings, run, flash, link.streams()),
+                ),
             };
             defmt::info!(
                 "command {=u16}: kind {=u32}, {=str}",
@@ -364,17 +379,18 @@ fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings 
 }
 
 /// Carries out one command ([`Settings::carry_out`]): this firmware tracks, so a mode that
-/// does not is refused; a save is stored in the flash and persisted.
+/// does not is refused, and so is streaming frames without a record stream (`streams`); a
+/// save is stored in the flash and persisted.
 fn command(
     c: Command,
     settings: &mut Settings,
     run: &RunSpec,
     flash: &mut FlashModel,
+    streams: bool,
 ) -> AckStatus {
-    let fits = |s: &Settings| {
-        run.with_settings(s)
-            .map(|_| ())
-            .ok_or(AckStatus::Unsupported)
+    let fits = |s: &Settings| match run.with_settings(s) {
+        Some(_) if streams || s.mode != Mode::StreamFrames => Ok(()),
+        _ => Err(AckStatus::Unsupported),
     };
     settings.carry_out(&c, fits, |s| {
         s.save(flash, 0).inspect_err(|e| {
@@ -396,13 +412,16 @@ pub fn given_corners(spec: &RunSpec) -> Option<GivenCorners> {
     }
 }
 
-/// The record stream of a run, with what it cost.
+/// The record stream of a run, with what it cost (the frames' pixels and the settings sent
+/// with them counted apart).
 struct Link {
     #[cfg(target_arch = "arm")]
     uart: Option<crate::uart::RecordLink>,
     frames: u32,
     bytes: u32,
     instructions: u64,
+    pixel_frames: u32,
+    pixel_bytes: u32,
 }
 
 impl Link {
@@ -420,7 +439,37 @@ impl Link {
             frames: 0,
             bytes: 0,
             instructions: 0,
+            pixel_frames: 0,
+            pixel_bytes: 0,
         }
+    }
+
+    /// Whether the records go out on a link.
+    fn streams(&self) -> bool {
+        #[cfg(target_arch = "arm")]
+        return self.uart.is_some();
+        #[cfg(not(target_arch = "arm"))]
+        false
+    }
+
+    /// Sends `record` (a frame's chunk of pixels, or the settings before them) as the next
+    /// frame, counted apart from the reports.
+    fn send_pixels(&mut self, record: &[u8]) {
+        #[cfg(target_arch = "arm")]
+        if let Some(uart) = &mut self.uart {
+            match uart.send(record) {
+                Ok(n) => {
+                    self.pixel_frames += 1;
+                    self.pixel_bytes += n as u32;
+                }
+                Err(e) => {
+                    defmt::error!("record stream: {}", e);
+                    board::exit_failure()
+                }
+            }
+        }
+        #[cfg(not(target_arch = "arm"))]
+        let _ = record;
     }
 
     /// Sends `record` as the next frame (a failure ends the run: the host checks the stream).
@@ -452,6 +501,13 @@ impl Link {
                 self.frames,
                 self.bytes,
                 self.instructions / u64::from(self.frames)
+            );
+        }
+        if self.pixel_frames > 0 {
+            defmt::info!(
+                "frames streamed: {=u32} link frames of pixels and settings, {=u32} bytes over UART0",
+                self.pixel_frames,
+                self.pixel_bytes
             );
         }
     }

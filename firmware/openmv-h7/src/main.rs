@@ -7,7 +7,9 @@
 //! An autopilot on UART3 gets a MAVLink `HEARTBEAT` a second and a `LANDING_TARGET` for every
 //! frame with a pose ([`autopilot`]). The host sends commands over the USB port (mode, tag,
 //! camera, save; answered on the record stream); the settings they make are kept in a
-//! reserved flash sector and loaded at boot ([`settings`]).
+//! reserved flash sector and loaded at boot ([`settings`]). In mode `stream-frames` each
+//! frame's pixels go over USB too, before its record, for the host to show it with its
+//! overlay (`camgeom monitor --frames-dir`).
 //!
 //! Board wiring, from the OpenMV firmware's board description (`boards/OPENMV4/
 //! board_config.h` and `board_config.mk` in the openmv/openmv repository):
@@ -40,7 +42,8 @@ mod tracker;
 
 use camgeom::apriltag::TagTarget;
 use camgeom::target::{Acquire, Stage};
-use camgeom_fw_app::command::{Ack, AckStatus};
+use camgeom_fw_app::command::{Ack, AckStatus, Mode};
+use camgeom_fw_app::frame_chunk::send_frame;
 use camgeom_fw_app::report::{ErrorCode, FrameRecord};
 use camgeom_fw_app::settings::Settings;
 use camgeom_fw_app::{AppError, Cost, FrameLoop, FrameReport};
@@ -261,6 +264,10 @@ async fn main(_spawner: Spawner) {
             }
         };
         defmt::info!("settings: {}", settings);
+        // In stream-frames mode each frame's pixels go before its record, after the settings
+        // the host draws the overlay with.
+        let streaming = settings.mode == Mode::StreamFrames;
+        let settings_record = settings.encode();
         app.reset();
         led.show(app.state());
         loop {
@@ -284,6 +291,9 @@ async fn main(_spawner: Spawner) {
                 }
             };
             led.show(record.state);
+            if streaming && record.error.is_none() {
+                stream_pixels(&mut records, &mut *app, index, &settings_record);
+            }
             records.send(&record.encode());
             autopilot.frame(&record, options.target_size);
             index = index.wrapping_add(1);
@@ -318,6 +328,35 @@ async fn main(_spawner: Spawner) {
                 break;
             }
         }
+    }
+}
+
+/// How long a record of a streamed frame waits for room in the USB queue before the rest of
+/// the frame is dropped (no host reading: the USB task discards, so this is an unplugged cable
+/// or a host that stopped reading).
+const PIXELS_PATIENCE: embassy_time::Duration = embassy_time::Duration::from_millis(50);
+
+/// Sends the latest frame's pixels (the settings first) before its record: stops at the
+/// first record the USB queue did not take in time, and the host counts the frame incomplete.
+fn stream_pixels(
+    records: &mut RecordStream,
+    app: &mut impl FrameLoop,
+    index: u32,
+    settings: &[u8],
+) {
+    if !records.send_waiting(settings, PIXELS_PATIENCE) {
+        return;
+    }
+    let mut stalled = false;
+    let sent = app.with_latest(|img| {
+        send_frame(index, img, |chunk| {
+            if !stalled {
+                stalled = !records.send_waiting(chunk, PIXELS_PATIENCE);
+            }
+        })
+    });
+    if let Some(Err(e)) = sent {
+        defmt::warn!("frame {=u32}: {}", index, e);
     }
 }
 

@@ -11,6 +11,12 @@
 //! while no program has the port open (DTR low) it discards them (counted too), so a host that
 //! opens the port gets current frames, not a queue of old ones.
 //!
+//! In mode `stream-frames` each frame's pixels go before its record
+//! ([`camgeom_fw_app::frame_chunk`], 600 records a 320x240 frame, after the settings the host
+//! draws the overlay with): those wait for room in the queue ([`RecordStream::send_waiting`]),
+//! so the frame rate drops to what the link carries, and a frame whose chunk could not be
+//! queued in time sends no more of its chunks.
+//!
 //! The other way, the host sends [`Command`] records framed the same way; the USB task
 //! deframes and decodes them and queues each ([`COMMAND_QUEUE`] deep, dropped and counted when
 //! full) for the tracking loop, which takes them between frames ([`next_command`]) and answers
@@ -27,6 +33,7 @@ use embassy_stm32::peripherals::{PA11, PA12, USB_OTG_FS};
 use embassy_stm32::usb::Driver;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::{Channel, TrySendError};
+use embassy_time::{Duration, Instant};
 use embassy_usb::Builder;
 use embassy_usb::class::cdc_acm::{CdcAcmClass, Receiver, Sender, State};
 use embassy_usb::driver::EndpointError;
@@ -93,6 +100,40 @@ impl RecordStream {
     /// [`RECORD_LEN`] bytes) as the next frame and queues it for USB; never waits. A full queue
     /// drops it ([`Self::dropped`]).
     pub fn send(&mut self, record: &[u8]) {
+        let Some(frame) = self.frame(record) else {
+            return;
+        };
+        match QUEUE.try_send(frame) {
+            Ok(()) => self.queued = self.queued.wrapping_add(1),
+            Err(TrySendError::Full(_)) => self.dropped = self.dropped.wrapping_add(1),
+        }
+    }
+
+    /// [`Self::send`], waiting up to `patience` for room in the queue (the USB task, at a
+    /// higher priority, empties it meanwhile): how a frame's pixels go, hundreds of records at
+    /// once. Returns `false` when the queue stayed full (the record dropped and counted).
+    pub fn send_waiting(&mut self, record: &[u8], patience: Duration) -> bool {
+        let Some(mut frame) = self.frame(record) else {
+            return false;
+        };
+        let deadline = Instant::now() + patience;
+        loop {
+            match QUEUE.try_send(frame) {
+                Ok(()) => {
+                    self.queued = self.queued.wrapping_add(1);
+                    return true;
+                }
+                Err(TrySendError::Full(f)) if Instant::now() < deadline => frame = f,
+                Err(TrySendError::Full(_)) => {
+                    self.dropped = self.dropped.wrapping_add(1);
+                    return false;
+                }
+            }
+        }
+    }
+
+    /// `record` framed with the next sequence number (taken whether or not it is sent).
+    fn frame(&mut self, record: &[u8]) -> Option<Frame> {
         let seq = self.seq;
         self.seq = seq.wrapping_add(1);
         let mut frame = Frame {
@@ -105,13 +146,10 @@ impl RecordStream {
             // RECORD_LEN, which this firmware does not send.
             Err(e) => {
                 defmt::warn!("record stream: {}", e);
-                return;
+                return None;
             }
         }
-        match QUEUE.try_send(frame) {
-            Ok(()) => self.queued = self.queued.wrapping_add(1),
-            Err(TrySendError::Full(_)) => self.dropped = self.dropped.wrapping_add(1),
-        }
+        Some(frame)
     }
 
     /// Frames queued for USB so far.

@@ -95,7 +95,8 @@ pub fn defaults() -> Settings {
 /// Why settings give no configuration.
 #[derive(Debug, Clone, Copy, PartialEq, defmt::Format)]
 pub enum Unfit {
-    /// A mode this firmware does not have (it tracks; it does not calibrate or stream frames).
+    /// A mode this firmware does not have (it tracks, and streams frames while tracking the
+    /// tag; it does not calibrate).
     Mode,
     /// The camera or the target that [`AppConfig::new`] refuses.
     Config(camgeom::Error),

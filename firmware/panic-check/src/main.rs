@@ -1092,7 +1092,8 @@ fn run_resize() {
 // ---------------------------------------------------------------- link
 
 /// The board application's record stream: a frame written, then bytes of unknown content and
-/// length through the receiver (what a board reads from its link).
+/// length through the receiver (what a board reads from its link); a frame of unknown size cut
+/// into pixel chunks, and a chunk of unknown content decoded.
 #[cfg(feature = "link")]
 fn run_link() {
     use camgeom_fw_app::link::{Deframer, encode_frame, max_frame_len};
@@ -1108,6 +1109,18 @@ fn run_link() {
         black_box((f.seq, f.record.len()));
     }
     black_box(rx.stats());
+    // A frame of unknown size and stride cut into chunk records, and a chunk of unknown
+    // content read back.
+    use camgeom_fw_app::frame_chunk::{CHUNK_LEN, FrameChunk, send_frame};
+    let pixels = black_box([0u8; 1024]);
+    let (w, h, stride) = black_box((usize::MAX, usize::MAX, usize::MAX));
+    if let Ok(img) = camgeom::image::ImageView::new(&pixels, w, h, stride) {
+        black_box(send_frame(black_box(3), &img, |c| {
+            black_box(c);
+        }))
+        .ok();
+    }
+    black_box(FrameChunk::decode(&black_box([0u8; CHUNK_LEN])).ok());
 }
 
 // ---------------------------------------------------------------- command

@@ -48,7 +48,7 @@ fn replay(
             overlays.insert(i as u32, v);
         }
     };
-    let mut record = |r: &FrameRecord| {
+    let mut record = |r: &FrameRecord, _: Option<&ImageView<'_, u8>>| {
         out.insert(r.index, *r);
     };
     // The acquisition the board makes of the same run description (job::given_corners, the
