@@ -213,10 +213,31 @@ pub fn draw_ar_on(
     f: &ArFrame,
     opts: &ArOptions,
 ) -> RgbImage {
+    draw_target_on(
+        frame,
+        Some(camera),
+        &f.frame,
+        &f.features,
+        opts.size,
+        opts.cube,
+    )
+}
+
+/// The overlay of [`draw_ar_on`] from what the loop found (`f`, a target of `size` metres,
+/// with a cube of edge `cube_edge` drawn through `camera`, none without one) and the features
+/// tracked (none for a board's record, which does not carry them).
+pub fn draw_target_on(
+    frame: RgbImage,
+    camera: Option<&Camera<f32>>,
+    f: &TargetFrame,
+    features: &[Point2<f32>],
+    size: [f32; 2],
+    cube_edge: f32,
+) -> RgbImage {
     let mut out = frame;
     let (width, height) = (out.width() as usize, out.height() as usize);
     let blank = || GrayImage::filled(width, height, 0);
-    if let Some(outline) = f.frame.outline {
+    if let Some(outline) = f.outline {
         let mut m = blank();
         if let Some(mut v) = m.view_mut() {
             for (a, b) in outline.iter().zip(outline.iter().cycle().skip(1)) {
@@ -225,9 +246,9 @@ pub fn draw_ar_on(
         }
         out.ink(&m, OUTLINE);
     }
-    if let Some(pose) = f.frame.pose {
-        let s = opts.cube;
-        let (x, y) = ((opts.size[0] - s) / 2.0, (opts.size[1] - s) / 2.0);
+    if let (Some(pose), Some(camera)) = (f.pose, camera) {
+        let s = cube_edge;
+        let (x, y) = ((size[0] - s) / 2.0, (size[1] - s) / 2.0);
         let (vertices, edges) = cube(x, y, s);
         let mut m = blank();
         if let Some(mut v) = m.view_mut() {
@@ -235,14 +256,14 @@ pub fn draw_ar_on(
         }
         out.ink(&m, CUBE);
     }
-    for p in &f.features {
+    for p in features {
         let (cx, cy) = (p.x.round() as i64, p.y.round() as i64);
         for d in -1..=1 {
             out.put(cx + d, cy, FEATURE);
             out.put(cx, cy + d, FEATURE);
         }
     }
-    if f.frame.state != TargetState::Tracking {
+    if f.state != TargetState::Tracking {
         let (w, h) = (i64::from(out.width()), i64::from(out.height()));
         for x in 0..w {
             for t in 0..2 {

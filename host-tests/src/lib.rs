@@ -17,6 +17,7 @@
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace sized for each frame, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
 //! | [`monitor`] | a board's record stream (link frames of report records) decoded and printed a line a frame (`monitor`, the main job) |
+//! | [`monitor_frames`] | the frames a board streams put back together and drawn with their record's overlay (`monitor --frames-dir`) |
 //! | [`video`] | video files in and out through the system's ffmpeg: probed, decoded one frame at a time, encoded from frames |
 //! | [`error`] | one error type naming the file, the line and what is wrong |
 #![warn(missing_docs)]
@@ -34,6 +35,7 @@ pub mod intrinsics;
 pub mod klt;
 pub mod known_motion;
 pub mod monitor;
+pub mod monitor_frames;
 pub mod points;
 pub mod rgb;
 pub mod storage;

@@ -4,19 +4,114 @@
 //! one JSON object), then the summary and the link's counts. The board's answers to commands
 //! ([`camgeom_fw_app::command::Ack`], `CACK` records on the same stream) are printed as they
 //! come and returned ([`monitor_link`]) for the caller to check against the commands it sent
-//! ([`command_bytes`], [`check_acks`]).
+//! ([`command_bytes`], [`check_acks`]). A board streaming frames sends their pixels too
+//! ([`crate::monitor_frames`]). A live board is read through [`Live`] ([`open_tcp`]), which
+//! [`LiveLimits`] end even when the board stalls.
 
 use std::io::{Read, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::time::{Duration, Instant};
 
 use camgeom::target::TargetState;
 use camgeom_fw_app::command::{ACK_LEN, ACK_TAG, Ack, AckStatus, COMMAND_LEN, Command};
 use camgeom_fw_app::costs::STAGES;
+use camgeom_fw_app::frame_chunk::{CHUNK_LEN, CHUNK_TAG, FrameChunk};
 use camgeom_fw_app::link::{Deframer, LinkStats, encode_frame, max_frame_len};
 use camgeom_fw_app::report::{FrameRecord, RECORD_LEN, Record, SummaryRecord};
+use camgeom_fw_app::settings::{SETTINGS_LEN, SETTINGS_TAG, Settings};
 use serde::Serialize;
 
 use crate::error::{Error, ErrorKind, Result};
+use crate::monitor_frames::{FrameAssembler, save_frame};
 use crate::points::to_json_line;
+
+/// How long one read of a live source waits before it looks at the clock again.
+pub const POLL: Duration = Duration::from_millis(100);
+
+/// When to stop reading a live board besides the end of its stream.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LiveLimits {
+    /// Stop at this time (`camgeom monitor --seconds`).
+    pub deadline: Option<Instant>,
+    /// Stop after this long without a byte: a board that stalled (`--idle`).
+    pub idle: Option<Duration>,
+}
+
+/// A live source read with a short timeout, so that [`LiveLimits`] can end it: a read that
+/// times out is tried again until a limit passes, then reads as the end of the stream.
+pub struct Live<R> {
+    inner: R,
+    limits: LiveLimits,
+    last_byte: Instant,
+    timed_out: bool,
+}
+
+impl<R> Live<R> {
+    /// `inner` (which must time out its reads, after [`POLL`] or so) read until `limits`.
+    pub fn new(inner: R, limits: LiveLimits) -> Self {
+        Self {
+            inner,
+            limits,
+            last_byte: Instant::now(),
+            timed_out: false,
+        }
+    }
+
+    /// The stream ended by a limit, not by the board closing it.
+    pub fn timed_out(&self) -> bool {
+        self.timed_out
+    }
+}
+
+impl<R: Read> Read for Live<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        loop {
+            let now = Instant::now();
+            let idle = self
+                .limits
+                .idle
+                .is_some_and(|d| now.duration_since(self.last_byte) >= d);
+            if idle || self.limits.deadline.is_some_and(|d| now >= d) {
+                self.timed_out = true;
+                return Ok(0);
+            }
+            match self.inner.read(buf) {
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        std::io::ErrorKind::TimedOut
+                            | std::io::ErrorKind::WouldBlock
+                            | std::io::ErrorKind::Interrupted
+                    ) => {}
+                Ok(n) => {
+                    if n > 0 {
+                        self.last_byte = Instant::now();
+                    }
+                    return Ok(n);
+                }
+                r => return r,
+            }
+        }
+    }
+}
+
+/// A board's stream at `addr` (`camgeom monitor --tcp`: an emulated board's UART behind a
+/// socket), `commands` (framed, [`command_bytes`]) sent to it first, read until the board
+/// closes it or `limits` end it. Errors: [`ErrorKind::Io`] (connecting, sending).
+pub fn open_tcp(addr: &str, commands: &[u8], limits: LiveLimits) -> Result<Live<TcpStream>> {
+    let io = |e| Error::new(addr, ErrorKind::Io(e));
+    let mut s = TcpStream::connect(addr).map_err(io)?;
+    if !commands.is_empty() {
+        s.write_all(commands)
+            .and_then(|()| s.flush())
+            .map_err(|e| Error::new(addr, ErrorKind::Write(e)))?;
+    }
+    if limits.deadline.is_some() || limits.idle.is_some() {
+        s.set_read_timeout(Some(POLL)).map_err(io)?;
+    }
+    Ok(Live::new(s, limits))
+}
 
 /// A pose as the JSON gives it.
 #[derive(Serialize)]
@@ -191,6 +286,22 @@ pub struct Monitored {
     pub last: String,
     /// The board's answers to commands, in the order they came.
     pub acks: Vec<Ack>,
+    /// Streamed frames written as pictures (`frames_dir`).
+    pub pictures: u32,
+    /// Streamed frames that came incomplete ([`FrameAssembler::incomplete`]).
+    pub incomplete: u32,
+}
+
+#[derive(Serialize)]
+struct JsonPictures<'a> {
+    pictures: JsonPicturesBody<'a>,
+}
+
+#[derive(Serialize)]
+struct JsonPicturesBody<'a> {
+    dir: &'a str,
+    written: u32,
+    incomplete: u32,
 }
 
 fn state(s: TargetState) -> &'static str {
@@ -265,18 +376,21 @@ pub fn monitor(
     out: &mut dyn Write,
     csv: Option<(&std::path::Path, &mut dyn Write)>,
 ) -> Result<String> {
-    monitor_link(input, name, json, out, csv).map(|m| m.last)
+    monitor_link(input, name, json, out, csv, None).map(|m| m.last)
 }
 
 /// [`monitor`], also returning the board's answers to commands: each printed as it comes, a
 /// line `ack: command SEQ KIND STATUS` in the table, `{"ack":{"seq":..,"kind":..,"status":..}}`
-/// with `json`.
+/// with `json`. With `frames_dir`, each frame the board streams whole (mode `stream-frames`,
+/// [`crate::monitor_frames`]) is written there as `frame-NNNNNN.png` with its overlay, and a
+/// line before the last says how many were written and how many came incomplete.
 pub fn monitor_link(
     input: &mut dyn Read,
     name: &str,
     json: bool,
     out: &mut dyn Write,
     mut csv: Option<(&std::path::Path, &mut dyn Write)>,
+    frames_dir: Option<&Path>,
 ) -> Result<Monitored> {
     let print = |out: &mut dyn Write, line: String| {
         let _ = writeln!(out, "{line}");
@@ -288,8 +402,11 @@ pub fn monitor_link(
         writeln!(w, "{}", COLUMNS.join(",")).map_err(|e| Error::new(*p, ErrorKind::Io(e)))?;
     }
     // Frame records are the longest on the stream.
-    const _: () = assert!(ACK_LEN <= RECORD_LEN);
+    const _: () = assert!(ACK_LEN <= RECORD_LEN && CHUNK_LEN <= RECORD_LEN);
+    const _: () = assert!(SETTINGS_LEN <= RECORD_LEN);
     let mut rx = Deframer::<{ max_frame_len(RECORD_LEN) }>::new();
+    let mut frames = FrameAssembler::new();
+    let mut pictures = 0u32;
     let mut buf = vec![0u8; 4096];
     let mut unreadable = 0u32;
     let mut summary: Option<SummaryRecord> = None;
@@ -326,6 +443,21 @@ pub fn monitor_link(
                 }
                 continue;
             }
+            let tag = frame.record.get(..4);
+            if tag == Some(&CHUNK_TAG.to_le_bytes()[..]) {
+                match FrameChunk::decode(frame.record) {
+                    Ok(c) => frames.chunk(&c),
+                    Err(_) => unreadable += 1,
+                }
+                continue;
+            }
+            if tag == Some(&SETTINGS_TAG.to_le_bytes()[..]) {
+                match Settings::decode(frame.record) {
+                    Ok(st) => frames.settings(st),
+                    Err(_) => unreadable += 1,
+                }
+                continue;
+            }
             match Record::decode(frame.record) {
                 Ok(Record::Frame(f)) => {
                     if json {
@@ -337,10 +469,40 @@ pub fn monitor_link(
                         writeln!(w, "{}", row(seq, &f).join(","))
                             .map_err(|e| Error::new(*p, ErrorKind::Io(e)))?;
                     }
+                    if let Some((img, settings)) = frames.record(f.index)
+                        && let Some(dir) = frames_dir
+                    {
+                        save_frame(dir, &img, &f, settings.as_ref())?;
+                        pictures += 1;
+                    }
                 }
                 Ok(Record::Summary(s)) => summary = Some(s),
                 Err(_) => unreadable += 1,
             }
+        }
+    }
+    frames.finish();
+    let incomplete = frames.incomplete();
+    if let Some(dir) = frames_dir {
+        let dir = dir.display().to_string();
+        if json {
+            print(
+                out,
+                to_json_line(&JsonPictures {
+                    pictures: JsonPicturesBody {
+                        dir: &dir,
+                        written: pictures,
+                        incomplete,
+                    },
+                }),
+            );
+        } else {
+            print(
+                out,
+                format!(
+                    "frames: {pictures} pictures written to {dir}, {incomplete} frames incomplete"
+                ),
+            );
         }
     }
     let LinkStats {
@@ -386,5 +548,10 @@ pub fn monitor_link(
             "link: {frames} frames, {damaged} damaged, {lost} lost, {repeated} repeated, {bytes_discarded} bytes discarded, {unreadable} unreadable"
         )
     };
-    Ok(Monitored { last, acks })
+    Ok(Monitored {
+        last,
+        acks,
+        pictures,
+        incomplete,
+    })
 }

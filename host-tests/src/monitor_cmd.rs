@@ -6,14 +6,15 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
-use std::net::TcpStream;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use camgeom::camera::Lens;
 use camgeom_fw_app::command::{Command, Mode};
 use camgeom_fw_app::options::TAG_FAMILIES;
-use camgeom_host::monitor::{check_acks, command_bytes, monitor_link};
+use camgeom_host::monitor::{
+    Live, LiveLimits, POLL, check_acks, command_bytes, monitor_link, open_tcp,
+};
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
 use clap::Args;
 
@@ -21,8 +22,6 @@ use clap::Args;
 const DEFAULT_FAMILY: &str = "tag36h11";
 /// The serial port's speed unless `--baud` says otherwise (a USB CDC-ACM port ignores it).
 const DEFAULT_BAUD: u32 = 115_200;
-/// How long one read of a live source waits before it looks at the clock again.
-const POLL: Duration = Duration::from_millis(100);
 
 #[derive(Args, Debug)]
 #[command(group(clap::ArgGroup::new("source").args(["replay", "tcp", "serial"])))]
@@ -45,6 +44,15 @@ pub struct MonitorArgs {
     /// Stop reading a live board (`--tcp`, `--serial`) after this many seconds.
     #[arg(long, value_name = "S")]
     seconds: Option<f64>,
+    /// Stop reading a live board (`--tcp`, `--serial`) after this many seconds without a byte
+    /// from it (a board that stalled or was unplugged without closing the port).
+    #[arg(long, value_name = "S")]
+    idle: Option<f64>,
+    /// Write each frame the board streams (`--mode stream-frames`) as DIR/frame-NNNNNN.png,
+    /// the frame with the overlay its record describes (the tag's outline, the cube on it);
+    /// frames that came incomplete are counted, not written.
+    #[arg(long, value_name = "DIR")]
+    frames_dir: Option<PathBuf>,
     /// A setting to send to the board, repeatable: `tag-size=METRES` (the side of the tag's
     /// black square), `tag-family=NAME` (tag36h11, tag25h9, tag16h5, tagStandard41h12;
     /// default tag36h11), `tag-id=N` (default 0), `camera=FILE` (intrinsics and distortion from
@@ -163,33 +171,6 @@ fn commands(a: &MonitorArgs) -> Result<Vec<Command>> {
     Ok(out)
 }
 
-/// A live source read with a short timeout, so that `--seconds` can end it: a read that
-/// times out is tried again until the deadline, then reads as the end of the stream.
-struct Live<R> {
-    inner: R,
-    deadline: Option<Instant>,
-}
-
-impl<R: Read> Read for Live<R> {
-    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
-        loop {
-            if self.deadline.is_some_and(|d| Instant::now() >= d) {
-                return Ok(0);
-            }
-            match self.inner.read(buf) {
-                Err(e)
-                    if matches!(
-                        e.kind(),
-                        std::io::ErrorKind::TimedOut
-                            | std::io::ErrorKind::WouldBlock
-                            | std::io::ErrorKind::Interrupted
-                    ) => {}
-                r => return r,
-            }
-        }
-    }
-}
-
 /// Sends `bytes` (the framed commands) to a live board.
 fn send(w: &mut dyn Write, bytes: &[u8], name: &str) -> Result<()> {
     w.write_all(bytes)
@@ -214,29 +195,28 @@ pub fn run(a: &MonitorArgs) -> Result<String> {
     }
     // Commands go on the link unless they went to a file.
     let live_commands = a.commands_out.is_none() && !commands.is_empty();
-    let deadline = a
-        .seconds
-        .map(|s| {
-            Duration::try_from_secs_f64(s)
-                .map(|d| Instant::now() + d)
-                .map_err(|_| Error::usage(format!("--seconds {s}: not a duration")))
-        })
-        .transpose()?;
+    let duration = |flag: &str, s: f64| {
+        Duration::try_from_secs_f64(s)
+            .map_err(|_| Error::usage(format!("--{flag} {s}: not a duration")))
+    };
+    let limits = LiveLimits {
+        deadline: a
+            .seconds
+            .map(|s| duration("seconds", s).map(|d| Instant::now() + d))
+            .transpose()?,
+        idle: a.idle.map(|s| duration("idle", s)).transpose()?,
+    };
+    if let Some(dir) = &a.frames_dir {
+        std::fs::create_dir_all(dir).map_err(|e| Error::new(dir, ErrorKind::Write(e)))?;
+    }
     let (name, mut input): (String, Box<dyn Read>) = match (&a.replay, &a.tcp, &a.serial) {
         (Some(p), _, _) => (
             p.display().to_string(),
             Box::new(File::open(p).map_err(|e| Error::new(p, ErrorKind::Io(e)))?),
         ),
         (None, Some(addr), _) => {
-            let io = |e| Error::new(addr.as_str(), ErrorKind::Io(e));
-            let mut s = TcpStream::connect(addr).map_err(io)?;
-            if live_commands {
-                send(&mut s, &bytes, addr)?;
-            }
-            if deadline.is_some() {
-                s.set_read_timeout(Some(POLL)).map_err(io)?;
-            }
-            (addr.clone(), Box::new(Live { inner: s, deadline }))
+            let commands = if live_commands { &bytes[..] } else { &[] };
+            (addr.clone(), Box::new(open_tcp(addr, commands, limits)?))
         }
         (None, None, Some(port)) => {
             let mut s = serialport::new(port, a.baud.unwrap_or(DEFAULT_BAUD))
@@ -246,7 +226,7 @@ pub fn run(a: &MonitorArgs) -> Result<String> {
             if live_commands {
                 send(&mut s, &bytes, port)?;
             }
-            (port.clone(), Box::new(Live { inner: s, deadline }))
+            (port.clone(), Box::new(Live::new(s, limits)))
         }
         (None, None, None) if a.commands_out.is_some() => return Ok(String::new()),
         (None, None, None) => {
@@ -270,6 +250,7 @@ pub fn run(a: &MonitorArgs) -> Result<String> {
         a.json,
         &mut out,
         csv.as_mut().map(|(p, w)| (*p, w as &mut dyn Write)),
+        a.frames_dir.as_deref(),
     )?;
     if let Some((p, mut w)) = csv {
         w.flush().map_err(|e| Error::new(p, ErrorKind::Write(e)))?;

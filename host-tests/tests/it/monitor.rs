@@ -453,3 +453,137 @@ fn commands_go_to_a_board_over_a_serial_port() {
         "{text}"
     );
 }
+
+/// A board that sends two frame records and then stops talking without closing the socket:
+/// `--idle` ends the monitor while the board still holds the connection open (the board waits
+/// for the test to say it may close); a board that closes ends it without any limit.
+#[test]
+fn a_stalled_or_closed_board_ends_the_monitor() {
+    for stall in [true, false] {
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let (done_tx, done_rx) = std::sync::mpsc::channel::<()>();
+        let board = std::thread::spawn(move || {
+            let (mut s, _) = listener.accept().unwrap();
+            let records: Vec<Vec<u8>> = (0..2).map(|k| frame(k).encode().to_vec()).collect();
+            s.write_all(&framed(0, &records)).unwrap();
+            if stall {
+                // Until the monitor has returned (a minute at most, so a monitor that hangs
+                // fails the test rather than blocking it).
+                let _ = done_rx.recv_timeout(std::time::Duration::from_secs(60));
+            }
+        });
+        let mut args = vec!["monitor", "--json", "--tcp", &addr];
+        if stall {
+            args.extend(["--idle", "0.3"]);
+        }
+        let out = camgeom(&args);
+        let _ = done_tx.send(());
+        board.join().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let got: Vec<Value> = String::from_utf8(out.stdout)
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect();
+        assert_eq!(got.iter().filter(|v| v.get("frame").is_some()).count(), 2);
+        assert_eq!(got.last().unwrap()["link"]["frames"], 2, "stall {stall}");
+    }
+}
+
+/// `--frames-dir`: a board streaming frames sends its settings, each frame's pixel chunks,
+/// then the frame's record. Frame 0 comes whole and is written with its overlay (the outline
+/// in green, everything else the frame's grey); frame 1 loses a chunk and frame 2 its record:
+/// both counted incomplete, neither written.
+#[test]
+fn streamed_frames_are_written_with_their_overlay() {
+    use camgeom_fw_app::frame_chunk::send_frame;
+    use camgeom_fw_app::settings::Settings;
+    let (w, h) = (40usize, 30usize);
+    let pixels: Vec<u8> = (0..w * h).map(|k| (k % 7 * 20 + 30) as u8).collect();
+    let img = camgeom::image::ImageView::packed(&pixels, w, h).unwrap();
+    let settings = Settings {
+        mode: Mode::StreamFrames,
+        family: 0,
+        id: 1,
+        tag_size: 0.1,
+        intrinsics: [50.0, 50.0, 19.5, 14.5],
+        distortion: [0.0; 5],
+    };
+    let outline = [[5.0, 5.0], [30.0, 5.0], [30.0, 22.0], [5.0, 22.0]];
+    let mut records: Vec<Vec<u8>> = Vec::new();
+    for k in 0..3u32 {
+        records.push(settings.encode().to_vec());
+        let mut chunks = Vec::new();
+        send_frame(k, &img, |c| chunks.push(c.to_vec())).unwrap();
+        assert_eq!(chunks.len(), 10);
+        if k == 1 {
+            chunks.remove(4);
+        }
+        records.extend(chunks);
+        if k != 2 {
+            records.push(
+                FrameRecord {
+                    outline: Some(outline),
+                    ..frame(k)
+                }
+                .encode()
+                .to_vec(),
+            );
+        }
+    }
+    let path = scratch_file("frames-stream", "").with_extension("bin");
+    std::fs::write(&path, framed(0, &records)).unwrap();
+    let dir = scratch_file("frames-dir", "").with_extension("dir");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = camgeom(&[
+        "monitor",
+        "--json",
+        "--replay",
+        path.to_str().unwrap(),
+        "--frames-dir",
+        dir.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let pictures = got
+        .iter()
+        .find_map(|v| v.get("pictures"))
+        .expect("a pictures line");
+    assert_eq!(pictures["written"], 1, "{pictures}");
+    assert_eq!(pictures["incomplete"], 2, "{pictures}");
+    let link = &got.last().unwrap()["link"];
+    assert_eq!(link["unreadable"], 0, "{link}");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["frame-000000.png"]);
+    let png = image::open(dir.join(&names[0])).unwrap().to_rgb8();
+    assert_eq!((png.width() as usize, png.height() as usize), (w, h));
+    let (mut grey, mut green) = (0, 0);
+    for (x, y, p) in png.enumerate_pixels() {
+        let v = pixels[y as usize * w + x as usize];
+        if p.0 == [v, v, v] {
+            grey += 1;
+        } else if p.0 == [40, 230, 40] {
+            green += 1;
+        }
+    }
+    // The outline's 4 edges (about 84 pixels) in green, with a dark halo; the rest the frame.
+    assert!(green >= 60, "{green} green pixels");
+    assert!(grey >= w * h - 4 * green, "{grey} grey pixels");
+}
