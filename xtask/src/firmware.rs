@@ -165,6 +165,21 @@ pub fn run_on_qemu_in(
     summary_rest: &str,
     show: Option<&dyn Fn(&str) -> bool>,
 ) -> Result<(String, Vec<String>)> {
+    run_on_qemu_with(board, elf, dir, None, summary_start, summary_rest, show)
+}
+
+/// [`run_on_qemu_in`] with UART0 (the record stream) connected to the TCP server at `uart0`
+/// (QEMU's `-serial tcp:HOST:PORT`, a client: the server listens before QEMU starts) instead
+/// of `serial.bin` in `dir`.
+pub fn run_on_qemu_with(
+    board: Board,
+    elf: &Path,
+    dir: Option<&Path>,
+    uart0: Option<std::net::SocketAddr>,
+    summary_start: &str,
+    summary_rest: &str,
+    show: Option<&dyn Fn(&str) -> bool>,
+) -> Result<(String, Vec<String>)> {
     let verbose = show.is_some();
     let show = show.unwrap_or(&|_| false);
     let image = fs::read(elf).with_context(|| format!("cannot read {}", elf.display()))?;
@@ -183,12 +198,26 @@ pub fn run_on_qemu_in(
         // firmware/README.md), and runs are deterministic.
         .args(["-icount", "shift=0"])
         // UART0 (the record stream of the jobs that stream, `firmware/emulated/src/uart.rs`)
-        // to `serial.bin` in the run's directory and UART1 (MAVLink) to `mavlink.bin`; the
-        // monitor nowhere, so that stdout carries only the defmt log.
+        // to `serial.bin` in the run's directory, or to a TCP server, and UART1 (MAVLink) to
+        // `mavlink.bin`; the monitor nowhere, so that stdout carries only the defmt log.
         .args(["-monitor", "none"])
-        .args(match dir {
-            Some(_) => ["-serial", "file:serial.bin", "-serial", "file:mavlink.bin"],
-            None => ["-serial", "null", "-serial", "null"],
+        .args(match (uart0, dir) {
+            (Some(addr), Some(_)) => [
+                "-serial".to_string(),
+                format!("tcp:{addr}"),
+                "-serial".to_string(),
+                "file:mavlink.bin".to_string(),
+            ],
+            (Some(addr), None) => [
+                "-serial".to_string(),
+                format!("tcp:{addr}"),
+                "-serial".to_string(),
+                "null".to_string(),
+            ],
+            (None, Some(_)) => {
+                ["-serial", "file:serial.bin", "-serial", "file:mavlink.bin"].map(String::from)
+            }
+            (None, None) => ["-serial", "null", "-serial", "null"].map(String::from),
         })
         .arg("-kernel")
         .arg(elf)

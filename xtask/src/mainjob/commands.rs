@@ -15,16 +15,23 @@
 //! Both boots must track with the commanded side: against the tag job's poses (the true side)
 //! every translation twice as long (a target twice the size at the same image), the rotations
 //! equal; and the two boots' records equal.
+//!
+//! 3. The board boots again, is switched to stream-frames, and streams its first few frames
+//!    ([`stream_frames`]): their pixels, put back together, must be the frames it was fed.
 
 use std::fs;
 use std::path::Path;
+use std::time::Instant;
 
 use anyhow::{Context, Result, ensure};
 use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, Command, Mode};
+use camgeom_fw_app::frame_chunk::{CHUNK_TAG, FrameChunk};
 use camgeom_fw_app::link::{encode_frame, max_frame_len};
-use camgeom_fw_app::report::FrameRecord;
+use camgeom_fw_app::report::{FrameRecord, Record};
 use camgeom_fw_app::run::{Acquisition, RunSpec};
-use camgeom_fw_app::settings::{SETTINGS_LEN, Settings};
+use camgeom_fw_app::settings::{SETTINGS_LEN, SETTINGS_TAG, Settings};
+use camgeom_host::monitor::monitor_link;
+use camgeom_host::monitor_frames::FrameAssembler;
 
 use super::emulate::{self, read_report};
 use super::stream::decode;
@@ -215,8 +222,127 @@ pub fn run() -> Result<String> {
         n >= (FRAMES as usize) / 2 && ratio < 1e-3 && rot < 1e-3,
         "with the tag side doubled, {n} poses: |t| ratio off by {ratio:.2e}, rotation by {rot:.2e}"
     );
+    let streamed = stream_frames(&dir, &elf, &tag_spec, &settings, &a)?;
     Ok(format!(
-        "commands job: {} command frames (1 damaged, counted), answered done/done/unsupported/invalid/done; flash.bin holds the settings record, erased after it; the second boot loaded them; {n} poses with the tag side doubled: |t| x2 within {ratio:.1e}, rotations within {rot:.1e} rad of the tag job's",
+        "commands job: {} command frames (1 damaged, counted), answered done/done/unsupported/invalid/done; flash.bin holds the settings record, erased after it; the second boot loaded them; {n} poses with the tag side doubled: |t| x2 within {ratio:.1e}, rotations within {rot:.1e} rad of the tag job's\n{streamed}",
         want.len() + 1
+    ))
+}
+
+/// Frames of the boot that streams them.
+const STREAMED: u32 = 4;
+
+/// Boot 3: the board, its settings loaded from the flash, is switched to stream-frames and
+/// runs [`STREAMED`] frames. Its stream must hold, for each frame, the settings, the frame's
+/// pixels (put back together by the monitor's code, equal to the frames it was fed) and the
+/// frame's record (equal to `report.bin`'s and to the first boot's: streaming does not change
+/// the tracking); the monitor's code draws each frame with its overlay into `frames/`.
+fn stream_frames(
+    dir: &Path,
+    elf: &Path,
+    tag_spec: &RunSpec,
+    stored: &Settings,
+    first: &[FrameRecord],
+) -> Result<String> {
+    let started = Instant::now();
+    let spec = RunSpec {
+        frames: STREAMED,
+        overlay_every: 0,
+        ..*tag_spec
+    };
+    fs::write(dir.join("run.bin"), spec.to_bytes())?;
+    let mode = Command::SetMode(Mode::StreamFrames);
+    fs::write(dir.join("commands.bin"), frame(0, &mode.encode())?)?;
+    let run = emulate::run_board(M7, elf, dir, SIZE, 1)?;
+    let seconds = started.elapsed().as_secs_f64();
+    fs::remove_file(dir.join("commands.bin"))?;
+    let serial = dir.join("serial.bin");
+    let bytes = fs::read(&serial).with_context(|| format!("no {}", serial.display()))?;
+    let (records, stats) = decode(&bytes);
+    ensure!(
+        stats.damaged == 0 && stats.lost == 0,
+        "{}: {stats:?}",
+        serial.display()
+    );
+    let answer = records
+        .first()
+        .and_then(|(_, r)| Ack::decode(r).ok())
+        .map(|a| (a.seq, a.kind, a.status));
+    ensure!(
+        answer == Some((0, mode.kind(), AckStatus::Done)),
+        "the board answered {answer:?} to stream-frames"
+    );
+    // The frames as the monitor puts them back together.
+    let raw = fs::read(dir.join("frames.raw"))?;
+    let len = (SIZE.width * SIZE.height) as usize;
+    let want_settings = Settings {
+        mode: Mode::StreamFrames,
+        ..*stored
+    };
+    let mut frames = FrameAssembler::new();
+    let mut got = Vec::new();
+    for (_, rec) in &records[1..] {
+        let tag = rec.get(..4);
+        if tag == Some(&CHUNK_TAG.to_le_bytes()[..]) {
+            frames.chunk(&FrameChunk::decode(rec).map_err(|e| anyhow::anyhow!("{e}"))?);
+        } else if tag == Some(&SETTINGS_TAG.to_le_bytes()[..]) {
+            let s = Settings::decode(rec).map_err(|e| anyhow::anyhow!("{e}"))?;
+            ensure!(s == want_settings, "the board streamed the settings {s:?}");
+            frames.settings(s);
+        } else if let Ok(Record::Frame(f)) = Record::decode(rec) {
+            let (img, settings) = frames
+                .record(f.index)
+                .with_context(|| format!("frame {} came without its pixels", f.index))?;
+            let k = f.index as usize;
+            ensure!(
+                settings == Some(want_settings)
+                    && (img.width, img.height) == (SIZE.width as usize, SIZE.height as usize)
+                    && raw.get(k * len..(k + 1) * len) == Some(&img.data[..]),
+                "frame {k}: the streamed pixels are not the frame the board was fed"
+            );
+            got.push(f);
+        }
+    }
+    let reported: Vec<FrameRecord> = run.frames.values().copied().collect();
+    let same = |r: &FrameRecord| (r.index, r.state, r.tracked, r.inliers, r.checksum, r.pose);
+    ensure!(
+        got == reported
+            && got.len() == STREAMED as usize
+            && got
+                .iter()
+                .map(same)
+                .eq(first.iter().take(got.len()).map(same)),
+        "the streamed frame records differ from report.bin's or from the first boot's"
+    );
+    // `camgeom monitor --replay serial.bin --frames-dir frames`'s code.
+    let pictures = dir.join("frames");
+    let _ = fs::remove_dir_all(&pictures);
+    fs::create_dir_all(&pictures)?;
+    let seen = monitor_link(
+        &mut fs::File::open(&serial)?,
+        &serial.display().to_string(),
+        true,
+        &mut Vec::new(),
+        None,
+        Some(&pictures),
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    ensure!(
+        seen.pictures == STREAMED && seen.incomplete == 0,
+        "camgeom monitor --frames-dir wrote {} pictures, {} frames incomplete",
+        seen.pictures,
+        seen.incomplete
+    );
+    let picture = pictures.join(format!("frame-{:06}.png", STREAMED - 1));
+    ensure!(picture.is_file(), "no {}", picture.display());
+    let chunks = run
+        .log
+        .iter()
+        .find_map(|l| l.strip_prefix("frames streamed: "))
+        .unwrap_or("?");
+    Ok(format!(
+        "stream-frames boot: {STREAMED} frames, each its settings, its pixels (equal to the frames fed) and its record (equal to report.bin's and the first boot's); {chunks}; camgeom monitor --frames-dir wrote {} pictures ({}); {seconds:.1} s",
+        seen.pictures,
+        picture.strip_prefix(root()).unwrap_or(&picture).display()
     ))
 }

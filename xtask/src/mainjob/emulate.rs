@@ -3,12 +3,13 @@
 
 use std::collections::BTreeMap;
 use std::fs;
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail, ensure};
 use camgeom_fw_app::report::{FrameRecord, RECORD_LEN, Record, SummaryRecord};
 
-use crate::firmware::run_on_qemu_in;
+use crate::firmware::run_on_qemu_with;
 use crate::jobs::{Board, Size};
 
 /// Overlay frames by delivered frame number.
@@ -88,6 +89,19 @@ pub fn run_board(
     size: Size,
     stride: u32,
 ) -> Result<BoardRun> {
+    run_board_with(board, elf, dir, None, size, stride)
+}
+
+/// [`run_board`] with UART0 (the record stream) going to the TCP server at `uart0` (a
+/// [`super::live::Harness`]) instead of `serial.bin`.
+pub fn run_board_with(
+    board: Board,
+    elf: &Path,
+    dir: &Path,
+    uart0: Option<SocketAddr>,
+    size: Size,
+    stride: u32,
+) -> Result<BoardRun> {
     // Outputs of an earlier run must not be mistaken for this one's.
     for e in fs::read_dir(dir)?.flatten() {
         let n = e.file_name().to_string_lossy().into_owned();
@@ -96,7 +110,15 @@ pub fn run_board(
             fs::remove_file(e.path())?;
         }
     }
-    let (_, log) = run_on_qemu_in(board, elf, Some(dir), "main job: ", " frames, ", None)?;
+    let (_, log) = run_on_qemu_with(
+        board,
+        elf,
+        Some(dir),
+        uart0,
+        "main job: ",
+        " frames, ",
+        None,
+    )?;
     let (frames, summary) = read_report(&dir.join("report.bin"))?;
     let overlays = read_overlays(dir, size, stride)?;
     ensure!(

@@ -26,6 +26,7 @@ mod commands;
 mod compare;
 mod emulate;
 mod faults;
+mod live;
 mod prepare;
 mod replay;
 mod stream;

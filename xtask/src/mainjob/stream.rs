@@ -1,12 +1,13 @@
-//! The tag job's record stream: what the board sent over UART0 (`serial.bin`, QEMU's
-//! `-serial file:`), read with the receiver a real board's monitor uses
-//! ([`camgeom_fw_app::link::Deframer`]), against what it wrote over semihosting (`report.bin`);
-//! then the same bytes through a damaged link.
+//! The tag job's record stream: what the board sent over UART0 (QEMU's `-serial tcp:` to the
+//! link harness, [`super::live`], which saves it as `serial.bin`), read with the receiver a
+//! real board's monitor uses ([`camgeom_fw_app::link::Deframer`]), against what it wrote over
+//! semihosting (`report.bin`); then what `camgeom monitor`'s code printed live, on the clean
+//! link and on each damaged one.
 //!
-//! The link faults are applied to the recorded stream between the board and the receiver, as a
-//! flaky cable or a UART overrun would: bits flipped, bytes dropped, bytes repeated, and bursts
-//! of garbage, at seeded random places. Every record that comes through must be the board's
-//! record of that sequence number; the damaged ones are counted, never delivered.
+//! The link faults are applied by the harness between the board and the monitors, as a flaky
+//! cable or a UART overrun would: bits flipped, bytes dropped, bytes repeated, and bursts of
+//! garbage, at seeded random places. Every record a monitor prints must be the board's record
+//! of that sequence number; the damaged ones are counted, never delivered.
 
 use std::fmt::Write as _;
 use std::fs;
@@ -14,10 +15,10 @@ use std::path::Path;
 use std::process::Command;
 
 use anyhow::{Context, Result, ensure};
-use camgeom::rng::Pcg32;
 use camgeom_fw_app::link::{Deframer, LinkStats, max_frame_len};
 use camgeom_fw_app::report::{RECORD_LEN, Record};
 
+use super::live::LiveRun;
 use crate::util::{in_ci, root};
 
 /// The receiver of the stream: room for one frame of the longest record.
@@ -34,63 +35,19 @@ pub fn decode(bytes: &[u8]) -> (Vec<(u16, Vec<u8>)>, LinkStats) {
     (out, rx.stats())
 }
 
-/// One way a link damages a stream.
-#[derive(Clone, Copy)]
-enum Fault {
-    /// One bit flipped in this many bytes.
-    Flip(u32),
-    /// One byte dropped in this many.
-    Drop(u32),
-    /// One byte sent twice in this many.
-    Repeat(u32),
-    /// A burst of 16 random bytes in this many.
-    Burst(u32),
-}
-
-impl Fault {
-    fn name(self) -> String {
-        match self {
-            Fault::Flip(n) => format!("bit flipped, 1 byte in {n}"),
-            Fault::Drop(n) => format!("byte dropped, 1 in {n}"),
-            Fault::Repeat(n) => format!("byte repeated, 1 in {n}"),
-            Fault::Burst(n) => format!("16-byte burst of noise, 1 in {n} bytes"),
-        }
-    }
-
-    /// `bytes` through the faulty link, and the bytes it touched.
-    fn apply(self, bytes: &[u8], rng: &mut Pcg32) -> (Vec<u8>, usize) {
-        let mut out = Vec::with_capacity(bytes.len() + bytes.len() / 8);
-        let mut touched = 0;
-        for &b in bytes {
-            match self {
-                Fault::Flip(n) if rng.below(n) == 0 => {
-                    out.push(b ^ (1 << rng.below(8)));
-                    touched += 1;
-                }
-                Fault::Drop(n) if rng.below(n) == 0 => touched += 1,
-                Fault::Repeat(n) if rng.below(n) == 0 => {
-                    out.extend([b, b]);
-                    touched += 1;
-                }
-                Fault::Burst(n) if rng.below(n) == 0 => {
-                    out.push(b);
-                    out.extend((0..16).map(|_| rng.below(256) as u8));
-                    touched += 16;
-                }
-                _ => out.push(b),
-            }
-        }
-        (out, touched)
-    }
-}
-
 /// Checks `serial.bin` against `report.bin` (the same records in the same order, none damaged),
-/// `mavlink.bin` with pymavlink (a target of `size`, metres), runs the damaged-link cases, and
-/// returns the lines to print and the BENCHMARKS table.
-pub fn check(dir: &Path, log: &[String], size: [f32; 2]) -> Result<String> {
+/// what the monitor printed live against what it prints replaying `serial.bin`,
+/// `mavlink.bin` with pymavlink (a target of `size`, metres), the live damaged-link monitors
+/// ([`live`]), and returns the lines to print and the BENCHMARKS table.
+pub fn check(dir: &Path, log: &[String], size: [f32; 2], live: &LiveRun) -> Result<String> {
     let serial = dir.join("serial.bin");
     let bytes =
         fs::read(&serial).with_context(|| format!("the board streamed no {}", serial.display()))?;
+    ensure!(
+        bytes == live.bytes,
+        "{} is not what came over the link",
+        serial.display()
+    );
     let report = fs::read(dir.join("report.bin"))?;
     let records: Vec<&[u8]> = report.chunks_exact(RECORD_LEN).collect();
     let (frames, stats) = decode(&bytes);
@@ -111,7 +68,21 @@ pub fn check(dir: &Path, log: &[String], size: [f32; 2]) -> Result<String> {
             serial.display()
         );
     }
-    let monitored = monitor(&serial, &records)?;
+    for m in &live.monitors {
+        ensure!(
+            !m.timed_out,
+            "the live monitor of {} stopped at a time limit, not at the end of the stream",
+            m.fault.map_or("the clean link".into(), |f| f.name())
+        );
+    }
+    let [clean, damaged @ ..] = &live.monitors[..] else {
+        anyhow::bail!("the harness ran no monitor");
+    };
+    let (monitored, replayed) = monitor(&serial, &records)?;
+    ensure!(
+        clean.output == replayed,
+        "camgeom monitor --tcp (live) printed otherwise than camgeom monitor --replay serial.bin"
+    );
     let mavlink = mavlink(dir, log, size)?;
     let per_frame = bytes.len() as f64 / records.len() as f64;
     // The board's own count: "record stream: F frames, B bytes over UART0, I instructions a
@@ -132,48 +103,68 @@ pub fn check(dir: &Path, log: &[String], size: [f32; 2]) -> Result<String> {
         per_frame * 10.0 * 100.0
     );
     let _ = writeln!(s, "{monitored}");
+    let _ = writeln!(
+        s,
+        "camgeom monitor --tcp (its code, live over localhost from QEMU's UART0): the clean link printed what the replay prints; {} damaged links ran beside it, each ended by the board closing its stream",
+        damaged.len()
+    );
     let _ = writeln!(s, "{mavlink}");
     let _ = writeln!(
         s,
-        "\n| link fault (seeded, over the {} bytes) | bytes affected | frames delivered | damaged | lost | repeated | delivered wrong |\n|---|---|---|---|---|---|---|",
+        "\n| link fault (seeded, live over the {} bytes) | bytes affected | frames delivered | damaged | lost | repeated | delivered wrong |\n|---|---|---|---|---|---|---|",
         bytes.len()
     );
-    let faults = [
-        Fault::Flip(1000),
-        Fault::Flip(100),
-        Fault::Drop(1000),
-        Fault::Drop(100),
-        Fault::Repeat(1000),
-        Fault::Repeat(100),
-        Fault::Burst(2000),
-    ];
-    for (i, fault) in faults.into_iter().enumerate() {
-        let mut rng = Pcg32::new(0x5eed + i as u64);
-        let (damaged, touched) = fault.apply(&bytes, &mut rng);
-        let (got, st) = decode(&damaged);
-        let wrong = got
+    let lines = |text: &str| -> Result<Vec<serde_json::Value>> {
+        text.lines()
+            .map(|l| serde_json::from_str(l).context("the monitor printed a line that is not JSON"))
+            .collect()
+    };
+    let clean_lines = lines(&clean.output)?;
+    // The clean link's frame and summary lines (each checked against the board's records), by
+    // sequence number: a damaged link's line must be the very same.
+    let good: std::collections::BTreeMap<u64, &serde_json::Value> = clean_lines
+        .iter()
+        .filter_map(|v| v.get("seq").and_then(|q| q.as_u64()).map(|q| (q, v)))
+        .collect();
+    let clean_summary = clean_lines.iter().find(|v| v.get("summary").is_some());
+    for m in damaged {
+        let name = m.fault.map_or(String::new(), |f| f.name());
+        let got = lines(&m.output)?;
+        let link = got
+            .last()
+            .and_then(|v| v.get("link"))
+            .with_context(|| format!("{name}: no link counts"))?;
+        let count = |k: &str| link[k].as_u64().unwrap_or(u64::MAX);
+        let frame_lines: Vec<&serde_json::Value> =
+            got.iter().filter(|v| v.get("frame").is_some()).collect();
+        let wrong = frame_lines
             .iter()
-            .filter(|(seq, rec)| records.get(usize::from(*seq)) != Some(&rec.as_slice()))
-            .count();
+            .filter(|v| v["seq"].as_u64().and_then(|q| good.get(&q)) != Some(*v))
+            .count()
+            + got
+                .iter()
+                .filter(|v| v.get("summary").is_some() && Some(*v) != clean_summary)
+                .count();
         ensure!(
             wrong == 0,
-            "{}: {wrong} damaged records delivered as good",
-            fault.name()
+            "{name}: {wrong} damaged records delivered as good"
         );
+        let summaries = got.iter().filter(|v| v.get("summary").is_some()).count() as u64;
         ensure!(
-            st.frames as usize == got.len() && got.len() <= records.len(),
-            "{}: {st:?}",
-            fault.name()
+            count("frames") == frame_lines.len() as u64 + summaries + count("unreadable")
+                && count("unreadable") == 0
+                && count("frames") <= records.len() as u64,
+            "{name}: {link}"
         );
         let _ = writeln!(
             s,
-            "| {} | {touched} | {} of {} | {} | {} | {} | {wrong} |",
-            fault.name(),
-            st.frames,
+            "| {name} | {} | {} of {} | {} | {} | {} | {wrong} |",
+            m.touched,
+            count("frames"),
             records.len(),
-            st.damaged,
-            st.lost,
-            st.repeated
+            count("damaged"),
+            count("lost"),
+            count("repeated")
         );
     }
     Ok(s)
@@ -182,7 +173,8 @@ pub fn check(dir: &Path, log: &[String], size: [f32; 2]) -> Result<String> {
 /// `camgeom monitor --replay serial.bin --json`'s code ([`camgeom_host::monitor`], which the
 /// command only wraps): one JSON object a frame record, each the board's record of
 /// `report.bin` (frame, counts, poses to the bit), then the summary and the link's counts.
-fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
+/// Returns the line to print and what the monitor printed.
+fn monitor(serial: &Path, records: &[&[u8]]) -> Result<(String, String)> {
     let mut file = fs::File::open(serial)?;
     let mut out = Vec::new();
     let last = camgeom_host::monitor::monitor(
@@ -241,11 +233,14 @@ fn monitor(serial: &Path, records: &[&[u8]]) -> Result<String> {
         link["damaged"].as_u64() == Some(0) && link["lost"].as_u64() == Some(0),
         "camgeom monitor: {link}"
     );
-    Ok(format!(
-        "camgeom monitor --replay {} --json (its code): {} JSON lines, {} frames equal to the board's records (poses to the bit), then the summary and the link's counts",
-        serial.strip_prefix(root()).unwrap_or(serial).display(),
-        lines.len(),
-        frames.len()
+    Ok((
+        format!(
+            "camgeom monitor --replay {} --json (its code): {} JSON lines, {} frames equal to the board's records (poses to the bit), then the summary and the link's counts",
+            serial.strip_prefix(root()).unwrap_or(serial).display(),
+            lines.len(),
+            frames.len()
+        ),
+        text + "\n",
     ))
 }
 

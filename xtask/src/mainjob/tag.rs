@@ -27,7 +27,7 @@ use camgeom_host::images::load_gray;
 use camgeom_host::load_camera;
 use camgeom_host::points::format_csv;
 
-use super::{compare, emulate, replay, stream};
+use super::{compare, emulate, live, replay, stream};
 use crate::firmware::{build_bin_for, size_of};
 use crate::jobs::{M7, Size};
 use crate::util::root;
@@ -259,9 +259,13 @@ pub fn run(stride: u32) -> Result<String> {
     let host = replay::replay_size(SIZE, &spec, &FaultPlan::none(), &raw)?;
     let elf = build_bin_for(M7, SIZE.bin, &[])?;
     let (flash, ram, _) = size_of(M7, &elf)?;
-    let board = emulate::run_board(M7, &elf, &dir, SIZE, stride)?;
+    // UART0 live to the monitors through the link harness, which saves it as serial.bin.
+    let _ = fs::remove_file(dir.join("serial.bin"));
+    let harness = live::Harness::start(dir.join("serial.bin"))?;
+    let board = emulate::run_board_with(M7, &elf, &dir, Some(harness.addr()), SIZE, stride)?;
+    let live = harness.finish()?;
     let verdict = compare::compare(&board.frames, &host.0, &board.overlays, &host.1)?;
-    let link = stream::check(&dir, &board.log, spec.target_size)?;
+    let link = stream::check(&dir, &board.log, spec.target_size, &live)?;
     let frames = &board.frames;
     ensure!(
         frames.values().all(|r| r.error.is_none()),
