@@ -28,8 +28,8 @@ fn main() {
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", src.display());
     println!("cargo:rerun-if-changed=build.rs");
-    // The M7 build sends MAVLink (Cargo.toml turns on camgeom-fw-app's `mavlink` for it alone:
-    // the messages' generated code costs about 12 s of build per target).
+    // The M7 build sends MAVLink (Cargo.toml turns camgeom-fw-app's `mavlink` on for every
+    // Cortex-M with atomics, so that a build of several targets resolves as each alone does).
     println!("cargo::rustc-check-cfg=cfg(mavlink)");
     if target == "thumbv7em-none-eabihf" {
         println!("cargo:rustc-cfg=mavlink");
