@@ -187,79 +187,270 @@ pub fn match_descriptors_guided(
     query: &[Descriptor],
     train: &[Descriptor],
     params: &MatchParams,
-    mut candidate: impl FnMut(usize, usize) -> bool,
+    candidate: impl FnMut(usize, usize) -> bool,
     scratch: &mut [u32],
     out: &mut [Match],
 ) -> Result<usize> {
     let config = params.config();
-    if query.len() > MAX_DESCRIPTORS || train.len() > MAX_DESCRIPTORS {
-        return Err(Error::InvalidParameter("descriptors"));
-    }
-    if out.len() < query.len() {
-        return Err(Error::LengthMismatch);
-    }
-    let reverse: &mut [u32] = if config.cross_check {
-        let r = scratch
-            .get_mut(..scratch_len(train.len()))
-            .ok_or(Error::BufferTooSmall("scratch"))?;
-        r.fill(u32::MAX);
-        r
-    } else {
-        &mut []
+    let max = u32::from(config.max_distance);
+    let ratio = config.ratio;
+    let distance = |i: usize, j: usize| match (query.get(i), train.get(j)) {
+        (Some(q), Some(t)) => hamming(q, t),
+        _ => u32::MAX,
     };
-    let use_ratio = config.ratio < 1.0;
-    let mut n = 0usize;
-    for (i, q) in query.iter().enumerate() {
-        let (mut d1, mut d2, mut j1) = (u32::MAX, u32::MAX, 0usize);
-        for (j, t) in train.iter().enumerate() {
-            if !candidate(i, j) {
+    let sizes = (query.len(), train.len());
+    let reverse = Reverse::Packed;
+    let keep = |d1: u32, d2: u32| {
+        d1 <= max && (ratio >= 1.0 || d2 == u32::MAX || (d1 as f32) < ratio * d2 as f32)
+    };
+    let make = |i: usize, j: usize, d: u32| Match {
+        query: i as u16,
+        train: j as u16,
+        distance: d as u16,
+    };
+    let ids = |m: &Match| (usize::from(m.query), usize::from(m.train));
+    let core = Core {
+        sizes,
+        cross_check: config.cross_check,
+        reverse,
+    };
+    core.run(candidate, distance, keep, make, ids, scratch, out)
+}
+
+/// How [`Core::run`] keeps each train descriptor's nearest query: one `u32` word of distance
+/// and index packed (distances below 2¹⁶), or two words (a distance key of 32 bits).
+#[derive(Clone, Copy)]
+enum Reverse {
+    Packed,
+    Wide,
+}
+
+/// The matching logic shared by the Hamming and the float matchers: sizes, cross-check and the
+/// reverse bookkeeping; the distance, the acceptance test (threshold and ratio) and the output
+/// type are the caller's.
+struct Core {
+    sizes: (usize, usize),
+    cross_check: bool,
+    reverse: Reverse,
+}
+
+impl Core {
+    /// Per query, the nearest admitted train descriptor under `distance` (a key that orders as
+    /// the distance: Hamming counts or the bits of a squared Euclidean distance), kept when
+    /// `keep(d₁, d₂)` and, with cross-check, when it is its train descriptor's nearest query.
+    #[allow(clippy::too_many_arguments)]
+    fn run<M: Copy>(
+        &self,
+        mut candidate: impl FnMut(usize, usize) -> bool,
+        mut distance: impl FnMut(usize, usize) -> u32,
+        keep: impl Fn(u32, u32) -> bool,
+        make: impl Fn(usize, usize, u32) -> M,
+        ids: impl Fn(&M) -> (usize, usize),
+        scratch: &mut [u32],
+        out: &mut [M],
+    ) -> Result<usize> {
+        let (nq, nt) = self.sizes;
+        if nq > MAX_DESCRIPTORS || nt > MAX_DESCRIPTORS {
+            return Err(Error::InvalidParameter("descriptors"));
+        }
+        if out.len() < nq {
+            return Err(Error::LengthMismatch);
+        }
+        let words = match self.reverse {
+            Reverse::Packed => 1,
+            Reverse::Wide => 2,
+        };
+        let reverse: &mut [u32] = if self.cross_check {
+            let r = scratch
+                .get_mut(..words * nt)
+                .ok_or(Error::BufferTooSmall("scratch"))?;
+            r.fill(u32::MAX);
+            r
+        } else {
+            &mut []
+        };
+        let mut n = 0usize;
+        for i in 0..nq {
+            let (mut d1, mut d2, mut j1) = (u32::MAX, u32::MAX, 0usize);
+            for j in 0..nt {
+                if !candidate(i, j) {
+                    continue;
+                }
+                let d = distance(i, j);
+                if d < d1 {
+                    d2 = d1;
+                    d1 = d;
+                    j1 = j;
+                } else if d < d2 {
+                    d2 = d;
+                }
+                // Reverse nearest query of j, the smallest distance, the first on ties.
+                match self.reverse {
+                    Reverse::Packed => {
+                        if let Some(r) = reverse.get_mut(j) {
+                            *r = (*r).min((d << 16) | i as u32);
+                        }
+                    }
+                    Reverse::Wide => {
+                        if let Some([rd, ri]) = reverse.get_mut(2 * j..2 * j + 2)
+                            && d < *rd
+                        {
+                            (*rd, *ri) = (d, i as u32);
+                        }
+                    }
+                }
+            }
+            // `u32::MAX`: no candidate.
+            if d1 == u32::MAX || !keep(d1, d2) {
                 continue;
             }
-            let d = hamming(q, t);
-            if d < d1 {
-                d2 = d1;
-                d1 = d;
-                j1 = j;
-            } else if d < d2 {
-                d2 = d;
-            }
-            // Reverse nearest query of j: (distance, index) packed, smallest wins.
-            if let Some(r) = reverse.get_mut(j) {
-                *r = (*r).min((d << 16) | i as u32);
+            if let Some(slot) = out.get_mut(n) {
+                *slot = make(i, j1, d1);
+                n += 1;
             }
         }
-        if d1 == u32::MAX || d1 > u32::from(config.max_distance) {
-            continue;
-        }
-        if use_ratio && d2 != u32::MAX && (d1 as f32) >= config.ratio * d2 as f32 {
-            continue;
-        }
-        if let Some(slot) = out.get_mut(n) {
-            *slot = Match {
-                query: i as u16,
-                train: j1 as u16,
-                distance: d1 as u16,
-            };
-            n += 1;
-        }
-    }
-    if config.cross_check {
-        let mut kept = 0usize;
-        for k in 0..n {
-            let Some(m) = out.get(k).copied() else { break };
-            let mutual = reverse
-                .get(usize::from(m.train))
-                .is_some_and(|r| r & 0xffff == u32::from(m.query));
-            if mutual {
-                if let Some(slot) = out.get_mut(kept) {
-                    *slot = m;
+        if self.cross_check {
+            let mut kept = 0usize;
+            for k in 0..n {
+                let Some(m) = out.get(k).copied() else { break };
+                let (q, t) = ids(&m);
+                let nearest = match self.reverse {
+                    Reverse::Packed => reverse.get(t).map(|r| (r & 0xffff) as usize),
+                    Reverse::Wide => reverse.get(2 * t + 1).map(|&r| r as usize),
+                };
+                if nearest == Some(q) {
+                    if let Some(slot) = out.get_mut(kept) {
+                        *slot = m;
+                    }
+                    kept += 1;
                 }
-                kept += 1;
+            }
+            n = kept;
+        }
+        Ok(n)
+    }
+}
+
+/// A 128-value float descriptor ([`super::sift`]'s 4x4x8 gradient histogram), of unit
+/// Euclidean length.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FloatDescriptor(pub [f32; 128]);
+
+impl Default for FloatDescriptor {
+    fn default() -> Self {
+        Self([0.0; 128])
+    }
+}
+
+/// Squared Euclidean distance `Σ (aₖ − bₖ)²` (`[0, 4]` for unit descriptors, `[0, 2]` for
+/// non-negative ones). Summed in eight lanes, which LLVM keeps in vector registers.
+#[inline]
+#[doc(alias = "NORM_L2SQR")]
+pub fn l2_squared(a: &FloatDescriptor, b: &FloatDescriptor) -> f32 {
+    let mut acc = [0.0f32; 8];
+    for (x, y) in a.0.chunks_exact(8).zip(b.0.chunks_exact(8)) {
+        for ((s, p), q) in acc.iter_mut().zip(x).zip(y) {
+            let d = p - q;
+            *s += d * d;
+        }
+    }
+    acc.iter().sum()
+}
+
+/// A float-descriptor match: `query[query]` ↔ `train[train]` at Euclidean distance `distance`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FloatMatch {
+    /// Index into the query descriptors.
+    pub query: u16,
+    /// Index into the train descriptors.
+    pub train: u16,
+    /// Euclidean distance `‖q − t‖`.
+    pub distance: f32,
+}
+
+/// `u32` words of scratch [`match_float_descriptors`] needs for `n_train` train descriptors
+/// (two per train descriptor: a distance and an index; none without cross-check).
+pub const fn float_scratch_len(n_train: usize) -> usize {
+    2 * n_train
+}
+
+/// [`match_descriptors`] for float descriptors under the Euclidean distance (OpenCV's
+/// `BFMatcher(NORM_L2)`): per query the nearest train descriptor, kept when Lowe's ratio test
+/// `d₁ < ratio · d₂` holds (on distances, not their squares) and, with cross-check, when the
+/// match is mutual. [`MatchConfig::max_distance`] (a Hamming bound) is not applied.
+///
+/// `out` must hold `query.len()` matches; `scratch` [`float_scratch_len`]`(train.len())`
+/// words when `cross_check`. Errors as [`match_descriptors`].
+///
+/// ```
+/// use camgeom::features::matching::{FloatDescriptor, FloatMatch, MatchParams};
+/// use camgeom::features::matching::{float_scratch_len, match_float_descriptors};
+///
+/// let unit = |k: usize| {
+///     let mut d = FloatDescriptor::default();
+///     d.0[k] = 1.0;
+///     d
+/// };
+/// let (q, t) = ([unit(0), unit(5)], [unit(5), unit(9), unit(0)]);
+/// let (mut out, mut s) = ([FloatMatch::default(); 2], [0u32; float_scratch_len(3)]);
+/// let n = match_float_descriptors(&q, &t, &MatchParams::default(), &mut s, &mut out)?;
+/// assert_eq!((n, out[0].train, out[1].train, out[0].distance), (2, 2, 0, 0.0));
+/// # Ok::<(), camgeom::Error>(())
+/// ```
+#[doc(alias = "BFMatcher")]
+#[doc(alias = "NORM_L2")]
+pub fn match_float_descriptors(
+    query: &[FloatDescriptor],
+    train: &[FloatDescriptor],
+    params: &MatchParams,
+    scratch: &mut [u32],
+    out: &mut [FloatMatch],
+) -> Result<usize> {
+    match_float_descriptors_guided(query, train, params, |_, _| true, scratch, out)
+}
+
+/// [`match_float_descriptors`] among the pairs `candidate(i, j)` admits, as
+/// [`match_descriptors_guided`].
+#[doc(alias = "BFMatcher")]
+pub fn match_float_descriptors_guided(
+    query: &[FloatDescriptor],
+    train: &[FloatDescriptor],
+    params: &MatchParams,
+    candidate: impl FnMut(usize, usize) -> bool,
+    scratch: &mut [u32],
+    out: &mut [FloatMatch],
+) -> Result<usize> {
+    let config = params.config();
+    // Squared distances, non-negative: their bits order as the values.
+    let r2 = config.ratio * config.ratio;
+    let ratio_on = config.ratio < 1.0;
+    let distance = |i: usize, j: usize| match (query.get(i), train.get(j)) {
+        (Some(q), Some(t)) => {
+            let d = l2_squared(q, t);
+            if d.is_nan() {
+                u32::MAX - 1
+            } else {
+                d.max(0.0).to_bits()
             }
         }
-        n = kept;
-    }
-    Ok(n)
+        _ => u32::MAX - 1,
+    };
+    let keep = |d1: u32, d2: u32| {
+        d1 < u32::MAX - 1
+            && (!ratio_on || d2 >= u32::MAX - 1 || f32::from_bits(d1) < r2 * f32::from_bits(d2))
+    };
+    let make = |i: usize, j: usize, d: u32| FloatMatch {
+        query: i as u16,
+        train: j as u16,
+        distance: libm::sqrtf(f32::from_bits(d)),
+    };
+    let ids = |m: &FloatMatch| (usize::from(m.query), usize::from(m.train));
+    let core = Core {
+        sizes: (query.len(), train.len()),
+        cross_check: config.cross_check,
+        reverse: Reverse::Wide,
+    };
+    core.run(candidate, distance, keep, make, ids, scratch, out)
 }
 
 #[cfg(test)]

@@ -1,16 +1,18 @@
-//! Image features: FAST corners, ORB descriptors and brute-force Hamming matching.
+//! Image features: FAST corners, ORB descriptors, SIFT keypoints with float descriptors, and
+//! brute-force matching (Hamming or Euclidean).
 //!
 //! Everything here is allocation-free: detectors write into fixed-capacity
 //! [`heapless::Vec`]s or caller slices and take their working memory as one caller-provided
 //! byte slice whose length a `const fn` gives ([`fast::scratch_len`], [`orb::scratch_len`],
-//! [`matching::scratch_len`]). The work of every function is bounded by the image size and
+//! [`matching::scratch_len`]; SIFT's in `f32`s, [`sift::scratch_len`]). The work of every function is bounded by the image size and
 //! the capacities (stated per function).
 //!
 //! | module | what |
 //! |---|---|
 //! | [`fast`] | FAST-9 corners on the 16-pixel Bresenham circle with 3x3 non-maximum suppression, integer Harris response |
 //! | [`orb`] | ORB: multi-scale FAST + Harris selection (optionally spread by a grid), intensity-centroid orientation, steered 256-bit BRIEF, optional sub-pixel positions |
-//! | [`matching`] | Hamming distance, brute-force matching with Lowe's ratio test and cross-check, optionally among the pairs a geometry admits (guided) |
+//! | [`sift`] | SIFT: difference-of-Gaussian extrema in a scale space, sub-pixel and sub-scale refinement, orientation histograms, 128-float descriptors (RootSIFT optional) |
+//! | [`matching`] | Hamming or Euclidean distance, brute-force matching with Lowe's ratio test and cross-check, optionally among the pairs a geometry admits (guided) |
 //!
 //! ORB features of a drawn scene and of the same scene moved by `(+5, +3)` pixels, matched:
 //!
@@ -60,13 +62,16 @@
 pub mod fast;
 pub mod matching;
 pub mod orb;
+pub mod sift;
 
 pub use fast::{Corner, FastConfig, FastParams, fast_detect, harris_response};
 pub use matching::{
-    Descriptor, Match, MatchConfig, MatchParams, hamming, match_descriptors,
-    match_descriptors_guided,
+    Descriptor, FloatDescriptor, FloatMatch, Match, MatchConfig, MatchParams, hamming, l2_squared,
+    match_descriptors, match_descriptors_guided, match_float_descriptors,
+    match_float_descriptors_guided,
 };
 pub use orb::{Feature, Keypoint, OrbConfig, OrbParams, orb_detect, orb_detect_into};
+pub use sift::{SiftConfig, SiftFeature, SiftKeypoint, SiftParams, sift_detect};
 
 /// Keeps the `heap.len()`-bounded best items of a stream in a min-heap on `key` (the root is
 /// the worst kept item): `O(log n)` per offered item.
