@@ -37,7 +37,7 @@
 //!
 //! Only one octave is in memory at a time: [`scratch_len`] `f32`s, `2s + 6` planes of the
 //! first octave plus a padded row: 1536x1024 without upsampling, `s = 3`: 12 planes of 6.3 MB,
-//! 75.5 MB (302 MB doubled); 320x240: 3.7 MB. A feature ([`SiftFeature`]) is 532 bytes.
+//! 75.5 MB (302 MB doubled); 320x240: 3.7 MB. A feature ([`SiftFeature`]) is 536 bytes.
 //! The work is `O(w h (s + 3) (2 ⌈4σ_i⌉ + 1))` for the blurs, plus, per keypoint,
 //! `O(σ_o²)` for its orientation and descriptor windows; every loop is bounded by the image,
 //! the octaves and the capacities.
