@@ -1,16 +1,17 @@
 //! `camgeom sfm`: incremental structure from motion over any number of images of one calibrated
 //! camera, or over tracks the user brings.
 //!
-//! 1. ORB features of each image ([`orb_features`]: a count and a grid sized from the image),
-//!    matched between every pair of images with the ratio test and the mutual check
-//!    ([`match_features`]);
+//! 1. features of each image, `--features sift` (the default: [`sift_features`], RootSIFT,
+//!    Euclidean distance) or `--features orb` ([`orb_features`]: a count and a grid sized from
+//!    the image, Hamming distance), matched between every pair of images with the ratio test and
+//!    the mutual check ([`SfmFeature::match_guided`]);
 //! 2. each pair's matches verified by an essential matrix (5-point RANSAC on undistorted
 //!    pixels) or, when it explains more, a homography (a plane, a camera that only turned): a
 //!    pair keeps that model's inliers when there are at least `--min-pair-inliers`, else none;
 //!    with `--guided`, a verified pair is then matched again under its model (COLMAP's guided
 //!    matching, [`guided_pair`]): each feature's candidates are only the features within
 //!    `--verify-threshold` of its epipolar line (Sampson distance) or of its homography
-//!    transfer, the ratio test and the mutual check among those, no farther in Hamming distance
+//!    transfer, the ratio test and the mutual check among those, no farther in descriptor distance
 //!    than the pair's first verified matches, and the matches found are verified again by the
 //!    same kind of model;
 //! 3. tracks: the verified matches joined strongest first (pairs with more verified matches,
@@ -37,9 +38,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use camgeom::camera::Camera;
-use camgeom::features::matching::{Match, match_descriptors_guided, scratch_len};
 use camgeom::features::orb::Feature;
-use camgeom::features::{Descriptor, hamming};
+use camgeom::features::sift::SiftFeature;
 use camgeom::homography::find_homography;
 use camgeom::nalgebra::{Matrix3, Point2, Point3};
 use camgeom::ransac::{RansacConfig, RansacParams};
@@ -51,7 +51,7 @@ use camgeom::transform::Pose;
 use camgeom::twoview::find_essential;
 use camgeom_host::cli::args::CameraArg;
 use camgeom_host::cli::files::{create_dir, write_file};
-use camgeom_host::cli::matches::{RATIO_MUTUAL, match_features, orb_features};
+use camgeom_host::cli::matches::{RATIO_MUTUAL, SfmFeature, orb_features, sift_features};
 use camgeom_host::figures::{
     CAMERA_COLOURS, SceneCamera, correspondences_plot, reprojection_plot, scene_plot,
 };
@@ -59,7 +59,7 @@ use camgeom_host::images::{GrayImage, load_gray};
 use camgeom_host::points::{read_csv, to_json};
 use camgeom_host::rgb::RgbImage;
 use camgeom_host::{Error, ErrorKind, Result, load_camera};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::Serialize;
 
 #[derive(Args, Debug)]
@@ -68,6 +68,14 @@ pub struct SfmArgs {
     /// output lists them in this order.
     #[arg(long, num_args = 2.., value_name = "IMAGE", required = true)]
     pub images: Vec<PathBuf>,
+    /// The features matched between the images: SIFT (scale-space keypoints, float
+    /// descriptors) or ORB (FAST corners on a pyramid, binary descriptors).
+    #[arg(long, value_enum, default_value_t = FeatureKind::Sift)]
+    pub features: FeatureKind,
+    /// With `--features sift`: double the images first (OpenCV's default), for about 1.6 times
+    /// the features and the finest scales, at twice the time.
+    #[arg(long)]
+    pub sift_upsample: bool,
     /// Tracks instead of features: a CSV file of rows `track,view,x,y` (`view` indexes
     /// `--images`, pixels as in the images); the images then only colour the points.
     #[arg(long, value_name = "FILE.csv")]
@@ -114,6 +122,15 @@ pub struct SfmArgs {
     pub bundle_iterations: u8,
 }
 
+/// The features of `--features`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum FeatureKind {
+    /// [`camgeom::features::sift`], RootSIFT descriptors.
+    Sift,
+    /// [`camgeom::features::orb`] with a grid and sub-pixel positions.
+    Orb,
+}
+
 /// One image of the summary.
 #[derive(Serialize, Debug)]
 pub struct View {
@@ -137,7 +154,7 @@ pub struct View {
     pub inliers: u32,
     /// Their RMS reprojection error, pixels.
     pub reprojection_rms_px: f64,
-    /// ORB features detected (0 with `--matches`).
+    /// Features detected (0 with `--matches`).
     pub features: usize,
 }
 
@@ -198,8 +215,8 @@ struct Tracks {
     observations: Vec<Observation<f64>>,
 }
 
-fn pixel(f: &Feature) -> Point2<f64> {
-    Point2::new(f64::from(f.keypoint.x), f64::from(f.keypoint.y))
+fn pixel<F: SfmFeature>(f: &F) -> Point2<f64> {
+    f.pixel()
 }
 
 /// Each pair's matches (pixels in the first and the second image, verified), by `(i, j)`, `i < j`.
@@ -256,10 +273,10 @@ fn verify_pair(
 /// them the ratio test and the mutual check as in the first pass
 /// ([`match_descriptors_guided`]). Per feature of `a` the epipolar line `F x` (or the transfer
 /// `H x`) is computed once, per feature of `b` `Fᵀ y` (or `H⁻¹ y`), so each pair costs a few
-/// multiplications before any Hamming distance.
-fn guided_pair(
-    a: &[Feature],
-    b: &[Feature],
+/// multiplications before any descriptor distance.
+fn guided_pair<F: SfmFeature>(
+    a: &[F],
+    b: &[F],
     ua: &[Option<Point2<f64>>],
     ub: &[Option<Point2<f64>>],
     model: &PairModel,
@@ -267,8 +284,6 @@ fn guided_pair(
     what: &str,
 ) -> Result<Vec<(usize, usize)>> {
     let t2 = threshold * threshold;
-    let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
-    let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
     let nan = [f64::NAN; 4];
     // Per feature of `a`: `[l₀, l₁, l₂, l₀² + l₁²]` with `l = F x`, or `[Hx, x]`; of `b`:
     // `[y, m₀² + m₁²]` with `m = Fᵀ y` (the third entry unused), or `[y, H⁻¹ y]`. NaN outside
@@ -333,24 +348,14 @@ fn guided_pair(
             (f + g) * 0.5 < t2
         }
     };
-    let params = RATIO_MUTUAL
-        .check()
-        .map_err(|e| Error::camgeom(format!("{what}: match configuration"), e))?;
-    let mut out = vec![Match::default(); da.len()];
-    let mut scratch = vec![0u32; scratch_len(db.len())];
-    let n = match_descriptors_guided(&da, &db, &params, admit, &mut scratch, &mut out)
-        .map_err(|e| Error::camgeom(format!("{what}: guided matching failed"), e))?;
-    Ok(out[..n]
-        .iter()
-        .map(|m| (usize::from(m.query), usize::from(m.train)))
-        .collect())
+    F::match_guided(a, b, admit, what)
 }
 
 /// Steps 1-3 of the module docs from images.
-fn tracks_from_images(
+fn tracks_from_images<F: SfmFeature>(
     a: &SfmArgs,
     camera: &Camera<f64>,
-    features: &[Vec<Feature>],
+    features: &[Vec<F>],
 ) -> Result<(Tracks, Vec<Pair>, PairMatches, Members)> {
     let mut verify = RansacConfig::<f64> {
         threshold: a.verify_threshold,
@@ -383,7 +388,7 @@ fn tracks_from_images(
     for i in 0..features.len() {
         for j in i + 1..features.len() {
             let what = format!("{} - {}", a.images[i].display(), a.images[j].display());
-            let first = match_features(&features[i], &features[j], &what)?;
+            let first = F::match_guided(&features[i], &features[j], |_, _| true, &what)?;
             let (ui, uj) = (&undistorted[i], &undistorted[j]);
             // The matches with both pixels in the lens model, and the verified ones.
             let verified = |m: &[(usize, usize)]| {
@@ -411,11 +416,8 @@ fn tracks_from_images(
                 if a.guided {
                     let bound = inliers
                         .iter()
-                        .map(|&(p, q)| {
-                            hamming(&features[i][p].descriptor, &features[j][q].descriptor)
-                        })
-                        .max()
-                        .unwrap_or(0);
+                        .map(|&(p, q)| features[i][p].distance(&features[j][q]))
+                        .fold(0.0f32, f32::max);
                     let mut g = guided_pair(
                         &features[i],
                         &features[j],
@@ -426,9 +428,7 @@ fn tracks_from_images(
                         &what,
                     )?;
                     // No farther than the first pass's verified matches of this pair.
-                    g.retain(|&(p, q)| {
-                        hamming(&features[i][p].descriptor, &features[j][q].descriptor) <= bound
-                    });
+                    g.retain(|&(p, q)| features[i][p].distance(&features[j][q]) <= bound);
                     guided = g.len();
                     if let Some((kept, _)) = verified(&g) {
                         inliers = kept;
@@ -437,7 +437,8 @@ fn tracks_from_images(
                 }
             }
             for &(p, q) in &inliers {
-                let d = hamming(&features[i][p].descriptor, &features[j][q].descriptor);
+                // Non-negative: the bits order as the distances.
+                let d = features[i][p].distance(&features[j][q]).max(0.0).to_bits();
                 joins.push((
                     inliers.len(),
                     d,
@@ -538,8 +539,8 @@ fn consistent_tracks(offsets: &[u32], joins: &mut [(usize, u32, u32, u32)]) -> M
 type Members = Vec<Vec<(usize, usize)>>;
 
 /// Tracks at the features' keypoints (`--no-refine`).
-fn plain_tracks(
-    features: &[Vec<Feature>],
+fn plain_tracks<F: SfmFeature>(
+    features: &[Vec<F>],
     members: &[Vec<(usize, usize)>],
 ) -> Vec<Vec<Observation<f64>>> {
     members
@@ -638,14 +639,14 @@ fn solve(
 /// point `X` of a track is projected into every registered view the track does not see,
 /// `x = π(K, R X + t)`; the features of that view within `radius` pixels of `x` (the
 /// reconstruction's own inlier threshold, `--pnp-threshold`) that belong to no track are its
-/// candidates, scored by the Hamming distance to the nearest of the track's descriptors. The
+/// candidates, scored by the descriptor distance to the nearest of the track's descriptors. The
 /// nearest candidate joins the track when it passes the first pass's ratio test against the
 /// second-nearest candidate and is no farther than the track's own descriptors are from each
 /// other (the largest distance between two of them: no threshold of its own), and when no other
 /// track claims the same feature. Returns the grown members and the observations added.
-fn extend_tracks(
+fn extend_tracks<F: SfmFeature>(
     camera: &Camera<f64>,
-    features: &[Vec<Feature>],
+    features: &[Vec<F>],
     members: &[Vec<(usize, usize)>],
     solved: &Solved,
     radius: f64,
@@ -678,14 +679,12 @@ fn extend_tracks(
         let Some(x) = solved.points.get(t).copied().flatten() else {
             continue;
         };
-        let descriptors: Vec<&Descriptor> =
-            m.iter().map(|&(v, f)| &features[v][f].descriptor).collect();
+        let descriptors: Vec<&F> = m.iter().map(|&(v, f)| &features[v][f]).collect();
         let spread = descriptors
             .iter()
             .enumerate()
-            .flat_map(|(k, a)| descriptors[k + 1..].iter().map(move |b| hamming(a, b)))
-            .max()
-            .unwrap_or(0);
+            .flat_map(|(k, a)| descriptors[k + 1..].iter().map(move |b| a.distance(b)))
+            .fold(0.0f32, f32::max);
         for (v, pose) in solved.poses.iter().enumerate() {
             let Some(pose) = pose else { continue };
             if m.iter().any(|&(w, _)| w == v) {
@@ -695,7 +694,7 @@ fn extend_tracks(
                 continue;
             };
             let (cx, cy) = key(p.x, p.y);
-            let (mut d1, mut d2, mut best) = (u32::MAX, u32::MAX, usize::MAX);
+            let (mut d1, mut d2, mut best) = (f32::INFINITY, f32::INFINITY, usize::MAX);
             for gx in cx - 1..=cx + 1 {
                 for gy in cy - 1..=cy + 1 {
                     for &k in grids[v].get(&(gx, gy)).map_or(&[][..], Vec::as_slice) {
@@ -705,9 +704,8 @@ fn extend_tracks(
                         }
                         let d = descriptors
                             .iter()
-                            .map(|e| hamming(e, &f.descriptor))
-                            .min()
-                            .unwrap_or(u32::MAX);
+                            .map(|e| e.distance(f))
+                            .fold(f32::INFINITY, f32::min);
                         if d < d1 {
                             (d2, d1, best) = (d1, d, k);
                         } else if d < d2 {
@@ -716,7 +714,7 @@ fn extend_tracks(
                     }
                 }
             }
-            let ratio_ok = d2 == u32::MAX || f64::from(d1) < ratio * f64::from(d2);
+            let ratio_ok = d2 == f32::INFINITY || f64::from(d1) < ratio * f64::from(d2);
             if best != usize::MAX && d1 <= spread && ratio_ok {
                 claims.entry((v, best)).or_default().push(t);
             }
@@ -746,9 +744,9 @@ const MAX_REFINE_SHIFT: f64 = 1.5;
 /// levels): ORB keypoints of one scene point sit at view-dependent offsets (a FAST corner's
 /// position on its pyramid level), which bias the geometry; windows aligned to one reference
 /// agree to a small fraction of a pixel.
-fn refine_tracks(
+fn refine_tracks<F: SfmFeature>(
     images: &[PathBuf],
-    features: &[Vec<Feature>],
+    features: &[Vec<F>],
     members: &[Vec<(usize, usize)>],
 ) -> Result<Vec<Vec<Observation<f64>>>> {
     use camgeom::klt::{FlowStatus, LkConfig};
@@ -773,7 +771,7 @@ fn refine_tracks(
             .iter()
             .enumerate()
             .min_by(|x, y| {
-                let s = |&(_, &(v, f)): &(usize, &(usize, usize))| features[v][f].keypoint.scale;
+                let s = |&(_, &(v, f)): &(usize, &(usize, usize))| features[v][f].fineness();
                 s(x).total_cmp(&s(y))
             })
             .map_or(0, |(k, _)| k);
@@ -807,7 +805,7 @@ fn refine_tracks(
         for (r, f) in reqs.iter().zip(flows) {
             let (v_feat, scale) = {
                 let (vv, ff) = members[r.0][r.1];
-                (vv, f64::from(features[vv][ff].keypoint.scale))
+                (vv, features[vv][ff].level_scale())
             };
             debug_assert_eq!(v_feat, *v);
             let moved = ((f.x - r.3[0]).powi(2) + (f.y - r.3[1]).powi(2)).sqrt();
@@ -917,6 +915,57 @@ fn describe_initial(r: &InitialRefusal<f64>, names: &[String]) -> String {
     }
 }
 
+/// What steps 1 to 4 give [`run`].
+struct Outcome {
+    tracks: Tracks,
+    pairs: Vec<Pair>,
+    counts: Vec<usize>,
+    pair_matches: PairMatches,
+    solved: Solved,
+    extended: usize,
+    /// Features and matching; the reconstructions.
+    seconds: [f64; 2],
+}
+
+/// Steps 1 to 4 from the features of the images (`t0`: when their detection started).
+fn from_images<F: SfmFeature>(
+    a: &SfmArgs,
+    camera: &Camera<f64>,
+    params: &IncrementalParams<f64>,
+    features: &[Vec<F>],
+    t0: Instant,
+) -> Result<Outcome> {
+    let views_n = a.images.len();
+    let counts = features.iter().map(Vec::len).collect();
+    let (mut tracks, pairs, pair_matches, members) = tracks_from_images(a, camera, features)?;
+    let t_match = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let mut solved = solve(camera, &tracks, views_n, params)?;
+    let mut extended = 0;
+    if !a.no_extend && !features.is_empty() && solved.r.initial.is_ok() {
+        let (grown, added) = extend_tracks(camera, features, &members, &solved, a.pnp_threshold);
+        if added > 0 {
+            let observations = if a.no_refine {
+                plain_tracks(features, &grown)
+            } else {
+                refine_tracks(&a.images, features, &grown)?
+            };
+            tracks = compress(observations);
+            solved = solve(camera, &tracks, views_n, params)?;
+            extended = added;
+        }
+    }
+    Ok(Outcome {
+        tracks,
+        pairs,
+        counts,
+        pair_matches,
+        solved,
+        extended,
+        seconds: [t_match, t1.elapsed().as_secs_f64()],
+    })
+}
+
 /// Runs the subcommand: writes the files, returns the JSON summary.
 pub fn run(a: &SfmArgs) -> Result<String> {
     let spec = load_camera(&a.camera.intrinsics)?;
@@ -926,28 +975,6 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         return Err(Error::usage("too many images"));
     }
     let t0 = Instant::now();
-    let (mut tracks, pairs, counts, pair_matches, features, members) = match &a.matches {
-        Some(path) => (
-            tracks_from_csv(path, a.images.len())?,
-            Vec::new(),
-            vec![0; a.images.len()],
-            PairMatches::new(),
-            Vec::new(),
-            Vec::new(),
-        ),
-        None => {
-            let features: Vec<Vec<Feature>> = a
-                .images
-                .iter()
-                .map(|p| orb_features(p))
-                .collect::<Result<_>>()?;
-            let counts = features.iter().map(Vec::len).collect();
-            let (t, p, m, members) = tracks_from_images(a, &camera, &features)?;
-            (t, p, counts, m, features, members)
-        }
-    };
-    let t_match = t0.elapsed().as_secs_f64();
-    let t1 = Instant::now();
     let mut config = IncrementalConfig::<f64>::default();
     config.essential.threshold = a.threshold;
     config.essential.seed = a.seed;
@@ -961,21 +988,49 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         ))
     })?;
     let views_n = a.images.len();
-    let mut solved = solve(&camera, &tracks, views_n, &params)?;
-    let mut extended = 0;
-    if !a.no_extend && !features.is_empty() && solved.r.initial.is_ok() {
-        let (grown, added) = extend_tracks(&camera, &features, &members, &solved, a.pnp_threshold);
-        if added > 0 {
-            let observations = if a.no_refine {
-                plain_tracks(&features, &grown)
-            } else {
-                refine_tracks(&a.images, &features, &grown)?
-            };
-            tracks = compress(observations);
-            solved = solve(&camera, &tracks, views_n, &params)?;
-            extended = added;
+    let Outcome {
+        tracks,
+        pairs,
+        counts,
+        pair_matches,
+        solved,
+        extended,
+        seconds: [t_match, t_rec],
+    } = match &a.matches {
+        Some(path) => {
+            let tracks = tracks_from_csv(path, views_n)?;
+            let t_match = t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
+            let solved = solve(&camera, &tracks, views_n, &params)?;
+            Outcome {
+                tracks,
+                pairs: Vec::new(),
+                counts: vec![0; views_n],
+                pair_matches: PairMatches::new(),
+                solved,
+                extended: 0,
+                seconds: [t_match, t1.elapsed().as_secs_f64()],
+            }
         }
-    }
+        None => match a.features {
+            FeatureKind::Sift => {
+                let features: Vec<Vec<SiftFeature>> = a
+                    .images
+                    .iter()
+                    .map(|p| sift_features(p, a.sift_upsample))
+                    .collect::<Result<_>>()?;
+                from_images(a, &camera, &params, &features, t0)?
+            }
+            FeatureKind::Orb => {
+                let features: Vec<Vec<Feature>> = a
+                    .images
+                    .iter()
+                    .map(|p| orb_features(p))
+                    .collect::<Result<_>>()?;
+                from_images(a, &camera, &params, &features, t0)?
+            }
+        },
+    };
     if let Some(path) = &a.tracks_out {
         let mut csv = String::from("track,view,x,y\n");
         for (t, w) in tracks.starts.windows(2).enumerate() {
@@ -995,7 +1050,6 @@ pub fn run(a: &SfmArgs) -> Result<String> {
         used,
         r,
     } = solved;
-    let t_rec = t1.elapsed().as_secs_f64();
     let initial = match r.initial {
         Ok(p) => p,
         Err(refusal) => {

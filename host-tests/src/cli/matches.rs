@@ -2,12 +2,21 @@
 //! by matching the ORB features of both images ([`camgeom::features::orb::orb_detect`],
 //! default settings) with cross-check, as OpenCV's `BFMatcher(NORM_HAMMING, crossCheck=True)`
 //! ([`match_images`]). Structure from motion takes its features from [`orb_features`]
-//! (thousands a view, spread by a grid, sub-pixel) and matches them with [`match_features`].
+//! (thousands a view, spread by a grid, sub-pixel) and matches them with [`match_features`],
+//! or from [`sift_features`] (SIFT, [`camgeom::features::sift`]); [`SfmFeature`] is what it
+//! needs of either.
 
 use std::path::{Path, PathBuf};
 
+use camgeom::features::matching::{
+    FloatDescriptor, FloatMatch, float_scratch_len, match_float_descriptors_guided,
+};
 use camgeom::features::orb::{self, Feature, OrbConfig};
-use camgeom::features::{Descriptor, Match, MatchConfig, match_descriptors};
+use camgeom::features::sift::{self, SiftConfig, SiftFeature};
+use camgeom::features::{
+    Descriptor, Match, MatchConfig, hamming, l2_squared, match_descriptors,
+    match_descriptors_guided,
+};
 use camgeom::nalgebra::Point2;
 
 use crate::cli::args::MatchesArg;
@@ -168,5 +177,164 @@ pub fn read_input(input: &MatchesArg) -> Result<(String, Correspondences, bool)>
         }
         (None, Some(path)) => Ok((path.display().to_string(), read_matches(path)?, false)),
         (None, None) => Err(Error::usage("one of --matches and --images is required")),
+    }
+}
+
+/// Pixels of the image per SIFT feature kept by [`sift_features`] at most (the strongest
+/// `|D|`): 10 485 at 1536x1024, as ORB's [`PIXELS_PER_FEATURE`].
+pub const SIFT_PIXELS_PER_FEATURE: usize = 150;
+
+/// Contrast threshold of [`sfm_sift_config`]: half OpenCV's 0.04, for about 1.6 times the
+/// features (3,700 a view on entry-P10 instead of 2,350). Measured with `camgeom sfm` on all
+/// views of entry-P10 and Herz-Jesus-P8 (rotation error median / max): 0.04 gives 0.102 /
+/// 0.189° and 0.044 / 0.104°; 0.02 gives 0.050 / 0.118° and 0.041 / 0.081°.
+pub const SFM_SIFT_CONTRAST: f32 = 0.02;
+
+/// SIFT settings for structure from motion: OpenCV's (`σ` 1.6, 3 intervals, edge 10) with the
+/// contrast threshold [`SFM_SIFT_CONTRAST`], without doubling the image, RootSIFT descriptors
+/// (plain SIFT: entry-P10 0.110 / 0.243° against RootSIFT's 0.102 / 0.189° at contrast 0.04).
+pub fn sfm_sift_config() -> SiftConfig {
+    SiftConfig {
+        root: true,
+        contrast_threshold: SFM_SIFT_CONTRAST,
+        ..SiftConfig::default()
+    }
+}
+
+/// SIFT features of an image file for structure from motion ([`sfm_sift_config`], the image
+/// doubled first when `upsample`), at most one per [`SIFT_PIXELS_PER_FEATURE`] pixels, buffers
+/// sized at run time.
+pub fn sift_features(path: &Path, upsample: bool) -> Result<Vec<SiftFeature>> {
+    let img = load_gray(path)?;
+    let config = SiftConfig {
+        upsample,
+        ..sfm_sift_config()
+    };
+    sift_features_with(path, &img, &config)
+}
+
+/// SIFT features of a decoded image with `config`, at most one per
+/// [`SIFT_PIXELS_PER_FEATURE`] pixels.
+pub fn sift_features_with(
+    path: &Path,
+    img: &GrayImage,
+    config: &SiftConfig,
+) -> Result<Vec<SiftFeature>> {
+    let view = img.view().ok_or_else(|| {
+        Error::new(
+            path,
+            ErrorKind::Unsupported(format!("image size {}x{}", img.width, img.height)),
+        )
+    })?;
+    let params = config
+        .check()
+        .map_err(|e| Error::camgeom(format!("{}: SIFT configuration", path.display()), e))?;
+    let mut scratch =
+        vec![0.0f32; sift::scratch_len(img.width, img.height, config.intervals, config.upsample)];
+    let cap = (img.width * img.height / SIFT_PIXELS_PER_FEATURE).clamp(1, usize::from(u16::MAX));
+    let mut out = vec![SiftFeature::default(); cap];
+    let n = sift::sift_detect(&view, &params, &mut scratch, &mut out)
+        .map_err(|e| Error::camgeom(format!("{}: sift_detect failed", path.display()), e))?;
+    out.truncate(n);
+    Ok(out)
+}
+
+/// What structure from motion needs of a feature: where, at which scale, how far its
+/// descriptor is from another's, and matching (ratio test and mutual check, optionally among
+/// the pairs a geometry admits).
+pub trait SfmFeature: Copy {
+    /// The keypoint, pixels.
+    fn pixel(&self) -> Point2<f64>;
+    /// Input pixels per pixel of the level it was found on (ORB's pyramid scale, SIFT's
+    /// `2^octave`): how far a KLT alignment may move it.
+    fn level_scale(&self) -> f64;
+    /// The size that orders keypoints from finest to coarsest.
+    fn fineness(&self) -> f32;
+    /// Descriptor distance (Hamming count, or Euclidean).
+    fn distance(&self, other: &Self) -> f32;
+    /// The matches of `a` and `b` among the pairs `admit` admits, ratio test and mutual check
+    /// ([`RATIO_MUTUAL`]), `(index in a, index in b)`.
+    fn match_guided(
+        a: &[Self],
+        b: &[Self],
+        admit: impl FnMut(usize, usize) -> bool,
+        what: &str,
+    ) -> Result<Vec<(usize, usize)>>;
+}
+
+fn checked(what: &str) -> Result<camgeom::features::MatchParams> {
+    RATIO_MUTUAL
+        .check()
+        .map_err(|e| Error::camgeom(format!("{what}: match configuration"), e))
+}
+
+impl SfmFeature for Feature {
+    fn pixel(&self) -> Point2<f64> {
+        Point2::new(f64::from(self.keypoint.x), f64::from(self.keypoint.y))
+    }
+    fn level_scale(&self) -> f64 {
+        f64::from(self.keypoint.scale)
+    }
+    fn fineness(&self) -> f32 {
+        self.keypoint.scale
+    }
+    fn distance(&self, other: &Self) -> f32 {
+        hamming(&self.descriptor, &other.descriptor) as f32
+    }
+    fn match_guided(
+        a: &[Self],
+        b: &[Self],
+        admit: impl FnMut(usize, usize) -> bool,
+        what: &str,
+    ) -> Result<Vec<(usize, usize)>> {
+        let da: Vec<Descriptor> = a.iter().map(|f| f.descriptor).collect();
+        let db: Vec<Descriptor> = b.iter().map(|f| f.descriptor).collect();
+        let mut out = vec![Match::default(); da.len()];
+        let mut scratch = vec![0u32; camgeom::features::matching::scratch_len(db.len())];
+        let n = match_descriptors_guided(&da, &db, &checked(what)?, admit, &mut scratch, &mut out)
+            .map_err(|e| Error::camgeom(format!("{what}: matching failed"), e))?;
+        Ok(out[..n]
+            .iter()
+            .map(|m| (usize::from(m.query), usize::from(m.train)))
+            .collect())
+    }
+}
+
+impl SfmFeature for SiftFeature {
+    fn pixel(&self) -> Point2<f64> {
+        Point2::new(f64::from(self.keypoint.x), f64::from(self.keypoint.y))
+    }
+    fn level_scale(&self) -> f64 {
+        f64::from(self.keypoint.octave_scale())
+    }
+    fn fineness(&self) -> f32 {
+        self.keypoint.sigma
+    }
+    fn distance(&self, other: &Self) -> f32 {
+        l2_squared(&self.descriptor, &other.descriptor).sqrt()
+    }
+    fn match_guided(
+        a: &[Self],
+        b: &[Self],
+        admit: impl FnMut(usize, usize) -> bool,
+        what: &str,
+    ) -> Result<Vec<(usize, usize)>> {
+        let da: Vec<FloatDescriptor> = a.iter().map(|f| f.descriptor).collect();
+        let db: Vec<FloatDescriptor> = b.iter().map(|f| f.descriptor).collect();
+        let mut out = vec![FloatMatch::default(); da.len()];
+        let mut scratch = vec![0u32; float_scratch_len(db.len())];
+        let n = match_float_descriptors_guided(
+            &da,
+            &db,
+            &checked(what)?,
+            admit,
+            &mut scratch,
+            &mut out,
+        )
+        .map_err(|e| Error::camgeom(format!("{what}: matching failed"), e))?;
+        Ok(out[..n]
+            .iter()
+            .map(|m| (usize::from(m.query), usize::from(m.train)))
+            .collect())
     }
 }
