@@ -30,6 +30,7 @@ mod pose_cli;
 mod pose_sequence;
 mod projection;
 mod sfm_cli;
+mod sift;
 mod twoview_chessboard;
 mod twoview_cli;
 mod undistort;
