@@ -268,7 +268,8 @@ fn blur(src: &[f32], dst: &mut [f32], tmp: &mut [f32], pad: &mut [f32], w: usize
         return;
     };
     // Rows.
-    for (row, out) in src.chunks_exact(w).zip(tmp.chunks_exact_mut(w)) {
+    let w1 = w.max(1);
+    for (row, out) in src.chunks_exact(w1).zip(tmp.chunks_exact_mut(w1)) {
         for (p, v) in pad.iter_mut().enumerate() {
             *v = row
                 .get(reflect(p as isize - r as isize, w))
@@ -283,8 +284,8 @@ fn blur(src: &[f32], dst: &mut [f32], tmp: &mut [f32], pad: &mut [f32], w: usize
         }
     }
     // Columns.
-    let h = src.len() / w.max(1);
-    for (y, out) in dst.chunks_exact_mut(w).enumerate().take(h) {
+    let h = src.len() / w1;
+    for (y, out) in dst.chunks_exact_mut(w1).enumerate().take(h) {
         out.fill(0.0);
         for (j, &c) in taps.iter().enumerate() {
             let sy = reflect(y as isize + j as isize - r as isize, h);
@@ -389,9 +390,12 @@ pub fn sift_detect(
         return Ok(0);
     }
     let wh0 = w * h;
-    let (gauss, rest) = scratch.split_at_mut((s + 3) * wh0);
-    let (dog, rest) = rest.split_at_mut((s + 2) * wh0);
-    let (tmp, pad) = rest.split_at_mut(wh0);
+    let too_small = Error::BufferTooSmall("scratch");
+    let (gauss, rest) = scratch
+        .split_at_mut_checked((s + 3) * wh0)
+        .ok_or(too_small)?;
+    let (dog, rest) = rest.split_at_mut_checked((s + 2) * wh0).ok_or(too_small)?;
+    let (tmp, pad) = rest.split_at_mut_checked(wh0).ok_or(too_small)?;
     // The input in [0, 1] (doubled when asked) in the first difference plane, blurred from
     // σ_in to σ into G_0.
     let sigma_in = if cfg.upsample { 1.0 } else { 0.5 };
@@ -425,7 +429,9 @@ pub fn sift_detect(
         }
         let wh = w * h;
         for i in 1..s + 3 {
-            let (before, after) = gauss.split_at_mut(i * wh);
+            let Some((before, after)) = gauss.split_at_mut_checked(i * wh) else {
+                break;
+            };
             let src = before.get((i - 1) * wh..).unwrap_or(&[]);
             let dst = after.get_mut(..wh).unwrap_or(&mut []);
             let t = tmp.get_mut(..wh).unwrap_or(&mut []);
@@ -461,14 +467,17 @@ pub fn sift_detect(
         // The next octave's G_0: G_s at every second pixel, through `tmp`.
         let (nw, nh) = (w / 2, h / 2);
         if let Some(gs) = gauss.get(s * wh..(s + 1) * wh) {
-            for (y, row) in tmp.chunks_exact_mut(nw.max(1)).enumerate().take(nh) {
+            for y in 0..nh {
+                let row = tmp.get_mut(y * nw..(y + 1) * nw).unwrap_or(&mut []);
                 for (x, v) in row.iter_mut().enumerate() {
                     *v = at(gs, w, 2 * x, 2 * y);
                 }
             }
         }
         if let (Some(g0), Some(t)) = (gauss.get_mut(..nw * nh), tmp.get(..nw * nh)) {
-            g0.copy_from_slice(t);
+            for (d, v) in g0.iter_mut().zip(t) {
+                *d = *v;
+            }
         }
         (w, h) = (nw, nh);
         index = index.saturating_add(1);

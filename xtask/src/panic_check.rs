@@ -103,7 +103,7 @@ pub const AREAS: [Area; 22] = [
     area(
         "features",
         false,
-        "`fast_detect`, `orb_detect`, `match_descriptors`, `match_descriptors_guided`",
+        "`fast_detect`, `orb_detect`, `sift_detect`, `match_descriptors`, `match_descriptors_guided`, `match_float_descriptors`",
     ),
     area(
         "warp",

@@ -589,6 +589,27 @@ fn run_features() {
     let admit = |i: usize, j: usize| i.abs_diff(j) <= band;
     black_box(match_descriptors_guided(&q, &t, &mparams, admit, &mut ms, &mut matches).ok());
     black_box(&matches);
+    // SIFT, both image sizes (as given and doubled), and float matching.
+    use camgeom::features::matching::{FloatDescriptor, FloatMatch, match_float_descriptors};
+    use camgeom::features::sift::{self, SiftConfig, SiftFeature, sift_detect};
+    let mut fscratch = black_box([0.0f32; sift::scratch_len(W, H, 3, true)]);
+    let mut sifts = black_box([SiftFeature::default(); 8]);
+    let upsample = black_box(true);
+    let Ok(sparams) = black_box(SiftConfig {
+        upsample,
+        root: black_box(false),
+        ..SiftConfig::default()
+    })
+    .check() else {
+        return;
+    };
+    black_box(sift_detect(&v, &sparams, &mut fscratch[..], &mut sifts[..]).ok());
+    black_box(&sifts);
+    let fq = black_box([FloatDescriptor::default(); 4]);
+    let ft = black_box([FloatDescriptor([0.5; 128]); 6]);
+    let mut fm = black_box([FloatMatch::default(); 4]);
+    black_box(match_float_descriptors(&fq, &ft, &mparams, &mut ms, &mut fm).ok());
+    black_box(&fm);
 }
 
 // ---------------------------------------------------------------- warp

@@ -47,7 +47,7 @@ fn opencv_like() -> SiftConfig {
 #[test]
 fn sift_keypoints_and_descriptors_agree_with_opencv() {
     let fx = fixture();
-    let scene = load_gray(&data("box_in_scene.png")).unwrap();
+    let scene = load_gray(data("box_in_scene.png")).unwrap();
     let ours = detect(&scene, &opencv_like());
     let total = fx["scene_keypoints"].as_u64().unwrap() as f64;
     // Repeatability: OpenCV's strongest keypoints with one of ours within 1 px and 20 % in
@@ -130,8 +130,8 @@ fn sift_matches_the_box_in_its_scene_as_well_as_opencv() {
         .map(|x| x.as_f64().unwrap())
         .collect();
     let h = Matrix3::from_row_slice(&h);
-    let box_img = load_gray(&data("box.png")).unwrap();
-    let scene = load_gray(&data("box_in_scene.png")).unwrap();
+    let box_img = load_gray(data("box.png")).unwrap();
+    let scene = load_gray(data("box_in_scene.png")).unwrap();
     for (name, config) in [
         ("SIFT", opencv_like()),
         (
