@@ -9,13 +9,19 @@
 //! corners keep the border, score at least the threshold, come in row-major order and (with
 //! suppression) are never 8-neighbours; ORB keypoints (any grid, sub-pixel or not, into a
 //! heapless vector or a slice of any length) lie inside the frame, within the caps;
-//! matches index both sides and carry the descriptors' Hamming distance; a warp writes at most
-//! the frame's pixels.
+//! matches index both sides and carry the descriptors' Hamming distance; SIFT features (any
+//! settings, scratch and output length) lie inside the frame with finite scales and unit
+//! descriptors, within the caps, and their float matches index both sides; a warp writes at
+//! most the frame's pixels.
 #![no_main]
 
 use arbitrary::Arbitrary;
 use camgeom::arith::Fixed;
 use camgeom::corners::{Corner, CornerConfig, good_features};
+use camgeom::features::matching::{
+    FloatDescriptor, FloatMatch, float_scratch_len, match_float_descriptors,
+};
+use camgeom::features::sift::{self, SiftConfig, SiftFeature, sift_detect};
 use camgeom::features::{
     Descriptor, FastConfig, Feature, Match, MatchConfig, OrbConfig, fast_detect, hamming,
     match_descriptors, match_descriptors_guided, orb_detect, orb_detect_into,
@@ -69,6 +75,16 @@ struct Input {
     match_slack: i16,
     /// The pairs `match_descriptors_guided` admits: `(i, j)` when bit `(7 i + j) mod 64` is set.
     admit: u64,
+    sift_octaves: u8,
+    sift_intervals: u8,
+    sift_sigma: f32,
+    sift_contrast: f32,
+    sift_edge: f32,
+    sift_upsample: bool,
+    sift_root: bool,
+    sift_max: u8,
+    sift_slack: i16,
+    sift_out_len: u8,
 }
 
 fn grow(len: usize, slack: i16) -> usize {
@@ -310,6 +326,69 @@ fn fast_and_orb(view: &ImageView<'_, u8>, inp: &Input) {
                     k.x >= 0.0 && k.y >= 0.0 && k.x < w as f32 && k.y < h as f32,
                     "ORB keypoint outside the frame (slice)"
                 );
+            }
+        }
+    }
+
+    // SIFT, any settings, scratch and output length: features inside the frame, finite, of
+    // unit descriptors, within the caps; their float descriptors matched against themselves
+    // shifted by one.
+    let scfg = SiftConfig {
+        octaves: inp.sift_octaves,
+        intervals: inp.sift_intervals,
+        sigma: inp.sift_sigma,
+        contrast_threshold: inp.sift_contrast,
+        edge_threshold: inp.sift_edge,
+        upsample: inp.sift_upsample,
+        root: inp.sift_root,
+        max_features: u32::from(inp.sift_max),
+    };
+    if let Ok(sparams) = scfg.check() {
+        let need = sift::scratch_len(w, h, inp.sift_intervals, inp.sift_upsample);
+        let mut sscratch = std::vec![0.0f32; grow(need.min(1 << 20), inp.sift_slack)];
+        let mut sout = std::vec![SiftFeature::default(); usize::from(inp.sift_out_len)];
+        if let Ok(n) = sift_detect(view, &sparams, &mut sscratch, &mut sout) {
+            assert!(n <= sout.len(), "SIFT over the output");
+            assert!(
+                inp.sift_max == 0 || n <= usize::from(inp.sift_max),
+                "SIFT over max_features"
+            );
+            for f in &sout[..n] {
+                let k = &f.keypoint;
+                assert!(
+                    k.x >= 0.0 && k.y >= 0.0 && k.x < w as f32 && k.y < h as f32,
+                    "SIFT keypoint outside the frame"
+                );
+                assert!(
+                    k.sigma.is_finite() && k.sigma > 0.0 && k.angle.is_finite(),
+                    "SIFT keypoint not finite"
+                );
+                let norm: f32 = f.descriptor.0.iter().map(|v| v * v).sum();
+                assert!(
+                    norm.is_finite() && norm <= 1.001,
+                    "SIFT descriptor not unit"
+                );
+            }
+            let q: std::vec::Vec<FloatDescriptor> =
+                sout[..n].iter().map(|f| f.descriptor).collect();
+            let t: std::vec::Vec<FloatDescriptor> = q.iter().skip(1).copied().collect();
+            if let Ok(mparams) = (MatchConfig {
+                ratio: inp.ratio,
+                cross_check: inp.cross_check,
+                max_distance: inp.max_distance,
+            })
+            .check()
+            {
+                let mut ms = std::vec![0u32; grow(float_scratch_len(t.len()), inp.match_slack)];
+                let mut fm = std::vec![FloatMatch::default(); q.len()];
+                if let Ok(k) = match_float_descriptors(&q, &t, &mparams, &mut ms, &mut fm) {
+                    for m in &fm[..k] {
+                        assert!(
+                            usize::from(m.query) < q.len() && usize::from(m.train) < t.len(),
+                            "float match out of range"
+                        );
+                    }
+                }
             }
         }
     }
