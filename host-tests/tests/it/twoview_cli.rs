@@ -280,7 +280,9 @@ fn images_of_the_box() {
 /// The box sequence's camera stands still while a hand turns the box: features spread over the
 /// whole frame are mostly the static background, which gives no parallax. The scene as a whole
 /// does not determine a reconstruction, and `sfm` says so (exit 1, one line) instead of
-/// reconstructing the box against a background that contradicts it.
+/// reconstructing the box against a background that contradicts it. Which test of the initial
+/// pair refuses first depends on the features: with ORB, the homography (no parallax); with
+/// SIFT, whose matches on the turning box the epipolar verification drops, too few inliers.
 #[test]
 fn sfm_refuses_a_still_camera() {
     let cam = camgeom_host::data_dir().join("sequences/box-camera.yml");
@@ -304,7 +306,7 @@ fn sfm_refuses_a_still_camera() {
     let err = String::from_utf8(o.stderr).unwrap();
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(
-        err.contains("parallax") || err.contains("homography"),
+        err.contains("parallax") || err.contains("homography") || err.contains("inliers"),
         "{err}"
     );
 }
