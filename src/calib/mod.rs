@@ -1,5 +1,15 @@
 //! Camera calibration from views of a planar chessboard (Zhang's method, as OpenCV's
-//! `calibrateCamera` and `fisheye::calibrate`).
+//! `calibrateCamera` and `fisheye::calibrate`), or of any planar board of identified points
+//! seen in part (ChArUco, AprilGrid: [`Calibrator::with_points`], [`Calibrator::add_points`]).
+//!
+//! **Partial views.** Each view holds the subset of the board's points it saw, as (point
+//! index, pixel) pairs. Nothing below needs every point in every view: a view's homography
+//! (step 2) and initial pose (step 3) come from its own points, and its residuals in step 4
+//! are those of its points, so the normal equations are the same sums over fewer terms. A
+//! view is rejected ([`ViewRejection`]) with fewer than 4 points or with its board points on
+//! a line (no homography, no pose); the degrees of freedom of step 5 are
+//! `2 Σᵥ nᵥ - 6 V_used - n_free`. A chessboard view is the subset of every corner in the
+//! board's order, so the chessboard path computes exactly what it did.
 //!
 //! A [`Calibrator`] collects up to `V` views of a board of at most `P` corners into fixed
 //! memory, one view at a time (so a board can add each detection as it comes, see
@@ -37,9 +47,10 @@
 //! Step 1 is the calibrator's store of views (`views.rs`), step 2 the closed form
 //! (`zhang.rs`), steps 3 to 5 the refinement (`refine.rs`).
 //!
-//! Memory: [`Calibrator::BYTES`] bytes, all in the struct (`V · P` observations, `V` poses
-//! and `V` 16x16 triangular factors): 59,600 bytes for `f32`, 32 views of up to 100 corners
-//! (118,864 for `f64`); 23,936 bytes for `f32`, 16 views of a 9x6 board.
+//! Memory: [`Calibrator::BYTES`] bytes, all in the struct (`V · P` observations and their
+//! 16-bit point indices, the board's `P` points, `V` poses and `V` 16x16 triangular factors):
+//! 66,888 bytes for `f32`, 32 views of up to 100 corners (126,960 for `f64`);
+//! 26,136 bytes for `f32`, 16 views of a 9x6 board.
 //!
 //! ```
 //! use camgeom::calib::{CalibrationConfig, Calibrator};
@@ -85,7 +96,7 @@ mod views;
 mod zhang;
 
 pub use config::{ASPECT_RATIO_RANGE, CalibrationConfig, CalibrationFlags, CalibrationParams};
-pub use report::{CalibrationReport, CalibrationWarning};
+pub use report::{CalibrationReport, CalibrationWarning, ViewRejection};
 
 use nalgebra::Point2;
 
@@ -119,6 +130,49 @@ impl<T: Real, const V: usize, const P: usize> Calibrator<T, V, P> {
             views: Views::new(board, square, width, height)?,
             refinement: Refinement::new(),
         })
+    }
+
+    /// A calibrator for a planar board of identified points (ChArUco corners, AprilGrid tag
+    /// corners...): `points[k]` is point `k` at `(x, y, 0)` in the board frame, in any unit
+    /// (the poses come out in it); `scale` is a typical spacing of the points in that unit
+    /// (the square side), by which they are held so that every unknown is of order one. Views
+    /// are added with [`Self::add_points`], any subset of the points each.
+    ///
+    /// Errors: `InvalidParameter("square")` for a zero, negative or non-finite scale,
+    /// `BufferTooSmall("corners")` for more than `P` points (or 65,535),
+    /// [`Error::TooFewPoints`] for fewer than 4, [`Error::NonFinite`],
+    /// [`Error::InvalidImage`] for a zero-sized image.
+    #[doc(alias = "calibrateCameraCharuco")]
+    pub fn with_points(
+        points: &[Point2<T>],
+        scale: T,
+        width: usize,
+        height: usize,
+    ) -> Result<Self> {
+        Ok(Self {
+            views: Views::with_points(points, scale, width, height)?,
+            refinement: Refinement::new(),
+        })
+    }
+
+    /// Adds one view of some of the board's points: `pixels[i]` is board point `ids[i]` (an
+    /// index into the calibrator's points; a chessboard's corners are numbered row-major), in
+    /// an image of `width x height`. Any subset is accepted here; a view of fewer than 4
+    /// points or of points on a line is rejected by [`Self::solve`] (see
+    /// [`CalibrationReport::rejections`]). Returns the view's index.
+    ///
+    /// Errors: [`Error::InvalidImage`] when the size differs from the calibrator's,
+    /// [`Error::LengthMismatch`] when `ids` and `pixels` differ in length,
+    /// `InvalidParameter("ids")` for an id out of range or repeated, [`Error::NonFinite`],
+    /// `BufferTooSmall("views")` when `V` views are already held.
+    pub fn add_points(
+        &mut self,
+        width: usize,
+        height: usize,
+        ids: &[usize],
+        pixels: &[Point2<T>],
+    ) -> Result<usize> {
+        self.views.add_points(width, height, ids, pixels)
     }
 
     /// Views added so far.

@@ -6,7 +6,7 @@ use heapless::Vec;
 use nalgebra::{Point2, Point3, SMatrix, SVector, Vector3};
 
 use super::config::CalibrationParams;
-use super::report::{CalibrationReport, CalibrationWarning};
+use super::report::{CalibrationReport, CalibrationWarning, ViewRejection};
 use super::views::Views;
 use crate::camera::{CAMERA_PARAMETERS, Camera, Intrinsics, Lens, LensModel};
 use crate::linalg::{StreamingQr, rotation_step};
@@ -31,6 +31,8 @@ const MAX_DAMPING_TRIES: u8 = 8;
 pub(super) struct Refinement<T: Real, const V: usize> {
     pub(super) poses: [Pose<T>; V],
     used: [bool; V],
+    /// Why each view not used was rejected.
+    rejections: [Option<ViewRejection>; V],
     blocks: [StreamingQr<T, VB>; V],
 }
 
@@ -50,6 +52,7 @@ impl<T: Real, const V: usize> Refinement<T, V> {
         Self {
             poses: [Pose::identity(); V],
             used: [false; V],
+            rejections: [None; V],
             blocks: [StreamingQr::new(); V],
         }
     }
@@ -104,31 +107,36 @@ impl<T: Real, const V: usize> Refinement<T, V> {
         let free = *free;
         let model = params.config().model;
         let aspect = params.aspect::<T>();
-        let n = views.corners();
         let mut p = p;
-        let plane = views.board_plane();
-        let plane = plane.get(..n).ok_or(Error::LengthMismatch)?;
         // Initial poses through the initial camera.
         let cam0 = camera(model, &p)?;
         let mut scratch = [Point2::origin(); P];
         let mut used = 0usize;
         for v in 0..views.count {
-            let obs = *views.obs.get(v).ok_or(Error::LengthMismatch)?;
-            let pixels = obs.get(..n).ok_or(Error::LengthMismatch)?;
-            let pose = solve_planar(&cam0, plane, pixels, &mut scratch, &PlanarConfig::default());
-            let ok = match pose {
-                Ok(pp) => {
-                    if let Some(slot) = self.poses.get_mut(v) {
-                        *slot = pp.best.pose;
+            let rejection = match views.check_view(v) {
+                Some(r) => Some(r),
+                None => {
+                    let (plane, pixels) = views.view_plane(v);
+                    let plane = plane.get(..pixels.len()).ok_or(Error::LengthMismatch)?;
+                    match solve_planar(&cam0, plane, pixels, &mut scratch, &PlanarConfig::default())
+                    {
+                        Ok(pp) => {
+                            if let Some(slot) = self.poses.get_mut(v) {
+                                *slot = pp.best.pose;
+                            }
+                            None
+                        }
+                        Err(_) => Some(ViewRejection::PoseNotFound),
                     }
-                    true
                 }
-                Err(_) => false,
             };
             if let Some(u) = self.used.get_mut(v) {
-                *u = ok;
+                *u = rejection.is_none();
             }
-            used += ok as usize;
+            if let Some(r) = self.rejections.get_mut(v) {
+                *r = rejection;
+            }
+            used += rejection.is_none() as usize;
         }
         if used < 3 {
             return Err(Error::TooFewPoints);
@@ -274,8 +282,8 @@ impl<T: Real, const V: usize> Refinement<T, V> {
                 continue;
             }
             let pose = poses.get(v)?;
-            for (k, o) in views.view_obs(v).iter().enumerate() {
-                let u = cam.project(pose, &views.board_point(k)).ok()?;
+            for (x, o) in views.pairs(v) {
+                let u = cam.project(pose, &x).ok()?;
                 c += (u - o).norm_squared();
             }
         }
@@ -298,11 +306,7 @@ impl<T: Real, const V: usize> Refinement<T, V> {
                 return false;
             };
             let mut qr = StreamingQr::<T, VB>::new();
-            for k in 0..views.corners() {
-                let Some(o) = views.obs.get(v).and_then(|o| o.get(k)).copied() else {
-                    return false;
-                };
-                let x = views.board_point(k);
+            for (x, o) in views.pairs(v) {
                 let rx = pose.apply_vector(&x.coords);
                 let xc = Point3::from(rx + pose.translation());
                 let Ok((u, jx, mut jp)) = cam.project_with_parameter_jacobian(&xc) else {
@@ -421,9 +425,13 @@ impl<T: Real, const V: usize> Refinement<T, V> {
         let aspect = params.aspect::<T>();
         let s = views.scale();
         let c0 = views.centre();
-        let n = views.corners();
         let used = self.used.iter().take(views.count).filter(|u| **u).count();
-        let total = T::lit((used * n) as f64);
+        // Observations of the used views.
+        let n: usize = (0..views.count)
+            .filter(|&v| self.is_used(v))
+            .map(|v| views.len(v))
+            .sum();
+        let total = T::lit(n as f64);
         let rms = |c: T, count: T| (c / count).sqrt() * s;
         // Per-view errors and the poses in the caller's units.
         let mut per_view = [None; V];
@@ -434,12 +442,12 @@ impl<T: Real, const V: usize> Refinement<T, V> {
             }
             let pose = *self.poses.get(v).ok_or(Error::LengthMismatch)?;
             let mut c = T::zero();
-            for (k, o) in views.view_obs(v).iter().enumerate() {
-                let u = cam.project(&pose, &views.board_point(k))?;
+            for (x, o) in views.pairs(v) {
+                let u = cam.project(&pose, &x)?;
                 c += (u - o).norm_squared();
             }
             if let Some(slot) = per_view.get_mut(v) {
-                *slot = Some(rms(c, T::lit(n as f64)));
+                *slot = Some(rms(c, T::lit(views.len(v) as f64)));
             }
             if let Some(slot) = poses_out.get_mut(v) {
                 *slot = Some(Pose::new(
@@ -454,7 +462,7 @@ impl<T: Real, const V: usize> Refinement<T, V> {
         let g = self.reduced(views, None, free, &[T::one(); NC])?;
         let rc: SMatrix<T, NC, NC> = g.r().fixed_view::<NC, NC>(0, 0).into_owned();
         let n_free = free.iter().filter(|f| **f).count();
-        let dof = T::lit((2 * used * n) as f64) - T::lit((n_free + 6 * used) as f64);
+        let dof = T::lit((2 * n) as f64) - T::lit((n_free + 6 * used) as f64);
         let mut std = [T::zero(); NC];
         if above(dof, T::zero()) {
             let sigma2 = cost / dof;
@@ -503,6 +511,7 @@ impl<T: Real, const V: usize> Refinement<T, V> {
             initial_rms_px: rms(initial_cost, total),
             per_view_rms_px: per_view,
             poses: poses_out,
+            rejections: self.rejections,
             views_used: used,
             views_added: views.count,
             std,

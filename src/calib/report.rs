@@ -20,6 +20,29 @@ pub enum CalibrationWarning {
     DistortionUnconstrained,
 }
 
+/// Why a view was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ViewRejection {
+    /// Fewer than 4 board points (a plane's homography and pose need 4).
+    TooFewPoints,
+    /// The view's board points lie on a line (no homography).
+    Degenerate,
+    /// No pose through the initial camera fits the view.
+    PoseNotFound,
+}
+
+impl ViewRejection {
+    /// A short name for a report (`too_few_points`, `degenerate`, `pose_not_found`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::TooFewPoints => "too_few_points",
+            Self::Degenerate => "degenerate",
+            Self::PoseNotFound => "pose_not_found",
+        }
+    }
+}
+
 /// Everything a calibration found, for a report, a file or a JSON answer.
 #[derive(Debug, Clone, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -35,6 +58,8 @@ pub struct CalibrationReport<T: Real, const V: usize> {
     /// Per view: the board's pose (board frame: corner `(i, j)` at `(i s, j s, 0)`, metres
     /// or whatever unit the square size was given in), `None` for a rejected view.
     pub poses: [Option<Pose<T>>; V],
+    /// Per view: why it was rejected, `None` for a used one.
+    pub rejections: [Option<ViewRejection>; V],
     /// Views used.
     pub views_used: usize,
     /// Views added.

@@ -25,13 +25,13 @@ pub(super) fn closed_form<T: Real, const V: usize, const P: usize>(
 ) -> Result<[T; CAMERA_PARAMETERS]> {
     let fix_principal_point = params.config().flags.fix_principal_point;
     let aspect = params.aspect::<T>();
-    let n = views.corners();
-    // Per-view homographies (board squares to normalised pixels).
-    let plane = views.board_plane();
-    let plane = plane.get(..n).ok_or(Error::LengthMismatch)?;
+    // Per-view homographies (board units to normalised pixels), each from the board points
+    // the view saw (at least 4, not all on a line, or `dlt` refuses the view).
     let mut homs: Vec<Homography<T>, V> = Vec::new();
     for v in 0..views.count {
-        if let Ok(h) = dlt(plane, views.view_obs(v)) {
+        let (plane, obs) = views.view_plane(v);
+        let plane = plane.get(..obs.len()).ok_or(Error::LengthMismatch)?;
+        if let Ok(h) = dlt(plane, obs) {
             homs.push(h).map_err(|_| Error::BufferTooSmall("views"))?;
         }
     }

@@ -371,3 +371,108 @@ fn pose_solvers_follow_the_fisheye_model() {
     }
     assert!(tested >= 3, "{tested} poses in view");
 }
+
+/// Partial views of a board of identified points: each view keeps only the corners inside the
+/// frame (poses close enough that none shows the whole 14x10 board) and drops a random third
+/// of the rest; the camera comes back exactly. A view of 3 points and one of a single row
+/// are rejected with their reasons, and bad ids are typed errors.
+#[test]
+fn partial_views_of_identified_points_calibrate() {
+    const C: usize = 14;
+    const R: usize = 10;
+    let pts: Vec<Point2<f64>> = (0..C * R)
+        .map(|k| Point2::new(SQUARE * (k % C) as f64, SQUARE * (k / C) as f64))
+        .collect();
+    let cam = brown();
+    let mut cal =
+        Box::new(Calibrator::<f64, 16, 140>::with_points(&pts, SQUARE, 640, 480).unwrap());
+    let mut g = Pcg32::new(7);
+    let mut added = 0;
+    while added < 10 {
+        let roll = g.uniform(-0.5, 0.5);
+        let a = g.uniform(0.0, std::f64::consts::TAU);
+        let tilt = g.uniform(0.2, 0.6);
+        let rot =
+            camgeom::nalgebra::Rotation3::new(Vector3::new(tilt * a.cos(), tilt * a.sin(), roll));
+        let target = Vector3::new(g.uniform(0.05, 0.34), g.uniform(0.05, 0.22), 0.0);
+        let pose = Pose::new(
+            rot,
+            Vector3::new(0.0, 0.0, g.uniform(0.25, 0.35)) - rot * target,
+        )
+        .unwrap();
+        let (mut ids, mut px) = (vec![], vec![]);
+        let mut all = true;
+        for (k, p) in pts.iter().enumerate() {
+            let u = cam.project(&pose, &Point3::new(p.x, p.y, 0.0)).ok();
+            match u.filter(|u| u.x > 0.0 && u.y > 0.0 && u.x < 639.0 && u.y < 479.0) {
+                Some(u) if g.uniform(0.0, 1.0) > 0.33 => {
+                    ids.push(k);
+                    px.push(u);
+                }
+                Some(_) => {}
+                None => all = false,
+            }
+        }
+        if all || ids.len() < 20 {
+            continue;
+        }
+        cal.add_points(640, 480, &ids, &px).unwrap();
+        added += 1;
+    }
+    // Rejected views: 3 points, then 8 points of one row.
+    let few: Vec<usize> = vec![0, 1, 15];
+    let px: Vec<Point2<f64>> = few
+        .iter()
+        .map(|&k| Point2::new(10.0 + k as f64, 20.0))
+        .collect();
+    cal.add_points(640, 480, &few, &px).unwrap();
+    let row: Vec<usize> = (0..8).collect();
+    let px: Vec<Point2<f64>> = row
+        .iter()
+        .map(|&k| Point2::new(10.0 + 9.0 * k as f64, 20.0))
+        .collect();
+    cal.add_points(640, 480, &row, &px).unwrap();
+    let report = cal.solve(&CalibrationParams::default()).unwrap();
+    assert!(report.rms_px < 1e-6, "{}", report.rms_px);
+    let k = report.camera.intrinsics;
+    assert!(
+        (k.fx() - 610.0).abs() < 1e-4 && (k.cy() - 243.0).abs() < 1e-4,
+        "{k:?}"
+    );
+    assert_eq!(report.views_used, 10);
+    assert_eq!(
+        report.rejections[10],
+        Some(camgeom::calib::ViewRejection::TooFewPoints)
+    );
+    assert_eq!(
+        report.rejections[11],
+        Some(camgeom::calib::ViewRejection::Degenerate)
+    );
+    assert_eq!(report.rejected().collect::<Vec<_>>(), vec![10, 11]);
+    // Typed errors.
+    let p = [Point2::new(1.0, 1.0); 2];
+    assert_eq!(
+        cal.add_points(640, 480, &[0, 0], &p),
+        Err(Error::InvalidParameter("ids"))
+    );
+    assert_eq!(
+        cal.add_points(640, 480, &[0, 140], &p),
+        Err(Error::InvalidParameter("ids"))
+    );
+    assert_eq!(
+        cal.add_points(640, 480, &[0], &p),
+        Err(Error::LengthMismatch)
+    );
+    assert_eq!(
+        cal.add_points(64, 480, &[0, 1], &p),
+        Err(Error::InvalidImage)
+    );
+    assert_eq!(
+        Calibrator::<f64, 4, 3>::with_points(&pts[..4], SQUARE, 640, 480).err(),
+        Some(Error::BufferTooSmall("corners"))
+    );
+    assert_eq!(
+        Calibrator::<f64, 4, 8>::with_points(&pts[..3], SQUARE, 640, 480).err(),
+        Some(Error::TooFewPoints)
+    );
+}

@@ -830,6 +830,23 @@ fn run_calib<T: Real>() {
             black_box(c.solve_with_guess(&cfg, &guess).ok());
         }
     }
+    // A board of identified points seen in part (ChArUco, AprilGrid).
+    let plane: [Point2<T>; 12] = core::array::from_fn(|k| {
+        Point2::new(lit((k % 4) as f64 * 0.025), lit((k / 4) as f64 * 0.025))
+    });
+    let Ok(mut c) = Calibrator::<T, 4, 12>::with_points(&plane, lit(0.025), W, H) else {
+        return;
+    };
+    let ids: [usize; 12] = core::array::from_fn(|k| black_box(k));
+    for v in 0..black_box(4) {
+        let n = 12 - v;
+        if let (Some(i), Some(p)) = (ids.get(v..), corners.get(..n)) {
+            black_box(c.add_points(W, H, i, p).ok());
+        }
+    }
+    if let Ok(cfg) = black_box(CalibrationConfig::default()).check() {
+        black_box(c.solve(&cfg).ok());
+    }
 }
 
 // ---------------------------------------------------------------- chessboard
