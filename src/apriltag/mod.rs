@@ -24,6 +24,7 @@
 //! ([`crate::target::PlanarTarget::step`]), which also tracks the tag by detecting it where it
 //! must be: [`Detector::refine_target`] (the edge refinement and decoding from a predicted
 //! quad) and [`Detector::find_target_near`] (the whole pipeline in the region around it).
+//! [`board_pose`] gives one pose from every visible tag of a [`TagBoard`] ([`board`]).
 //!
 //! **Memory** (the [`Workspace`] table): no byte per pixel is stored. At 320x240 and
 //! decimation 1, [`Workspace320x240`] is 119 KB (AprilTag 3 allocates 8 bytes a pixel for its
@@ -85,6 +86,7 @@
 //! ```
 
 mod acquire;
+pub mod board;
 pub mod decode;
 mod detector;
 pub mod families;
@@ -100,6 +102,9 @@ mod workspace;
 /// What [`Detector::detect_into`] tells as each [`Stage`] ends (`StageProbe<Stage>`).
 pub use crate::probe::StageProbe;
 pub use acquire::{TagTarget, TrackCounts};
+pub use board::{
+    BoardBuffers, BoardConfig, BoardPose, BoardTag, GridBoard, TagBoard, board_pose, grid_tags,
+};
 pub use detector::{
     APRILTAG_PIXEL_OFFSET, CORNER_TAG_COORDS, Detection, Detector, DetectorConfig, MAX_FAMILIES,
     Stage,
