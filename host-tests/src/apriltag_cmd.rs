@@ -9,10 +9,12 @@ use camgeom_host::apriltag::{
     Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags_on, families_list, json_tag,
     pose_inputs,
 };
+use camgeom_host::board::{JsonBoardPose, board_pose_json, load_board};
 use camgeom_host::cli::files::create_dir;
 use camgeom_host::cli::frames::{Frame, FrameSource};
 use camgeom_host::images::GrayImage;
 use camgeom_host::images::{load_gray_and_rgb, require_size};
+use camgeom_host::intrinsics::load_camera;
 use camgeom_host::points::to_json;
 use camgeom_host::rgb::{Overlay, RgbImage};
 use camgeom_host::video::VideoWriter;
@@ -33,8 +35,9 @@ pub struct ApriltagArgs {
     /// tagStandard41h12, and OpenCV's ArUco dictionaries DICT_4X4_50, DICT_4X4_100,
     /// DICT_4X4_250, DICT_4X4_1000, DICT_5X5_*, DICT_6X6_*, DICT_7X7_* (the same sizes),
     /// DICT_ARUCO_ORIGINAL, DICT_ARUCO_MIP_36h12 (OpenCV's ids; corners in OpenCV's order).
-    #[arg(long, default_value = "tag36h11", value_name = "F[,F..]")]
-    family: String,
+    /// Default: tag36h11, or the board's family with --board.
+    #[arg(long, value_name = "F[,F..]")]
+    family: Option<String>,
     /// Search quads on the frame point-sampled every D pixels (1..=8; decoding uses the full
     /// frame).
     #[arg(long, default_value_t = 1, value_name = "D")]
@@ -48,7 +51,13 @@ pub struct ApriltagArgs {
     /// as its detection test runs).
     #[arg(long)]
     no_refine_edges: bool,
-    /// Camera file (see `camgeom project --help`); with --tag-size, each tag's pose.
+    /// A tag board file (JSON or YAML: an OpenCV GridBoard or a list of tags with their
+    /// corners, see CLI.md): with --intrinsics, one pose of the board from every board tag
+    /// seen once, under "board" (its family is decoded when --family does not name it).
+    #[arg(long, value_name = "FILE", requires = "intrinsics")]
+    board: Option<PathBuf>,
+    /// Camera file (see `camgeom project --help`); with --tag-size, each tag's pose; with
+    /// --board, the board's.
     #[arg(long, value_name = "FILE")]
     intrinsics: Option<PathBuf>,
     /// The tag's side (the black border's outer edge), in the unit the translation should
@@ -161,7 +170,16 @@ struct SeqFrame {
     #[serde(skip_serializing_if = "Option::is_none")]
     t: Option<f64>,
     #[serde(flatten)]
-    detections: JsonFrame,
+    detections: WithBoard,
+}
+
+/// A frame's JSON and, with --board, the board pose.
+#[derive(serde::Serialize)]
+struct WithBoard {
+    #[serde(flatten)]
+    frame: JsonFrame,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    board: Option<JsonBoardPose>,
 }
 
 /// The smallest image side the detector can find a tag in: tag16h5 is 8 cells across with its
@@ -173,9 +191,33 @@ pub const MIN_SIDE: usize = 8;
 /// time; the overlay folder is made when the first overlay is written, so an error on the
 /// first frame leaves no output.
 pub fn run(a: &ApriltagArgs) -> Result<String> {
-    let families = families_list(&a.family)?;
+    let board = a.board.as_deref().map(load_board).transpose()?;
+    let mut families = match (&a.family, &board) {
+        (Some(list), _) => families_list(list)?,
+        (None, Some(b)) => vec![b.family],
+        (None, None) => families_list("tag36h11")?,
+    };
+    if let Some(b) = &board
+        && !families.iter().any(|f| f.name() == b.family.name())
+    {
+        families.push(b.family);
+    }
     let det = detector(&families, a.decimate, a.max_hamming, !a.no_refine_edges)?;
-    let pose = pose_inputs(a.tag_size, a.intrinsics.as_deref())?;
+    // With --board, --intrinsics alone is the board's camera; --tag-size adds each tag's pose.
+    let board = match (board, &a.intrinsics) {
+        (Some(b), Some(path)) => Some((b, load_camera(path)?.camera)),
+        _ => None,
+    };
+    let pose = if board.is_some() && a.tag_size.is_none() {
+        None
+    } else {
+        pose_inputs(a.tag_size, a.intrinsics.as_deref())?
+    };
+    let board_json = |found: &[Detection]| {
+        board
+            .as_ref()
+            .map(|(b, camera)| board_pose_json(b, found, camera).0)
+    };
     let coords = if a.apriltag_coords {
         Coords::AprilTag
     } else {
@@ -192,14 +234,17 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
             let canvas = rgb.unwrap_or_else(|| RgbImage::from_gray(&gray));
             draw_tags_on(canvas, &found).save_png(out)?;
         }
-        return Ok(to_json(&JsonFrame {
-            image: None,
-            detections: found
-                .iter()
-                .map(|d| json_tag(d, coords, pose.as_ref()))
-                .collect(),
-            width: gray.width,
-            height: gray.height,
+        return Ok(to_json(&WithBoard {
+            frame: JsonFrame {
+                image: None,
+                detections: found
+                    .iter()
+                    .map(|d| json_tag(d, coords, pose.as_ref()))
+                    .collect(),
+                width: gray.width,
+                height: gray.height,
+            },
+            board: board_json(&found),
         }));
     }
     let Some(input) = &a.frames else {
@@ -258,14 +303,17 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
         frames.push(SeqFrame {
             frame: video.then_some(index),
             t,
-            detections: JsonFrame {
-                image: file.map(|f| f.display().to_string()),
-                detections: found
-                    .iter()
-                    .map(|d| json_tag(d, coords, pose.as_ref()))
-                    .collect(),
-                width: gray.width,
-                height: gray.height,
+            detections: WithBoard {
+                frame: JsonFrame {
+                    image: file.map(|f| f.display().to_string()),
+                    detections: found
+                        .iter()
+                        .map(|d| json_tag(d, coords, pose.as_ref()))
+                        .collect(),
+                    width: gray.width,
+                    height: gray.height,
+                },
+                board: board_json(&found),
             },
         });
     }

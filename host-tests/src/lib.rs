@@ -15,6 +15,7 @@
 //! | [`figures`] | the figures of structure from motion (plotters): the scene from above and the side, correspondences, reprojection errors |
 //! | [`contact_sheet`](mod@contact_sheet) | overlays downscaled (box filter) into a labelled grid (`ar`, `calibrate`, the main job) |
 //! | [`apriltag`] | AprilTag detection on files: options, a workspace sized for each frame, the JSON form and overlay of detections (`apriltag`, `ar --tag`) |
+//! | [`board`] | tag board files (JSON/YAML: an OpenCV GridBoard or a list of tags) and the board pose in the CLI's JSON (`apriltag --board`, `ar --board`) |
 //! | [`cli`] | what the `camgeom` subcommands share: argument groups, correspondence input (CSV or ORB matches), frame folders, output files |
 //! | [`monitor`] | a board's record stream (link frames of report records) decoded and printed a line a frame (`monitor`, the main job) |
 //! | [`monitor_frames`] | the frames a board streams put back together and drawn with their record's overlay (`monitor --frames-dir`) |
@@ -26,6 +27,7 @@
 pub mod apriltag;
 pub mod ar;
 pub mod bench;
+pub mod board;
 pub mod cli;
 pub mod contact_sheet;
 pub mod error;

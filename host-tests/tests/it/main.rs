@@ -7,6 +7,7 @@ mod apriltag_cli;
 mod apriltag_large;
 mod ar_box;
 mod aruco;
+mod board;
 mod calib_chessboard;
 mod calib_cli;
 mod calib_real;
