@@ -120,11 +120,13 @@ enum Command {
     /// "points": [[X, Y, Z], ..], ..}` with `X₂ = R X₁ + t`, `|t| = 1`, points in view 1's
     /// frame in baselines.
     Twoview(twoview_cmd::TwoviewArgs),
-    /// Three-view structure from motion: ORB tracks over three images, relative pose,
-    /// triangulation, PnP of the third view and bundle adjustment.
+    /// Structure from motion over two or more views: SIFT (default) or ORB matches verified
+    /// pair by pair, tracks, the best initial pair's relative pose, triangulation, PnP of each
+    /// further view and bundle adjustment; views the data do not determine are refused with a
+    /// reason, and no reconstruction at all exits 1.
     ///
-    /// Writes DIR/points.ply (points, then the camera centres in red, green, blue) and
-    /// DIR/plot.png (top-down and side views) and prints a JSON summary.
+    /// Writes DIR/points.ply (points, then the camera centres) and DIR/plot.png (top-down and
+    /// side views) and prints a JSON summary.
     Sfm(sfm_cmd::SfmArgs),
     /// Calibrate a camera from images of a chessboard (OpenCV's findChessboardCorners +
     /// calibrateCamera, or fisheye::calibrate with --fisheye).

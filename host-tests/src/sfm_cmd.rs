@@ -110,8 +110,8 @@ pub struct SfmArgs {
     /// into its registered views.
     #[arg(long)]
     pub no_extend: bool,
-    /// Keep the ORB keypoints where the detector put them (no KLT alignment of each track to
-    /// its finest observation).
+    /// Keep the keypoints where the detector put them (no KLT alignment of each track to its
+    /// finest observation).
     #[arg(long)]
     pub no_refine: bool,
     /// Seed of every RANSAC sampler.
