@@ -58,7 +58,7 @@ pub struct HostWorkspace {
 }
 
 /// Most detections of one frame: a growth and a repeat for each capacity at most.
-const MAX_ATTEMPTS: usize = 4;
+pub const MAX_ATTEMPTS: usize = 4;
 
 impl HostWorkspace {
     /// An empty workspace (it grows with the first frame).

@@ -271,9 +271,9 @@ fn verify_pair(
 /// the features of the other image within `threshold` pixels, the verification's inlier test
 /// (squared Sampson distance to `F`, or symmetric transfer error of `H`, `< threshold²`); among
 /// them the ratio test and the mutual check as in the first pass
-/// ([`match_descriptors_guided`]). Per feature of `a` the epipolar line `F x` (or the transfer
-/// `H x`) is computed once, per feature of `b` `Fᵀ y` (or `H⁻¹ y`), so each pair costs a few
-/// multiplications before any descriptor distance.
+/// ([`camgeom::features::matching::match_descriptors_guided`]). Per feature of `a` the
+/// epipolar line `F x` (or the transfer `H x`) is computed once, per feature of `b` `Fᵀ y`
+/// (or `H⁻¹ y`), so each pair costs a few multiplications before any descriptor distance.
 fn guided_pair<F: SfmFeature>(
     a: &[F],
     b: &[F],

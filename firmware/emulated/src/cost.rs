@@ -29,7 +29,7 @@ mod counter {
 
     /// Completed SysTick periods (the counter reached zero), counted by the exception.
     static WRAPS: AtomicU32 = AtomicU32::new(0);
-    /// Instructions (QEMU -icount) or cycles (hardware) per SysTick tick, from [`init`].
+    /// Instructions (QEMU -icount) or cycles (hardware) per SysTick tick, from `init`.
     static PER_TICK: AtomicU32 = AtomicU32::new(1);
 
     #[exception]
@@ -40,7 +40,7 @@ mod counter {
     /// The calibration loop runs `2 * CALIBRATION_LOOPS` instructions (`subs` + `bne`).
     const CALIBRATION_LOOPS: u32 = 100_000;
 
-    /// What [`init`] found.
+    /// What `init` found.
     pub struct Calibration {
         /// Instructions the calibration loop ran.
         pub instructions: u32,
@@ -51,7 +51,7 @@ mod counter {
     }
 
     /// Board start-up shared by every binary: takes the core peripherals, starts and calibrates
-    /// SysTick with [`init`] and logs the calibration. Exits with failure if the peripherals were
+    /// SysTick with `init` and logs the calibration. Exits with failure if the peripherals were
     /// already taken.
     pub fn start() -> Calibration {
         let Some(cp) = cortex_m::Peripherals::take() else {
@@ -106,7 +106,7 @@ mod counter {
         }
     }
 
-    /// SysTick ticks since [`init`], across wraps.
+    /// SysTick ticks since `init`, across wraps.
     pub fn now() -> u64 {
         cortex_m::interrupt::free(|_| {
             // With interrupts off, WRAPS cannot change under us; a wrap that happened since they
@@ -125,7 +125,7 @@ mod counter {
         })
     }
 
-    /// Instructions (on QEMU with `-icount`) per tick, as calibrated by [`init`].
+    /// Instructions (on QEMU with `-icount`) per tick, as calibrated by `init`.
     pub fn per_tick() -> u32 {
         PER_TICK.load(Ordering::Relaxed)
     }

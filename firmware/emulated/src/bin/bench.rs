@@ -4,7 +4,7 @@
 //! - the exact 4-point solver (a loop of [`FOUR_POINT_REPS`] solves on different samples),
 //! - the normalised DLT on [`DLT_N`] correspondences,
 //! - RANSAC on [`RANSAC_N`] correspondences (50 % outliers), configured to draw exactly
-//!   [`RANSAC_ITERATIONS`] samples (see [`ransac_config`]),
+//!   [`RANSAC_ITERATIONS`] samples (see [`ransac_params`]),
 //!
 //! then, at 320x240 on synthetic textured frames ([`camgeom_fw_app::texture::textured_frame`],
 //! frame B shifted by a known sub-pixel amount), see [`klt_bench`]:
