@@ -77,6 +77,7 @@ pub mod apriltag;
 pub mod arith;
 pub mod calib;
 pub mod camera;
+pub mod charuco;
 pub mod chessboard;
 pub mod corners;
 pub mod draw;
