@@ -29,6 +29,8 @@ use camgeom_host::{Error, ErrorKind, Result, YamlWriter};
 use clap::Args;
 use serde::Serialize;
 
+mod charuco;
+
 /// Views a calibration holds at most.
 pub const MAX_VIEWS: usize = 64;
 /// Inner corners a board has at most (the detector's and the calibrator's capacity).
@@ -42,12 +44,15 @@ pub struct CalibrateArgs {
     #[arg(long, value_name = "FILES", num_args = 1.., required = true)]
     images: Vec<PathBuf>,
     /// Inner corners of the board, `COLSxROWS` (OpenCV's pattern size: 9x6 for the usual
-    /// 10x7-square board).
+    /// 10x7-square board); or a ChArUco board, `charuco:COLSxROWS:SQUARE:MARKER:DICT` with
+    /// COLSxROWS its squares (OpenCV's `CharucoBoard` size, e.g. `charuco:11x8:30:22:DICT_4X4_50`),
+    /// which may be seen in part (then --square is not used).
     #[arg(long, value_name = "COLSxROWS", allow_hyphen_values = true)]
     board: String,
-    /// Side of a square, in the unit the poses should use (for example 25 for millimetres).
+    /// Side of a square, in the unit the poses should use (for example 25 for millimetres);
+    /// required with a chessboard `--board COLSxROWS`.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
-    square: f64,
+    square: Option<f64>,
     /// Output camera file, OpenCV FileStorage YAML (`.yml` or `.yaml`).
     #[arg(long, value_name = "camera.yml")]
     out: PathBuf,
@@ -286,12 +291,18 @@ fn lens_coefficients(r: &CalibrationReport<f64, MAX_VIEWS>) -> Vec<f64> {
 
 /// `camgeom calibrate`: writes the camera file and the two pictures, prints a JSON summary.
 pub fn run(a: &CalibrateArgs) -> Result<String> {
+    if let Some(spec) = a.board.strip_prefix("charuco:") {
+        return charuco::run(a, spec);
+    }
     // Every option is checked before the images are read.
     let board = parse_board(&a.board)?;
-    if !(a.square.is_finite() && a.square > 0.0) {
+    let square = a.square.ok_or_else(|| {
+        Error::usage("--square S is required with a chessboard --board COLSxROWS")
+    })?;
+    if !(square.is_finite() && square > 0.0) {
         return Err(Error::usage(format!(
             "--square must be a positive length, got {}",
-            a.square
+            square
         )));
     }
     let cfg = calibration_config(a)?;
@@ -358,7 +369,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
 
     // The calibration, in f64.
     let mut cal = Box::new(
-        Calibrator::<f64, MAX_VIEWS, MAX_CORNERS>::new(board, a.square, width, height)
+        Calibrator::<f64, MAX_VIEWS, MAX_CORNERS>::new(board, square, width, height)
             .map_err(|e| Error::camgeom("calibration setup", e))?,
     );
     for v in &found {
@@ -431,8 +442,8 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
             let _ = writeln!(
                 corners_csv,
                 "{index},{},{},0,{},{}",
-                i as f64 * a.square,
-                j as f64 * a.square,
+                i as f64 * square,
+                j as f64 * square,
                 p.x,
                 p.y
             );
@@ -440,7 +451,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     }
 
     // Outputs, all made before any is written.
-    let yaml = camera_yaml(&report, &cfg, board, a.square, width, height, &per_view);
+    let yaml = camera_yaml(&report, &cfg, board, square, width, height, &per_view);
     let sheet = corners_sheet(&views);
     let labels: Vec<usize> = views
         .iter()
