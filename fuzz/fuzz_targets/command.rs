@@ -6,12 +6,13 @@
 //! records, read as a frame's pixel chunk (what the host reads of a board streaming frames).
 //! Contract: no panic; every command
 //! that decodes round-trips through its bytes and leaves a camera that builds and a tag side
-//! that is finite and positive; stored settings that decode encode to the same bytes; a chunk
+//! that is finite and positive and a calibrate-mode chessboard a board takes (the `chessboard`
+//! command); stored settings that decode encode to the same bytes; a chunk
 //! that decodes lies inside its frame and encodes to a chunk that decodes the same.
 #![no_main]
 
 use arbitrary::Arbitrary;
-use camgeom_fw_app::command::{COMMAND_LEN, Command, Mode};
+use camgeom_fw_app::command::{COMMAND_LEN, ChessboardSettings, Command, Mode};
 use camgeom_fw_app::frame_chunk::{CHUNK_LEN, FrameChunk};
 use camgeom_fw_app::link::{Deframer, max_frame_len};
 use camgeom_fw_app::settings::{Applied, SETTINGS_LEN, Settings};
@@ -34,6 +35,7 @@ fn start() -> Settings {
         tag_size: 0.08,
         intrinsics: [300.0, 300.0, 160.0, 120.0],
         distortion: [0.0; 5],
+        chessboard: ChessboardSettings::DEFAULT,
     }
 }
 
@@ -59,6 +61,7 @@ fn apply(settings: &mut Settings, record: &[u8]) {
     }
     assert!(settings.camera().is_ok());
     assert!(settings.tag_size.is_finite() && settings.tag_size > 0.0);
+    assert_eq!(settings.chessboard.check(), Ok(()));
 }
 
 fuzz_target!(|input: Input| {

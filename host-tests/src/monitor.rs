@@ -5,7 +5,8 @@
 //! ([`camgeom_fw_app::command::Ack`], `CACK` records on the same stream) are printed as they
 //! come and returned ([`monitor_link`]) for the caller to check against the commands it sent
 //! ([`command_bytes`], [`check_acks`]). A board streaming frames sends their pixels too
-//! ([`crate::monitor_frames`]). A live board is read through [`Live`] ([`open_tcp`]), which
+//! ([`crate::monitor_frames`]); one in calibrate mode its progress, its result and the
+//! settings it runs with after it ([`camgeom_fw_app::calibrate_mode`]), a line each. A live board is read through [`Live`] ([`open_tcp`]), which
 //! [`LiveLimits`] end even when the board stalls.
 
 use std::io::{Read, Write};
@@ -14,6 +15,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use camgeom::target::TargetState;
+use camgeom_fw_app::calibrate_mode::{PROGRESS_TAG, RESULT_TAG};
 use camgeom_fw_app::command::{ACK_LEN, ACK_TAG, Ack, AckStatus, COMMAND_LEN, Command};
 use camgeom_fw_app::costs::STAGES;
 use camgeom_fw_app::frame_chunk::{CHUNK_LEN, CHUNK_TAG, FrameChunk};
@@ -166,6 +168,157 @@ struct JsonAckBody {
     seq: u16,
     kind: &'static str,
     status: &'static str,
+}
+
+/// A calibrate-mode progress record or verdict ([`camgeom_fw_app::calibrate_mode`]).
+#[derive(Serialize)]
+struct JsonCalibrate {
+    calibrate: JsonCalibrateBody,
+}
+
+#[derive(Serialize)]
+struct JsonCalibrateBody {
+    frame: u32,
+    found: bool,
+    kept: bool,
+    views: u32,
+    needed: u32,
+    status: &'static str,
+    /// Why refused, by name.
+    reasons: Vec<&'static str>,
+    /// The solve's error, by name.
+    error: Option<&'static str>,
+}
+
+/// A calibrate mode's result.
+#[derive(Serialize)]
+struct JsonCalibration {
+    calibration: JsonCalibrationBody,
+}
+
+#[derive(Serialize)]
+struct JsonCalibrationBody {
+    views_used: u32,
+    iterations: u32,
+    intrinsics: [f32; 4],
+    distortion: [f32; 5],
+    rms_px: f32,
+    initial_rms_px: f32,
+    std: [f32; 9],
+    warnings: Vec<&'static str>,
+}
+
+/// The settings a board sends after a calibration.
+#[derive(Serialize)]
+struct JsonSettings {
+    settings: JsonSettingsBody,
+}
+
+#[derive(Serialize)]
+struct JsonSettingsBody {
+    mode: &'static str,
+    intrinsics: [f32; 4],
+    distortion: [f32; 5],
+    tag_size: f32,
+}
+
+const WARNINGS: [&str; 3] = [
+    "focal_length_unconstrained",
+    "principal_point_unconstrained",
+    "distortion_unconstrained",
+];
+
+/// The names of a verdict's reasons ([`camgeom_fw_app::calibrate_mode::reason`]).
+fn reasons(bits: u32) -> Vec<&'static str> {
+    use camgeom_fw_app::calibrate_mode::reason;
+    let mut out: Vec<&'static str> = (0..3)
+        .filter(|k| bits & (1 << k) != 0)
+        .filter_map(|k| WARNINGS.get(k).copied())
+        .collect();
+    for (bit, name) in [
+        (reason::RMS, "rms_above_bound"),
+        (reason::SOLVE, "solve_failed"),
+        (reason::ENDED, "frames_ended"),
+        (reason::CAMERA, "camera_out_of_range"),
+    ] {
+        if bits & bit != 0 {
+            out.push(name);
+        }
+    }
+    out
+}
+
+/// A calibrate-mode record as its line (a table line or JSON).
+fn calibrate_line(rec: &[u8], json: bool, calibrated: &mut bool) -> Option<String> {
+    use camgeom_fw_app::calibrate_mode::{ProgressRecord, decode_result};
+    let tag = rec.get(..4)?;
+    if tag == PROGRESS_TAG.to_le_bytes() {
+        let p = ProgressRecord::decode(rec).ok()?;
+        let body = JsonCalibrateBody {
+            frame: p.frame,
+            found: p.found,
+            kept: p.kept,
+            views: p.views,
+            needed: p.needed,
+            status: p.status.name(),
+            reasons: reasons(p.reason),
+            error: (p.error != 0)
+                .then(|| camgeom_fw_app::report::ErrorCode(p.error.min(255) as u8).name()),
+        };
+        *calibrated |= p.status != camgeom_fw_app::calibrate_mode::Status::Collecting;
+        return Some(if json {
+            to_json_line(&JsonCalibrate { calibrate: body })
+        } else if p.status == camgeom_fw_app::calibrate_mode::Status::Collecting {
+            format!(
+                "calibrate: frame {} {}, {} of {} views",
+                body.frame,
+                match (p.found, p.kept) {
+                    (true, true) => "board found, kept",
+                    (true, false) => "board found, not new",
+                    _ => "no board",
+                },
+                body.views,
+                body.needed
+            )
+        } else {
+            let why = if body.reasons.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", body.reasons.join(", "))
+            };
+            let err = body.error.map_or(String::new(), |e| format!(" error {e}"));
+            format!(
+                "calibrate: {} after {} frames, {} of {} views{why}{err}",
+                body.status, body.frame, body.views, body.needed
+            )
+        });
+    }
+    if tag == RESULT_TAG.to_le_bytes() {
+        let r = decode_result(rec).ok()?;
+        let body = JsonCalibrationBody {
+            views_used: r.views_used,
+            iterations: r.iterations,
+            intrinsics: r.intrinsics,
+            distortion: r.distortion,
+            rms_px: r.rms_px,
+            initial_rms_px: r.initial_rms_px,
+            std: r.std,
+            warnings: reasons(r.warnings & 7),
+        };
+        return Some(if json {
+            to_json_line(&JsonCalibration { calibration: body })
+        } else {
+            let [fx, fy, cx, cy] = r.intrinsics;
+            let [k1, k2, p1, p2, k3] = r.distortion;
+            format!(
+                "calibration: {} views, fx {fx:.2} fy {fy:.2} cx {cx:.2} cy {cy:.2}, k1 {k1:.4} k2 {k2:.4} p1 {p1:.5} p2 {p2:.5} k3 {k3:.4}, RMS {:.4} px, warnings [{}]",
+                r.views_used,
+                r.rms_px,
+                body.warnings.join(", ")
+            )
+        });
+    }
+    None
 }
 
 #[derive(Serialize)]
@@ -411,6 +564,8 @@ pub fn monitor_link(
     let mut unreadable = 0u32;
     let mut summary: Option<SummaryRecord> = None;
     let mut acks = Vec::new();
+    // A calibration's verdict came: the settings record after it is printed.
+    let mut calibrated = false;
     loop {
         let n = input
             .read(&mut buf)
@@ -453,8 +608,38 @@ pub fn monitor_link(
             }
             if tag == Some(&SETTINGS_TAG.to_le_bytes()[..]) {
                 match Settings::decode(frame.record) {
+                    // After a calibration: the settings the board runs with now.
+                    Ok(st) if calibrated => {
+                        calibrated = false;
+                        let body = JsonSettingsBody {
+                            mode: st.mode.name(),
+                            intrinsics: st.intrinsics,
+                            distortion: st.distortion,
+                            tag_size: st.tag_size,
+                        };
+                        print(
+                            out,
+                            if json {
+                                to_json_line(&JsonSettings { settings: body })
+                            } else {
+                                let [fx, fy, cx, cy] = body.intrinsics;
+                                format!(
+                                    "settings: mode {}, camera fx {fx:.2} fy {fy:.2} cx {cx:.2} cy {cy:.2}, distortion {:?}",
+                                    body.mode, body.distortion
+                                )
+                            },
+                        );
+                    }
                     Ok(st) => frames.settings(st),
                     Err(_) => unreadable += 1,
+                }
+                continue;
+            }
+            if tag.is_some_and(|t| t == PROGRESS_TAG.to_le_bytes() || t == RESULT_TAG.to_le_bytes())
+            {
+                match calibrate_line(frame.record, json, &mut calibrated) {
+                    Some(line) => print(out, line),
+                    None => unreadable += 1,
                 }
                 continue;
             }

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use camgeom::camera::Lens;
-use camgeom_fw_app::command::{Command, Mode};
+use camgeom_fw_app::command::{ChessboardSettings, Command, Mode};
 use camgeom_fw_app::options::TAG_FAMILIES;
 use camgeom_host::monitor::{
     Live, LiveLimits, POLL, check_acks, command_bytes, monitor_link, open_tcp,
@@ -56,8 +56,10 @@ pub struct MonitorArgs {
     /// A setting to send to the board, repeatable: `tag-size=METRES` (the side of the tag's
     /// black square), `tag-family=NAME` (tag36h11, tag25h9, tag16h5, tagStandard41h12;
     /// default tag36h11), `tag-id=N` (default 0), `camera=FILE` (intrinsics and distortion from
-    /// a camgeom or OpenCV camera file). The tag's keys travel as one command, which needs
-    /// `tag-size`.
+    /// a camgeom or OpenCV camera file), and for `--mode calibrate`: `chessboard=COLSxROWS`
+    /// (inner corners, default 9x6), `square=METRES` (default 0.025), `views=N` (views kept
+    /// before it solves, 3 to 16, default 10). The tag's keys travel as one command, which
+    /// needs `tag-size`; the chessboard's as another.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
     /// Switch the board to this mode.
@@ -84,6 +86,7 @@ pub struct MonitorArgs {
 /// mode, save.
 fn commands(a: &MonitorArgs) -> Result<Vec<Command>> {
     let (mut size, mut family, mut id, mut camera) = (None, None, None, None);
+    let (mut board, mut square, mut views) = (None, None, None);
     for s in &a.set {
         let (key, value) = s
             .split_once('=')
@@ -134,8 +137,31 @@ fn commands(a: &MonitorArgs) -> Result<Vec<Command>> {
                 };
                 camera.replace(c).map_or(Ok(()), |_| Err(twice()))?;
             }
+            "chessboard" => {
+                let v = value
+                    .split_once('x')
+                    .and_then(|(c, r)| Some((c.parse::<u8>().ok()?, r.parse::<u8>().ok()?)))
+                    .ok_or_else(|| bad("the board is COLSxROWS inner corners, e.g. 9x6"))?;
+                board.replace(v).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            "square" => {
+                let v: f32 = value
+                    .parse()
+                    .ok()
+                    .filter(|v: &f32| v.is_finite() && *v > 0.0)
+                    .ok_or_else(|| bad("the square must be a positive number of metres"))?;
+                square.replace(v).map_or(Ok(()), |_| Err(twice()))?;
+            }
+            "views" => {
+                let v: u8 = value
+                    .parse()
+                    .map_err(|_| bad("views is a number, 3 to 16"))?;
+                views.replace(v).map_or(Ok(()), |_| Err(twice()))?;
+            }
             _ => {
-                return Err(bad("the keys are tag-size, tag-family, tag-id and camera"));
+                return Err(bad(
+                    "the keys are tag-size, tag-family, tag-id, camera, chessboard, square and views",
+                ));
             }
         }
     }
@@ -157,6 +183,22 @@ fn commands(a: &MonitorArgs) -> Result<Vec<Command>> {
             id: id.unwrap_or(0),
             size,
         });
+    }
+    if board.is_some() || square.is_some() || views.is_some() {
+        let d = ChessboardSettings::DEFAULT;
+        let (cols, rows) = board.unwrap_or((d.cols, d.rows));
+        let b = ChessboardSettings {
+            cols,
+            rows,
+            square: square.unwrap_or(d.square),
+            views: views.unwrap_or(d.views),
+        };
+        b.check().map_err(|field| {
+            Error::usage(format!(
+                "--set chessboard/square/views: a {field} no board takes (3 to 64 corners each way, at most 64 in all; 3 to 16 views)"
+            ))
+        })?;
+        out.push(Command::SetChessboard(b));
     }
     if let Some(m) = &a.mode {
         let mode = Mode::ALL

@@ -135,7 +135,8 @@ pub struct CalibRecord {
 }
 
 impl CalibRecord {
-    fn of(r: &CalibrationReport<f32, VIEWS>, cost: u32) -> Self {
+    /// The record of a solve's report that cost `cost`.
+    pub(crate) fn of(r: &CalibrationReport<f32, VIEWS>, cost: u32) -> Self {
         let k = &r.camera.intrinsics;
         let mut warnings = 0u32;
         for w in &r.warnings {

@@ -11,7 +11,7 @@
 //! | bytes | field |
 //! |---|---|
 //! | 0..8 | tag `"CCMD"`, version (see [`crate::wire`]) |
-//! | 8..12 | `u32` kind: 1 mode, 2 tag, 3 camera, 4 save |
+//! | 8..12 | `u32` kind: 1 mode, 2 tag, 3 camera, 4 save, 5 chessboard |
 //! | 12..48 | the kind's fields, zeros after them |
 //!
 //! | kind | fields |
@@ -20,6 +20,7 @@
 //! | tag | `u32` family (index in [`crate::options::TAG_FAMILIES`]), `u32` id, `f32` side (metres) |
 //! | camera | `f32` × 4 `fx fy cx cy` (pixels), `f32` × 5 OpenCV `k1 k2 p1 p2 k3` |
 //! | save | none |
+//! | chessboard | `u32` inner corners along a row, `u32` along a column, `f32` square side (metres), `u32` views to calibrate from (see [`crate::calibrate_mode`]) |
 //!
 //! # `"CACK"`, version 1, [`ACK_LEN`] bytes
 //!
@@ -32,6 +33,7 @@
 
 use camgeom::camera::{Distortion, Intrinsics};
 
+use crate::calibration::{CORNERS, VIEWS};
 use crate::options::TAG_FAMILIES;
 use crate::wire::{Reader, WireError, Writer, tag};
 
@@ -120,6 +122,53 @@ pub enum Command {
     },
     /// Store the settings in flash, where the board loads them at boot.
     Save,
+    /// The chessboard calibrate mode looks for ([`Mode::Calibrate`]).
+    SetChessboard(ChessboardSettings),
+}
+
+/// The chessboard of [`Mode::Calibrate`] and how many views it takes: checked by
+/// [`ChessboardSettings::check`] (every decoded command and stored setting is).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ChessboardSettings {
+    /// Inner corners along a row.
+    pub cols: u8,
+    /// Inner corners along a column.
+    pub rows: u8,
+    /// Side of a square, metres (the calibrated camera does not depend on it; the views'
+    /// poses are in its unit).
+    pub square: f32,
+    /// Views kept before the calibration is solved.
+    pub views: u8,
+}
+
+impl ChessboardSettings {
+    /// OpenCV's sample board: 9x6 inner corners, 25 mm squares; 10 views (Zhang's method
+    /// needs 3; more views average the corner noise down, and 10 leave room below
+    /// [`VIEWS`]).
+    pub const DEFAULT: Self = Self {
+        cols: 9,
+        rows: 6,
+        square: 0.025,
+        views: 10,
+    };
+
+    /// Whether a board can calibrate with it: 3 to 64 corners each way, at most [`CORNERS`]
+    /// in all ([`camgeom::chessboard::BoardSize::new`]), a finite positive square, 3 to
+    /// [`VIEWS`] views. Errors: the name of the first field that fails.
+    pub fn check(&self) -> Result<(), &'static str> {
+        let (c, r) = (usize::from(self.cols), usize::from(self.rows));
+        if camgeom::chessboard::BoardSize::new(c, r).is_err() || c * r > CORNERS {
+            return Err("board");
+        }
+        if !(self.square.is_finite() && self.square > 0.0) {
+            return Err("square");
+        }
+        if !(3..=VIEWS).contains(&usize::from(self.views)) {
+            return Err("views");
+        }
+        Ok(())
+    }
 }
 
 impl Command {
@@ -130,6 +179,7 @@ impl Command {
             Command::SetTag { .. } => 2,
             Command::SetCamera { .. } => 3,
             Command::Save => 4,
+            Command::SetChessboard(_) => 5,
         }
     }
 
@@ -141,6 +191,7 @@ impl Command {
             2 => "tag",
             3 => "camera",
             4 => "save",
+            5 => "chessboard",
             _ => "unknown",
         }
     }
@@ -163,6 +214,11 @@ impl Command {
                     w.f32s(distortion);
                 }
                 Command::Save => {}
+                Command::SetChessboard(b) => {
+                    w.u32s([u32::from(b.cols), u32::from(b.rows)]);
+                    w.f32(b.square);
+                    w.u32(u32::from(b.views));
+                }
             }
         })
     }
@@ -170,7 +226,8 @@ impl Command {
     /// Decodes and checks a command. Errors: [`WireError`] for the length, tag or version,
     /// and `Field` for a kind or a value no board takes (`kind`, `mode`, `family`, `id`,
     /// `size`: finite and positive, `camera`: as [`Intrinsics::new`] and
-    /// [`Distortion::from_opencv`] check them).
+    /// [`Distortion::from_opencv`] check them; `board`, `square`, `views`: as
+    /// [`ChessboardSettings::check`]).
     pub fn decode(bytes: &[u8]) -> Result<Self, WireError> {
         let mut r = Reader::new_checked("command", bytes, COMMAND_LEN, &[COMMAND_TAG], VERSION)?;
         match r.u32() {
@@ -205,6 +262,20 @@ impl Command {
                 })
             }
             4 => Ok(Command::Save),
+            5 => {
+                let [cols, rows] = r.u32s();
+                let square = r.f32();
+                let views = r.u32();
+                let byte = |v: u32| u8::try_from(v).unwrap_or(u8::MAX);
+                let b = ChessboardSettings {
+                    cols: byte(cols),
+                    rows: byte(rows),
+                    square,
+                    views: byte(views),
+                };
+                b.check().map_err(|f| r.invalid(f))?;
+                Ok(Command::SetChessboard(b))
+            }
             _ => Err(r.invalid("kind")),
         }
     }
@@ -306,6 +377,12 @@ mod tests {
                 distortion: [0.1, -0.2, 0.001, -0.002, 0.05],
             },
             Command::Save,
+            Command::SetChessboard(ChessboardSettings {
+                cols: 7,
+                rows: 5,
+                square: 0.03,
+                views: 16,
+            }),
         ];
         for c in all {
             assert_eq!(Command::decode(&c.encode()), Ok(c));
@@ -336,6 +413,23 @@ mod tests {
             distortion: [0.0; 5],
         };
         assert_eq!(Command::decode(&camera.encode()), field("camera"));
+        let board = |cols, rows, square, views| {
+            Command::decode(
+                &Command::SetChessboard(ChessboardSettings {
+                    cols,
+                    rows,
+                    square,
+                    views,
+                })
+                .encode(),
+            )
+        };
+        assert_eq!(board(2, 6, 0.025, 10), field("board"));
+        assert_eq!(board(9, 8, 0.025, 10), field("board"));
+        assert_eq!(board(9, 6, 0.0, 10), field("square"));
+        assert_eq!(board(9, 6, 0.025, 2), field("views"));
+        assert_eq!(board(9, 6, 0.025, 17), field("views"));
+        assert!(board(8, 8, 0.025, 3).is_ok());
         let mut b = Command::Save.encode();
         b[8] = 7;
         assert_eq!(Command::decode(&b), field("kind"));

@@ -12,6 +12,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod calibrate_mode;
 pub mod calibration;
 pub mod command;
 pub mod costs;

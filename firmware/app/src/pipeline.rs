@@ -213,6 +213,12 @@ pub trait FrameLoop {
     /// Forgets the frames and the target: the next frame starts again.
     fn reset(&mut self);
 
+    /// Lends one of the pipeline's frame buffers, as a `width x height` frame, for another
+    /// use while it does not track (the calibrate mode's frames: a board holds no second
+    /// frame buffer for it). Forgets the frames and the target first ([`Self::reset`]); the
+    /// next [`Self::step`] starts again. `None` when the buffer holds no such frame.
+    fn lend_frame(&mut self, width: usize, height: usize) -> Option<ImageMut<'_, u8>>;
+
     /// The tracker's state after the last frame.
     fn state(&self) -> TargetState;
 
@@ -383,6 +389,12 @@ impl<const F: usize, const P: usize, const S: usize, const C: usize, const K: us
         self.frames.clear();
         self.target.reset();
         self.last.take();
+    }
+
+    fn lend_frame(&mut self, width: usize, height: usize) -> Option<ImageMut<'_, u8>> {
+        self.reset();
+        self.frames.set_geometry(width, height, 1).ok()?;
+        self.frames.capture().ok()
     }
 
     fn state(&self) -> TargetState {

@@ -22,7 +22,7 @@ use camgeom::nalgebra::Point2;
 use camgeom::image::ImageView;
 use camgeom::target::Acquire;
 
-use crate::command::Mode;
+use crate::command::{ChessboardSettings, Mode};
 pub use crate::options::{Acquisition, AppOptions, LEVELS, TAG_FAMILIES};
 use crate::pipeline::{AppConfig, AppError, Clock, FrameLoop};
 use crate::recorded::{CameraError, RecordedCamera, RecordedFrames};
@@ -171,6 +171,7 @@ impl RunSpec {
             tag_size: self.target_size[0],
             intrinsics: self.intrinsics,
             distortion: self.distortion,
+            chessboard: ChessboardSettings::DEFAULT,
         }
     }
 

@@ -1,7 +1,7 @@
 //! What a user has set on the board (mode, tag, camera), changed by [`Command`]s and kept in
 //! flash, where the board loads it at boot.
 //!
-//! # `"CSTG"`, version 1, [`SETTINGS_LEN`] bytes, at the start of a flash sector
+//! # `"CSTG"`, version 2, [`SETTINGS_LEN`] bytes, at the start of a flash sector
 //!
 //! | bytes | field |
 //! |---|---|
@@ -10,7 +10,11 @@
 //! | 20..24 | `f32` tag side, metres |
 //! | 24..40 | `f32` × 4 `fx fy cx cy` |
 //! | 40..60 | `f32` × 5 `k1 k2 p1 p2 k3` |
-//! | 60..64 | `u32` CRC-32/ISO-HDLC of bytes 0..60 |
+//! | 60..76 | calibrate mode's chessboard: `u32` columns, `u32` rows (inner corners), `f32` square side (metres), `u32` views ([`ChessboardSettings`]) |
+//! | 76..92 | zeros |
+//! | 92..96 | `u32` CRC-32/ISO-HDLC of bytes 0..92 |
+//!
+//! (Version 1, 64 bytes, had no chessboard: a board that finds one boots with its defaults.)
 //!
 //! A sector that is erased, torn by a reset during the write, or written by another layout
 //! version reads as no settings ([`Settings::load`] gives `None`, the board keeps its
@@ -21,20 +25,23 @@ use camgeom::camera::{Camera, Distortion, Intrinsics};
 use crc::{CRC_32_ISO_HDLC, Crc};
 use embedded_storage::nor_flash::{NorFlash, ReadNorFlash};
 
-use crate::command::{AckStatus, Command, Mode};
+use crate::command::{AckStatus, ChessboardSettings, Command, Mode};
 use crate::options::{Acquisition, AppOptions};
 use crate::wire::{Reader, WireError, Writer, tag};
 
 /// The record's tag.
 pub const SETTINGS_TAG: u32 = tag(b"CSTG");
 /// Its layout version.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Its bytes, CRC included (a multiple of 32, the STM32H7's flash word).
-pub const SETTINGS_LEN: usize = 64;
+pub const SETTINGS_LEN: usize = 96;
 /// The bytes the CRC covers.
 const BODY_LEN: usize = SETTINGS_LEN - 4;
 
 const CRC: Crc<u32> = Crc::<u32>::new(&CRC_32_ISO_HDLC);
+
+// Settings go over the link too (before a streamed frame, after a calibration).
+const _: () = assert!(SETTINGS_LEN <= crate::report::RECORD_LEN);
 
 /// A board's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,6 +59,8 @@ pub struct Settings {
     pub intrinsics: [f32; 4],
     /// OpenCV `k1, k2, p1, p2, k3`.
     pub distortion: [f32; 5],
+    /// The chessboard [`Mode::Calibrate`] looks for, and its views.
+    pub chessboard: ChessboardSettings,
 }
 
 /// What applying a command asks of the board.
@@ -81,6 +90,7 @@ impl Settings {
                 self.distortion = distortion;
             }
             Command::Save => return Applied::Save,
+            Command::SetChessboard(b) => self.chessboard = b,
         }
         Applied::Changed
     }
@@ -161,6 +171,10 @@ impl Settings {
             w.f32(self.tag_size);
             w.f32s(self.intrinsics);
             w.f32s(self.distortion);
+            let b = &self.chessboard;
+            w.u32s([u32::from(b.cols), u32::from(b.rows)]);
+            w.f32(b.square);
+            w.u32(u32::from(b.views));
         });
         let crc = CRC.checksum(b.get(..BODY_LEN).unwrap_or(&[]));
         if let Some(tail) = b.get_mut(BODY_LEN..) {
@@ -177,6 +191,10 @@ impl Settings {
         let tag_size = r.f32();
         let intrinsics = r.f32s();
         let distortion = r.f32s();
+        let [cols, rows] = r.u32s();
+        let square = r.f32();
+        let views = r.u32();
+        let _zeros: [u32; 4] = r.u32s();
         let crc = r.u32();
         if Some(crc) != bytes.get(..BODY_LEN).map(|b| CRC.checksum(b)) {
             return Err(r.invalid("crc"));
@@ -207,6 +225,14 @@ impl Settings {
             .encode(),
         )
         .map_err(field)?;
+        let byte = |v: u32| u8::try_from(v).unwrap_or(u8::MAX);
+        let chessboard = ChessboardSettings {
+            cols: byte(cols),
+            rows: byte(rows),
+            square,
+            views: byte(views),
+        };
+        chessboard.check().map_err(|f| r.invalid(f))?;
         Ok(Self {
             mode,
             family,
@@ -214,6 +240,7 @@ impl Settings {
             tag_size: size,
             intrinsics,
             distortion,
+            chessboard,
         })
     }
 
@@ -331,6 +358,7 @@ mod tests {
             tag_size: 0.16,
             intrinsics: [300.0, 301.0, 159.5, 119.5],
             distortion: [0.1, -0.2, 0.001, -0.002, 0.05],
+            chessboard: ChessboardSettings::DEFAULT,
         }
     }
 
@@ -344,6 +372,37 @@ mod tests {
         assert_eq!(s.save(&mut flash, 128), Ok(()));
         assert_eq!(Settings::load(&mut flash, 128), Some(s));
         assert_eq!(s.save(&mut flash, 64), Err(SaveError::Layout));
+    }
+
+    /// A calibrated camera (any f32 values) and the calibrate mode's board come back from
+    /// the flash bit for bit; a board no command takes does not load.
+    #[test]
+    fn a_calibrated_camera_loads_back_bit_for_bit() {
+        let mut flash = Nor { bytes: [0xFF; 256] };
+        let mut s = settings();
+        s.intrinsics = [266.123_46, 266.543_2, 171.000_01, 117.299_995];
+        s.distortion = [-0.261_234_5, -0.041_2, 0.001_234_5, -1.2e-5, 0.212_3];
+        s.chessboard = ChessboardSettings {
+            cols: 7,
+            rows: 5,
+            square: 0.030_1,
+            views: 12,
+        };
+        s.save(&mut flash, 0).unwrap();
+        let back = Settings::load(&mut flash, 0).unwrap();
+        let bits = |s: &Settings| {
+            (
+                s.intrinsics.map(f32::to_bits),
+                s.distortion.map(f32::to_bits),
+                s.chessboard.square.to_bits(),
+            )
+        };
+        assert_eq!((bits(&back), back), (bits(&s), s));
+        s.chessboard.views = 40;
+        assert!(matches!(
+            Settings::decode(&s.encode()),
+            Err(WireError::Field { field: "views", .. })
+        ));
     }
 
     #[test]

@@ -11,6 +11,8 @@
 
 use camgeom::image::ImageView;
 use camgeom::target::{Acquire, GivenCorners, TargetState};
+use camgeom_fw_app::calibrate_mode::{Buffers, Status, calibrate_mode};
+use camgeom_fw_app::calibration::CalibError;
 use camgeom_fw_app::command::{Ack, AckStatus, COMMAND_LEN, Command, Mode};
 use camgeom_fw_app::drive;
 use camgeom_fw_app::frame_chunk::send_frame;
@@ -161,14 +163,54 @@ fn read_spec() -> RunSpec {
 /// Runs the main job on `app` (a `static`) for `W x H` frames, the target found by what
 /// `acquisition` makes of the run description (`None`: this firmware cannot acquire the
 /// run's target, a failed run), the records also streamed as `stream` says; exits the
-/// emulator.
+/// emulator. A firmware that has no calibrate mode: [`run_with_calibrate`] is one that has.
 pub fn run<A: Acquire>(
+    app: &mut impl FrameLoop,
+    width: usize,
+    height: usize,
+    stream: Stream,
+    sink: impl RecordSink,
+    acquisition: impl FnOnce(&RunSpec) -> Option<A>,
+) -> ! {
+    // `false`: the calibrate mode's code (the chessboard detector and the calibrator, 80 KB
+    // of flash) is not in this firmware at all.
+    run_job::<A, false>(app, width, height, stream, sink, acquisition, None)
+}
+
+/// [`run`] with the calibrate mode's buffers (`calibrate`; a firmware that [`run`]s answers
+/// `mode calibrate` as unsupported). In calibrate mode (commanded, or stored) the board
+/// runs [`calibrate_mode`] over the frames instead of the tracking: progress, result and
+/// verdict on the record stream, a good camera saved to the flash with the mode back to the
+/// run's tracking mode; then it exits.
+pub fn run_with_calibrate<A: Acquire>(
+    app: &mut impl FrameLoop,
+    width: usize,
+    height: usize,
+    stream: Stream,
+    sink: impl RecordSink,
+    acquisition: impl FnOnce(&RunSpec) -> Option<A>,
+    calibrate: Buffers<'_>,
+) -> ! {
+    run_job::<A, true>(
+        app,
+        width,
+        height,
+        stream,
+        sink,
+        acquisition,
+        Some(calibrate),
+    )
+}
+
+/// [`run`] (`CALIBRATES` false) or [`run_with_calibrate`].
+fn run_job<A: Acquire, const CALIBRATES: bool>(
     app: &mut impl FrameLoop,
     width: usize,
     height: usize,
     stream: Stream,
     mut sink: impl RecordSink,
     acquisition: impl FnOnce(&RunSpec) -> Option<A>,
+    calibrate: Option<Buffers<'_>>,
 ) -> ! {
     cost::start();
     let run = read_spec();
@@ -181,7 +223,10 @@ pub fn run<A: Acquire>(
         }
     };
     let mut link = Link::open(stream);
-    let settings = settings(&run, &mut flash, &mut link);
+    let settings = settings(&run, &mut flash, &mut link, CALIBRATES);
+    if CALIBRATES && let (Mode::Calibrate, Some(buffers)) = (settings.mode, calibrate) {
+        calibrate_boot(app, &run, &settings, buffers, &mut flash, &mut link)
+    }
     // In stream-frames mode each frame's pixels go before its record, after the settings the
     // host draws the overlay with.
     let streaming = settings.mode == Mode::StreamFrames;
@@ -312,7 +357,7 @@ pub fn run<A: Acquire>(
 /// The board's settings: those stored in the flash, else the run's own; then the commands in
 /// [`COMMANDS_FILE`] applied in order, each answered on the record stream
 /// ([`camgeom_fw_app::command`]), a save stored in the flash and persisted.
-fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings {
+fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link, calibrates: bool) -> Settings {
     let mut settings = match flash.settings() {
         Some(s) => {
             defmt::info!("settings: loaded from flash: {}", s);
@@ -347,7 +392,7 @@ fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings 
                 }
                 Ok(c) => (
                     c.kind(),
-                    command(c, &mut settings, run, flash, link.streams()),
+                    command(c, &mut settings, run, flash, link.streams(), calibrates),
                 ),
             };
             defmt::info!(
@@ -379,28 +424,104 @@ fn settings(run: &RunSpec, flash: &mut FlashModel, link: &mut Link) -> Settings 
 }
 
 /// Carries out one command ([`Settings::carry_out`]): this firmware tracks, so a mode that
-/// does not is refused, and so is streaming frames without a record stream (`streams`); a
-/// save is stored in the flash and persisted.
+/// does not is refused (calibrate, unless it `calibrates`), and so is streaming frames
+/// without a record stream (`streams`); a save is stored in the flash and persisted.
 fn command(
     c: Command,
     settings: &mut Settings,
     run: &RunSpec,
     flash: &mut FlashModel,
     streams: bool,
+    calibrates: bool,
 ) -> AckStatus {
     let fits = |s: &Settings| match run.with_settings(s) {
         Some(_) if streams || s.mode != Mode::StreamFrames => Ok(()),
+        None if calibrates && s.mode == Mode::Calibrate => Ok(()),
         _ => Err(AckStatus::Unsupported),
     };
-    settings.carry_out(&c, fits, |s| {
-        s.save(flash, 0).inspect_err(|e| {
-            defmt::error!("settings: not saved: {}", e);
-        })?;
-        if let Err(e) = flash.persist() {
-            fail_host(FLASH_FILE, e)
+    settings.carry_out(&c, fits, |s| save(s, flash))
+}
+
+/// Stores `s` in the flash and persists it.
+fn save(s: &Settings, flash: &mut FlashModel) -> Result<(), camgeom_fw_app::settings::SaveError> {
+    s.save(flash, 0).inspect_err(|e| {
+        defmt::error!("settings: not saved: {}", e);
+    })?;
+    if let Err(e) = flash.persist() {
+        fail_host(FLASH_FILE, e)
+    }
+    Ok(())
+}
+
+/// The calibrate mode over `frames.raw` (the run's frame count at most): every record on the
+/// stream, a good camera saved; logs the verdict (`calibrate mode: ...`) and the settings in
+/// force after it, and exits.
+fn calibrate_boot(
+    app: &mut impl FrameLoop,
+    run: &RunSpec,
+    settings: &Settings,
+    buffers: Buffers<'_>,
+    flash: &mut FlashModel,
+    link: &mut Link,
+) -> ! {
+    let (width, height) = (run.width as usize, run.height as usize);
+    // The frames go into one of the pipeline's frame buffers: it does not track meanwhile.
+    let Some(mut frame) = app.lend_frame(width, height) else {
+        defmt::error!("run.bin's frames do not fit this firmware's buffers");
+        board::exit_failure()
+    };
+    let frames = match HostFrames::open("frames.raw", width, height) {
+        Ok(f) => f,
+        Err(e) => fail_host("frames.raw", e),
+    };
+    let mut camera = RecordedCamera::new(frames, 1, run.frames as usize, FaultPlan::none());
+    let back = run.settings().mode;
+    let outcome = calibrate_mode(
+        settings,
+        back,
+        &mut camera,
+        &mut frame,
+        buffers,
+        &mut SysTickClock,
+        &mut |record| link.send(record),
+        |s| save(s, flash),
+    );
+    let o = match outcome {
+        Ok(o) => o,
+        Err(CalibError::Source(CameraError::Read(e))) => fail_host("frames.raw", e),
+        Err(CalibError::Source(CameraError::WrongSize)) => {
+            defmt::error!("frames.raw: a frame of the wrong size");
+            board::exit_failure()
         }
-        Ok(())
-    })
+        Err(CalibError::Core(e)) => {
+            defmt::error!("calibrate mode: {}", e);
+            board::exit_failure()
+        }
+    };
+    // The settings in force from now on, as the host sees them.
+    link.send(&o.settings.encode());
+    let v = o.verdict;
+    let [fx, fy, cx, cy] = o.settings.intrinsics;
+    let (stack, stack_size) = board::stack_usage();
+    link.log();
+    defmt::info!(
+        "calibrate mode: {=str} after {=u32} frames, {=u32} of {=u32} views (reason {=u32:#x}); camera fx {=f32} fy {=f32} cx {=f32} cy {=f32}; stack {=u32} of {=u32} bytes",
+        v.status.name(),
+        v.frame,
+        v.views,
+        v.needed,
+        v.reason,
+        fx,
+        fy,
+        cx,
+        cy,
+        stack,
+        stack_size
+    );
+    if v.status == Status::Calibrated {
+        defmt::info!("settings: calibrated camera saved to flash: {}", o.settings);
+    }
+    board::exit_success()
 }
 
 /// The acquisition of the box job: the corners the run gives (no tag detector in this

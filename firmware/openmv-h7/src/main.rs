@@ -9,7 +9,9 @@
 //! camera, save; answered on the record stream); the settings they make are kept in a
 //! reserved flash sector and loaded at boot ([`settings`]). In mode `stream-frames` each
 //! frame's pixels go over USB too, before its record, for the host to show it with its
-//! overlay (`camgeom monitor --frames-dir`).
+//! overlay (`camgeom monitor --frames-dir`). In mode `calibrate` the board calibrates its
+//! camera from a chessboard shown to it ([`camgeom_fw_app::calibrate_mode`]; progress and
+//! result on the record stream), saves a good camera to the flash and tracks with it.
 //!
 //! Board wiring, from the OpenMV firmware's board description (`boards/OPENMV4/
 //! board_config.h` and `board_config.mk` in the openmv/openmv repository):
@@ -41,7 +43,11 @@ mod stream;
 mod tracker;
 
 use camgeom::apriltag::TagTarget;
+use camgeom::image::ImageMut;
 use camgeom::target::{Acquire, Stage};
+use camgeom_fw_app::FrameSource;
+use camgeom_fw_app::calibrate_mode::{Buffers, calibrate_mode};
+use camgeom_fw_app::calibration::CalibError;
 use camgeom_fw_app::command::{Ack, AckStatus, Mode};
 use camgeom_fw_app::frame_chunk::send_frame;
 use camgeom_fw_app::report::{ErrorCode, FrameRecord};
@@ -236,12 +242,42 @@ async fn main(_spawner: Spawner) {
 
     let app = tracker::pipeline();
     let workspace = tracker::workspace();
+    let (board_detector, board_scratch, calibrator) = tracker::calibrate_buffers();
     let mut clock = DwtClock::default();
     let mut records = RecordStream::default();
     let mut autopilot = MavlinkLink::new();
     // Frames are numbered as the camera is asked for them, across configurations.
     let mut index = 0u32;
     loop {
+        if settings.mode == Mode::Calibrate {
+            let buffers = Buffers {
+                detector: &mut *board_detector,
+                scratch: &mut *board_scratch,
+                calibrator: &mut *calibrator,
+            };
+            let pending = calibrate(
+                &mut *app,
+                &mut cam,
+                buffers,
+                &mut settings,
+                &mut store,
+                &mut records,
+                &mut clock,
+            );
+            if let Some(incoming) = pending {
+                let mut restart = false;
+                let (kind, status) = command(incoming, &mut settings, &mut store, &mut restart);
+                records.send(
+                    &Ack {
+                        seq: incoming.seq,
+                        kind,
+                        status,
+                    }
+                    .encode(),
+                );
+            }
+            continue;
+        }
         // One configuration, built from the settings (checked before they were taken) and run
         // until a command changes them; then the target starts again on the next frame.
         let (cfg, options) = match tracker::config(&settings) {
@@ -374,6 +410,7 @@ fn command(
     };
     let before = *settings;
     let fits = |s: &Settings| match tracker::config(s) {
+        Err(Unfit::Mode) if s.mode == Mode::Calibrate => Ok(()),
         Err(Unfit::Mode) => Err(AckStatus::Unsupported),
         Err(Unfit::Config(e)) => {
             defmt::warn!("command {=u16}: {}", incoming.seq, e);
@@ -388,6 +425,91 @@ fn command(
     });
     *restart |= *settings != before;
     (c.kind(), status)
+}
+
+/// The camera until a command comes (kept in `pending`): the calibrate mode's frames, so that
+/// a command ends a calibration (with no chessboard in view it would never end).
+struct UntilCommand<'c, S> {
+    camera: &'c mut S,
+    pending: Option<Incoming>,
+}
+
+impl<S: FrameSource> FrameSource for UntilCommand<'_, S> {
+    type Error = S::Error;
+
+    fn size(&self) -> (usize, usize) {
+        self.camera.size()
+    }
+
+    fn next_frame(&mut self, frame: &mut ImageMut<'_, u8>) -> Result<bool, S::Error> {
+        if self.pending.is_none() {
+            self.pending = stream::next_command();
+        }
+        if self.pending.is_some() {
+            return Ok(false);
+        }
+        self.camera.next_frame(frame)
+    }
+}
+
+/// The calibrate mode ([`calibrate_mode`]) on the camera's frames, in one of the pipeline's
+/// frame buffers: progress, result and verdict on the record stream, then the settings in
+/// force after it (a good camera replaces the settings' one and is saved; the mode goes back
+/// to the compiled tracking mode either way). A command from the host ends it (the frames
+/// ended: refused, nothing changed) and is returned to be carried out; so does a failed
+/// capture.
+fn calibrate<S: FrameSource>(
+    app: &mut impl FrameLoop,
+    camera: &mut S,
+    buffers: Buffers<'_>,
+    settings: &mut Settings,
+    store: &mut Store,
+    records: &mut RecordStream,
+    clock: &mut DwtClock,
+) -> Option<Incoming>
+where
+    S::Error: defmt::Format,
+{
+    defmt::info!("calibrate mode: {}", settings.chessboard);
+    let (w, h) = camera.size();
+    let Some(mut frame) = app.lend_frame(w, h) else {
+        defmt::panic!("calibrate mode: the frames do not fit the pipeline's buffers");
+    };
+    let mut source = UntilCommand {
+        camera,
+        pending: None,
+    };
+    let back = tracker::defaults().mode;
+    let outcome = calibrate_mode(
+        settings,
+        back,
+        &mut source,
+        &mut frame,
+        buffers,
+        clock,
+        &mut |r| records.send(r),
+        |s| {
+            store.save(s).inspect_err(|e| {
+                defmt::error!("settings: not saved: {}", e);
+            })
+        },
+    );
+    match outcome {
+        Ok(o) => {
+            defmt::info!("calibrate mode: {}", o.verdict);
+            *settings = o.settings;
+        }
+        Err(CalibError::Source(e)) => {
+            defmt::warn!("calibrate mode: camera: {}", e);
+            settings.mode = back;
+        }
+        Err(CalibError::Core(e)) => {
+            defmt::warn!("calibrate mode: {}", e);
+            settings.mode = back;
+        }
+    }
+    records.send(&settings.encode());
+    source.pending
 }
 
 /// One defmt line per frame: the pose (target frame to camera: `t` in metres, rotation vector

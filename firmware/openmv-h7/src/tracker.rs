@@ -18,10 +18,13 @@
 //! pyramids (levels 1-2), corner candidates and scratch, KLT scratch and the target
 //! ([`Qvga`]), and the tag detector's workspace.
 
+use core::mem::MaybeUninit;
+
 use camgeom::apriltag::{Detector, DetectorConfig, Family, Workspace320x240};
 use camgeom::nalgebra::Point2;
 use camgeom::target::GivenCorners;
-use camgeom_fw_app::command::Mode;
+use camgeom_fw_app::calibration::{BoardCalibrator, BoardDetector, scratch_len};
+use camgeom_fw_app::command::{ChessboardSettings, Mode};
 use camgeom_fw_app::pipeline::{AppConfig, AppError, Clock};
 use camgeom_fw_app::qvga::Qvga;
 use camgeom_fw_app::settings::Settings;
@@ -65,6 +68,28 @@ static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 /// The detector's memory (119 KB at 320x240).
 static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
 
+/// The calibrate mode's chessboard detector (20 KB), its scratch (14 KB) and calibrator
+/// (25 KB); its frames go into a frame buffer of the pipeline's ([`camgeom_fw_app::FrameLoop::lend_frame`]).
+static BOARD_DETECTOR: ConstStaticCell<BoardDetector> = ConstStaticCell::new(BoardDetector::new());
+static BOARD_SCRATCH: ConstStaticCell<[i32; scratch_len(WIDTH)]> =
+    ConstStaticCell::new([0; scratch_len(WIDTH)]);
+static CALIBRATOR: ConstStaticCell<MaybeUninit<BoardCalibrator>> =
+    ConstStaticCell::new(MaybeUninit::uninit());
+
+/// The calibrate mode's buffers: the detector, its scratch, room for the calibrator. Call
+/// once.
+pub fn calibrate_buffers() -> (
+    &'static mut BoardDetector,
+    &'static mut [i32],
+    &'static mut MaybeUninit<BoardCalibrator>,
+) {
+    (
+        BOARD_DETECTOR.take(),
+        BOARD_SCRATCH.take(),
+        CALIBRATOR.take(),
+    )
+}
+
 /// Takes the pipeline's static; call once.
 pub fn pipeline() -> &'static mut Qvga {
     APP.take()
@@ -89,14 +114,14 @@ pub fn defaults() -> Settings {
         tag_size: TAG_SIZE_M,
         intrinsics: [FX, FX, CX, CY],
         distortion: [0.0; 5],
+        chessboard: ChessboardSettings::DEFAULT,
     }
 }
 
 /// Why settings give no configuration.
 #[derive(Debug, Clone, Copy, PartialEq, defmt::Format)]
 pub enum Unfit {
-    /// A mode this firmware does not have (it tracks, and streams frames while tracking the
-    /// tag; it does not calibrate).
+    /// A mode that does not track (calibrate: the main loop runs it apart).
     Mode,
     /// The camera or the target that [`AppConfig::new`] refuses.
     Config(camgeom::Error),

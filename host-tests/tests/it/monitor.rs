@@ -513,6 +513,7 @@ fn streamed_frames_are_written_with_their_overlay() {
         tag_size: 0.1,
         intrinsics: [50.0, 50.0, 19.5, 14.5],
         distortion: [0.0; 5],
+        chessboard: camgeom_fw_app::command::ChessboardSettings::DEFAULT,
     };
     let outline = [[5.0, 5.0], [30.0, 5.0], [30.0, 22.0], [5.0, 22.0]];
     let mut records: Vec<Vec<u8>> = Vec::new();
@@ -586,4 +587,157 @@ fn streamed_frames_are_written_with_their_overlay() {
     // The outline's 4 edges (about 84 pixels) in green, with a dark halo; the rest the frame.
     assert!(green >= 60, "{green} green pixels");
     assert!(grey >= w * h - 4 * green, "{grey} grey pixels");
+}
+
+/// A board in calibrate mode (`--mode calibrate`): its progress records come out a line each
+/// (views kept of needed), then the result (K, distortion, RMS), the verdict and the settings
+/// it runs with; `--set chessboard=7x5 --set views=12` travels as one chessboard command.
+#[test]
+fn a_calibrate_session_shows_its_progress_and_result() {
+    use camgeom_fw_app::calibrate_mode::{ProgressRecord, Status, encode_result};
+    use camgeom_fw_app::calibration::{CalibRecord, VIEWS};
+    use camgeom_fw_app::command::ChessboardSettings;
+    use camgeom_fw_app::settings::Settings;
+    let progress = |frame, found, kept, views, status| ProgressRecord {
+        frame,
+        found,
+        kept,
+        views,
+        needed: 2,
+        status,
+        reason: 0,
+        error: 0,
+        cost: 7,
+    };
+    let result = CalibRecord {
+        views_used: 2,
+        iterations: 6,
+        cost: 0,
+        warnings: 0,
+        intrinsics: [266.5, 266.25, 160.5, 118.75],
+        distortion: [-0.25, 0.125, 0.0, 0.0, -0.0625],
+        rms_px: 0.125,
+        initial_rms_px: 0.5,
+        std: [0.5; 9],
+        per_view_rms_px: [0.1; VIEWS],
+        stack: 0,
+    };
+    let settings = Settings {
+        mode: Mode::TrackTag,
+        family: 0,
+        id: 1,
+        tag_size: 0.1,
+        intrinsics: result.intrinsics,
+        distortion: result.distortion,
+        chessboard: ChessboardSettings::DEFAULT,
+    };
+    let records = vec![
+        ack(0, 2, AckStatus::Done),
+        progress(1, false, false, 0, Status::Collecting)
+            .encode()
+            .to_vec(),
+        progress(2, true, true, 1, Status::Collecting)
+            .encode()
+            .to_vec(),
+        progress(3, true, false, 1, Status::Collecting)
+            .encode()
+            .to_vec(),
+        progress(4, true, true, 2, Status::Collecting)
+            .encode()
+            .to_vec(),
+        encode_result(&result).to_vec(),
+        progress(4, false, false, 2, Status::Calibrated)
+            .encode()
+            .to_vec(),
+        settings.encode().to_vec(),
+    ];
+    let path = scratch_file("calibrate-stream", "").with_extension("bin");
+    std::fs::write(&path, framed(0, &records)).unwrap();
+    let out = camgeom(&["monitor", "--json", "--replay", path.to_str().unwrap()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: Vec<Value> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    let cal: Vec<&Value> = got.iter().filter_map(|v| v.get("calibrate")).collect();
+    assert_eq!(cal.len(), 5);
+    assert_eq!(cal[1]["kept"], true);
+    assert_eq!(cal[3]["views"], 2);
+    assert_eq!(cal[4]["status"], "calibrated");
+    let r = got
+        .iter()
+        .find_map(|v| v.get("calibration"))
+        .expect("a result line");
+    assert_eq!(r["intrinsics"][0], 266.5);
+    assert_eq!(r["rms_px"], 0.125);
+    let s = got
+        .iter()
+        .find_map(|v| v.get("settings"))
+        .expect("a settings line");
+    assert_eq!(
+        (s["mode"].as_str(), s["intrinsics"][3].as_f64()),
+        (Some("track-tag"), Some(118.75))
+    );
+    assert_eq!(got.last().unwrap()["link"]["unreadable"], 0);
+    let table = camgeom(&["monitor", "--replay", path.to_str().unwrap()]);
+    let text = String::from_utf8(table.stdout).unwrap();
+    assert!(
+        text.contains("calibrate: frame 2 board found, kept, 1 of 2 views"),
+        "{text}"
+    );
+    assert!(
+        text.contains("calibrate: calibrated after 4 frames, 2 of 2 views"),
+        "{text}"
+    );
+    assert!(text.contains("calibration: 2 views, fx 266.50"), "{text}");
+    // The chessboard's keys: one command, before the mode.
+    let cmds = scratch_file("calibrate-commands", "").with_extension("bin");
+    let out = camgeom(&[
+        "monitor",
+        "--set",
+        "chessboard=7x5",
+        "--set",
+        "views=12",
+        "--mode",
+        "calibrate",
+        "--commands-out",
+        cmds.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sent = read_commands(&std::fs::read(&cmds).unwrap());
+    let board = ChessboardSettings {
+        cols: 7,
+        rows: 5,
+        views: 12,
+        ..ChessboardSettings::DEFAULT
+    };
+    assert_eq!(
+        sent,
+        [
+            (0, Command::SetChessboard(board)),
+            (1, Command::SetMode(Mode::Calibrate))
+        ]
+    );
+    let bad = camgeom(&[
+        "monitor",
+        "--set",
+        "views=40",
+        "--commands-out",
+        cmds.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        bad.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&bad.stderr)
+    );
 }

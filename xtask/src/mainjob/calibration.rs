@@ -33,7 +33,8 @@ pub const TOLERANCE: f32 = 1e-4;
 
 pub const BIN: &str = "camgeom-fw-calib";
 
-fn prepare(dir: &Path) -> Result<CalibSpec> {
+/// The 13 bundled views at 320x240 in `dir` (`frames.raw`), and the run description (`calib.bin`).
+pub(super) fn prepare(dir: &Path) -> Result<CalibSpec> {
     fs::create_dir_all(dir)?;
     let src = camgeom_host::data_dir().join("chessboard");
     let mut names: Vec<PathBuf> = fs::read_dir(&src)
@@ -131,7 +132,7 @@ fn read_report(path: &Path) -> Result<(Vec<ViewRecord>, CalibRecord)> {
     ))
 }
 
-fn close(a: f32, b: f32, scale: f32) -> bool {
+pub(super) fn close(a: f32, b: f32, scale: f32) -> bool {
     (a - b).abs() <= TOLERANCE * scale.max(1e-12)
 }
 

@@ -5,11 +5,12 @@
 //! `target/camgeom-run/commands`:
 //!
 //! 1. The board boots with an erased flash and receives, framed as on the link
-//!    ([`camgeom_fw_app::link`]), a new tag side (twice the true one), the same camera, a mode
-//!    this firmware does not have, a damaged frame, a tag side no board takes, and a save. It
-//!    must answer each readable command on its record stream (done, done, unsupported,
-//!    invalid, done), count the damaged frame, and leave in `flash.bin` exactly the settings
-//!    record (erased bytes after it).
+//!    ([`camgeom_fw_app::link`]), a new tag side (twice the true one), the same camera, the
+//!    calibrate mode's chessboard, a damaged frame, a tag side no board takes, and a save. It
+//!    must answer each readable command on its record stream (done, done, done, invalid,
+//!    done), count the damaged frame, and leave in `flash.bin` exactly the settings record
+//!    (erased bytes after it). (A mode a firmware does not have is answered unsupported: the
+//!    box firmware has no calibrate mode; `settings`' unit tests check the answer.)
 //! 2. The board boots again without commands: it must load the settings from the flash.
 //!
 //! Both boots must track with the commanded side: against the tag job's poses (the true side)
@@ -18,13 +19,15 @@
 //!
 //! 3. The board boots again, is switched to stream-frames, and streams its first few frames
 //!    ([`stream_frames`]): their pixels, put back together, must be the frames it was fed.
+//! 4. and 5. The board calibrates its camera in the calibrate mode and the next boot loads
+//!    it ([`super::calibrate_boot`]).
 
 use std::fs;
 use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, ensure};
-use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, Command, Mode};
+use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, ChessboardSettings, Command, Mode};
 use camgeom_fw_app::frame_chunk::{CHUNK_TAG, FrameChunk};
 use camgeom_fw_app::link::{encode_frame, max_frame_len};
 use camgeom_fw_app::report::{FrameRecord, Record};
@@ -43,10 +46,20 @@ use crate::util::root;
 /// Frames of each boot.
 const FRAMES: u32 = 24;
 
+/// The calibrate mode's chessboard the first boot is told: the bundled one (9x6, 25 mm), 12
+/// views (of its 13).
+pub(super) const BOARD: ChessboardSettings = ChessboardSettings {
+    cols: 9,
+    rows: 6,
+    square: 0.025,
+    views: 12,
+};
+
 /// An answer as the check compares it: the command's sequence number, kind, status.
 type Answer = (u16, u32, AckStatus);
 
-fn frame(seq: u16, record: &[u8]) -> Result<Vec<u8>> {
+/// `record` framed as on the link, sequence number `seq`.
+pub(super) fn frame(seq: u16, record: &[u8]) -> Result<Vec<u8>> {
     let mut out = vec![0u8; max_frame_len(record.len())];
     let n = encode_frame(seq, record, &mut out).map_err(|e| anyhow::anyhow!("{e:?}"))?;
     out.truncate(n);
@@ -72,7 +85,8 @@ fn commands(spec: &RunSpec) -> Result<(Vec<u8>, Vec<Answer>, Settings)> {
     let mut bytes = Vec::new();
     bytes.extend(frame(0, &set_tag.encode())?);
     bytes.extend(frame(1, &camera.encode())?);
-    bytes.extend(frame(2, &Command::SetMode(Mode::Calibrate).encode())?);
+    let board = Command::SetChessboard(BOARD);
+    bytes.extend(frame(2, &board.encode())?);
     let mut damaged = frame(3, &set_tag.encode())?;
     let mid = damaged.len() / 2;
     damaged[mid] ^= 0x10;
@@ -82,16 +96,13 @@ fn commands(spec: &RunSpec) -> Result<(Vec<u8>, Vec<Answer>, Settings)> {
     let want = vec![
         (0, set_tag.kind(), AckStatus::Done),
         (1, camera.kind(), AckStatus::Done),
-        (
-            2,
-            Command::SetMode(Mode::Calibrate).kind(),
-            AckStatus::Unsupported,
-        ),
+        (2, board.kind(), AckStatus::Done),
         (4, 0, AckStatus::Invalid),
         (5, Command::Save.kind(), AckStatus::Done),
     ];
     let mut settings = spec.settings();
     settings.tag_size = size;
+    settings.chessboard = BOARD;
     Ok((bytes, want, settings))
 }
 
@@ -223,8 +234,9 @@ pub fn run() -> Result<String> {
         "with the tag side doubled, {n} poses: |t| ratio off by {ratio:.2e}, rotation by {rot:.2e}"
     );
     let streamed = stream_frames(&dir, &elf, &tag_spec, &settings, &a)?;
+    let calibrated = super::calibrate_boot::run(&dir, &elf, &tag_spec, &settings)?;
     Ok(format!(
-        "commands job: {} command frames (1 damaged, counted), answered done/done/unsupported/invalid/done; flash.bin holds the settings record, erased after it; the second boot loaded them; {n} poses with the tag side doubled: |t| x2 within {ratio:.1e}, rotations within {rot:.1e} rad of the tag job's\n{streamed}",
+        "commands job: {} command frames (1 damaged, counted), answered done/done/done/invalid/done; flash.bin holds the settings record, erased after it; the second boot loaded them; {n} poses with the tag side doubled: |t| x2 within {ratio:.1e}, rotations within {rot:.1e} rad of the tag job's\n{streamed}\n{calibrated}",
         want.len() + 1
     ))
 }

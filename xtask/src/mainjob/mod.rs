@@ -21,6 +21,7 @@
 //!    templates computed and kept, both against the host replay), the tag job and the
 //!    calibration job.
 
+mod calibrate_boot;
 mod calibration;
 mod commands;
 mod compare;

@@ -4,11 +4,17 @@
 //! loss and every `reacquire_every` frames, and tracked in between by detecting it where it
 //! must be (`TagTarget`'s tracking by detection); the host replays it bit for bit. Its records
 //! also stream over UART0 ([`job::Stream`]), as a real board's do over its link, and its poses
-//! go to an autopilot as MAVLink over UART1 (`mavlink`).
+//! go to an autopilot as MAVLink over UART1 (`mavlink`). Switched to the calibrate mode
+//! (`camgeom_fw_app::calibrate_mode`), it calibrates its camera from the chessboard frames
+//! it is fed instead, and stores the camera in its flash.
 #![no_std]
 #![no_main]
 
+use core::mem::MaybeUninit;
+
 use camgeom::apriltag::{Detector, DetectorConfig, TagTarget, Workspace320x240};
+use camgeom_fw_app::calibrate_mode::Buffers;
+use camgeom_fw_app::calibration::{BoardCalibrator, BoardDetector, scratch_len};
 use camgeom_fw_app::run::{Acquisition, TAG_FAMILIES};
 use camgeom_fw_app::sizes::Qvga;
 use camgeom_fw_emulated::{board, entry, job};
@@ -22,6 +28,13 @@ static APP: ConstStaticCell<Qvga> = ConstStaticCell::new(Qvga::new());
 /// The tag detector's memory (119 KB at 320x240), in `.bss` too.
 static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
 static DETECTOR: StaticCell<Detector> = StaticCell::new();
+/// The calibrate mode's chessboard detector (20 KB), its scratch (14 KB at 320 px) and its
+/// calibrator (25 KB); its frames go into a frame buffer of the pipeline's.
+static BOARD_DETECTOR: ConstStaticCell<BoardDetector> = ConstStaticCell::new(BoardDetector::new());
+static BOARD_SCRATCH: ConstStaticCell<[i32; scratch_len(W)]> =
+    ConstStaticCell::new([0; scratch_len(W)]);
+static CALIBRATOR: ConstStaticCell<MaybeUninit<BoardCalibrator>> =
+    ConstStaticCell::new(MaybeUninit::uninit());
 
 /// MAVLink to an autopilot over UART1 (the Cortex-M7 build; the mounting: camera looking
 /// down, top of the image toward the nose).
@@ -38,7 +51,12 @@ fn mavlink() {}
 #[entry]
 fn main() -> ! {
     let workspace = WORKSPACE.take();
-    job::run(
+    let calibrate = Buffers {
+        detector: BOARD_DETECTOR.take(),
+        scratch: BOARD_SCRATCH.take(),
+        calibrator: CALIBRATOR.take(),
+    };
+    job::run_with_calibrate(
         APP.take(),
         W,
         H,
@@ -70,5 +88,6 @@ fn main() -> ! {
             }
             Acquisition::Corners => None,
         },
+        calibrate,
     )
 }
