@@ -1,10 +1,12 @@
 #!/usr/bin/env python3
-"""AprilTag on 1920x1080 frames at decimation 1 and 2: camgeom against AprilTag 3, one thread.
+"""AprilTag on large frames at decimation 1 and 2: camgeom against AprilTag 3, one thread.
 
-The frames are made here (not committed) by OpenCV: each of the AprilTag library's three test
-photos (host-tests/data/apriltag, 799x533) resized by cv2.resize (INTER_LINEAR) to 1619x1080
-and placed at x = 150 in a grey (128) 1920x1080 frame, and the 640x480 chessboard photo
-left01.jpg (tag-free, textured) resized to 1440x1080 at x = 240.
+The frames are made here (not committed) by OpenCV, for each size asked (`--size`, 1920x1080
+by default): each of the AprilTag library's three test photos (host-tests/data/apriltag,
+799x533) and the 640x480 chessboard photo left01.jpg (tag-free, textured) resized by
+cv2.resize (INTER_LINEAR, INTER_AREA when shrinking) to the frame's height and centred in a
+grey (128) frame of that size (at 1920x1080: 1619x1080 at x = 150, left01 1440x1080 at
+x = 240).
 
 camgeom: the release example `apriltag_detect` (the CLI's host workspace, sized for the frame,
 u32 labels) with `--repeat N --time`: the median of N detections of each frame. AprilTag 3:
@@ -12,7 +14,7 @@ pupil-apriltags (libapriltag 3.1), nthreads=1, the same quad_decimate, refine_ed
 decode_sharpening 0.25 written into the detector struct (bench_apriltag.py says why), the
 median of N `detect` calls. tag36h11, max Hamming 2 for both. Prints a Markdown table.
 
-    python3 host-tests/scripts/bench_apriltag_1080p.py [--repeat 15]
+    python3 host-tests/scripts/bench_apriltag_1080p.py [--repeat 15] [--size 1280x720 ...]
 
 Run it on an otherwise idle machine (the script holds nothing else).
 """
@@ -41,17 +43,18 @@ PHOTOS = [
 ]
 
 
-def make_frames(out):
+def make_frames(out, fw, fh):
     paths = []
     for rel in PHOTOS:
         img = cv2.imread(os.path.join(DATA, rel), cv2.IMREAD_GRAYSCALE)
         h, w = img.shape
-        nw = round(w * 1080 / h)
-        big = cv2.resize(img, (nw, 1080), interpolation=cv2.INTER_LINEAR)
-        frame = np.full((1080, 1920), 128, np.uint8)
-        x = (1920 - nw) // 2
+        nw = min(round(w * fh / h), fw)
+        interp = cv2.INTER_AREA if fh < h else cv2.INTER_LINEAR
+        big = cv2.resize(img, (nw, fh), interpolation=interp)
+        frame = np.full((fh, fw), 128, np.uint8)
+        x = (fw - nw) // 2
         frame[:, x:x + nw] = big
-        p = os.path.join(out, os.path.splitext(os.path.basename(rel))[0] + "_1080p.png")
+        p = os.path.join(out, f"{os.path.splitext(os.path.basename(rel))[0]}_{fw}x{fh}.png")
         cv2.imwrite(p, frame)
         paths.append(p)
     return paths
@@ -90,22 +93,28 @@ def pupil(paths, decimate, repeat):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=15)
+    ap.add_argument("--size", nargs="+", default=["1920x1080"], metavar="WxH",
+                    help="frame sizes (default 1920x1080)")
     a = ap.parse_args()
+    sizes = [tuple(int(v) for v in s.lower().split("x")) for s in a.size]
     subprocess.run(["cargo", "build", "--release", "-p", "camgeom-host", "--example",
                     "apriltag_detect"], cwd=ROOT, check=True)
     with tempfile.TemporaryDirectory() as tmp:
-        paths = make_frames(tmp)
-        print("| frame (1920x1080) | decimation | camgeom tags | AprilTag 3 tags | camgeom ms | "
+        print("| frame | size | decimation | camgeom tags | AprilTag 3 tags | camgeom ms | "
               "AprilTag 3 ms | ratio | camgeom workspace |")
-        print("|---|---|---|---|---|---|---|---|")
-        for d in (1, 2):
-            c = camgeom(paths, d, a.repeat)
-            p = pupil(paths, d, a.repeat)
-            for path in paths:
-                (cn, cns, ws), (pn, pns) = c[path], p[path]
-                name = os.path.basename(path).replace("_1080p.png", "")
-                print(f"| {name} | {d} | {cn} | {pn} | {cns / 1e6:.1f} | {pns / 1e6:.1f} | "
-                      f"{cns / pns:.2f} | {ws / 1e6:.1f} MB |")
+        print("|---|---|---|---|---|---|---|---|---|")
+        for fw, fh in sizes:
+            paths = make_frames(tmp, fw, fh)
+            for d in (1, 2):
+                c = camgeom(paths, d, a.repeat)
+                p = pupil(paths, d, a.repeat)
+                for path in paths:
+                    (cn, cns, ws), (pn, pns) = c[path], p[path]
+                    name = os.path.basename(path).replace(f"_{fw}x{fh}.png", "")
+                    # 0: the frame (decimated) fits the board's fixed Workspace320x240.
+                    ws = f"{ws / 1e3:.0f} KB" if ws else "Workspace320x240"
+                    print(f"| {name} | {fw}x{fh} | {d} | {cn} | {pn} | {cns / 1e6:.2f} | "
+                          f"{pns / 1e6:.2f} | {cns / pns:.2f} | {ws} |", flush=True)
     sys.stdout.flush()
 
 
