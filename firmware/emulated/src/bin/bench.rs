@@ -15,6 +15,9 @@
 //! - one frame of the planar-target loop (`PlanarTarget::<Fixed, 32>`): pyramid of B, `step`
 //!   (KLT + forward-backward + RANSAC homography + IPPE pose), a cube drawn into B, and the total,
 //!
+//! then the pose of a `const` GridBoard of 12 tags from all its detections and from 3 of them
+//! ([`board_bench`]),
+//!
 //! then logs the cost table and the summary line `homography bench: ... instructions; klt
 //! bench: ... instructions`. Run it with `cargo xtask bench-fw`, which also reports the flash
 //! the bench code takes (this binary built with and without the `size-baseline` feature, which
@@ -124,7 +127,7 @@ fn grid_gap(h: &camgeom::homography::Homography<f32>) -> f32 {
 #[entry]
 fn main() -> ! {
     cost::start();
-    let mut costs = CostTable::<16>::new();
+    let mut costs = CostTable::<20>::new();
     let mut g = Pcg32::new(0x4642_454e_4348);
 
     // Inputs through black_box: nothing may be computed before the measurements start.
@@ -201,11 +204,18 @@ fn main() -> ! {
                 board::exit_failure()
             }
         }
+        // ---- A tag board's pose from its detections ----
+        let (board_12, board_3) = board_bench(&mut costs);
         // ---- KLT, pyramid and the planar-target loop at 320x240 ----
         let k = klt_bench::run(&mut costs);
         costs.log();
         let (stack, stack_size) = board::stack_usage();
         defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
+        defmt::info!(
+            "board bench: board_pose_12 {=u32}, board_pose_3 {=u32} instructions",
+            board_12,
+            board_3
+        );
         defmt::info!(
             "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32}; warp a pixel: f32 {=u32}, fixed {=u32} instructions",
             four_cost / FOUR_POINT_REPS as u32,
@@ -232,6 +242,98 @@ fn main() -> ! {
         defmt::info!("homography bench: size baseline, no solver, no klt (0 instructions)");
     }
     board::exit_success()
+}
+
+/// The pose of a `const` 4x3 `GridBoard` of DICT_4X4_50 tags (OpenCV's
+/// `GridBoard((4, 3), 0.04, 0.01)`, [`camgeom::apriltag::grid_tags`]) from its detections:
+/// every tag's exact corners (a 640x480 camera with distortion, the board 0.5 m away, tilted),
+/// then the same with 3 of the 12 tags. Returns both instruction counts; checks the pose
+/// against the truth.
+#[cfg(not(feature = "size-baseline"))]
+fn board_bench(costs: &mut CostTable<20>) -> (u32, u32) {
+    use camgeom::apriltag::{
+        BoardBuffers, BoardConfig, BoardTag, Detection, TagBoard, board_pose, families, grid_tags,
+    };
+    use camgeom::camera::{Camera, Distortion, Intrinsics};
+    use camgeom::homography::Homography;
+    use camgeom::nalgebra::Point3;
+    use camgeom::transform::Pose;
+
+    /// The board in flash.
+    const TAGS: [BoardTag; 12] = grid_tags(4, 0.04, 0.01, 0);
+    let fail = |what: &str, e: camgeom::Error| -> ! {
+        defmt::error!("{=str}: {}", what, e);
+        board::exit_failure()
+    };
+    let cam = match (
+        Intrinsics::new(600.0f32, 600.0, 320.0, 240.0),
+        Distortion::from_opencv([-0.2f32, 0.05, 0.0, 0.0, 0.0]),
+    ) {
+        (Ok(k), Ok(d)) => Camera::new(k, d),
+        _ => board::exit_failure(),
+    };
+    let truth = match Pose::from_rodrigues(
+        Vector3::new(0.3f32, -0.4, 0.1),
+        Vector3::new(-0.1, -0.06, 0.5),
+    ) {
+        Ok(p) => p,
+        Err(e) => fail("board truth", e),
+    };
+    let board_view = match TagBoard::new(&families::DICT_4X4_50, &TAGS) {
+        Ok(b) => b,
+        Err(e) => fail("board", e),
+    };
+    let mut found = [Detection {
+        family: &families::DICT_4X4_50,
+        id: 0,
+        hamming: 0,
+        decision_margin: 50.0,
+        corners: [Point2::origin(); 4],
+        center: Point2::origin(),
+        homography: Homography::identity(),
+    }; 12];
+    for (d, t) in found.iter_mut().zip(TAGS.iter()) {
+        let mut u = [Point2::origin(); 4];
+        for (p, c) in u.iter_mut().zip(t.corners.iter()) {
+            *p = match cam.project(&truth, &Point3::new(c[0], c[1], c[2])) {
+                Ok(p) => p,
+                Err(e) => fail("board projection", e),
+            };
+        }
+        d.id = t.id;
+        // `target_corners` is corners 3, 2, 1, 0.
+        d.corners = [u[3], u[2], u[1], u[0]];
+    }
+    let found = black_box(found);
+    let cfg = black_box(BoardConfig::default());
+    let mut buf = BoardBuffers::<f32, 48>::new();
+    let mut run = |dets: &[Detection], name: &'static str| -> u32 {
+        let (r, cost) = measure(|| board_pose(&board_view, dets, &cam, &cfg, &mut buf));
+        costs.record(name, cost, dets.len() as u32);
+        match r {
+            Ok(p) => {
+                let dr = (p.estimate.pose.isometry().rotation
+                    * truth.isometry().rotation.inverse())
+                .angle()
+                .to_degrees();
+                let dt = (p.estimate.pose.translation() - truth.translation()).norm();
+                defmt::info!(
+                    "{=str}: {=u16} tags, rms {=f32} px, rotation error {=f32} deg, translation error {=f32} m",
+                    name,
+                    p.tags,
+                    p.estimate.rms_px,
+                    dr,
+                    dt
+                );
+                check(dr < 0.05 && dt < 1e-3, "board pose close to the truth");
+            }
+            Err(e) => fail(name, e),
+        }
+        cost
+    };
+    let all = run(&found, "board_pose_12");
+    let some = run(&found[..3], "board_pose_3");
+    (all, some)
 }
 
 /// KLT, pyramid and the planar-target loop on 320x240 synthetic frames; buffers in statics.
@@ -347,7 +449,7 @@ mod klt_bench {
         pb: &Pyramid<'_>,
         scratch: &mut [i16],
         grad: Option<&mut [[i16; 2]]>,
-        costs: &mut CostTable<16>,
+        costs: &mut CostTable<20>,
     ) -> u32 {
         let grads = match grad {
             Some(g) => Gradients::Auto(g),
@@ -445,7 +547,7 @@ mod klt_bench {
         cost
     }
 
-    pub fn run(costs: &mut CostTable<16>) -> Summary {
+    pub fn run(costs: &mut CostTable<20>) -> Summary {
         let frame_a = FRAME_A.take();
         let frame_b = FRAME_B.take();
         let pyr_a = PYR_A.take();
