@@ -155,10 +155,8 @@ impl<T: Real> GridBoard<T> {
         let id = u16::try_from(usize::from(self.first_id) + k).ok()?;
         let nx = usize::from(self.markers_x);
         let step = self.marker_length + self.marker_separation;
-        let (x, y) = (
-            T::lit((k % nx) as f64) * step,
-            T::lit((k / nx) as f64) * step,
-        );
+        let (col, row) = (k.checked_rem(nx)?, k.checked_div(nx)?);
+        let (x, y) = (T::lit(col as f64) * step, T::lit(row as f64) * step);
         let l = self.marker_length;
         let z = T::zero();
         Some(BoardTag {
