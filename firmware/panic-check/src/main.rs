@@ -941,6 +941,40 @@ fn run_apriltag() {
     }
     run_apriltag_wide_labels(&detector, &v);
     run_aruco(&v, &mut ws);
+    run_board(&found, &cam);
+}
+
+/// A tag board: the const grid table, a grid laid out at run time, a listed board checked,
+/// and the board pose from the frame's detections and from opaque ones.
+#[cfg(feature = "apriltag")]
+fn run_board(found: &[camgeom::apriltag::Detection], cam: &camgeom::camera::Camera<f32>) {
+    use camgeom::apriltag::{
+        BoardBuffers, BoardConfig, BoardTag, GridBoard, TagBoard, board_pose, families, grid_tags,
+    };
+    const TAGS: [BoardTag; 6] = grid_tags(3, 0.04, 0.01, 0);
+    let tags = black_box(TAGS);
+    let mut buf = black_box(BoardBuffers::<f32, 24>::new());
+    let cfg = black_box(BoardConfig::default());
+    if let Ok(board) = TagBoard::new(&families::DICT_4X4_50, &tags) {
+        black_box(board_pose(&board, found, cam, &cfg, &mut buf).ok());
+    }
+    let grid = GridBoard {
+        markers_x: black_box(2),
+        markers_y: black_box(2),
+        marker_length: black_box(0.05f32),
+        marker_separation: black_box(0.01),
+        first_id: black_box(3),
+    };
+    let mut out = black_box(
+        [BoardTag {
+            id: 0,
+            corners: [[0.0f32; 3]; 4],
+        }; 4],
+    );
+    if let Ok(board) = grid.fill(&families::TAG36H11, &mut out) {
+        black_box(board_pose(&board, found, cam, &cfg, &mut buf).ok());
+    }
+    black_box(grid.tag(black_box(9)));
 }
 
 /// ArUco: OpenCV's dictionaries through the same detector (every group's table, mixed with an
