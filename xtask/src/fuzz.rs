@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 1;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 13] = [
+pub const TARGETS: [&str; 14] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -34,6 +34,7 @@ pub const TARGETS: [&str; 13] = [
     "chessboard",
     "calibrate",
     "apriltag",
+    "board",
     "remap",
     "sfm",
     "vanishing",
