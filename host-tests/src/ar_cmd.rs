@@ -35,11 +35,15 @@ pub struct ArArgs {
     #[arg(
         long,
         value_name = "FIRST.csv",
-        required_unless_present = "tag",
-        conflicts_with = "tag",
+        required_unless_present_any = ["tag", "board"],
+        conflicts_with_all = ["tag", "board"],
         requires = "size"
     )]
     corners: Option<PathBuf>,
+    /// A tag board file (see `camgeom apriltag --board`): the pose of the board on every frame
+    /// from all its tags detected there (no tracking between frames), the cube on it.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["tag", "size"])]
+    board: Option<PathBuf>,
     #[command(flatten)]
     camera: CameraArg,
     /// The target's size `W,H` (metres, or the unit the pose should use), or `S` for a square
@@ -285,6 +289,9 @@ fn target_config(a: &ArArgs) -> Result<TargetConfig> {
 /// `camgeom ar`: writes the overlays, `poses.csv` and the contact sheet, returns the JSON
 /// summary.
 pub fn run(a: &ArArgs) -> Result<String> {
+    if let Some(board) = &a.board {
+        return run_board(a, board);
+    }
     // The target's acquisition: given corners, or a tag detector.
     let (size, acquisition) = match (a.tag, a.tag_size, &a.corners, &a.size) {
         (Some(id), Some(s), None, None) => {
@@ -473,4 +480,178 @@ pub fn run(a: &ArArgs) -> Result<String> {
         video_out,
     };
     Ok(to_json(&summary))
+}
+
+/// `camgeom ar --board`: on every frame, the board's tags detected (its family, `--decimate`)
+/// and the board pose from all of them (`apriltag::board_pose`); the overlay draws the board's
+/// outline through the pose (green) and the cube (yellow) centred on the board's extent
+/// `[0, max x] x [0, max y]`, a red border when there is no pose. `poses.csv` as with a target:
+/// `tracked` is the board tags used, `inliers` their corners, `added` and `outline_px` 0 and
+/// nan.
+fn run_board(a: &ArArgs, path: &std::path::Path) -> Result<String> {
+    use camgeom::pose::{PlanarPose, PoseEstimate};
+    use camgeom::target::{TargetFrame, TargetState};
+    use camgeom_host::apriltag::{HostWorkspace, detect};
+    use camgeom_host::ar::draw_target_on;
+    use camgeom_host::board::{board_pose_json, load_board};
+
+    let board = load_board(path)?;
+    let det = detector(&[board.family], a.decimate, 2, true)?;
+    let corners = board.tags.iter().flat_map(|t| t.corners.iter());
+    let (w, h) = corners.fold((0.0f64, 0.0f64), |(w, h), c| (w.max(c[0]), h.max(c[1])));
+    let size = [w as f32, h as f32];
+    let cube = a.cube.unwrap_or(size[0].min(size[1]) / 2.0);
+    if !(cube.is_finite() && cube > 0.0) {
+        return Err(Error::usage(format!("--cube must be positive, got {cube}")));
+    }
+    if !(a.fps.is_finite() && a.fps > 0.0) {
+        return Err(Error::usage(format!(
+            "--fps must be positive, got {}",
+            a.fps
+        )));
+    }
+    let spec = load_camera(&a.camera.intrinsics)?;
+    let camera = spec.camera_f32();
+    let mut source = FrameSource::open(&a.frames, true)?;
+    let n = source.len();
+    create_dir(&a.out)?;
+    let fps = source.fps();
+    let timed = source.is_video();
+    let sheet_idx = evenly_spaced(n, a.sheet_frames);
+    let every = usize::try_from(a.overlay_every).unwrap_or(usize::MAX);
+    let mut ws: Box<HostWorkspace> = Box::default();
+    let (mut tiles, mut rows) = (Vec::new(), Vec::with_capacity(n));
+    let mut video: Option<VideoWriter> = None;
+    let (mut count, mut tracking, mut inliers) = (0usize, 0usize, 0usize);
+    while let Some(frame) = source.next_frame()? {
+        let at = frame.file.clone().unwrap_or_else(|| a.frames.clone());
+        let found: Vec<_> = detect(&det, &mut ws, &frame.gray, &at)?
+            .into_iter()
+            .collect();
+        let (json, pose) = board_pose_json(&board, &found, &spec.camera);
+        let estimate = pose.map(|p| PoseEstimate {
+            pose: camgeom::transform::Pose::from_isometry(p.isometry().cast()),
+            rms_px: json.rms_px.unwrap_or(f64::NAN) as f32,
+        });
+        let planar = estimate.map(|best| PlanarPose {
+            best,
+            alternative: PoseEstimate {
+                rms_px: json.alternative_rms_px.unwrap_or(f64::NAN) as f32,
+                ..best
+            },
+        });
+        let outline = estimate.and_then(|e| {
+            let c = [
+                [0.0, 0.0],
+                [size[0], 0.0],
+                [size[0], size[1]],
+                [0.0, size[1]],
+            ];
+            let mut o = [camgeom::nalgebra::Point2::origin(); 4];
+            for (o, c) in o.iter_mut().zip(c) {
+                *o = camera
+                    .project(&e.pose, &camgeom::nalgebra::Point3::new(c[0], c[1], 0.0))
+                    .ok()?;
+            }
+            Some(o)
+        });
+        let tf = TargetFrame {
+            state: if planar.is_some() {
+                TargetState::Tracking
+            } else {
+                TargetState::Lost
+            },
+            acquired: planar.is_some(),
+            pose: planar,
+            outline,
+            tracked: json.tags.len(),
+            inliers: json.points,
+            added: 0,
+            features: 0,
+        };
+        let index = count;
+        let write = !a.no_overlay && index.is_multiple_of(every);
+        let tile = sheet_idx.contains(&index);
+        if write || tile || a.video_out.is_some() {
+            let canvas = match frame.rgb {
+                Some(rgb) => rgb,
+                None => RgbImage::from_gray(&frame.gray),
+            };
+            let img = draw_target_on(canvas, Some(&camera), &tf, &[], size, cube);
+            if write {
+                img.save_png(a.out.join(format!("{}.png", frame.name)))?;
+            }
+            if tile {
+                tiles.push((index, shrink(&img, a.sheet_scale)));
+            }
+            if let Some(path) = &a.video_out {
+                if video.is_none() {
+                    let rate = fps.unwrap_or(a.fps);
+                    video = Some(VideoWriter::create(path, img.width(), img.height(), rate)?);
+                }
+                if let Some(v) = video.as_mut() {
+                    v.write(&img)?;
+                }
+            }
+        }
+        count += 1;
+        inliers += tf.inliers;
+        let mut row = vec![index.to_string()];
+        if timed {
+            row.push(
+                frame
+                    .t
+                    .map_or_else(|| "nan".to_string(), |t| format!("{t:.6}")),
+            );
+        }
+        let nums = match estimate {
+            Some(e) => {
+                tracking += 1;
+                row.push("tracking".into());
+                let (r, t) = (e.pose.rotation_vector(), e.pose.translation());
+                [r.x, r.y, r.z, t.x, t.y, t.z, e.rms_px]
+            }
+            None => {
+                row.push("lost".into());
+                [f32::NAN; 7]
+            }
+        };
+        row.extend(nums.iter().map(|v| format_float(*v)));
+        row.push(format_float(
+            json.alternative_rms_px.map_or(f32::NAN, |v| v as f32),
+        ));
+        row.push(format_float(f32::NAN));
+        row.extend([tf.tracked, tf.inliers, 0].map(|n| n.to_string()));
+        rows.push(row);
+    }
+    if count == 0 {
+        return Err(Error::new(&a.frames, ErrorKind::Shape("no frames".into())));
+    }
+    let video_out = match (video, &a.video_out) {
+        (Some(v), Some(path)) => {
+            v.finish()?;
+            Some(path.display().to_string())
+        }
+        _ => None,
+    };
+    let mut columns: Vec<&str> = POSES_COLUMNS.to_vec();
+    if timed {
+        columns.insert(1, "t");
+    }
+    let poses = a.out.join("poses.csv");
+    write_file(&poses, format_csv(&columns, rows))?;
+    let sheet_path = a.out.join("contact_sheet.png");
+    contact_sheet(&tiles, a.sheet_cols, 1).save_png(&sheet_path)?;
+    Ok(to_json(&Summary {
+        frames: count,
+        fps,
+        tracking,
+        lost: count - tracking,
+        mean_inliers: inliers as f64 / count.max(1) as f64,
+        worst_outline_px: None,
+        out: a.out.display().to_string(),
+        poses: poses.display().to_string(),
+        contact_sheet: sheet_path.display().to_string(),
+        video_out,
+    }))
 }

@@ -233,3 +233,38 @@ fn wrong_board_files_are_refused() {
     // The family of a board file is one camgeom decodes.
     assert!(families::by_name("DICT_4X4_50").is_some());
 }
+
+/// `camgeom ar --board`: the board's pose on every rendered view, `poses.csv` with the tags
+/// used, the overlays and the contact sheet.
+#[test]
+fn ar_on_the_board() {
+    let out_dir = std::env::temp_dir().join(format!("camgeom-board-ar-{}", std::process::id()));
+    let out = json(&camgeom(&[
+        "ar",
+        "--frames",
+        &camgeom_host::data_dir().join("board").display().to_string(),
+        "--board",
+        &data("board.json"),
+        "--intrinsics",
+        &data("camera.json"),
+        "--out",
+        &out_dir.display().to_string(),
+    ]));
+    assert_eq!(out["frames"], 6);
+    assert_eq!(out["tracking"], 6);
+    let csv = std::fs::read_to_string(out_dir.join("poses.csv")).unwrap();
+    let truth = read("truth.json");
+    for (line, v) in csv.lines().skip(1).zip(truth["views"].as_array().unwrap()) {
+        let f: Vec<&str> = line.split(',').collect();
+        assert_eq!(f[1], "tracking");
+        let num = |k: usize| f[k].parse::<f64>().unwrap();
+        let t = Vector3::new(num(5), num(6), num(7));
+        assert!((t - vec3(&v["tvec"])).norm() < 1e-3, "{line}");
+        assert_eq!(
+            f[11].parse::<usize>().unwrap(),
+            v["visible"].as_array().unwrap().len()
+        );
+    }
+    assert!(out_dir.join("0001.png").is_file() && out_dir.join("contact_sheet.png").is_file());
+    let _ = std::fs::remove_dir_all(&out_dir);
+}
