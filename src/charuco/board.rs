@@ -106,13 +106,14 @@ impl CharucoBoard {
 
     /// ChArUco corners: `(X - 1)(Y - 1)`.
     pub fn corners(&self) -> usize {
-        (self.squares_x() - 1) * (self.squares_y() - 1)
+        self.squares_x().saturating_sub(1) * self.squares_y().saturating_sub(1)
     }
 
     /// Corner `id` in the board frame, `((i + 1) s, (j + 1) s)`; `None` out of range.
     #[doc(alias = "getChessboardCorners")]
     pub fn corner(&self, id: usize) -> Option<Point2<f32>> {
-        let cols = self.squares_x() - 1;
+        // `max(1)`: a board has 2 squares a side at least, but the optimiser cannot see it.
+        let cols = self.squares_x().saturating_sub(1).max(1);
         (id < self.corners()).then(|| {
             Point2::new(
                 ((id % cols) + 1) as f32 * self.square,
@@ -141,12 +142,12 @@ impl CharucoBoard {
         // Row-major cell index of the id-th white cell: white cells are those with c + r odd,
         // i.e. every other cell of the row-major order starting from cell 1.
         let cell = 2 * id + 1;
-        let x = self.squares_x();
+        let x = self.squares_x().max(1);
         let (c, r) = (cell % x, cell / x);
         // With an even X, rows alternate their parity: in odd rows the white squares are the
         // even columns.
         if x.is_multiple_of(2) && !r.is_multiple_of(2) {
-            Some((c - 1, r))
+            Some((c.saturating_sub(1), r))
         } else {
             Some((c, r))
         }
@@ -173,7 +174,7 @@ impl CharucoBoard {
         if id >= self.corners() {
             return None;
         }
-        let cols = self.squares_x() - 1;
+        let cols = self.squares_x().saturating_sub(1).max(1);
         let (i, j) = (id % cols, id / cols);
         let mut out = [0usize; 2];
         let mut n = 0;

@@ -942,6 +942,7 @@ fn run_apriltag() {
     run_apriltag_wide_labels(&detector, &v);
     run_aruco(&v, &mut ws);
     run_board(&found, &cam);
+    run_charuco(&v, &mut ws);
 }
 
 /// A tag board: the const grid table, a grid laid out at run time, a listed board checked,
@@ -975,6 +976,51 @@ fn run_board(found: &[camgeom::apriltag::Detection], cam: &camgeom::camera::Came
         black_box(board_pose(&board, found, cam, &cfg, &mut buf).ok());
     }
     black_box(grid.tag(black_box(9)));
+}
+
+/// ChArUco: the board layout and the corner interpolation from the markers detected (none on
+/// this frame) and from opaque detections of two adjacent markers.
+#[cfg(feature = "apriltag")]
+fn run_charuco(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
+    use camgeom::apriltag::{Detection, Detector, DetectorConfig, families};
+    use camgeom::charuco::{CharucoBoard, CharucoConfig, CharucoCorner, interpolate_corners};
+    use camgeom::homography::Homography;
+    let Ok(board) = CharucoBoard::new(
+        black_box(5),
+        black_box(4),
+        black_box(0.04),
+        black_box(0.03),
+        &families::DICT_4X4_50,
+    ) else {
+        return;
+    };
+    let Ok(detector) = Detector::new(black_box(DetectorConfig::default()), &[board.dictionary()])
+    else {
+        return;
+    };
+    let Ok(params) = black_box(CharucoConfig::default()).check() else {
+        return;
+    };
+    let mut out = [CharucoCorner::default(); 12];
+    if let Ok(found) = detector.detect::<8>(v, &mut ws.as_mut_view()) {
+        black_box(interpolate_corners(&board, v, &found, &params, &mut out).ok());
+    }
+    let fake = |id: u16, x: f32| Detection {
+        family: &families::DICT_4X4_50,
+        id: black_box(id),
+        hamming: 0,
+        decision_margin: 50.0,
+        corners: black_box([
+            Point2::new(x, 30.0),
+            Point2::new(x + 20.0, 30.0),
+            Point2::new(x + 20.0, 10.0),
+            Point2::new(x, 10.0),
+        ]),
+        center: Point2::new(x + 10.0, 20.0),
+        homography: Homography::identity(),
+    };
+    let dets = [fake(0, 10.0), fake(2, 40.0)];
+    black_box(interpolate_corners(&board, v, &dets, &params, &mut out).ok());
 }
 
 /// ArUco: OpenCV's dictionaries through the same detector (every group's table, mixed with an
