@@ -5,7 +5,9 @@
 //! another image size; arbitrary flags, iteration counts and initial guesses. Contract
 //! (`Calibrator::new`, `add_view`, `solve` docs): no panic; `Ok` has a finite camera (positive
 //! focal lengths), a finite RMS `≥ 0` (overall, initial and per used view), at least 3 views
-//! used and finite poses for them; otherwise a documented typed error.
+//! used and finite poses for them; otherwise a documented typed error. With `partial`, the
+//! same board as identified points (`with_points`) and views of any subset (`add_points`):
+//! the same contract, and every rejected view has its reason.
 #![no_main]
 
 use arbitrary::Arbitrary;
@@ -77,6 +79,10 @@ struct Input {
     fix_k4: bool,
     max_iterations: u8,
     guess: Option<[Num; 9]>,
+    /// `Some(mask)`: the board as identified points (`Calibrator::with_points`) and each view
+    /// a subset of them (`add_points`): point `i` of view `v` kept when bit `(i + 7 v) % 64` of
+    /// `mask` is set (a ChArUco or AprilGrid board seen in part).
+    partial: Option<u64>,
 }
 
 fn lit<T: Real>(v: f32) -> T {
@@ -268,6 +274,62 @@ fn run<T: Real>(inp: &Input) {
             ViewEdit::Truncate { view, len } => views[at(*view)].0.truncate(usize::from(*len)),
             ViewEdit::WrongSize(i) => views[at(*i)].1 = true,
         }
+    }
+    if let Some(mask) = inp.partial {
+        let plane: std::vec::Vec<Point2<T>> = model.iter().map(|x| Point2::new(x.x, x.y)).collect();
+        cal = match Calibrator::<T, V, P>::with_points(&plane, square, w, h) {
+            Ok(c) => std::boxed::Box::new(c),
+            Err(Error::NonFinite) => {
+                return assert!(
+                    plane
+                        .iter()
+                        .any(|p| !(p.x / square).finite() || !(p.y / square).finite())
+                );
+            }
+            Err(e) => panic!("with_points: undocumented error {e:?}"),
+        };
+        let mut added = 0;
+        for (v, (px, wrong)) in views.iter().enumerate() {
+            let (vw, vh) = if *wrong { (w + 1, h) } else { (w, h) };
+            let ids: std::vec::Vec<usize> = (0..px.len().min(board.corners()))
+                .filter(|i| (mask >> ((i + 7 * v) % 64)) & 1 == 1)
+                .collect();
+            let pts: std::vec::Vec<Point2<T>> = ids.iter().map(|&i| px[i]).collect();
+            match cal.add_points(vw, vh, &ids, &pts) {
+                Ok(i) => {
+                    assert_eq!(i, added, "view index");
+                    added += 1;
+                }
+                Err(Error::InvalidImage) => assert!(*wrong),
+                Err(Error::NonFinite) => {
+                    assert!(pts.iter().any(|p| !(p.x.finite() && p.y.finite())))
+                }
+                Err(Error::BufferTooSmall("views")) => assert_eq!(added, V),
+                Err(e) => panic!("add_points: undocumented error {e:?}"),
+            }
+        }
+        if let Ok(p) = CalibrationConfig::default().check() {
+            match cal.solve(&p) {
+                Ok(r) => {
+                    check(&r, added, "solve (partial views)");
+                    for (k, rej) in r.rejections.iter().enumerate().take(added) {
+                        assert_eq!(
+                            rej.is_some(),
+                            r.per_view_rms_px[k].is_none(),
+                            "rejection reason"
+                        );
+                    }
+                }
+                Err(e) => assert!(
+                    matches!(
+                        e,
+                        Error::TooFewPoints | Error::Degenerate | Error::NoConvergence
+                    ),
+                    "solve (partial views): undocumented error {e:?}"
+                ),
+            }
+        }
+        return;
     }
     let mut added = 0;
     for (px, wrong) in &views {
