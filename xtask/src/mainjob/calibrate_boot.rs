@@ -24,19 +24,27 @@ use camgeom_fw_app::calibrate_mode::{
     Buffers, PROGRESS_TAG, ProgressRecord, RESULT_TAG, Status, calibrate_mode, decode_result,
 };
 use camgeom_fw_app::calibration::{BoardCalibrator, BoardDetector, CalibRecord, scratch_len};
-use camgeom_fw_app::command::{ACK_TAG, Ack, AckStatus, Command, Mode};
+use camgeom_fw_app::command::{ACK_TAG, Ack, AckStatus, ChessboardSettings, Command, Mode};
 use camgeom_fw_app::pipeline::NoClock;
 use camgeom_fw_app::recorded::{FaultPlan, RecordedCamera, SliceFrames};
 use camgeom_fw_app::run::RunSpec;
 use camgeom_fw_app::settings::{SETTINGS_LEN, SETTINGS_TAG, Settings};
 
 use super::calibration::{TOLERANCE, close, prepare};
-use super::commands::{BOARD, frame};
 use super::emulate;
-use super::stream::decode;
+use super::stream::{decode, frame};
 use super::tag::SIZE;
 use crate::firmware::run_on_qemu_with;
 use crate::jobs::M7;
+
+/// The calibrate mode's chessboard the first boot is told: the bundled one (9x6, 25 mm), 12
+/// views (of its 13).
+pub(super) const BOARD: ChessboardSettings = ChessboardSettings {
+    cols: 9,
+    rows: 6,
+    square: 0.025,
+    views: 12,
+};
 
 /// What a calibrate mode sent: its progress records, its result, its verdict, and the
 /// settings sent after it (the board's only).

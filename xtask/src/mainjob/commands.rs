@@ -27,17 +27,17 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{Context, Result, ensure};
-use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, ChessboardSettings, Command, Mode};
+use camgeom_fw_app::command::{ACK_LEN, Ack, AckStatus, Command, Mode};
 use camgeom_fw_app::frame_chunk::{CHUNK_TAG, FrameChunk};
-use camgeom_fw_app::link::{encode_frame, max_frame_len};
 use camgeom_fw_app::report::{FrameRecord, Record};
 use camgeom_fw_app::run::{Acquisition, RunSpec};
 use camgeom_fw_app::settings::{SETTINGS_LEN, SETTINGS_TAG, Settings};
 use camgeom_host::monitor::monitor_link;
 use camgeom_host::monitor_frames::FrameAssembler;
 
+use super::calibrate_boot::BOARD;
 use super::emulate::{self, read_report};
-use super::stream::decode;
+use super::stream::{decode, frame};
 use super::tag::SIZE;
 use crate::firmware::build_bin_for;
 use crate::jobs::M7;
@@ -46,25 +46,8 @@ use crate::util::root;
 /// Frames of each boot.
 const FRAMES: u32 = 24;
 
-/// The calibrate mode's chessboard the first boot is told: the bundled one (9x6, 25 mm), 12
-/// views (of its 13).
-pub(super) const BOARD: ChessboardSettings = ChessboardSettings {
-    cols: 9,
-    rows: 6,
-    square: 0.025,
-    views: 12,
-};
-
 /// An answer as the check compares it: the command's sequence number, kind, status.
 type Answer = (u16, u32, AckStatus);
-
-/// `record` framed as on the link, sequence number `seq`.
-pub(super) fn frame(seq: u16, record: &[u8]) -> Result<Vec<u8>> {
-    let mut out = vec![0u8; max_frame_len(record.len())];
-    let n = encode_frame(seq, record, &mut out).map_err(|e| anyhow::anyhow!("{e:?}"))?;
-    out.truncate(n);
-    Ok(out)
-}
 
 /// The commands of the first boot, and the answers they must get (sequence, kind, status).
 fn commands(spec: &RunSpec) -> Result<(Vec<u8>, Vec<Answer>, Settings)> {

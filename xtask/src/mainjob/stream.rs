@@ -15,7 +15,7 @@ use std::path::Path;
 use std::process::Command;
 
 use anyhow::{Context, Result, ensure};
-use camgeom_fw_app::link::{Deframer, LinkStats, max_frame_len};
+use camgeom_fw_app::link::{Deframer, LinkStats, encode_frame, max_frame_len};
 use camgeom_fw_app::report::{RECORD_LEN, Record};
 
 use super::live::LiveRun;
@@ -23,6 +23,14 @@ use crate::util::{in_ci, root};
 
 /// The receiver of the stream: room for one frame of the longest record.
 type Receiver = Deframer<{ max_frame_len(RECORD_LEN) }>;
+
+/// `record` framed as on the link, sequence number `seq`.
+pub fn frame(seq: u16, record: &[u8]) -> Result<Vec<u8>> {
+    let mut out = vec![0u8; max_frame_len(record.len())];
+    let n = encode_frame(seq, record, &mut out).map_err(|e| anyhow::anyhow!("{e:?}"))?;
+    out.truncate(n);
+    Ok(out)
+}
 
 /// Frames of `bytes` in arrival order (sequence number, record), with the receiver's counts.
 pub fn decode(bytes: &[u8]) -> (Vec<(u16, Vec<u8>)>, LinkStats) {
