@@ -117,6 +117,7 @@ fn find(board: &CharucoBoard, markers: &[Detection], id: usize) -> Option<Detect
 /// Errors: `BufferTooSmall("corners")` when `out` is shorter than the board's corners.
 #[doc(alias = "interpolateCornersCharuco")]
 #[doc(alias = "detectBoard")]
+#[doc(alias = "CharucoDetector")]
 pub fn interpolate_corners(
     board: &CharucoBoard,
     image: &ImageView<'_, u8>,
