@@ -16,7 +16,8 @@
 //!   (KLT + forward-backward + RANSAC homography + IPPE pose), a cube drawn into B, and the total,
 //!
 //! then the pose of a `const` GridBoard of 12 tags from all its detections and from 3 of them
-//! ([`board_bench`]),
+//! ([`board_bench`]), and a whole 320x240 ArUco detection of six DICT_4X4_50 markers
+//! ([`aruco_bench`]),
 //!
 //! then logs the cost table and the summary line `homography bench: ... instructions; klt
 //! bench: ... instructions`. Run it with `cargo xtask bench-fw`, which also reports the flash
@@ -212,9 +213,10 @@ fn main() -> ! {
         let (stack, stack_size) = board::stack_usage();
         defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
         defmt::info!(
-            "board bench: board_pose_12 {=u32}, board_pose_3 {=u32} instructions",
+            "board bench: board_pose_12 {=u32}, board_pose_3 {=u32} instructions; aruco_detect_320x240 {=u32} instructions",
             board_12,
-            board_3
+            board_3,
+            k.aruco
         );
         defmt::info!(
             "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32}; warp a pixel: f32 {=u32}, fixed {=u32} instructions",
@@ -336,6 +338,108 @@ fn board_bench(costs: &mut CostTable<20>) -> (u32, u32) {
     (all, some)
 }
 
+/// A whole 320x240 ArUco detection (DICT_4X4_50, the board's `Workspace320x240`, decimation 1,
+/// OpenCV's decoding rules): six markers 0..6 drawn from the dictionary's cells, 5 px a cell
+/// (a 6-cell marker of 30 px in a white cell of quiet zone), on a grey ramp, edges softened by a
+/// 3x3 box. Returns the instruction count; checks that all six are found with their ids.
+#[cfg(not(feature = "size-baseline"))]
+fn aruco_bench(costs: &mut CostTable<20>, frame: &mut [u8]) -> u32 {
+    use camgeom::apriltag::{Detection, Detector, DetectorConfig, Workspace320x240, families};
+    use camgeom::image::ImageView;
+    use static_cell::ConstStaticCell;
+
+    const W: usize = 320;
+    const H: usize = 240;
+    const CELL: usize = 5;
+    static WORKSPACE: ConstStaticCell<Workspace320x240> =
+        ConstStaticCell::new(Workspace320x240::new());
+    let fam = &families::DICT_4X4_50;
+    let Some(frame) = frame.get_mut(..W * H) else {
+        board::exit_failure()
+    };
+    for (i, p) in frame.iter_mut().enumerate() {
+        *p = (90 + (i % W) / 8) as u8;
+    }
+    let lo = (i32::from(fam.width_at_border()) - i32::from(fam.total_width())) / 2;
+    let hi = lo + i32::from(fam.total_width());
+    for id in 0..6u16 {
+        // A 3x2 grid of markers, 100 px apart.
+        let (x0, y0) = (
+            40 + 100 * (usize::from(id) % 3),
+            50 + 110 * (usize::from(id) / 3),
+        );
+        for y in lo..hi {
+            for x in lo..hi {
+                let white = fam.cell(id, x, y).unwrap_or(true);
+                for dy in 0..CELL {
+                    for dx in 0..CELL {
+                        let u = x0 as i32 + CELL as i32 * x + dx as i32;
+                        let v = y0 as i32 + CELL as i32 * y + dy as i32;
+                        if let Some(p) = frame.get_mut(v as usize * W + u as usize) {
+                            *p = if white { 220 } else { 30 };
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // The 3x3 box, separable and in place: rows, then columns (one row of each kept).
+    let mut here = [0u8; W];
+    for row in frame.chunks_exact_mut(W) {
+        here.copy_from_slice(row);
+        for (p, w) in row.iter_mut().skip(1).zip(here.windows(3)) {
+            *p = ((u16::from(w[0]) + u16::from(w[1]) + u16::from(w[2])) / 3) as u8;
+        }
+    }
+    let mut above = [0u8; W];
+    above.copy_from_slice(&frame[..W]);
+    for v in 1..H - 1 {
+        here.copy_from_slice(&frame[v * W..(v + 1) * W]);
+        let (top, below) = frame.split_at_mut((v + 1) * W);
+        let row = &mut top[v * W..];
+        for (((p, a), h), b) in row.iter_mut().zip(&above).zip(&here).zip(below.iter()) {
+            *p = ((u16::from(*a) + u16::from(*h) + u16::from(*b)) / 3) as u8;
+        }
+        above = here;
+    }
+    let fail = |what: &str, e: camgeom::Error| -> ! {
+        defmt::error!("{=str}: {}", what, e);
+        board::exit_failure()
+    };
+    let det = match Detector::new(DetectorConfig::default(), &[fam]) {
+        Ok(d) => d,
+        Err(e) => fail("aruco detector", e),
+    };
+    let view = match ImageView::packed(&frame[..], W, H) {
+        Ok(v) => v,
+        Err(e) => fail("aruco frame", e),
+    };
+    let ws = WORKSPACE.take();
+    let (found, cost) = measure(
+        || -> camgeom::Result<camgeom::heapless::Vec<Detection, 16>> {
+            det.detect(black_box(&view), &mut ws.as_mut_view())
+        },
+    );
+    costs.record("aruco_detect_320x240", cost, 6);
+    match found {
+        Ok(found) => {
+            let mut ids = [false; 6];
+            for d in found.iter() {
+                if let Some(seen) = ids.get_mut(usize::from(d.id)) {
+                    *seen = true;
+                }
+            }
+            defmt::info!("aruco bench: {=usize} markers found", found.len());
+            check(
+                found.len() == 6 && ids.iter().all(|&s| s),
+                "the six ArUco markers found with their ids",
+            );
+        }
+        Err(e) => fail("aruco detection", e),
+    }
+    cost
+}
+
 /// KLT, pyramid and the planar-target loop on 320x240 synthetic frames; buffers in statics.
 #[cfg(not(feature = "size-baseline"))]
 mod klt_bench {
@@ -426,6 +530,8 @@ mod klt_bench {
         /// Instructions a written pixel.
         pub warp_f32: u32,
         pub warp_fixed: u32,
+        /// A whole 320x240 ArUco detection (`aruco_bench`, run in frame A's memory first).
+        pub aruco: u32,
     }
 
     fn fail(what: &str, e: camgeom::Error) -> ! {
@@ -549,6 +655,9 @@ mod klt_bench {
 
     pub fn run(costs: &mut CostTable<20>) -> Summary {
         let frame_a = FRAME_A.take();
+        // A 320x240 ArUco detection first, in frame A's memory (the bench has no RAM for a
+        // frame of its own beside the workspace).
+        let aruco = super::aruco_bench(costs, &mut frame_a[..]);
         let frame_b = FRAME_B.take();
         let pyr_a = PYR_A.take();
         let pyr_b = PYR_B.take();
@@ -743,6 +852,7 @@ mod klt_bench {
             target_frame: total,
             warp_f32,
             warp_fixed,
+            aruco,
         }
     }
 }
