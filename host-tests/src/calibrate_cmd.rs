@@ -453,12 +453,74 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     // Outputs, all made before any is written.
     let yaml = camera_yaml(&report, &cfg, board, square, width, height, &per_view);
     let sheet = corners_sheet(&views);
-    let labels: Vec<usize> = views
+    let labels = used_labels(&views, &used);
+    let images_used = used.iter().map(|v| file_name(&v.path)).collect();
+    write_outputs(
+        a,
+        Solved {
+            report,
+            yaml,
+            sheet,
+            labels,
+            images_used,
+            per_view,
+            poses,
+            rejected,
+            skipped,
+            corners_csv,
+            width,
+            height,
+        },
+    )
+}
+
+/// Views numbered from 1, the numbers of those in `used` (the same objects).
+fn used_labels<V>(views: &[V], used: &[&V]) -> Vec<usize> {
+    views
         .iter()
         .enumerate()
         .filter(|(_, v)| used.iter().any(|u| std::ptr::eq(*u, *v)))
         .map(|(i, _)| i + 1)
-        .collect();
+        .collect()
+}
+
+/// What a solved calibration writes and prints, whatever the board: everything is made before
+/// anything is written.
+struct Solved {
+    report: CalibrationReport<f64, MAX_VIEWS>,
+    /// The camera file.
+    yaml: String,
+    /// The contact sheet of the views with their corners.
+    sheet: RgbImage,
+    /// The used views' numbers (from 1), the error chart's bars.
+    labels: Vec<usize>,
+    images_used: Vec<String>,
+    per_view: Vec<f64>,
+    poses: Vec<ViewPose>,
+    rejected: Vec<String>,
+    skipped: Vec<String>,
+    corners_csv: String,
+    width: usize,
+    height: usize,
+}
+
+/// Writes the camera file, the contact sheet, the per-view error chart and (`--corners-out`)
+/// the corners CSV; the JSON summary.
+fn write_outputs(a: &CalibrateArgs, s: Solved) -> Result<String> {
+    let Solved {
+        report,
+        yaml,
+        sheet,
+        labels,
+        images_used,
+        per_view,
+        poses,
+        rejected,
+        skipped,
+        corners_csv,
+        width,
+        height,
+    } = s;
     let chart = error_chart(&labels, &per_view, report.rms_px);
 
     let dir = match &a.pictures {
@@ -483,13 +545,13 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
     }
 
     let k = &report.camera.intrinsics;
-    let s = &report.std;
+    let sd = &report.std;
     let n_lens = lens_coefficients(&report).len();
     Ok(to_json(&Summary {
         views_used: report.views_used,
         views_rejected: rejected,
         views_skipped: skipped,
-        images_used: used.iter().map(|v| file_name(&v.path)).collect(),
+        images_used,
         rms_px: report.rms_px,
         k: [k.fx(), k.skew(), k.cx(), 0.0, k.fy(), k.cy(), 0.0, 0.0, 1.0],
         distortion: lens_coefficients(&report),
@@ -499,11 +561,11 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
             "brown_conrady"
         },
         std: StdDev {
-            fx: s[0],
-            fy: s[1],
-            cx: s[2],
-            cy: s[3],
-            distortion: s.iter().skip(4).take(n_lens).copied().collect(),
+            fx: sd[0],
+            fy: sd[1],
+            cx: sd[2],
+            cy: sd[3],
+            distortion: sd.iter().skip(4).take(n_lens).copied().collect(),
         },
         per_view_rms: per_view,
         views: poses,

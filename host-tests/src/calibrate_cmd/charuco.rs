@@ -237,66 +237,25 @@ pub fn run(a: &CalibrateArgs, spec: &str) -> Result<String> {
         .map(|(i, v)| (i + 1, draw_ids(v)))
         .collect();
     let sheet = contact_sheet(&tiles, 4, width.div_ceil(320).max(1));
-    let labels: Vec<usize> = views
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| used.iter().any(|u| std::ptr::eq(*u, *v)))
-        .map(|(i, _)| i + 1)
-        .collect();
-    let chart = error_chart(&labels, &per_view, report.rms_px);
-    let dir = match &a.pictures {
-        Some(d) => d.clone(),
-        None => a
-            .out
-            .parent()
-            .map_or_else(|| PathBuf::from("."), Path::to_path_buf),
-    };
-    let stem = a.out.file_stem().map_or_else(
-        || "camera".to_string(),
-        |s| s.to_string_lossy().into_owned(),
-    );
-    let sheet_path = dir.join(format!("{stem}_corners.png"));
-    let chart_path = dir.join(format!("{stem}_reprojection_errors.png"));
-    create_dir(&dir)?;
-    write_file(&a.out, &yaml)?;
-    sheet.save_png(&sheet_path)?;
-    chart.save_png(&chart_path)?;
-    if let Some(path) = &a.corners_out {
-        write_file(path, &corners_csv)?;
-    }
-    let k = &report.camera.intrinsics;
-    let s = &report.std;
-    let n_lens = lens_coefficients(&report).len();
-    Ok(to_json(&Summary {
-        views_used: report.views_used,
-        views_rejected: rejected,
-        views_skipped: skipped,
-        images_used: used.iter().map(|v| file_name(&v.path)).collect(),
-        rms_px: report.rms_px,
-        k: [k.fx(), k.skew(), k.cx(), 0.0, k.fy(), k.cy(), 0.0, 0.0, 1.0],
-        distortion: lens_coefficients(&report),
-        model: if a.fisheye {
-            "kannala_brandt"
-        } else {
-            "brown_conrady"
+    let labels = used_labels(&views, &used);
+    let images_used = used.iter().map(|v| file_name(&v.path)).collect();
+    write_outputs(
+        a,
+        Solved {
+            report,
+            yaml,
+            sheet,
+            labels,
+            images_used,
+            per_view,
+            poses,
+            rejected,
+            skipped,
+            corners_csv,
+            width,
+            height,
         },
-        std: StdDev {
-            fx: s[0],
-            fy: s[1],
-            cx: s[2],
-            cy: s[3],
-            distortion: s.iter().skip(4).take(n_lens).copied().collect(),
-        },
-        per_view_rms: per_view,
-        views: poses,
-        warnings: report.warnings.iter().map(warning_name).collect(),
-        image_width: width,
-        image_height: height,
-        iterations: report.iterations,
-        out: a.out.display().to_string(),
-        contact_sheet: sheet_path.display().to_string(),
-        error_chart: chart_path.display().to_string(),
-    }))
+    )
 }
 
 /// The image with a circle at each identified corner (red border when too few).
