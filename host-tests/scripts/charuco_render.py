@@ -2,6 +2,7 @@
 """Renders ChArUco calibration sets with exact ground truth, by OpenCV and numpy only.
 
     python3 host-tests/scripts/charuco_render.py [OUT]   # default host-tests/data/charuco
+    python3 host-tests/scripts/charuco_render.py qvga [DIR]   # DIR/brown -> DIR/brown-320x240
 
 The board: `cv2.aruco.CharucoBoard((11, 8), 0.030, 0.022, DICT_4X4_50)` (OpenCV's default,
 non-legacy layout), drawn by `board.generateImage` at 8 px/mm on a white page with a 20 mm
@@ -24,6 +25,14 @@ Gaussian blur of 0.6 px and seeded noise of sigma 0.6 grey level, 8 bits.
 Truth per set, `truth.yaml`: the camera, and per view its pose (Rodrigues, metres) and
 `truth.csv`: view, ChArUco corner id, x, y of every corner inside the image (pixel (i, j)
 centred at (i, j), projected by cv2.projectPoints / cv2.fisheye.projectPoints). Seed 41.
+
+`qvga`: the brown set at 320x240 for the board (the emulated board's calibration job and its
+ChArUco bench), `brown-320x240/`: each view reduced by `cv2.resize(INTER_AREA)` (an exact 2x2
+mean), so a point at `x` in a 640x480 view is at `(x - 0.5) / 2` in its reduction (pixel
+centres at integers); the truth follows: `fx / 2`, `fy / 2`, `(cx - 0.5) / 2`,
+`(cy - 0.5) / 2`, the same distortion and poses, every truth corner moved so. Also
+`opencv.csv`: `view,id,x,y` of what OpenCV's `CharucoDetector.detectBoard` (default
+parameters) finds in each reduced view.
 """
 import os
 import sys
@@ -180,7 +189,39 @@ def poses(rng, cam, b):
     return out
 
 
+def qvga(root):
+    src, dst = os.path.join(root, "brown"), os.path.join(root, "brown-320x240")
+    os.makedirs(dst, exist_ok=True)
+    det = cv2.aruco.CharucoDetector(board())
+    found = ["view,id,x,y"]
+    for i in range(10):
+        img = cv2.imread(os.path.join(src, "%02d.png" % i), cv2.IMREAD_GRAYSCALE)
+        assert img.shape == (H, W)
+        small = cv2.resize(img, (W // 2, H // 2), interpolation=cv2.INTER_AREA)
+        cv2.imwrite(os.path.join(dst, "%02d.png" % i), small, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        cc, ci, _, _ = det.detectBoard(small)
+        if ci is not None:
+            for k, p in sorted(zip(ci.ravel(), cc.reshape(-1, 2)), key=lambda r: r[0]):
+                found.append("%d,%d,%.6f,%.6f" % (i, k, p[0], p[1]))
+    rows = open(os.path.join(src, "truth.csv")).read().splitlines()
+    out = [rows[0]]
+    for r in rows[1:]:
+        v, k, x, y = r.split(",")
+        out.append("%s,%s,%.6f,%.6f" % (v, k, (float(x) - 0.5) / 2, (float(y) - 0.5) / 2))
+    open(os.path.join(dst, "truth.csv"), "w").write("\n".join(out) + "\n")
+    open(os.path.join(dst, "opencv.csv"), "w").write("\n".join(found) + "\n")
+    yaml = open(os.path.join(src, "truth.yaml")).read().splitlines()
+    K = CAMS["brown"]["K"]
+    k2 = [K[0, 0] / 2, 0, (K[0, 2] - 0.5) / 2, 0, K[1, 1] / 2, (K[1, 2] - 0.5) / 2, 0, 0, 1]
+    yaml = ["camera_matrix: [%s]" % ", ".join("%.10g" % x for x in k2) if l.startswith("camera_matrix") else l
+            for l in yaml]
+    open(os.path.join(dst, "truth.yaml"), "w").write("\n".join(yaml) + "\n")
+
+
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "qvga":
+        return qvga(sys.argv[2] if len(sys.argv) > 2 else os.path.join(
+            os.path.dirname(__file__), "..", "data", "charuco"))
     outdir = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
         os.path.dirname(__file__), "..", "data", "charuco")
     b = board()
