@@ -134,6 +134,7 @@ pub fn bench() -> Result<()> {
         flash as i64 - base_flash as i64,
         kept.display()
     );
+    crate::charuco_bench::prepare()?;
     let summary = run_on_qemu_checked(&elf, BENCH_SUMMARY, BENCH_SUMMARY_REST)?;
     println!("bench-fw: {summary}");
     bench_twoview()

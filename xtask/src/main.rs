@@ -6,6 +6,7 @@
 //! Environment: `CI=true` adds `--locked` to cargo builds; `XTASK_QEMU_TIMEOUT` (seconds,
 //! default 120) bounds the emulator run.
 
+mod charuco_bench;
 mod ci;
 mod firmware;
 mod fuzz;

@@ -28,6 +28,10 @@ const TOP: usize = 30;
 /// instructions.
 pub fn profile(bin: &str, dir: Option<&str>) -> Result<()> {
     let elf = build_bin(bin, &[])?;
+    if bin == crate::firmware::BENCH_BIN {
+        // The bench reads its ChArUco view from the host.
+        crate::charuco_bench::prepare()?;
+    }
     let image = std::fs::read(&elf).with_context(|| format!("cannot read {}", elf.display()))?;
     let mut cmd = Command::new(M7.qemu);
     cmd.args(M7.machine)

@@ -16,8 +16,9 @@
 //!   (KLT + forward-backward + RANSAC homography + IPPE pose), a cube drawn into B, and the total,
 //!
 //! then the pose of a `const` GridBoard of 12 tags from all its detections and from 3 of them
-//! ([`board_bench`]), and a whole 320x240 ArUco detection of six DICT_4X4_50 markers
-//! ([`aruco_bench`]),
+//! ([`board_bench`]), a whole 320x240 ArUco detection of six DICT_4X4_50 markers
+//! ([`aruco_bench`]), and a ChArUco view's detection at 320x240 (markers, corners interpolated
+//! and refined as saddle points) on an OpenCV render read from the host ([`charuco_bench`]),
 //!
 //! then logs the cost table and the summary line `homography bench: ... instructions; klt
 //! bench: ... instructions`. Run it with `cargo xtask bench-fw`, which also reports the flash
@@ -128,7 +129,7 @@ fn grid_gap(h: &camgeom::homography::Homography<f32>) -> f32 {
 #[entry]
 fn main() -> ! {
     cost::start();
-    let mut costs = CostTable::<20>::new();
+    let mut costs = CostTable::<24>::new();
     let mut g = Pcg32::new(0x4642_454e_4348);
 
     // Inputs through black_box: nothing may be computed before the measurements start.
@@ -213,10 +214,14 @@ fn main() -> ! {
         let (stack, stack_size) = board::stack_usage();
         defmt::info!("stack: {=u32} bytes used of {=u32}", stack, stack_size);
         defmt::info!(
-            "board bench: board_pose_12 {=u32}, board_pose_3 {=u32} instructions; aruco_detect_320x240 {=u32} instructions",
+            "board bench: board_pose_12 {=u32}, board_pose_3 {=u32} instructions; aruco_detect_320x240 {=u32} instructions; charuco_view_320x240 {=u32} instructions (markers {=u32}, corners {=u32}: {=u32} found)",
             board_12,
             board_3,
-            k.aruco
+            k.aruco,
+            k.charuco.markers + k.charuco.corners,
+            k.charuco.markers,
+            k.charuco.corners,
+            k.charuco.found
         );
         defmt::info!(
             "homography bench: four_point {=u32}, dlt_64 {=u32}, ransac_100_500it {=u32} instructions; klt bench: pyramid_320x240_4lv {=u32}, klt_fixed_50 {=u32}, klt_fixed_50_auto {=u32}, klt_fixed_200 {=u32}, klt_f32_50 {=u32}, target_frame_32 {=u32}; warp a pixel: f32 {=u32}, fixed {=u32} instructions",
@@ -252,7 +257,7 @@ fn main() -> ! {
 /// then the same with 3 of the 12 tags. Returns both instruction counts; checks the pose
 /// against the truth.
 #[cfg(not(feature = "size-baseline"))]
-fn board_bench(costs: &mut CostTable<20>) -> (u32, u32) {
+fn board_bench(costs: &mut CostTable<24>) -> (u32, u32) {
     use camgeom::apriltag::{
         BoardBuffers, BoardConfig, BoardTag, Detection, TagBoard, board_pose, families, grid_tags,
     };
@@ -341,9 +346,10 @@ fn board_bench(costs: &mut CostTable<20>) -> (u32, u32) {
 /// A whole 320x240 ArUco detection (DICT_4X4_50, the board's `Workspace320x240`, decimation 1,
 /// OpenCV's decoding rules): six markers 0..6 drawn from the dictionary's cells, 5 px a cell
 /// (a 6-cell marker of 30 px in a white cell of quiet zone), on a grey ramp, edges softened by a
-/// 3x3 box. Returns the instruction count; checks that all six are found with their ids.
+/// 3x3 box. Returns the instruction count and [`charuco_bench`]'s (run next, in the same frame
+/// and workspace); checks that all six are found with their ids.
 #[cfg(not(feature = "size-baseline"))]
-fn aruco_bench(costs: &mut CostTable<20>, frame: &mut [u8]) -> u32 {
+fn aruco_bench(costs: &mut CostTable<24>, frame: &mut [u8]) -> (u32, CharucoCost) {
     use camgeom::apriltag::{Detection, Detector, DetectorConfig, Workspace320x240, families};
     use camgeom::image::ImageView;
     use static_cell::ConstStaticCell;
@@ -414,10 +420,10 @@ fn aruco_bench(costs: &mut CostTable<20>, frame: &mut [u8]) -> u32 {
         Ok(v) => v,
         Err(e) => fail("aruco frame", e),
     };
-    let ws = WORKSPACE.take();
+    let ws = &mut WORKSPACE.take().as_mut_view();
     let (found, cost) = measure(
         || -> camgeom::Result<camgeom::heapless::Vec<Detection, 16>> {
-            det.detect(black_box(&view), &mut ws.as_mut_view())
+            det.detect(black_box(&view), ws)
         },
     );
     costs.record("aruco_detect_320x240", cost, 6);
@@ -437,7 +443,155 @@ fn aruco_bench(costs: &mut CostTable<20>, frame: &mut [u8]) -> u32 {
         }
         Err(e) => fail("aruco detection", e),
     }
-    cost
+    (cost, charuco_bench(costs, frame, ws))
+}
+
+/// The ChArUco view of [`charuco_bench`] and what it must give, written by `cargo xtask
+/// bench-fw` (relative to the repository root, where QEMU runs).
+const CHARUCO_VIEW: &str = "target/camgeom-bench/charuco-view.raw";
+const CHARUCO_EXPECT: &str = "target/camgeom-bench/charuco-expect.bin";
+/// Corners [`CHARUCO_EXPECT`] lists at most.
+const CHARUCO_MAX: usize = 80;
+
+/// Instructions of a ChArUco view's detection.
+#[cfg(not(feature = "size-baseline"))]
+pub struct CharucoCost {
+    /// The ArUco detection (`Detector::detect`, DICT_4X4_50).
+    pub markers: u32,
+    /// `interpolate_corners` (prediction from the markers, saddle refinement, checks).
+    pub corners: u32,
+    /// Corners found.
+    pub found: u32,
+}
+
+/// A ChArUco view's detection at 320x240, in `frame` and the ArUco workspace `ws`: view 02 of
+/// the 320x240 ChArUco set (an 11x8 board of DICT_4X4_50 markers rendered by OpenCV through a
+/// Brown-Conrady lens and reduced by `cv2.resize(INTER_AREA)`), read from [`CHARUCO_VIEW`];
+/// the markers (`Detector::detect`), then the corners
+/// (`camgeom::charuco::interpolate_corners`, default options). [`CHARUCO_EXPECT`] says what
+/// must come out (little-endian): `u32` n, `f32` bound, then n times `u32` id, `f32` x, y: the
+/// ids OpenCV's `CharucoDetector` finds in the view, their true pixels (the rendered truth),
+/// and OpenCV's worst distance to them. The bench checks that exactly those ids are found, each
+/// no farther from its truth than the bound.
+#[cfg(not(feature = "size-baseline"))]
+fn charuco_bench(
+    costs: &mut CostTable<24>,
+    frame: &mut [u8],
+    ws: &mut camgeom::apriltag::WorkspaceView<'_>,
+) -> CharucoCost {
+    use camgeom::apriltag::{Detection, Detector, DetectorConfig, families};
+    use camgeom::charuco::{CharucoBoard, CharucoCorner, CharucoParams, interpolate_corners};
+    use camgeom::image::ImageView;
+    use camgeom_fw_emulated::semihost::HostFile;
+
+    const W: usize = 320;
+    const H: usize = 240;
+    let fail = |what: &str, e: camgeom::Error| -> ! {
+        defmt::error!("{=str}: {}", what, e);
+        board::exit_failure()
+    };
+    let host = |what: &str, e: camgeom_fw_emulated::semihost::HostError| -> ! {
+        defmt::error!(
+            "{=str}: host file error {} (`cargo xtask bench-fw` writes it)",
+            what,
+            e
+        );
+        board::exit_failure()
+    };
+    let Some(frame) = frame.get_mut(..W * H) else {
+        board::exit_failure()
+    };
+    if let Err(e) = HostFile::open_read(CHARUCO_VIEW).and_then(|mut f| f.read_exact(frame)) {
+        host(CHARUCO_VIEW, e)
+    }
+    let mut expect = [0u8; 8 + 12 * CHARUCO_MAX];
+    let len = match HostFile::open_read(CHARUCO_EXPECT).and_then(|f| f.file_len()) {
+        Ok(n) if n <= expect.len() && n >= 8 => n,
+        Ok(_) => {
+            defmt::error!("{=str}: not a list of at most 80 corners", CHARUCO_EXPECT);
+            board::exit_failure()
+        }
+        Err(e) => host(CHARUCO_EXPECT, e),
+    };
+    if let Err(e) =
+        HostFile::open_read(CHARUCO_EXPECT).and_then(|mut f| f.read_exact(&mut expect[..len]))
+    {
+        host(CHARUCO_EXPECT, e)
+    }
+    let word = |k: usize| -> [u8; 4] {
+        let mut b = [0u8; 4];
+        b.copy_from_slice(&expect[4 * k..4 * k + 4]);
+        b
+    };
+    let n = u32::from_le_bytes(word(0)) as usize;
+    let bound = f32::from_le_bytes(word(1));
+    check(
+        n <= CHARUCO_MAX && len == 8 + 12 * n,
+        "the expected corners' file is whole",
+    );
+
+    let board = match CharucoBoard::new(11, 8, 0.030, 0.022, &families::DICT_4X4_50) {
+        Ok(b) => b,
+        Err(e) => fail("charuco board", e),
+    };
+    let det = match Detector::new(DetectorConfig::default(), &[board.dictionary()]) {
+        Ok(d) => d,
+        Err(e) => fail("aruco detector", e),
+    };
+    let view = match ImageView::packed(&frame[..], W, H) {
+        Ok(v) => v,
+        Err(e) => fail("charuco frame", e),
+    };
+    let (markers, marker_cost) = measure(
+        || -> camgeom::Result<camgeom::heapless::Vec<Detection, 64>> {
+            det.detect(black_box(&view), ws)
+        },
+    );
+    let markers = match markers {
+        Ok(m) => m,
+        Err(e) => fail("charuco markers", e),
+    };
+    let params = CharucoParams::default();
+    let mut out = [CharucoCorner::default(); CHARUCO_MAX];
+    let (found, corner_cost) =
+        measure(|| interpolate_corners(&board, black_box(&view), &markers, &params, &mut out));
+    let found = match found {
+        Ok(k) => k,
+        Err(e) => fail("charuco corners", e),
+    };
+    costs.record("charuco_markers_320x240", marker_cost, markers.len() as u32);
+    costs.record("charuco_corners", corner_cost, found as u32);
+    costs.record("charuco_view_320x240", marker_cost + corner_cost, 1);
+    let mut worst = 0.0f32;
+    let mut same = found == n;
+    for (k, c) in out.iter().take(found.min(n)).enumerate() {
+        let at = 2 + 3 * k;
+        let id = u32::from_le_bytes(word(at));
+        let (x, y) = (
+            f32::from_le_bytes(word(at + 1)),
+            f32::from_le_bytes(word(at + 2)),
+        );
+        same &= u32::from(c.id) == id;
+        worst = worst.max((c.point - Point2::new(x, y)).norm());
+    }
+    defmt::info!(
+        "charuco bench: {=usize} markers, {=usize} corners found ({=usize} expected), worst {=f32} px from the truth (OpenCV's worst {=f32} px)",
+        markers.len(),
+        found,
+        n,
+        worst,
+        bound
+    );
+    check(same, "the ChArUco view's corners found with OpenCV's ids");
+    check(
+        worst <= bound,
+        "every ChArUco corner as close to the truth as OpenCV's worst",
+    );
+    CharucoCost {
+        markers: marker_cost,
+        corners: corner_cost,
+        found: found as u32,
+    }
 }
 
 /// KLT, pyramid and the planar-target loop on 320x240 synthetic frames; buffers in statics.
@@ -532,6 +686,8 @@ mod klt_bench {
         pub warp_fixed: u32,
         /// A whole 320x240 ArUco detection (`aruco_bench`, run in frame A's memory first).
         pub aruco: u32,
+        /// A ChArUco view's detection (`charuco_bench`, after it in the same memory).
+        pub charuco: super::CharucoCost,
     }
 
     fn fail(what: &str, e: camgeom::Error) -> ! {
@@ -555,7 +711,7 @@ mod klt_bench {
         pb: &Pyramid<'_>,
         scratch: &mut [i16],
         grad: Option<&mut [[i16; 2]]>,
-        costs: &mut CostTable<20>,
+        costs: &mut CostTable<24>,
     ) -> u32 {
         let grads = match grad {
             Some(g) => Gradients::Auto(g),
@@ -653,11 +809,11 @@ mod klt_bench {
         cost
     }
 
-    pub fn run(costs: &mut CostTable<20>) -> Summary {
+    pub fn run(costs: &mut CostTable<24>) -> Summary {
         let frame_a = FRAME_A.take();
         // A 320x240 ArUco detection first, in frame A's memory (the bench has no RAM for a
         // frame of its own beside the workspace).
-        let aruco = super::aruco_bench(costs, &mut frame_a[..]);
+        let (aruco, charuco) = super::aruco_bench(costs, &mut frame_a[..]);
         let frame_b = FRAME_B.take();
         let pyr_a = PYR_A.take();
         let pyr_b = PYR_B.take();
@@ -853,6 +1009,7 @@ mod klt_bench {
             warp_f32,
             warp_fixed,
             aruco,
+            charuco,
         }
     }
 }
