@@ -14,8 +14,12 @@
 //! | 20..24 | `u32` corners | `u32` warnings (bit 0 focal length, 1 principal point, 2 lens) |
 //! | 24.. | `f32` `x y` of each corner, board order ([`CORNERS`] pairs) | `f32` `fx fy cx cy`, `k1 k2 p1 p2 k3`, RMS, initial RMS, 9 standard deviations, then [`VIEWS`] per-view RMS (NaN: rejected), `u32` stack used |
 //!
-//! The run description is [`CalibSpec`] (`calib.bin`, `"CSPC"`, version 2): tag and version,
-//! then `u32` width, height, frames, columns, rows and `f32` square side.
+//! The run description is [`CalibSpec`] (`calib.bin`, `"CSPC"`, version 3): tag and version,
+//! then `u32` width, height, frames, columns, rows, `f32` square side, and the board: `u32`
+//! kind (0 a chessboard of `columns x rows` inner corners, 1 a ChArUco board of
+//! `columns x rows` squares), `f32` marker side and `u32` dictionary (OpenCV's
+//! `PredefinedDictionaryType`; both 0 for a chessboard). A ChArUco spec is run by
+//! [`crate::charuco_calibration`].
 
 use camgeom::Error;
 use camgeom::calib::{CalibrationParams, CalibrationReport, CalibrationWarning, Calibrator};
@@ -36,14 +40,15 @@ pub const CANDIDATES: usize = 512;
 /// Bytes of every calibration record.
 pub const RECORD_LEN: usize = 24 + 8 * CORNERS;
 /// Bytes of a [`CalibSpec`].
-pub const SPEC_LEN: usize = 32;
+pub const SPEC_LEN: usize = 44;
 
 const VIEW_TAG: u32 = tag(b"CVEW");
 const RESULT_TAG: u32 = tag(b"CCAL");
 const SPEC_TAG: u32 = tag(b"CSPC");
 const VERSION: u32 = 1;
-/// The spec's layout version (2: the version word of every record, [`crate::wire`]).
-const SPEC_VERSION: u32 = 2;
+/// The spec's layout version (2: the version word of every record, [`crate::wire`]; 3: the
+/// board's kind).
+const SPEC_VERSION: u32 = 3;
 
 /// The board's calibrator: f32, [`VIEWS`] x [`CORNERS`].
 pub type BoardCalibrator = Calibrator<f32, VIEWS, CORNERS>;
@@ -53,6 +58,22 @@ pub type BoardDetector = ChessboardDetector<CANDIDATES>;
 /// `i32` words of detector scratch for frames `width` wide.
 pub const fn scratch_len(width: usize) -> usize {
     camgeom::chessboard::scratch_len(width)
+}
+
+/// The kind of board a [`CalibSpec`] calibrates from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SpecBoard {
+    /// A chessboard: the spec's columns and rows are its inner corners ([`calibrate`]).
+    Chessboard,
+    /// A ChArUco board: the spec's columns and rows are its squares, as OpenCV's
+    /// `CharucoBoard` size ([`crate::charuco_calibration::calibrate_charuco`]).
+    Charuco {
+        /// Marker side, in the square's unit.
+        marker: f32,
+        /// OpenCV's `PredefinedDictionaryType` of the markers
+        /// ([`crate::charuco_calibration::dictionary`]).
+        dictionary: u32,
+    },
 }
 
 /// What the calibration job is told: frame size, board, square side.
@@ -70,6 +91,8 @@ pub struct CalibSpec {
     pub rows: u32,
     /// Square side (any unit: the poses come out in it).
     pub square: f32,
+    /// The kind of board.
+    pub board: SpecBoard,
 }
 
 impl CalibSpec {
@@ -78,20 +101,37 @@ impl CalibSpec {
         Writer::fill(SPEC_TAG, SPEC_VERSION, |w| {
             w.u32s([self.width, self.height, self.frames, self.cols, self.rows]);
             w.f32(self.square);
+            let (kind, marker, dictionary) = match self.board {
+                SpecBoard::Chessboard => (0, 0.0, 0),
+                SpecBoard::Charuco { marker, dictionary } => (1, marker, dictionary),
+            };
+            w.u32(kind);
+            w.f32(marker);
+            w.u32(dictionary);
         })
     }
 
-    /// Decodes [`SPEC_LEN`] bytes. Errors: [`WireError`] (length, tag, version).
+    /// Decodes [`SPEC_LEN`] bytes. Errors: [`WireError`] (length, tag, version, a board kind
+    /// other than 0 and 1).
     pub fn parse(bytes: &[u8]) -> Result<Self, WireError> {
         let mut r = Reader::new_checked("calib_spec", bytes, SPEC_LEN, &[SPEC_TAG], SPEC_VERSION)?;
         let [width, height, frames, cols, rows] = r.u32s();
+        let square = r.f32();
+        let kind = r.u32();
+        let (marker, dictionary) = (r.f32(), r.u32());
+        let board = match kind {
+            0 => SpecBoard::Chessboard,
+            1 => SpecBoard::Charuco { marker, dictionary },
+            _ => return Err(r.invalid("board")),
+        };
         Ok(Self {
             width,
             height,
             frames,
             cols,
             rows,
-            square: r.f32(),
+            square,
+            board,
         })
     }
 }
@@ -191,8 +231,17 @@ impl ViewRecord {
 }
 
 impl CalibRecord {
+    /// The result record's tag.
+    pub(crate) const TAG: u32 = RESULT_TAG;
+
     /// The [`RECORD_LEN`] bytes.
     pub fn encode(&self) -> [u8; RECORD_LEN] {
+        self.encode_n()
+    }
+
+    /// The record in `N` bytes (zero-padded; [`RECORD_LEN`] here,
+    /// [`crate::charuco_calibration::CHARUCO_RECORD_LEN`] in the ChArUco job's report).
+    pub fn encode_n<const N: usize>(&self) -> [u8; N] {
         Writer::fill(RESULT_TAG, VERSION, |w| {
             w.u32s([self.views_used, self.iterations, self.cost, self.warnings]);
             let rms = [self.rms_px, self.initial_rms_px];
@@ -233,8 +282,15 @@ impl Record {
                 cost,
             }));
         }
+        CalibRecord::decode_fields(&mut r).map(Record::Result)
+    }
+}
+
+impl CalibRecord {
+    /// The fields after the tag and version (the reader's checks done).
+    pub(crate) fn decode_fields(r: &mut Reader<'_>) -> Result<Self, WireError> {
         let [views_used, iterations, cost, warnings] = r.u32s();
-        Ok(Record::Result(CalibRecord {
+        Ok(CalibRecord {
             views_used,
             iterations,
             cost,
@@ -246,7 +302,7 @@ impl Record {
             std: r.f32s(),
             per_view_rms_px: r.f32s(),
             stack: r.u32(),
-        }))
+        })
     }
 }
 
@@ -281,6 +337,9 @@ pub fn calibrate<Src: FrameSource>(
     record: &mut impl FnMut(&ViewRecord),
 ) -> Result<CalibRecord, CalibError<Src::Error>> {
     let (w, h) = (spec.width as usize, spec.height as usize);
+    if spec.board != SpecBoard::Chessboard {
+        return Err(Error::InvalidParameter("board").into());
+    }
     let board = BoardSize::new(spec.cols as usize, spec.rows as usize)?;
     let params = DetectParams::default();
     calibrator.clear();
@@ -325,8 +384,20 @@ mod tests {
             cols: 9,
             rows: 6,
             square: 0.025,
+            board: SpecBoard::Chessboard,
         };
         assert_eq!(CalibSpec::parse(&spec.to_bytes()), Ok(spec));
+        let charuco = CalibSpec {
+            board: SpecBoard::Charuco {
+                marker: 0.022,
+                dictionary: 0,
+            },
+            ..spec
+        };
+        assert_eq!(CalibSpec::parse(&charuco.to_bytes()), Ok(charuco));
+        let mut bad = charuco.to_bytes();
+        bad[32..36].copy_from_slice(&2u32.to_le_bytes());
+        assert!(CalibSpec::parse(&bad).is_err());
         let view = ViewRecord {
             frame: 3,
             corners: Some((0..54).map(|k| [k as f32, -(k as f32) * 0.5]).collect()),

@@ -14,6 +14,7 @@ extern crate std;
 
 pub mod calibrate_mode;
 pub mod calibration;
+pub mod charuco_calibration;
 pub mod command;
 pub mod costs;
 pub mod frame_chunk;

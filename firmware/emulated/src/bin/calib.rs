@@ -2,12 +2,22 @@
 //! 320x240 by `cargo xtask run`, arrive as frames over semihosting; the board detects the board
 //! in each, keeps the views in fixed RAM and solves for K, distortion and RMS
 //! ([`camgeom_fw_app::calibration::calibrate`], the code the host replay runs), writing one
-//! record a frame and the result to `calib-report.bin`.
+//! record a frame and the result to `calib-report.bin`. When `calib.bin` describes a ChArUco
+//! board, the same for ChArUco views seen in part
+//! ([`camgeom_fw_app::charuco_calibration::calibrate_charuco`]: the ArUco detector in
+//! [`Workspace320x240`], the corners interpolated and refined, `Calibrator::add_points`).
 #![no_std]
 #![no_main]
 
+use camgeom::apriltag::{Detector, DetectorConfig, Workspace320x240};
+use camgeom::charuco::CharucoParams;
 use camgeom_fw_app::calibration::{
-    BoardCalibrator, BoardDetector, CalibError, CalibSpec, SPEC_LEN, calibrate, scratch_len,
+    BoardCalibrator, BoardDetector, CalibError, CalibRecord, CalibSpec, SPEC_LEN, SpecBoard,
+    calibrate, scratch_len,
+};
+use camgeom_fw_app::charuco_calibration::{
+    CHARUCO_CORNERS, CHARUCO_RECORD_LEN, CharucoCalibrator, CharucoDetection, MARKERS, board_of,
+    calibrate_charuco, charuco_calibrator,
 };
 use camgeom_fw_app::pipeline::Clock;
 use camgeom_fw_app::recorded::{CameraError, FaultPlan, RecordedCamera};
@@ -22,6 +32,8 @@ static FRAME: ConstStaticCell<[u8; W * H]> = ConstStaticCell::new([0; W * H]);
 static DETECTOR: ConstStaticCell<BoardDetector> = ConstStaticCell::new(BoardDetector::new());
 static SCRATCH: ConstStaticCell<[i32; scratch_len(W)]> = ConstStaticCell::new([0; scratch_len(W)]);
 static CALIBRATOR: StaticCell<BoardCalibrator> = StaticCell::new();
+static WORKSPACE: ConstStaticCell<Workspace320x240> = ConstStaticCell::new(Workspace320x240::new());
+static CHARUCO_CALIBRATOR: StaticCell<CharucoCalibrator> = StaticCell::new();
 
 struct SysTickClock;
 
@@ -63,6 +75,9 @@ fn main() -> ! {
         Ok(f) => f,
         Err(e) => fail_host("calib-report.bin", e),
     };
+    if spec.board != SpecBoard::Chessboard {
+        charuco(&spec, &mut camera, &mut report)
+    }
     let calibrator = match BoardCalibrator::new(
         camgeom::chessboard::BoardSize::new(spec.cols as usize, spec.rows as usize).unwrap_or_else(
             |e| {
@@ -96,18 +111,7 @@ fn main() -> ! {
             }
         },
     );
-    let mut result = match result {
-        Ok(r) => r,
-        Err(CalibError::Source(CameraError::Read(e))) => fail_host("frames.raw", e),
-        Err(CalibError::Source(CameraError::WrongSize)) => {
-            defmt::error!("frames.raw: a frame of the wrong size");
-            board::exit_failure()
-        }
-        Err(CalibError::Core(e)) => {
-            defmt::error!("calibration: {}", e);
-            board::exit_failure()
-        }
-    };
+    let mut result = checked(result);
     result.stack = board::stack_usage().0;
     if let Err(e) = report.write_all(&result.encode()) {
         fail_host("calib-report.bin", e)
@@ -126,6 +130,92 @@ fn main() -> ! {
         result.cost,
         result.stack,
         BoardCalibrator::BYTES
+    );
+    board::exit_success()
+}
+
+/// The result, or the failure logged and the run ended.
+fn checked(result: Result<CalibRecord, CalibError<CameraError<HostError>>>) -> CalibRecord {
+    match result {
+        Ok(r) => r,
+        Err(CalibError::Source(CameraError::Read(e))) => fail_host("frames.raw", e),
+        Err(CalibError::Source(CameraError::WrongSize)) => {
+            defmt::error!("frames.raw: a frame of the wrong size");
+            board::exit_failure()
+        }
+        Err(CalibError::Core(e)) => {
+            defmt::error!("calibration: {}", e);
+            board::exit_failure()
+        }
+    }
+}
+
+/// The ChArUco run: every frame's markers and corners, the views of enough corners kept, the
+/// solve; the records to `report`, the summary line, and the run ends. Never inlined: its
+/// locals stay out of `main`'s frame, so the chessboard run's stack is its own.
+#[inline(never)]
+fn charuco(spec: &CalibSpec, camera: &mut RecordedCamera<HostFrames>, report: &mut HostFile) -> ! {
+    let fail = |what: &str, e: camgeom::Error| -> ! {
+        defmt::error!("{=str}: {}", what, e);
+        board::exit_failure()
+    };
+    let board = board_of(spec).unwrap_or_else(|e| fail("ChArUco board", e));
+    let detector = Detector::new(DetectorConfig::default(), &[board.dictionary()])
+        .unwrap_or_else(|e| fail("ArUco detector", e));
+    let calibrator = match charuco_calibrator(&board, W, H) {
+        Ok(c) => CHARUCO_CALIBRATOR.init(c),
+        Err(e) => fail("calibrator", e),
+    };
+    let params = CharucoParams::default();
+    let mut ws = WORKSPACE.take().as_mut_view();
+    let mut detection = CharucoDetection {
+        board: &board,
+        detector: &detector,
+        workspace: &mut ws,
+        params: &params,
+    };
+    let (mut found, mut corners, mut worst) = (0u32, 0u32, 0u32);
+    let result = calibrate_charuco(
+        spec,
+        camera,
+        FRAME.take(),
+        &mut detection,
+        calibrator,
+        &mut SysTickClock,
+        &mut |v| {
+            found += u32::from(!v.corners.is_empty());
+            corners += v.corners.len() as u32;
+            worst = worst.max(v.cost);
+            if let Err(e) = report.write_all(&v.encode()) {
+                fail_host("calib-report.bin", e)
+            }
+        },
+    );
+    let mut result = checked(result);
+    result.stack = board::stack_usage().0;
+    if let Err(e) = report.write_all(&result.encode_n::<CHARUCO_RECORD_LEN>()) {
+        fail_host("calib-report.bin", e)
+    }
+    let [fx, fy, cx, cy] = result.intrinsics;
+    defmt::info!(
+        "charuco calibration: corners found in {=u32} of {=u32} frames ({=u32} corners), {=u32} views used; fx {=f32} fy {=f32} cx {=f32} cy {=f32}, RMS {=f32} px; worst detection {=u32}, solve {=u32} instructions, stack {=u32} bytes; RAM of the ChArUco path: marker workspace {=usize} bytes, calibrator {=usize} bytes, a frame's corners {=usize} and markers {=usize} bytes (stack), the frame {=usize} bytes",
+        found,
+        spec.frames,
+        corners,
+        result.views_used,
+        fx,
+        fy,
+        cx,
+        cy,
+        result.rms_px,
+        worst,
+        result.cost,
+        result.stack,
+        Workspace320x240::BYTES,
+        CharucoCalibrator::BYTES,
+        core::mem::size_of::<[camgeom::charuco::CharucoCorner; CHARUCO_CORNERS]>(),
+        core::mem::size_of::<camgeom::heapless::Vec<camgeom::apriltag::Detection, MARKERS>>(),
+        W * H
     );
     board::exit_success()
 }
