@@ -426,4 +426,45 @@ mod tests {
         assert_eq!(Record::decode(&res.encode()), Ok(Record::Result(res)));
         assert!(Record::decode(&res.encode()[..10]).is_err());
     }
+
+    #[test]
+    fn a_charuco_spec_is_not_a_chessboard_run() {
+        use crate::recorded::{FaultPlan, RecordedCamera, SliceFrames};
+        use std::boxed::Box;
+        use std::vec;
+        let spec = CalibSpec {
+            width: 16,
+            height: 16,
+            frames: 1,
+            cols: 5,
+            rows: 4,
+            square: 0.03,
+            board: SpecBoard::Charuco {
+                marker: 0.02,
+                dictionary: 0,
+            },
+        };
+        let raw = vec![0u8; 16 * 16];
+        let mut camera =
+            RecordedCamera::new(SliceFrames::new(&raw, 16, 16), 1, 1, FaultPlan::none());
+        let mut frame = vec![0u8; 16 * 16];
+        let mut detector: Box<BoardDetector> = Box::default();
+        let mut scratch = vec![0i32; scratch_len(16)];
+        let board = BoardSize::new(4, 3).unwrap();
+        let mut calibrator = Box::new(BoardCalibrator::new(board, 0.03, 16, 16).unwrap());
+        let r = calibrate(
+            &spec,
+            &mut camera,
+            &mut frame,
+            &mut detector,
+            &mut scratch,
+            &mut calibrator,
+            &mut crate::pipeline::NoClock,
+            &mut |_| panic!("no frame is read"),
+        );
+        assert!(matches!(
+            r,
+            Err(CalibError::Core(Error::InvalidParameter("board")))
+        ));
+    }
 }

@@ -553,3 +553,40 @@ fn run_charuco(elf: &Path, ram: u64, flash: u64) -> Result<String> {
         r.stack
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn record(intrinsics: [f32; 4], std: f32) -> CalibRecord {
+        CalibRecord {
+            views_used: 10,
+            iterations: 5,
+            cost: 0,
+            warnings: 0,
+            intrinsics,
+            distortion: [-0.3, 0.1, 0.001, -0.0008, -0.015],
+            rms_px: 0.1,
+            initial_rms_px: 0.5,
+            std: [std; 9],
+            per_view_rms_px: [0.1; camgeom_fw_app::calibration::VIEWS],
+            stack: 0,
+        }
+    }
+
+    #[test]
+    fn the_truth_check_refuses_a_result_off_its_own_uncertainty() {
+        let truth = Truth {
+            intrinsics: [260.0, 258.0, 161.0, 118.75],
+            distortion: [-0.3, 0.1, 0.001, -0.0008, -0.015],
+        };
+        let near = record([260.2, 257.9, 161.1, 118.7], 0.1);
+        let (dk, _) = against_truth(&near, &truth).unwrap();
+        assert!((dk[0] - 0.2).abs() < 1e-3);
+        // fx off by 0.4 with a stated deviation of 0.1: refused.
+        assert!(against_truth(&record([260.4, 258.0, 161.0, 118.75], 0.1), &truth).is_err());
+        // A NaN deviation or result is refused, not passed.
+        assert!(against_truth(&record([260.0, 258.0, 161.0, 118.75], f32::NAN), &truth).is_err());
+        assert!(against_truth(&record([f32::NAN, 258.0, 161.0, 118.75], 0.1), &truth).is_err());
+    }
+}
