@@ -17,7 +17,12 @@
 //!
 //! For an ArUco dictionary the border cells are read the same way (centre, against the
 //! models, sharpened with the payload): those read white are OpenCV's border errors
-//! (`_getBorderErrors`), which the detector bounds by `maxErroneousBitsInBorderRate`.
+//! (`_getBorderErrors`), which the detector bounds by `maxErroneousBitsInBorderRate`. For a
+//! family whose border is wider than one cell ([`Family::border_bits`]) the rings inside the
+//! outer one are read too (against the models, not sharpened, the payload read as for a
+//! 1-cell border): each read white is a wrong bit, which the detector counts with the
+//! payload's against its correction bound. Without it, a 1-cell-border tag36h11 read as the
+//! 2-cell family is a scaled copy of its own payload, within 2 bits of its code for some ids.
 //!
 //! Coordinates are camgeom's: pixel `(i, j)` has its centre at `(i, j)`. AprilTag's pixel
 //! centres are at `(i + 0.5, j + 0.5)`; the sampling positions here are AprilTag's shifted by
@@ -233,9 +238,10 @@ impl GrayModel {
 pub const MAX_TOTAL_WIDTH: usize = 12;
 
 /// A read payload: the word, the decision margin, whether every sample of the ring just
-/// outside the detection border (the quiet zone) was inside the image, and (ArUco
-/// dictionaries; 0 for AprilTag families) the border cells read white, and the contrast of
-/// the quiet zone over the border at the centre (the two models' difference, grey levels).
+/// outside the detection border (the quiet zone) was inside the image, the border cells read
+/// white (ArUco dictionaries: the border ring, OpenCV's `_getBorderErrors`; a family with a
+/// border wider than one cell: its inner rings; 0 otherwise), and the contrast of the quiet
+/// zone over the border at the centre (the two models' difference, grey levels).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Reading {
     pub(crate) rcode: u64,
@@ -304,16 +310,16 @@ pub(crate) fn read_code(
     }
     let min_coord = (wab as i32 - tw as i32) / 2;
     let mut values = [0f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH];
-    let cell = |x: i8, y: i8| -> Option<usize> {
-        let (cx, cy) = (i32::from(x) - min_coord, i32::from(y) - min_coord);
+    let cell = |x: i32, y: i32| -> Option<usize> {
+        let (cx, cy) = (x - min_coord, y - min_coord);
         if cx < 0 || cy < 0 || cx >= tw as i32 || cy >= tw as i32 {
             return None;
         }
         Some(cy as usize * tw + cx as usize)
     };
-    let read = |x: i8, y: i8, values: &mut [f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH]| {
-        let tx = 2.0 * ((f32::from(x) + 0.5) / wabf - 0.5);
-        let ty = 2.0 * ((f32::from(y) + 0.5) / wabf - 0.5);
+    let read = |x: i32, y: i32, values: &mut [f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH]| {
+        let tx = 2.0 * ((x as f32 + 0.5) / wabf - 0.5);
+        let ty = 2.0 * ((y as f32 + 0.5) / wabf - 0.5);
         let Some(p) = project(h, tx, ty) else {
             return;
         };
@@ -325,19 +331,24 @@ pub(crate) fn read_code(
             *slot = v - thresh;
         }
     };
-    for b in family.layout {
-        read(b.x, b.y, &mut values);
+    // The payload cells, the layout moved inward for a border wider than one cell.
+    let bits = || (0..family.layout.len()).filter_map(|i| family.bit_cell(i));
+    for (x, y) in bits() {
+        read(x, y, &mut values);
     }
     // The border ring of an ArUco marker: cells (x, y) of 0..wab with x or y at 0 or wab - 1.
     let aruco = family.is_aruco();
-    let last = (wab - 1) as i8;
-    let ring = move || {
-        (0..=last).flat_map(move |i| {
-            let side = [(i, 0), (i, last)];
-            let inner = (1..last).contains(&i).then_some([(0, i), (last, i)]);
+    // The ring of cells `d` in from the border's outer edge: (x, y) of d..wab - d with x or
+    // y at d or wab - 1 - d.
+    let rings = move |d: i32| {
+        let (lo, hi) = (d, wab as i32 - 1 - d);
+        (lo..=hi).flat_map(move |i| {
+            let side = [(i, lo), (i, hi)];
+            let inner = (lo + 1..hi).contains(&i).then_some([(lo, i), (hi, i)]);
             side.into_iter().chain(inner.into_iter().flatten())
         })
     };
+    let ring = move || rings(0);
     if aruco {
         for (x, y) in ring() {
             read(x, y, &mut values);
@@ -369,8 +380,8 @@ pub(crate) fn read_code(
     }
     let (mut ws, mut bs, mut wc, mut bc) = (0f32, 0f32, 1f32, 1f32);
     let mut rcode: u64 = 0;
-    for b in family.layout {
-        let v = cell(b.x, b.y)
+    for (x, y) in bits() {
+        let v = cell(x, y)
             .and_then(|i| values.get(i))
             .copied()
             .unwrap_or(0.0);
@@ -391,13 +402,8 @@ pub(crate) fn read_code(
         // A real marker's cells sit near its two levels and `t` stays near 0; a patch of
         // texture inside a bright surround has its split moved down, and its border cells
         // no longer all read black.
-        let at = |(x, y): (i8, i8)| cell(x, y).and_then(|i| values.get(i)).copied();
-        let cells = family
-            .layout
-            .iter()
-            .map(|b| (b.x, b.y))
-            .chain(ring())
-            .filter_map(at);
+        let at = |(x, y): (i32, i32)| cell(x, y).and_then(|i| values.get(i)).copied();
+        let cells = bits().chain(ring()).filter_map(at);
         let (mut hi, mut nhi, mut lo, mut nlo) = (0f32, 0u32, 0f32, 0u32);
         for v in cells {
             if v > 0.0 {
@@ -415,7 +421,18 @@ pub(crate) fn read_code(
         };
         ring().filter(|&c| at(c).is_some_and(|v| v > t)).count() as u16
     } else {
-        0
+        // A border wider than a cell: the rings inside the outer one, read after the payload
+        // (which is read as for a 1-cell border) against the models' threshold; a cell read
+        // white is a wrong bit of the tag.
+        let mut wrong = 0u16;
+        for d in 1..i32::from(family.border_bits) {
+            for (x, y) in rings(d) {
+                read(x, y, &mut values);
+                let v = cell(x, y).and_then(|i| values.get(i)).copied();
+                wrong += u16::from(v.is_some_and(|v| v > 0.0));
+            }
+        }
+        wrong
     };
     Some(Reading {
         rcode,

@@ -42,6 +42,15 @@ pub struct DetectorConfig {
     pub max_hamming: u8,
     /// Tiles whose dilated `max - min` is below this are skipped (default 5, at least 1).
     pub min_white_black_diff: u8,
+    /// Where a pixel turns black between its tile neighbourhood's min and max: black when
+    /// `v ≤ min + ⌊(max - min) f⌋` (default `1/2`, AprilTag's). In `[1/8, 7/8]`, read in
+    /// 1/256 steps. Below `1/2` a mid-grey pixel reads white: black areas that touch only at
+    /// a corner (Kalibr's AprilGrid, a tag's corner meeting a square's, where a pixel on the
+    /// junction reads about half way) stay apart, as OpenCV's adaptive threshold keeps them
+    /// (black only `C = 7` grey levels below the local mean); at `1/2` such a pixel joins
+    /// the two in about half the junctions and the tag's outline is lost. The quad's edges
+    /// are refined on the image, not on the threshold: the corners do not move with it.
+    pub threshold_fraction: f32,
     /// Clusters with fewer boundary points are ignored (default 24).
     pub min_cluster_pixels: u16,
     /// Corner candidates kept per cluster (default 10, 4..=12).
@@ -103,6 +112,7 @@ impl Default for DetectorConfig {
             decode_sharpening: 0.25,
             max_hamming: 2,
             min_white_black_diff: 5,
+            threshold_fraction: 0.5,
             min_cluster_pixels: 24,
             max_nmaxima: 10,
             critical_angle_deg: 10.0,
@@ -230,7 +240,8 @@ impl Detector {
     /// `"max_hamming"` (above [`MAX_CORRECTABLE`] or not below half an AprilTag family's
     /// distance), `"error_correction_rate"` and `"max_erroneous_bits_in_border_rate"` (not in
     /// `[0, 1]`), `"min_white_black_diff"`, `"max_nmaxima"`, `"critical_angle_deg"`,
-    /// `"max_line_fit_mse"`, `"decode_sharpening"`, `"min_decision_margin"`, `"max_batches"`).
+    /// `"max_line_fit_mse"`, `"decode_sharpening"`, `"min_decision_margin"`, `"max_batches"`,
+    /// `"threshold_fraction"`).
     #[doc(alias = "ArucoDetector")]
     pub fn new(cfg: DetectorConfig, families: &[&'static Family]) -> Result<Self> {
         if families.is_empty() || families.len() > MAX_FAMILIES {
@@ -287,6 +298,9 @@ impl Detector {
         }
         if cfg.min_white_black_diff == 0 {
             return Err(Error::InvalidParameter("min_white_black_diff"));
+        }
+        if !(0.125..=0.875).contains(&cfg.threshold_fraction) {
+            return Err(Error::InvalidParameter("threshold_fraction"));
         }
         if !(4..=MAX_NMAXIMA as u8).contains(&cfg.max_nmaxima) {
             return Err(Error::InvalidParameter("max_nmaxima"));
@@ -447,6 +461,7 @@ impl Detector {
         let tiles = build_tiles(
             &src,
             self.cfg.min_white_black_diff,
+            (self.cfg.threshold_fraction * 256.0) as u8,
             ws.tiles,
             ws.ring_min,
             ws.ring_max,
@@ -660,9 +675,21 @@ impl Detector {
             if !crate::scalar::at_most(self.cfg.min_decision_margin.max(0.0), margin) {
                 continue;
             }
-            let Some(dec) = family.decode(rcode, lim.max_hamming) else {
+            // A border wider than a cell: its inner rings are known bits, corrected within
+            // the same bound as the payload's (`border_errors` is 0 for other AprilTag
+            // families; an ArUco dictionary's is bounded on its own above).
+            let inner = if family.is_aruco() {
+                0
+            } else {
+                reading.border_errors
+            };
+            let Some(budget) = u16::from(lim.max_hamming).checked_sub(inner) else {
                 continue;
             };
+            let Some(mut dec) = family.decode(rcode, budget as u8) else {
+                continue;
+            };
+            dec.hamming = dec.hamming.saturating_add(inner as u8);
             if !keep(family, dec.id) {
                 continue;
             }

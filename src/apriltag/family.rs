@@ -8,6 +8,13 @@
 //! corner, so cells may lie outside the border: tagStandard41h12 has bits at -2), white when
 //! bit `nbits - 1 - i` of the code is set (AprilTag 3's order: `apriltag_to_image`).
 //!
+//! **Border width** ([`Family::border_bits`]): the layouts are those of a border 1 cell wide
+//! (as AprilTag 3 and OpenCV draw every family). A family drawn with a border `b` cells wide
+//! (Kalibr's AprilGrid tags: tag36h11 with `b = 2`, the old AprilTags C++ library's drawing)
+//! has the same codes, ids and layout with every payload cell moved inward by `b - 1` on both
+//! axes ([`Family::bit_cell`]) and `2 (b - 1)` more cells across the border: the same
+//! decoder reads it, the layout's cells shifted.
+//!
 //! The layouts are built so that turning the tag a quarter turn is a cyclic shift of the code
 //! by `nbits / 4` ([`rotate90`], AprilTag's `rotate90`: the code of the tag turned a quarter
 //! counter-clockwise on screen, `y` down; the centre cell fixed when `nbits` is odd). A read
@@ -108,6 +115,8 @@ pub struct Family {
     pub(crate) width_at_border: u8,
     pub(crate) total_width: u8,
     pub(crate) reversed_border: bool,
+    /// Cells across the black border (1 for the families as AprilTag 3 and OpenCV draw them).
+    pub(crate) border_bits: u8,
     pub(crate) kind: Kind,
     pub(crate) layout: &'static [LayoutBit],
     pub(crate) codes: Codes,
@@ -252,9 +261,23 @@ impl Family {
     pub fn reversed_border(&self) -> bool {
         self.reversed_border
     }
-    /// The payload layout (module docs).
+    /// Cells across the black border between the detection edge and the payload (module
+    /// docs): 1 for the families as AprilTag 3 and OpenCV draw them, 2 for
+    /// [`super::families::TAG36H11_B2`] (Kalibr's AprilGrid tags).
+    pub fn border_bits(&self) -> u8 {
+        self.border_bits
+    }
+    /// The payload layout for a 1-cell border (module docs): a family with a wider border has
+    /// its cells at [`Self::bit_cell`].
     pub fn layout(&self) -> &'static [LayoutBit] {
         self.layout
+    }
+    /// The cell `(x, y)` of payload bit `i` (columns and rows from the border's outer corner):
+    /// `layout[i]` moved inward by `border_bits - 1`. `None` past the layout.
+    pub fn bit_cell(&self, i: usize) -> Option<(i32, i32)> {
+        let b = self.layout.get(i)?;
+        let shift = i32::from(self.border_bits) - 1;
+        Some((i32::from(b.x) + shift, i32::from(b.y) + shift))
     }
     /// The code of tag `id`, `None` past the table.
     pub fn code(&self, id: u16) -> Option<u64> {
@@ -287,20 +310,16 @@ impl Family {
             return None;
         }
         let n = self.layout.len();
-        if let Some(i) = self
-            .layout
-            .iter()
-            .position(|b| i32::from(b.x) == x && i32::from(b.y) == y)
-        {
+        if let Some(i) = (0..n).position(|i| self.bit_cell(i) == Some((x, y))) {
             return Some((code >> (n - 1 - i)) & 1 == 1);
         }
-        // Not a payload cell: the border square (black; white when reversed), a ring outside it
-        // (white; black when reversed, where the reversed family's outer ring is) or, for
-        // normal families, cells inside the border that the layout leaves out (none here).
-        let on_border = (x == 0 || y == 0 || x == wab - 1 || y == wab - 1)
-            && (0..wab).contains(&x)
-            && (0..wab).contains(&y);
-        let inside = (1..wab - 1).contains(&x) && (1..wab - 1).contains(&y);
+        // Not a payload cell: the border square `border_bits` wide (black; white when
+        // reversed), a ring outside it (white; black when reversed, where the reversed
+        // family's outer ring is) or, for normal families, cells inside the border that the
+        // layout leaves out (none here).
+        let depth = x.min(y).min(wab - 1 - x).min(wab - 1 - y);
+        let on_border = (0..i32::from(self.border_bits)).contains(&depth);
+        let inside = depth >= i32::from(self.border_bits);
         // Reversed (tagStandard41h12): only the detection ring is white. Normal: the quiet
         // zone around the border is white, the border and unused inner cells black.
         Some(if self.reversed_border {

@@ -4,7 +4,8 @@
 //! **Threshold** (AprilTag's `threshold`): the image is cut into 4x4 tiles; each tile's min and
 //! max are dilated over its 3x3 tile neighbourhood; a pixel of a tile whose dilated
 //! `max - min < min_white_black_diff` is *skipped* (no edge can be there), others are white
-//! when `v > min + (max - min) / 2`, black otherwise. Partial tiles at the right and bottom
+//! when `v > min + ⌊(max - min) f⌋`, black otherwise, with `f` the detector's
+//! `threshold_fraction` (AprilTag's `1/2`, exactly its `min + (max - min) / 2`, by default). Partial tiles at the right and bottom
 //! use the last full tile. Storage: one byte per tile (the threshold, 255 = skipped) and a ring
 //! of three tile rows of raw min/max; the thresholded image itself is never stored, each pass
 //! recomputes a row (one compare a pixel).
@@ -110,6 +111,7 @@ pub(crate) const fn tile_count(w: usize, h: usize) -> usize {
 pub(crate) fn build_tiles<'t>(
     src: &Sampled<'_>,
     min_diff: u8,
+    fraction_q8: u8,
     thr: &'t mut [u8],
     ring_min: &mut [u8],
     ring_max: &mut [u8],
@@ -189,7 +191,9 @@ pub(crate) fn build_tiles<'t>(
             *t = if mx.saturating_sub(mn) < min_diff {
                 SKIP_TILE
             } else {
-                mn + (mx - mn) / 2
+                // `⌊(mx - mn) f⌋` with `f = fraction_q8 / 256 < 1`: below `mx - mn`, and
+                // `(mx - mn) / 2` exactly at 128.
+                mn + ((u16::from(mx - mn) * u16::from(fraction_q8)) >> 8) as u8
             };
             prev = cur;
             cur = next;

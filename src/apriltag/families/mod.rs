@@ -96,6 +96,7 @@ macro_rules! family {
             width_at_border: $m::WIDTH_AT_BORDER,
             total_width: $m::TOTAL_WIDTH,
             reversed_border: $m::REVERSED_BORDER,
+            border_bits: 1,
             kind: Kind::AprilTag,
             layout: &$m::LAYOUT,
             codes: Codes::U64(&$m::CODES),
@@ -139,6 +140,32 @@ family!(
     tag_standard41h12
 );
 
+/// tag36h11 with a 2-cell black border: Kalibr's AprilGrid tags (`kalibr_create_target_pdf`,
+/// the old AprilTags C++ library's drawing, its detector's `blackBorder = 2`), and what
+/// OpenCV's `generateImageMarker(DICT_APRILTAG_36h11, id, px, borderBits = 2)` draws (turned
+/// by 180 degrees, as for every tag36h11 marker). The same 587 codes, ids and index as
+/// [`TAG36H11`]; 10 cells across the border (the tag's printed side), 12 with a 1-cell white
+/// quiet zone, the payload at cells 2..8 ([`Family::bit_cell`]). Not in [`ALL`]: a tag is
+/// drawn with one border or the other, and the two do not read each other's tags.
+pub static TAG36H11_B2: Family = Family {
+    name: "tag36h11b2",
+    min_distance: tag36h11::MIN_DISTANCE,
+    width_at_border: tag36h11::WIDTH_AT_BORDER + 2,
+    total_width: tag36h11::TOTAL_WIDTH + 2,
+    reversed_border: false,
+    border_bits: 2,
+    kind: Kind::AprilTag,
+    layout: &tag36h11::LAYOUT,
+    codes: Codes::U64(&tag36h11::CODES),
+    index: IndexRef {
+        chunks: CHUNKS as u8,
+        chunk_bits: chunk_bits(tag36h11::LAYOUT.len(), CHUNKS) as u8,
+        stride: tag36h11::CODES.len() as u16,
+        offsets: &TAG36H11_INDEX.offsets,
+        ids: &TAG36H11_INDEX.ids,
+    },
+};
+
 /// Every supported family.
 pub static ALL: [&Family; 4] = [&TAG36H11, &TAG25H9, &TAG16H5, &TAG_STANDARD41H12];
 
@@ -164,6 +191,7 @@ macro_rules! aruco {
             width_at_border: $m::MARKER_SIZE + 2,
             total_width: $m::MARKER_SIZE + 4,
             reversed_border: false,
+            border_bits: 1,
             kind: Kind::Aruco {
                 max_correction_bits: $m::$dict.1,
             },
@@ -294,12 +322,13 @@ pub static ARUCO: [&Family; 18] = [
 ];
 
 /// OpenCV's predefined dictionary called `name` (`"DICT_4X4_50"`, .., `"DICT_ARUCO_ORIGINAL"`,
-/// `"DICT_ARUCO_MIP_36h12"`), or an AprilTag family by AprilTag's name (`"tag36h11"`, ..):
-/// `None` for another name. Links every table; a board names the `static` it uses instead.
+/// `"DICT_ARUCO_MIP_36h12"`), an AprilTag family by AprilTag's name (`"tag36h11"`, ..), or
+/// `"tag36h11b2"` ([`TAG36H11_B2`]): `None` for another name. Links every table; a board names the `static` it uses instead.
 #[doc(alias = "getPredefinedDictionary")]
 pub fn by_name(name: &str) -> Option<&'static Family> {
     ALL.iter()
         .chain(ARUCO.iter())
+        .chain([&&TAG36H11_B2])
         .copied()
         .find(|f| f.name() == name)
 }
