@@ -73,6 +73,7 @@ pub(crate) const SIMD: bool = cfg!(any(
     all(target_arch = "wasm32", target_feature = "simd128"),
 ));
 
+pub mod aprilgrid;
 pub mod apriltag;
 pub mod arith;
 pub mod calib;
