@@ -29,7 +29,9 @@ use camgeom_host::{Error, ErrorKind, Result, YamlWriter};
 use clap::Args;
 use serde::Serialize;
 
+mod aprilgrid;
 mod charuco;
+mod identified;
 
 /// Views a calibration holds at most.
 pub const MAX_VIEWS: usize = 64;
@@ -46,7 +48,9 @@ pub struct CalibrateArgs {
     /// Inner corners of the board, `COLSxROWS` (OpenCV's pattern size: 9x6 for the usual
     /// 10x7-square board); or a ChArUco board, `charuco:COLSxROWS:SQUARE:MARKER:DICT` with
     /// COLSxROWS its squares (OpenCV's `CharucoBoard` size, e.g. `charuco:11x8:30:22:DICT_4X4_50`),
-    /// which may be seen in part (then --square is not used).
+    /// or a Kalibr AprilGrid, `aprilgrid:COLSxROWS:SIZE:SPACING` (tags, tag side, gap over
+    /// the tag side: e.g. `aprilgrid:6x6:0.088:0.3`); both may be seen in part (then --square
+    /// is not used).
     #[arg(long, value_name = "COLSxROWS", allow_hyphen_values = true)]
     board: String,
     /// Side of a square, in the unit the poses should use (for example 25 for millimetres);
@@ -293,6 +297,9 @@ fn lens_coefficients(r: &CalibrationReport<f64, MAX_VIEWS>) -> Vec<f64> {
 pub fn run(a: &CalibrateArgs) -> Result<String> {
     if let Some(spec) = a.board.strip_prefix("charuco:") {
         return charuco::run(a, spec);
+    }
+    if let Some(spec) = a.board.strip_prefix("aprilgrid:") {
+        return aprilgrid::run(a, spec);
     }
     // Every option is checked before the images are read.
     let board = parse_board(&a.board)?;

@@ -8,6 +8,7 @@ mod apriltag_large;
 mod ar_box;
 mod aruco;
 mod board;
+mod calib_aprilgrid;
 mod calib_charuco;
 mod calib_chessboard;
 mod calib_cli;
