@@ -19,6 +19,12 @@
 //! `refine_detection` the same corners in AprilTag's order, the id and `hamming ≤ max_hamming`;
 //! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners.
 //!
+//! AprilGrid: bit 4 of the family set adds the 2-cell-border tag36h11 (`TAG36H11_B2`, also
+//! among the drawn families), the threshold fraction is the fuzzer's, and on the full
+//! workspace a 3x2 `AprilGrid`'s `detect_corners` runs on the same frame. Contract (its docs):
+//! an error only for a detector without the family or a `workspace.*` buffer; the corners'
+//! ids ascend, below the grid's points, 4 a tag found, their pixels finite.
+//!
 //! ArUco: the families include OpenCV's dictionaries (`families::ARUCO`, drawn by
 //! `Family::cell` like the AprilTag families, mixed into the detector's set), with arbitrary
 //! `error_correction_rate` and `max_erroneous_bits_in_border_rate`. Contract: a detection's
@@ -29,6 +35,7 @@
 
 use arbitrary::Arbitrary;
 use camgeom::Error;
+use camgeom::aprilgrid::{AprilGrid, GridCorner};
 use camgeom::apriltag::family::MAX_CORRECTABLE;
 use camgeom::apriltag::quad::Cluster;
 use camgeom::apriltag::segment::Run;
@@ -76,6 +83,7 @@ struct Cfg {
     reject_clipped: bool,
     max_batches: u8,
     max_quads: u16,
+    threshold_fraction: Num,
 }
 
 #[derive(Debug, Arbitrary)]
@@ -104,13 +112,41 @@ struct Input {
     aruco_rates: Option<(Num, Num)>,
 }
 
-/// Family `i` of the AprilTag families and then OpenCV's ArUco dictionaries.
+/// Family `i` of the AprilTag families, then OpenCV's ArUco dictionaries, then the
+/// 2-cell-border tag36h11.
 fn family(i: u8) -> &'static Family {
-    let n = families::ALL.len() + families::ARUCO.len();
+    let n = families::ALL.len() + families::ARUCO.len() + 1;
     let i = usize::from(i) % n;
     match families::ALL.get(i) {
         Some(f) => f,
-        None => families::ARUCO[i - families::ALL.len()],
+        None => families::ARUCO
+            .get(i - families::ALL.len())
+            .copied()
+            .unwrap_or(&families::TAG36H11_B2),
+    }
+}
+
+/// A 3x2 AprilGrid's corners of the frame (module docs).
+fn aprilgrid(det: &Detector, view: &ImageView<'_, u8>, ws: &mut WorkspaceView<'_, u16>) {
+    let Ok(grid) = AprilGrid::new(3, 2, 0.03, 0.3) else {
+        panic!("a valid grid refused");
+    };
+    let mut tags = camgeom::heapless::Vec::<Detection, 8>::new();
+    let mut out = [GridCorner::default(); 24];
+    let has = det.families().contains(&grid.family());
+    match grid.detect_corners(det, view, ws, &mut tags, &mut out) {
+        Ok(n) => {
+            assert!(has && n <= 24 && n % 4 == 0, "aprilgrid: {n}");
+            let c = &out[..n];
+            assert!(c.windows(2).all(|w| w[0].id < w[1].id), "aprilgrid: order");
+            assert!(
+                c.iter()
+                    .all(|c| c.id < 24 && c.point.x.is_finite() && c.point.y.is_finite())
+            );
+        }
+        Err(Error::InvalidParameter("detector")) => assert!(!has),
+        Err(Error::BufferTooSmall(b)) => assert!(b.starts_with("workspace."), "{b}"),
+        Err(e) => panic!("aprilgrid: {e:?}"),
     }
 }
 
@@ -152,6 +188,7 @@ fn config(inp: &Input) -> DetectorConfig {
             max_batches: c.max_batches % 6,
             // At most 64 quads: each is an edge refinement and a decode per family.
             max_quads: c.max_quads % 64,
+            threshold_fraction: c.threshold_fraction.get(),
             ..cfg
         };
     }
@@ -345,6 +382,7 @@ fuzz_target!(|inp: Input| {
     let fams: std::vec::Vec<&'static Family> = (0..4)
         .filter(|i| inp.families & (1 << i) != 0)
         .map(|i| families::ALL[i])
+        .chain((inp.families & 16 != 0).then_some(&families::TAG36H11_B2))
         .chain(
             inp.aruco
                 .iter()
@@ -369,6 +407,7 @@ fuzz_target!(|inp: Input| {
                 let mut ws = std::boxed::Box::new(Full::new());
                 detect(&det, &view, &mut ws.as_mut_view());
                 track(&inp, &det, &view, &mut ws.as_mut_view());
+                aprilgrid(&det, &view, &mut ws.as_mut_view());
             }
         }
     }

@@ -203,6 +203,18 @@ fn bad_grids_are_refused() {
         AprilGrid::new(2, 2, 1.0, f32::NAN),
         Err(Error::InvalidParameter("spacing"))
     );
+    // The threshold fraction the grid's configuration sets, and ones a detector refuses.
+    assert!(Detector::new(AprilGrid::detector_config(), &[&TAG36H11_B2]).is_ok());
+    for f in [0.1, 0.9, f32::NAN] {
+        let cfg = DetectorConfig {
+            threshold_fraction: f,
+            ..DetectorConfig::default()
+        };
+        assert_eq!(
+            Detector::new(cfg, &[&TAG36H11_B2]).err(),
+            Some(Error::InvalidParameter("threshold_fraction"))
+        );
+    }
 }
 
 /// A 3x2 grid drawn upright (tag 0 at the bottom-left), with Kalibr's corner squares: 6 px a

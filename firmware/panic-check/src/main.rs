@@ -943,6 +943,47 @@ fn run_apriltag() {
     run_aruco(&v, &mut ws);
     run_board(&found, &cam);
     run_charuco(&v, &mut ws);
+    run_aprilgrid(&v, &mut ws);
+}
+
+/// AprilGrid: the layout, a view's corners detected (none on this frame) and from opaque
+/// detections, the 2-cell-border family's decoder.
+#[cfg(feature = "apriltag")]
+fn run_aprilgrid(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
+    use camgeom::aprilgrid::{AprilGrid, GridCorner, grid_corners};
+    use camgeom::apriltag::{Detection, Detector};
+    use camgeom::homography::Homography;
+    let Ok(grid) = AprilGrid::new(black_box(3), black_box(2), black_box(0.03), black_box(0.3))
+    else {
+        return;
+    };
+    black_box(grid.point(black_box(7)));
+    black_box(grid.tag_points(black_box(4)));
+    let Ok(detector) = Detector::new(black_box(AprilGrid::detector_config()), &[grid.family()])
+    else {
+        return;
+    };
+    let mut tags = camgeom::heapless::Vec::<Detection, 6>::new();
+    let mut out = [GridCorner::default(); 24];
+    black_box(
+        grid.detect_corners(&detector, v, &mut ws.as_mut_view(), &mut tags, &mut out)
+            .ok(),
+    );
+    let h = Homography::<f32>::identity();
+    let fake = |id: u16| Detection {
+        family: grid.family(),
+        id: black_box(id),
+        hamming: 0,
+        decision_margin: 50.0,
+        corners: black_box([Point2::new(black_box(1.0f32), 2.0); 4]),
+        center: Point2::new(3.0, 4.0),
+        homography: h,
+    };
+    black_box(grid_corners(&grid, &[fake(1), fake(1), fake(4)], &mut out).ok());
+    black_box(
+        grid.family()
+            .decode(black_box(0x1234_5678_9abc), black_box(2)),
+    );
 }
 
 /// A tag board: the const grid table, a grid laid out at run time, a listed board checked,
