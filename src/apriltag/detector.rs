@@ -10,7 +10,8 @@ use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
 use super::segment::{
-    Rows, Sampled, Sink, boundary_scan, build_tiles, label_pass, pack, tile_count,
+    Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles, label_pass, pack,
+    tile_count,
 };
 use super::workspace::{Stats, WorkspaceView};
 use crate::homography::Homography;
@@ -473,7 +474,8 @@ impl Detector {
         };
         let parent = ws.parent.get_mut(..labels).unwrap_or(&mut []);
         let size = ws.size.get_mut(..labels).unwrap_or(&mut []);
-        let lab = label_pass(&src, &tiles, &mut rows, parent, size);
+        // The run cache goes at the end of the point buffer (segment docs).
+        let lab = label_pass(&src, &tiles, &mut rows, parent, size, ws.points);
         ws.stats.labels = lab.labels as u32;
         ws.stats.label_overflow = lab.exhausted;
         probe.stage_done(Stage::Components);
@@ -484,16 +486,30 @@ impl Detector {
             emitted: 0,
             pending: (L::Key::EMPTY, Tally::EMPTY),
         };
-        boundary_scan(
-            &src,
-            &tiles,
-            &mut rows,
-            parent,
-            size,
-            lab.labels,
-            &mut counter,
-        );
+        let mut cache_at = lab.cached;
+        match cache_at.and_then(|at| ws.points.get(at..)) {
+            Some(cache) => boundary_scan_cached(
+                cache,
+                (src.w, src.h),
+                (0, src.h),
+                &mut rows,
+                parent,
+                size,
+                &mut counter,
+            ),
+            None => boundary_scan(
+                &src,
+                &tiles,
+                &mut rows,
+                parent,
+                size,
+                lab.labels,
+                &mut counter,
+            ),
+        }
         counter.finish();
+        // The batches' points fill the point buffer from its start; one that reaches the run
+        // cache at its end ends the cache.
         let emitted = counter.emitted;
         ws.stats.boundary_points = emitted;
         ws.stats.clusters = table.used as u32;
@@ -577,19 +593,54 @@ impl Detector {
                     }
                 }
             }
-            let mut filler = Filler {
-                table: &mut table,
-                points: ws.points,
-            };
-            boundary_scan(
-                &src,
-                &tiles,
-                &mut rows,
-                parent,
-                size,
-                lab.labels,
-                &mut filler,
+            // The rows of the batch's points (bounding boxes in doubled coordinates).
+            let (ylo, yhi) = table.slots.iter().filter(|c| c.start != NOT_IN_BATCH).fold(
+                (usize::MAX, 0),
+                |(lo, hi), c| {
+                    (
+                        lo.min(usize::from(c.ymin) / 2),
+                        hi.max(usize::from(c.ymax) / 2),
+                    )
+                },
             );
+            let split = cache_at
+                .filter(|&at| offset <= at)
+                .and_then(|at| ws.points.split_at_mut_checked(at));
+            if split.is_none() {
+                cache_at = None;
+            }
+            match split {
+                Some((points, cache)) => {
+                    let mut filler = Filler {
+                        table: &mut table,
+                        points,
+                    };
+                    boundary_scan_cached(
+                        cache,
+                        (src.w, src.h),
+                        (ylo, yhi),
+                        &mut rows,
+                        parent,
+                        size,
+                        &mut filler,
+                    );
+                }
+                None => {
+                    let mut filler = Filler {
+                        table: &mut table,
+                        points: &mut *ws.points,
+                    };
+                    boundary_scan(
+                        &src,
+                        &tiles,
+                        &mut rows,
+                        parent,
+                        size,
+                        lab.labels,
+                        &mut filler,
+                    );
+                }
+            }
             ws.stats.points += offset as u32;
             probe.stage_done(Stage::Points);
             for c in table.slots.iter_mut() {

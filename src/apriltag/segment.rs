@@ -27,6 +27,16 @@
 //! direction towards the white pixel (AprilTag's duplicate suppression of the two diagonals
 //! included). Points are packed in a `u32`: doubled coordinates (14 bits each) and the
 //! gradient signs.
+//!
+//! **Run cache**: the labelling pass also writes every row's runs, as it labelled them, into
+//! the end of a caller's `u32` buffer (the point buffer, whose points fill it from the start),
+//! downwards: per row a word with its run count, then below it a word a run (end column,
+//! class, provisional label; [`pack_run`]).
+//! A scan then reads the rows from there ([`boundary_scan_cached`]) instead of re-deriving
+//! them from the pixels, and may start and end at any row (the labels are stored, not
+//! re-counted). A frame whose runs do not fit (or, with `u32` labels, with a label of 16 bits
+//! or more) has no cache and its scans re-derive the rows ([`boundary_scan`]): the points are
+//! the same either way, in the same order.
 
 use super::label::Label;
 use crate::image::ImageView;
@@ -422,6 +432,19 @@ pub(crate) struct Labelled {
     pub(crate) labels: usize,
     /// Pixels skipped because the label capacity ran out.
     pub(crate) exhausted: u32,
+    /// Where the run cache starts in the buffer (module docs: it runs to the buffer's end),
+    /// `None` when the runs did not fit.
+    pub(crate) cached: Option<usize>,
+}
+
+/// Provisional labels the run cache holds: those below 2^16 - 1.
+const CACHE_LABELS: usize = 0xffff;
+
+/// A run in the run cache: end column (14 bits: [`MAX_SIDE`]), class (2 bits), provisional
+/// label (16 bits; 0 for a skipped run).
+#[inline(always)]
+fn pack_run(x1: u16, c: u8, lab: usize) -> u32 {
+    (u32::from(x1) & 0x3fff) | ((u32::from(c) & 3) << 14) | ((lab as u32) << 16)
 }
 
 /// What a pass does with the labels of [`label_runs`].
@@ -549,18 +572,20 @@ impl<L: Label> Labels<L> for Roots<'_, L> {
 /// The labelling pass (module docs), run by run: unions into `parent`, pixel counts into
 /// `size` (saturating), then flattens `parent` to roots and sums the counts into the roots.
 /// Capacity: `min(parent.len(), size.len(), L::MAX_LABELS)` labels; a run that needs a new label
-/// when none is left is skipped (in every pass alike). Returns also, per row, nothing: the
-/// scans re-derive the runs.
+/// when none is left is skipped (in every pass alike). The rows' runs go into the run cache
+/// `cache` (module docs) when they fit.
 pub(crate) fn label_pass<L: Label>(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
     rows: &mut Rows<'_, L>,
     parent: &mut [L],
     size: &mut [u8],
+    cache: &mut [u32],
 ) -> Labelled {
     let cap = parent.len().min(size.len()).min(L::MAX_LABELS);
     let mut out = Labelled::default();
     let mut next: usize = 0;
+    let mut cached = Some(cache.len());
     let w = src.w;
     let mut n_up = 0;
     for y in 0..src.h {
@@ -585,9 +610,13 @@ pub(crate) fn label_pass<L: Label>(
                 *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
             }
         }
+        if let Some(at) = cached {
+            cached = cache_row(cache, at, cur);
+        }
         n_up = n;
     }
     out.labels = next;
+    out.cached = cached;
     // Flatten (parents precede children) and total the counts into the roots.
     for i in 0..next {
         let p = parent.get(i).copied().unwrap_or(L::from_index(i));
@@ -603,6 +632,23 @@ pub(crate) fn label_pass<L: Label>(
         }
     }
     out
+}
+
+/// Writes a row's runs into the run cache below word `top` (module docs); the cache's new
+/// start, or `None` when they do not fit.
+#[inline]
+fn cache_row<L: Label>(cache: &mut [u32], top: usize, runs: &[Run<L>]) -> Option<usize> {
+    let start = top.checked_sub(1 + runs.len())?;
+    let (head, words) = cache.get_mut(start..top)?.split_last_mut()?;
+    *head = runs.len() as u32;
+    for (w, r) in words.iter_mut().zip(runs) {
+        let lab = if r.c == SKIP { 0 } else { r.lab.index() };
+        if lab >= CACHE_LABELS {
+            return None;
+        }
+        *w = pack_run(r.x1, r.c, lab);
+    }
+    Some(start)
 }
 
 /// Packs a boundary point: doubled coordinates and the signs of the direction to white.
@@ -693,6 +739,68 @@ pub(crate) fn boundary_scan<L: Label>(
         if y >= 2 && w >= 3 {
             pairs(up, cur, y - 1, w, sink);
         }
+    }
+}
+
+/// [`boundary_scan`] from the run cache `cache` of [`label_pass`] (module docs: the buffer
+/// from where the cache starts to its end), for the
+/// points whose upper pixel is in rows `ylo..=yhi` only: the same points in the same order
+/// (all of them for `(0, h)`), without re-deriving the rows. `(w, h)` is the sampled
+/// image's size.
+pub(crate) fn boundary_scan_cached<L: Label>(
+    cache: &[u32],
+    (w, h): (usize, usize),
+    (ylo, yhi): (usize, usize),
+    rows: &mut Rows<'_, L>,
+    parent: &[L],
+    size: &[u8],
+    sink: &mut impl Sink<L::Key>,
+) {
+    let mut top = cache.len();
+    let mut n_up = 0;
+    for y in 0..h.min(yhi.saturating_add(2)) {
+        let Some(&n) = top.checked_sub(1).and_then(|i| cache.get(i)) else {
+            return;
+        };
+        let Some(start) = top.checked_sub(1 + n as usize) else {
+            return;
+        };
+        let end = top - 1;
+        top = start;
+        // Row y is the upper row of the pairs of y (from ylo on) or the lower of y - 1.
+        if y < ylo {
+            continue;
+        }
+        let (up, cur) = run_rows(&mut rows.runs, y);
+        let words = cache.get(start..end).unwrap_or(&[]);
+        let mut x0 = 0u16;
+        let mut k = 0;
+        for (&word, r) in words.iter().zip(cur.iter_mut()) {
+            let (x1, c) = ((word & 0x3fff) as u16, ((word >> 14) & 3) as u8);
+            // The scans' label (`Roots`): the root, or SMALL for a small component.
+            let lab = if c == SKIP {
+                L::NONE
+            } else {
+                let root = parent
+                    .get((word >> 16) as usize)
+                    .copied()
+                    .unwrap_or(L::NONE);
+                if size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT {
+                    root
+                } else {
+                    L::SMALL
+                }
+            };
+            *r = Run { x0, x1, c, lab };
+            x0 = x1;
+            k += 1;
+        }
+        let up = up.get(..n_up).unwrap_or(&[]);
+        let cur = cur.get(..k).unwrap_or(&[]);
+        if y > ylo && y >= 2 && w >= 3 {
+            pairs(up, cur, y - 1, w, sink);
+        }
+        n_up = k;
     }
 }
 

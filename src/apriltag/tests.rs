@@ -12,8 +12,8 @@ use super::families::{
     TAG16H5, TAG25H9, TAG36H11,
 };
 use super::segment::{
-    BLACK, MIN_COMPONENT, Rows, Run, SKIP, Sampled, Sink, WHITE, boundary_scan, build_tiles,
-    label_pass, row_runs, tile_count,
+    BLACK, MIN_COMPONENT, Rows, Run, SKIP, Sampled, Sink, WHITE, boundary_scan,
+    boundary_scan_cached, build_tiles, label_pass, row_runs, tile_count,
 };
 use super::*;
 use crate::camera::{Camera, Intrinsics};
@@ -671,13 +671,47 @@ fn scan_points(px: &[u8], w: usize, h: usize) -> (Vec<u8>, Vec<ScanPoint>) {
         runs: [&mut r0, &mut r1],
     };
     let (mut parent, mut size) = (vec![0u16; w * h], vec![0u8; w * h]);
-    let lab = label_pass(&src, &tiles, &mut rows, &mut parent, &mut size);
+    let lab = label_pass(&src, &tiles, &mut rows, &mut parent, &mut size, &mut []);
     assert_eq!(lab.exhausted, 0);
     let mut sink = Collect(Vec::new());
     boundary_scan(
         &src, &tiles, &mut rows, &parent, &size, lab.labels, &mut sink,
     );
     (cls, sink.0)
+}
+
+/// The points of a scan from the run cache (in a buffer of `words`; `None` when the runs do
+/// not fit), upper rows `ylo..=yhi`.
+fn cached_points(
+    px: &[u8],
+    w: usize,
+    h: usize,
+    words: usize,
+    (ylo, yhi): (usize, usize),
+) -> Option<Vec<ScanPoint>> {
+    let img = ImageView::packed(px, w, h).unwrap();
+    let src = Sampled::new(img, 1);
+    let mut thr = vec![0u8; tile_count(w, h)];
+    let (mut rmin, mut rmax) = (vec![0u8; w], vec![0u8; w]);
+    let tiles = build_tiles(&src, 5, &mut thr, &mut rmin, &mut rmax);
+    let (mut r0, mut r1) = (vec![Run::EMPTY; w], vec![Run::EMPTY; w]);
+    let mut rows = Rows {
+        runs: [&mut r0, &mut r1],
+    };
+    let (mut parent, mut size) = (vec![0u16; w * h], vec![0u8; w * h]);
+    let mut cache = vec![0u32; words];
+    let lab = label_pass(&src, &tiles, &mut rows, &mut parent, &mut size, &mut cache);
+    let mut sink = Collect(Vec::new());
+    boundary_scan_cached(
+        cache.get(lab.cached?..).unwrap(),
+        (w, h),
+        (ylo, yhi),
+        &mut rows,
+        &parent,
+        &size,
+        &mut sink,
+    );
+    Some(sink.0)
 }
 
 proptest! {
@@ -705,6 +739,18 @@ proptest! {
             .collect();
         let (cls, got) = scan_points(&px, w, h);
         let want = reference_points(&cls, w, h);
+        // The scan from the run cache gives the same points in the same order; over rows
+        // `ylo..=yhi`, those whose upper pixel is there; and no cache when the runs do not
+        // fit (one word a row and one a run).
+        prop_assert_eq!(cached_points(&px, w, h, w * h + h, (0, h)), Some(got.clone()));
+        let (ylo, yhi) = (h / 3, h / 2);
+        let part: Vec<_> = got
+            .iter()
+            .copied()
+            .filter(|p| (ylo..=yhi).contains(&(p.2 as usize / 2)))
+            .collect();
+        prop_assert_eq!(cached_points(&px, w, h, w * h + h, (ylo, yhi)), Some(part));
+        prop_assert_eq!(cached_points(&px, w, h, 2 * h - 1, (0, h)), None);
         // Same points (as a multiset), and one component pair per key.
         let mut a: Vec<_> = got.iter().map(|&(_, x, y, gx, gy)| (x, y, gx, gy)).collect();
         let mut b: Vec<_> = want.iter().map(|&(_, _, x, y, gx, gy)| (x, y, gx, gy)).collect();
