@@ -693,7 +693,7 @@ fn cached_points(
     let src = Sampled::new(img, 1);
     let mut thr = vec![0u8; tile_count(w, h)];
     let (mut rmin, mut rmax) = (vec![0u8; w], vec![0u8; w]);
-    let tiles = build_tiles(&src, 5, &mut thr, &mut rmin, &mut rmax);
+    let tiles = build_tiles(&src, 5, 128, &mut thr, &mut rmin, &mut rmax);
     let (mut r0, mut r1) = (vec![Run::EMPTY; w], vec![Run::EMPTY; w]);
     let mut rows = Rows {
         runs: [&mut r0, &mut r1],
