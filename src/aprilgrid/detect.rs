@@ -5,6 +5,7 @@ use nalgebra::Point2;
 
 use super::AprilGrid;
 use crate::apriltag::{Detection, Detector, Label, WorkspaceView};
+use crate::chessboard::{SaddleParams, saddle_subpix};
 use crate::image::ImageView;
 use crate::{Error, Result};
 
@@ -83,11 +84,59 @@ pub fn grid_corners(
     Ok(n)
 }
 
+/// Largest move of a corner in [`refine_corners`], px: Kalibr's `maxSubpixDisplacement2`
+/// (1.5 px²), as a distance.
+pub const MAX_REFINE_SHIFT: f32 = 1.224_744_9;
+
+/// Refines the first `n` corners of `corners` in `image` as saddle points
+/// ([`saddle_subpix`]), Kalibr's `cornerSubPix` on its tag corners: the black squares Kalibr
+/// prints at the tags' corners make each tag corner a chessboard-like crossing, point-
+/// symmetric, whose saddle is the corner whatever the perspective and the lens (the tag
+/// pipeline's corners are intersections of straight lines fitted to the edges, which the lens
+/// bends). A corner is kept when the fit moved it, by at most [`MAX_REFINE_SHIFT`] (Kalibr
+/// drops a corner that moves more), and it stays in the image; the kept ones are compacted to
+/// the front in their order. Returns their count. A grid printed without the corner squares
+/// has no saddle at its corners: refine only Kalibr's grids.
+///
+/// Errors: none; a corner that cannot be refined (no saddle, non-finite) is dropped.
+#[doc(alias = "cornerSubPix")]
+pub fn refine_corners(
+    image: &ImageView<'_, u8>,
+    corners: &mut [GridCorner],
+    n: usize,
+    params: &SaddleParams,
+) -> Result<usize> {
+    let (w, h) = (image.width() as f32, image.height() as f32);
+    let mut kept = 0;
+    for i in 0..n.min(corners.len()) {
+        let Some(c) = corners.get(i).copied() else {
+            break;
+        };
+        let mut q = [c.point];
+        if saddle_subpix(image, &mut q, params).is_err() {
+            continue;
+        }
+        let [p] = q;
+        let shift = (p - c.point).norm();
+        let inside = p.x >= 0.0 && p.y >= 0.0 && p.x <= w - 1.0 && p.y <= h - 1.0;
+        let near = shift <= MAX_REFINE_SHIFT;
+        if p == c.point || !near || !inside {
+            continue;
+        }
+        if let Some(slot) = corners.get_mut(kept) {
+            *slot = GridCorner { id: c.id, point: p };
+            kept += 1;
+        }
+    }
+    Ok(kept)
+}
+
 impl AprilGrid {
     /// Detects the grid's tags in `frame` with `detector` (which must decode
     /// [`AprilGrid::family`]; other families it decodes are ignored) into `tags` (at most `N`
-    /// tags of the grid are kept, the best, as [`Detector::detect_into`] keeps them) and
-    /// writes the view's identified corners to `out` ([`grid_corners`]); their count.
+    /// tags of the grid are kept, the best, as [`Detector::detect_into`] keeps them), writes
+    /// the view's identified corners to `out` ([`grid_corners`]) and, with `saddle`, refines
+    /// them as Kalibr does ([`refine_corners`]); their count.
     ///
     /// Errors: `InvalidParameter("detector")` when the detector does not decode the grid's
     /// family, `BufferTooSmall("corners")` when `out` is shorter than the grid's points, and
@@ -98,6 +147,7 @@ impl AprilGrid {
         frame: &ImageView<'_, u8>,
         ws: &mut WorkspaceView<'_, impl Label>,
         tags: &mut Vec<Detection, N>,
+        saddle: Option<&SaddleParams>,
         out: &mut [GridCorner],
     ) -> Result<usize> {
         let family = self.family();
@@ -115,6 +165,10 @@ impl AprilGrid {
             |f, id| f == family && usize::from(id) < n,
             tags,
         )?;
-        grid_corners(self, tags, out)
+        let n = grid_corners(self, tags, out)?;
+        match saddle {
+            Some(params) => refine_corners(frame, out, n, params),
+            None => Ok(n),
+        }
     }
 }

@@ -5,8 +5,9 @@
 //!
 //! - [`AprilGrid`]: the layout, exactly Kalibr's (`GridCalibrationTargetAprilgrid`): ids,
 //!   origin, point numbering and the order of each tag's corners.
-//! - [`grid_corners`]: the identified corners of one view from its tag detections, and
-//!   [`AprilGrid::detect_corners`], the detection and the corners in one call.
+//! - [`grid_corners`]: the identified corners of one view from its tag detections;
+//!   [`refine_corners`]: the corners refined as saddle points at Kalibr's corner squares
+//!   (Kalibr's `cornerSubPix`); [`AprilGrid::detect_corners`]: the three in one call.
 //!
 //! ```
 //! use camgeom::aprilgrid::AprilGrid;
@@ -24,7 +25,7 @@
 mod detect;
 mod grid;
 
-pub use detect::{GridCorner, grid_corners};
+pub use detect::{GridCorner, MAX_REFINE_SHIFT, grid_corners, refine_corners};
 pub use grid::{AprilGrid, MAX_TAGS};
 
 #[cfg(test)]

@@ -278,7 +278,14 @@ fn a_grid_view_gives_every_corner_at_its_point() {
     let mut tags: heapless::Vec<Detection, 16> = heapless::Vec::new();
     let mut out = [GridCorner::default(); 24];
     let n = g
-        .detect_corners(&det, &frame, &mut ws.as_mut_view(), &mut tags, &mut out)
+        .detect_corners(
+            &det,
+            &frame,
+            &mut ws.as_mut_view(),
+            &mut tags,
+            None,
+            &mut out,
+        )
         .unwrap();
     assert_eq!(n, 24, "{tags:?}");
     for (k, c) in out.iter().enumerate() {
@@ -293,7 +300,14 @@ fn a_grid_view_gives_every_corner_at_its_point() {
     // A detector without the family, a short buffer: named errors.
     let other = Detector::new(DetectorConfig::default(), &[&TAG36H11]).unwrap();
     assert_eq!(
-        g.detect_corners(&other, &frame, &mut ws.as_mut_view(), &mut tags, &mut out),
+        g.detect_corners(
+            &other,
+            &frame,
+            &mut ws.as_mut_view(),
+            &mut tags,
+            None,
+            &mut out
+        ),
         Err(Error::InvalidParameter("detector"))
     );
     assert_eq!(
@@ -302,10 +316,57 @@ fn a_grid_view_gives_every_corner_at_its_point() {
             &frame,
             &mut ws.as_mut_view(),
             &mut tags,
+            None,
             &mut out[..23]
         ),
         Err(Error::BufferTooSmall("corners"))
     );
+}
+
+/// Kalibr's refinement: every tag corner is a crossing with a corner square, refined there as a
+/// saddle point; a grid without the squares has no saddle and its corners are dropped.
+#[test]
+fn corners_refine_as_saddles_at_the_corner_squares() {
+    let (w, h) = (280, 200);
+    let g = AprilGrid::new(3, 2, 0.03, 0.3).unwrap();
+    let (px, truth) = grid_frame(&g, w, h);
+    let det = Detector::new(AprilGrid::detector_config(), &[&TAG36H11_B2]).unwrap();
+    let mut ws = Box::new(Small::new());
+    let frame = ImageView::packed(&px, w, h).unwrap();
+    let mut tags: heapless::Vec<Detection, 16> = heapless::Vec::new();
+    let mut out = [GridCorner::default(); 24];
+    let saddle = crate::chessboard::SaddleConfig::default().check().unwrap();
+    let n = g
+        .detect_corners(
+            &det,
+            &frame,
+            &mut ws.as_mut_view(),
+            &mut tags,
+            Some(&saddle),
+            &mut out,
+        )
+        .unwrap();
+    assert_eq!(n, 24);
+    for c in &out {
+        let (x, y) = truth[usize::from(c.id)];
+        assert!(
+            (c.point.x - x).abs() < 0.1 && (c.point.y - y).abs() < 0.1,
+            "{c:?}"
+        );
+    }
+    // Not a crossing: a corner in a flat white area does not move and is dropped; a
+    // non-finite one is dropped; n past the slice is bounded.
+    let mut flat = [
+        GridCorner {
+            id: 3,
+            point: nalgebra::Point2::new(5.0, 5.0),
+        },
+        GridCorner {
+            id: 4,
+            point: nalgebra::Point2::new(f32::NAN, 1.0),
+        },
+    ];
+    assert_eq!(refine_corners(&frame, &mut flat, 9, &saddle), Ok(0));
 }
 
 #[test]

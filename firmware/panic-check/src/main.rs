@@ -950,7 +950,7 @@ fn run_apriltag() {
 /// detections, the 2-cell-border family's decoder.
 #[cfg(feature = "apriltag")]
 fn run_aprilgrid(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
-    use camgeom::aprilgrid::{AprilGrid, GridCorner, grid_corners};
+    use camgeom::aprilgrid::{AprilGrid, GridCorner, grid_corners, refine_corners};
     use camgeom::apriltag::{Detection, Detector};
     use camgeom::homography::Homography;
     let Ok(grid) = AprilGrid::new(black_box(3), black_box(2), black_box(0.03), black_box(0.3))
@@ -965,9 +965,17 @@ fn run_aprilgrid(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
     };
     let mut tags = camgeom::heapless::Vec::<Detection, 6>::new();
     let mut out = [GridCorner::default(); 24];
+    let saddle = camgeom::chessboard::SaddleConfig::default().check().ok();
     black_box(
-        grid.detect_corners(&detector, v, &mut ws.as_mut_view(), &mut tags, &mut out)
-            .ok(),
+        grid.detect_corners(
+            &detector,
+            v,
+            &mut ws.as_mut_view(),
+            &mut tags,
+            saddle.as_ref(),
+            &mut out,
+        )
+        .ok(),
     );
     let h = Homography::<f32>::identity();
     let fake = |id: u16| Detection {
@@ -980,6 +988,9 @@ fn run_aprilgrid(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
         homography: h,
     };
     black_box(grid_corners(&grid, &[fake(1), fake(1), fake(4)], &mut out).ok());
+    if let Some(s) = saddle.as_ref() {
+        black_box(refine_corners(v, &mut out, black_box(24), s).ok());
+    }
     black_box(
         grid.family()
             .decode(black_box(0x1234_5678_9abc), black_box(2)),

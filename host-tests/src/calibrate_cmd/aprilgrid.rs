@@ -1,10 +1,12 @@
 //! `camgeom calibrate --board aprilgrid:COLSxROWS:SIZE:SPACING`: calibration from Kalibr
 //! AprilGrid views, the board seen whole or in part (Kalibr's `GridCalibrationTargetAprilgrid`
-//! observations, calibrated as OpenCV's `calibrateCamera` / `fisheye::calibrate` on them).
+//! observations: tag corners refined as saddle points at its corner squares, as Kalibr's
+//! `cornerSubPix`; calibrated as OpenCV's `calibrateCamera` / `fisheye::calibrate` on them).
 
 use super::*;
 use camgeom::aprilgrid::{AprilGrid, GridCorner, MAX_TAGS};
 use camgeom::apriltag::{Detection, Detector};
+use camgeom::chessboard::SaddleConfig;
 use camgeom_host::apriltag::HostWorkspace;
 
 /// Views with fewer corners than this are not used: the 4 corners of 2 tags (one tag's 4 give
@@ -59,10 +61,14 @@ pub fn run(a: &CalibrateArgs, spec: &str) -> Result<String> {
     let mut ws: Box<HostWorkspace> = Box::default();
     let mut tags: camgeom::heapless::Vec<Detection, MAX_TAGS> = camgeom::heapless::Vec::new();
     let mut out = vec![GridCorner::default(); grid.points()];
+    // Kalibr's refinement of the tag corners at its corner squares.
+    let saddle = SaddleConfig::default()
+        .check()
+        .map_err(|e| Error::camgeom("saddle refinement", e))?;
     let (views, skipped, size) = identified::load_views(a, |p, view| {
         let n = ws
             .run(view, det.config().decimate, |w| {
-                grid.detect_corners(&det, view, w, &mut tags, &mut out)
+                grid.detect_corners(&det, view, w, &mut tags, Some(&saddle), &mut out)
             })
             .map_err(|e| {
                 Error::camgeom(format!("{}: AprilGrid detection failed", p.display()), e)
