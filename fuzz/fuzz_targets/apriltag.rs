@@ -17,7 +17,10 @@
 //! rendered tag's corners moved by the fuzzer) of an arbitrary family and id. Contract (their docs): no
 //! panic; `refine_target` gives finite corners within 8 px of a finite prediction and
 //! `refine_detection` the same corners in AprilTag's order, the id and `hamming ≤ max_hamming`;
-//! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners.
+//! `find_target_near` errs only with a `workspace.*` buffer and gives finite corners;
+//! `refine_partial` gives finite corners within 8 px, the id, seen cells within the budget
+//! (itself within `max_hamming`) and edges of at least 8 inliers spanning half their length, or
+//! a refusal.
 //!
 //! AprilGrid: bit 4 of the family set adds the 2-cell-border tag36h11 (`TAG36H11_B2`, also
 //! among the drawn families), the threshold fraction is the fuzzer's, and on the full
@@ -326,6 +329,25 @@ fn track(
             assert_eq!(d.corners, [c[3], c[2], c[1], c[0]], "corner order");
             assert!(d.id == *id && d.hamming <= det.max_hamming_for(f), "{d:?}");
             assert!(d.center.x.is_finite() && d.center.y.is_finite(), "{d:?}");
+        }
+        // A partly seen tag: finite corners within 8 px, its id, the seen cells within the
+        // family's budget (at most the detector's bits), the views' counts in range.
+        if let Ok(p) = det.refine_partial(view, f, *id, &predicted) {
+            let d = &p.detection;
+            assert!(d.id == *id && !f.is_aruco(), "{d:?}");
+            for (c, q) in d.target_corners().iter().zip(predicted.iter()) {
+                assert!(c.x.is_finite() && c.y.is_finite(), "partial {c:?}");
+                assert!((c - q).norm() <= 8.0 + 1e-3, "partial {c:?} from {q:?}");
+            }
+            let v = &p.view;
+            assert!(u32::from(v.cells_seen) <= f.nbits(), "{v:?}");
+            assert!(d.hamming <= v.cells_budget, "{d:?} {v:?}");
+            assert!(v.cells_budget <= det.max_hamming_for(f), "{v:?}");
+            for ((s, n), m) in v.edge_span.iter().zip(v.edge_inliers).zip(v.edge_samples) {
+                let (n, m) = (u32::from(n), u32::from(m));
+                assert!((0.5..=1.0).contains(s) && n >= 8 && 3 * n >= m, "{v:?}");
+            }
+            assert!(d.decision_margin.is_finite(), "{d:?}");
         }
         match det.find_target_near(view, ws, f, *id, &predicted) {
             Ok(Some(c)) => {

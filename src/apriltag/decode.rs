@@ -34,7 +34,7 @@ use super::family::Family;
 use super::geom::{Line, at4, eigen, intersect, project};
 use super::quad::Quad;
 use crate::image::ImageView;
-use crate::scalar::above;
+use crate::scalar::{above, at_most};
 
 /// Samples along an edge normal in [`refine_edges`]: `2 · 4 (d + 1) + 1 + 8` for decimation
 /// `d` up to 8 (`DetectorConfig::decimate`'s bound).
@@ -68,8 +68,6 @@ pub(crate) fn refine_edges_with(
         fewest: 1.0,
     };
     let mut lines = [Line::ZERO; 4];
-    let range = decimate as f32 + 1.0;
-    let steps = 2 * 4 * (decimate + 1) + 1;
     for (edge, line) in lines.iter_mut().enumerate() {
         let (pa, pb) = (at4(&q.p, edge), at4(&q.p, edge + 1));
         let (mut nx, mut ny) = (pb.y - pa.y, -(pb.x - pa.x));
@@ -108,34 +106,10 @@ pub(crate) fn refine_edges_with(
             let alpha = (1.0 + s as f32) / (nsamples as f32 + 1.0);
             let x0 = alpha * pa.x + (1.0 - alpha) * pb.x;
             let y0 = alpha * pa.y + (1.0 - alpha) * pb.y;
-            let (mut mn, mut mc) = (0f32, 0f32);
-            // The samples along the normal, 1/4 px apart from `-range - 1` to `range + 1`:
-            // step k compares the one at `n + 1` (index k + 8) with the one at `n - 1` (index
-            // k), so each is read once, not twice. The offsets are multiples of 1/4 below 2^24,
-            // exact in f32, so the positions are bit for bit those of AprilTag's two reads.
-            let mut along = [None; MAX_ALONG];
-            for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
-                let m = -range - 1.0 + 0.25 * j as f32;
-                *g = img.sample_bilinear(x0 + m * nx, y0 + m * ny);
-            }
-            for step in 0..steps {
-                let n = -range + 0.25 * step as f32;
-                let (Some(Some(g1)), Some(Some(g2))) = (along.get(step + 8), along.get(step))
-                else {
-                    continue;
-                };
-                let (g1, g2) = (*g1, *g2);
-                if g1 < g2 {
-                    continue;
-                }
-                let w = (g2 - g1) * (g2 - g1);
-                mn += w * n;
-                mc += w;
-            }
-            if !above(mc, 0.0) {
+            let Some(EdgePoint { offset: n0, .. }) = edge_point(img, x0, y0, nx, ny, decimate)
+            else {
                 continue;
-            }
-            let n0 = mn / mc;
+            };
             // Relative to the edge midpoint: small numbers keep the f32 covariance exact enough.
             let (bx, by) = (x0 + n0 * nx - line.ex, y0 + n0 * ny - line.ey);
             mx += bx;
@@ -174,16 +148,98 @@ pub(crate) fn refine_edges_with(
     fit
 }
 
+/// One edge point of [`refine_edges_with`]: where, along the unit normal `(nx, ny)` through
+/// `(x0, y0)`, the intensity rises outward (`offset`, pixels from `(x0, y0)`), and the largest
+/// rise `I(s + n̂) - I(s - n̂)` of the search (`rise`, grey levels: how strong the edge is).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EdgePoint {
+    pub(crate) offset: f32,
+    pub(crate) rise: f32,
+}
+
+/// The edge point across `(x0, y0)` along `(nx, ny)`, searched over `±(decimate + 1)` px
+/// (module docs); `None` where the intensity never rises outward (or the samples are outside
+/// the image).
+pub(crate) fn edge_point(
+    img: &ImageView<'_, u8>,
+    x0: f32,
+    y0: f32,
+    nx: f32,
+    ny: f32,
+    decimate: usize,
+) -> Option<EdgePoint> {
+    let range = decimate as f32 + 1.0;
+    let steps = 2 * 4 * (decimate + 1) + 1;
+    let (mut mn, mut mc, mut rise) = (0f32, 0f32, 0f32);
+    // The samples along the normal, 1/4 px apart from `-range - 1` to `range + 1` (NaN outside
+    // the image): step k compares the one at `n + 1` (index k + 8) with the one at `n - 1`
+    // (index k), so each is read once, not twice. The offsets are multiples of 1/4 below
+    // 2^24, exact in f32, so the positions are bit for bit those of AprilTag's two reads.
+    let (data, stride) = (img.data(), img.stride());
+    let (xmax, ymax) = (
+        img.width().saturating_sub(1) as f32,
+        img.height().saturating_sub(1) as f32,
+    );
+    let mut along = [f32::NAN; MAX_ALONG];
+    for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
+        let m = -range - 1.0 + 0.25 * j as f32;
+        *g = bilinear(data, stride, xmax, ymax, x0 + m * nx, y0 + m * ny);
+    }
+    for (step, (&g1, &g2)) in along
+        .iter()
+        .skip(8)
+        .zip(along.iter())
+        .take(steps)
+        .enumerate()
+    {
+        let n = -range + 0.25 * step as f32;
+        // NaN (outside) fails the comparison too.
+        if !at_most(g2, g1) {
+            continue;
+        }
+        let w = (g2 - g1) * (g2 - g1);
+        mn += w * n;
+        mc += w;
+        rise = rise.max(g1 - g2);
+    }
+    if !above(mc, 0.0) {
+        return None;
+    }
+    Some(EdgePoint {
+        offset: mn / mc,
+        rise,
+    })
+}
+
+/// [`ImageView::sample_bilinear`] on the view's bytes (`data`, `stride`, the largest
+/// coordinates `xmax`, `ymax`), the same arithmetic in the same order (so the same value to
+/// the bit), NaN outside: the edge points' inner loop, without the row look-ups.
+#[inline(always)]
+fn bilinear(data: &[u8], stride: usize, xmax: f32, ymax: f32, x: f32, y: f32) -> f32 {
+    if !(x >= 0.0 && y >= 0.0 && x <= xmax && y <= ymax) {
+        return f32::NAN;
+    }
+    // In range and non-negative: truncation is the floor.
+    let (i, j) = (x as usize, y as usize);
+    let (a, b) = (x - i as f32, y - j as f32);
+    let (i1, j1) = (i + usize::from(a > 0.0), j + usize::from(b > 0.0));
+    let p = |i: usize, j: usize| f32::from(data.get(j * stride + i).copied().unwrap_or(0));
+    (1.0 - a) * (1.0 - b) * p(i, j)
+        + a * (1.0 - b) * p(i1, j)
+        + (1.0 - a) * b * p(i, j1)
+        + a * b * p(i1, j1)
+}
+
 /// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.
 #[derive(Default, Clone, Copy)]
-struct GrayModel {
+pub(crate) struct GrayModel {
     a: [f32; 6], // xx, xy, x, yy, y, n
     b: [f32; 3],
     c: [f32; 3],
 }
 
 impl GrayModel {
-    fn add(&mut self, x: f32, y: f32, g: f32) {
+    pub(crate) fn add(&mut self, x: f32, y: f32, g: f32) {
         let a = &mut self.a;
         a[0] += x * x;
         a[1] += x * y;
@@ -197,7 +253,7 @@ impl GrayModel {
     }
 
     /// Cholesky solve; `false` when the normal matrix is not positive definite.
-    fn solve(&mut self) -> bool {
+    pub(crate) fn solve(&mut self) -> bool {
         let [a00, a01, a02, a11, a12, a22] = self.a;
         let l00 = a00;
         if !above(l00, 0.0) {
@@ -229,7 +285,7 @@ impl GrayModel {
     }
 
     #[inline]
-    fn at(&self, x: f32, y: f32) -> f32 {
+    pub(crate) fn at(&self, x: f32, y: f32) -> f32 {
         self.c[0] * x + self.c[1] * y + self.c[2]
     }
 }

@@ -23,7 +23,9 @@
 //! corner order, and [`TagTarget`] makes that the AR loop's acquisition step
 //! ([`crate::target::PlanarTarget::step`]), which also tracks the tag by detecting it where it
 //! must be: [`Detector::refine_target`] (the edge refinement and decoding from a predicted
-//! quad) and [`Detector::find_target_near`] (the whole pipeline in the region around it).
+//! quad), [`Detector::find_target_near`] (the whole pipeline in the region around it) and
+//! [`Detector::refine_partial`] (a tag partly hidden or cut by the frame's edge: robust edge
+//! fits and the seen cells confirming the id, flagged as partly seen).
 //! [`board_pose`] gives one pose from every visible tag of a [`TagBoard`] ([`board`]).
 //!
 //! **Memory** (the [`Workspace`] table): no byte per pixel is stored. At 320x240 and
@@ -95,8 +97,10 @@ mod geom;
 pub mod label;
 mod pose;
 pub mod quad;
+mod robust_edges;
 pub mod segment;
 mod track;
+mod visible_code;
 mod workspace;
 
 /// What [`Detector::detect_into`] tells as each [`Stage`] ends (`StageProbe<Stage>`).
@@ -113,6 +117,7 @@ pub use family::{Decoded, Family, Kind, LayoutBit, rotate90};
 pub use label::Label;
 pub use pose::tag_pose;
 pub use segment::MAX_SIDE;
+pub use track::{PartialDetection, PartialRefusal, PartialView};
 pub use workspace::{
     Stats, Workspace, Workspace320x240, Workspace640x480, WorkspaceView, sort_len, tiles_len,
 };

@@ -133,7 +133,7 @@ pub const AREAS: [Area; 22] = [
     area(
         "apriltag",
         false,
-        "`Detector::detect` (all four families; `u16` and `u32` labels), `find_target`, `refine_target`, `refine_detection`, `find_target_near`, `Family::decode`, `tag_pose`; AprilGrid: `AprilGrid::new`, `point`, `tag_points`, `detect_corners`, `grid_corners`, `refine_corners`, `TAG36H11_B2` decode; ArUco: `Detector::new`, `detect`, `refine_detection` with OpenCV's dictionaries, `Detection::aruco_corners`, `Detector::max_hamming_for`, every dictionary's `decode`, `families::by_name`; boards: `grid_tags` (const), `GridBoard::fill`, `GridBoard::tag`, `TagBoard::new`, `board_pose`",
+        "`Detector::detect` (all four families; `u16` and `u32` labels), `find_target`, `refine_target`, `refine_detection`, `refine_partial`, `find_target_near`, `Family::decode`, `tag_pose`; AprilGrid: `AprilGrid::new`, `point`, `tag_points`, `detect_corners`, `grid_corners`, `refine_corners`, `TAG36H11_B2` decode; ArUco: `Detector::new`, `detect`, `refine_detection` with OpenCV's dictionaries, `Detection::aruco_corners`, `Detector::max_hamming_for`, every dictionary's `decode`, `families::by_name`; boards: `grid_tags` (const), `GridBoard::fill`, `GridBoard::tag`, `TagBoard::new`, `board_pose`",
     ),
     area(
         "remap",

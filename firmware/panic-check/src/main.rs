@@ -925,6 +925,17 @@ fn run_apriltag() {
     let predicted = black_box([Point2::new(black_box(3.5f32), black_box(-2.0)); 4]);
     black_box(detector.refine_target(&v, &families::TAG36H11, black_box(7), &predicted));
     black_box(detector.refine_detection(&v, &families::TAG36H11, black_box(7), &predicted));
+    // A partly seen tag: the robust edge fit, the seen cells' reading and their confirmation.
+    black_box(
+        detector
+            .refine_partial(&v, &families::TAG36H11, black_box(7), &predicted)
+            .ok(),
+    );
+    black_box(
+        detector
+            .refine_partial(&v, black_box(&families::TAG25H9), black_box(3), &predicted)
+            .ok(),
+    );
     black_box(
         detector
             .find_target_near(
