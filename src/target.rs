@@ -320,15 +320,39 @@ pub trait Acquire {
 
     /// Finds the target in `frame` near `predicted`, its corners predicted for this frame
     /// (the order of [`TargetParams::corners`]), as a detector does in a region around them;
-    /// `None` when it is not there (the loop then asks [`Self::acquire`]). The default finds
-    /// nothing. Errors are the detector's own (they end the frame).
+    /// `None` when it is not there (the loop then asks [`Self::acquire`]). A target found
+    /// only partly seen says so ([`Tracked::partial`]). The default finds nothing. Errors are
+    /// the detector's own (they end the frame).
     fn track(
         &mut self,
         frame: &ImageView<'_, u8>,
         predicted: &[Point2<f32>; 4],
-    ) -> Result<Option<[Point2<f32>; 4]>> {
+    ) -> Result<Option<Tracked>> {
         let _ = (frame, predicted);
         Ok(None)
+    }
+}
+
+/// What [`Acquire::track`] found: the target's corners (the order of
+/// [`TargetParams::corners`]) and whether they come from a partly seen target.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tracked {
+    /// The corners.
+    pub corners: [Point2<f32>; 4],
+    /// The target was only partly seen (hidden in part, or cut by the frame's edge): some
+    /// corners are where the seen parts of its edges meet, not measured where they are (e.g.
+    /// [`crate::apriltag::Detector::refine_partial`]).
+    pub partial: bool,
+}
+
+impl Tracked {
+    /// Corners of a wholly seen target.
+    pub const fn whole(corners: [Point2<f32>; 4]) -> Self {
+        Self {
+            corners,
+            partial: false,
+        }
     }
 }
 
@@ -425,6 +449,9 @@ pub struct TargetFrame {
     /// Tracks that survived the flow (0 on an acquisition; 4, the corners, when
     /// [`Acquire::track`] found the target).
     pub tracked: usize,
+    /// The pose comes from a partly seen target ([`Tracked::partial`]): its corners are where
+    /// the seen parts of its edges meet. Only tracking by detection gives such a frame.
+    pub partial: bool,
     /// Homography inliers (the tracks kept; on an acquisition the features detected).
     pub inliers: usize,
     /// Features added by acquisition, re-detection or relocation.
@@ -691,6 +718,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             pose: None,
             outline: None,
             tracked: 0,
+            partial: false,
             inliers: 0,
             added: 0,
             features: 0,
@@ -787,7 +815,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
                 TargetState::Lost => self.lost_frames.saturating_add(1),
                 _ => 0,
             };
-            found = acquire.acquire(frame, lost)?;
+            found = acquire.acquire(frame, lost)?.map(Tracked::whole);
             probe.stage_done(Stage::Acquire);
             if found.is_some() {
                 self.since_acquired = 0;
@@ -803,7 +831,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
         }
         self.features.clear();
         self.state = TargetState::Lost;
-        if let Some(corners) = found
+        if let Some(Tracked { corners, partial }) = found
             && let Ok(h) = Homography::from_four_points(&params.corners(), &corners)
         {
             self.h = Some(h);
@@ -814,6 +842,7 @@ impl<A: PoseArith, const N: usize, const S: usize, const C: usize, const K: usiz
             if out.pose.is_some() {
                 self.state = TargetState::Tracking;
                 out.outline = Some(corners);
+                out.partial = partial;
             }
         }
         self.end_frame(params, out);
@@ -1371,12 +1400,12 @@ mod tests {
             &mut self,
             _: &ImageView<'_, u8>,
             predicted: &[Point2<f32>; 4],
-        ) -> Result<Option<[Point2<f32>; 4]>> {
+        ) -> Result<Option<Tracked>> {
             let t = self.oracle.frame;
             self.tracked.push((t, *predicted));
             let o = &self.oracle;
             let hidden = o.blind.contains(&t) || self.miss.contains(&t);
-            Ok((!hidden).then(|| true_corners(o.k, o.params, t as f64)))
+            Ok((!hidden).then(|| Tracked::whole(true_corners(o.k, o.params, t as f64))))
         }
     }
 

@@ -5,8 +5,8 @@
 use camgeom::apriltag::quad::Cluster;
 use camgeom::apriltag::segment::Run;
 use camgeom::apriltag::{
-    APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, Stats, WorkspaceView,
-    families, sort_len, tag_pose, tiles_len,
+    APRILTAG_PIXEL_OFFSET, Detection, Detector, DetectorConfig, Family, PartialView, Stats,
+    WorkspaceView, families, sort_len, tag_pose, tiles_len,
 };
 use camgeom::camera::Camera;
 use camgeom::draw::draw_line;
@@ -14,7 +14,7 @@ use camgeom::image::ImageView;
 use camgeom::nalgebra::Matrix3;
 use camgeom::nalgebra::Point2;
 use camgeom::pose::{PlanarConfig, PoseEstimate};
-use camgeom::target::Acquire;
+use camgeom::target::{Acquire, Tracked};
 use serde::Serialize;
 
 use crate::images::GrayImage;
@@ -206,7 +206,8 @@ impl HostWorkspace {
 /// Tag `id` of `family` as the AR loop's acquisition step (`camgeom ar --tag`): the core's
 /// [`camgeom::apriltag::TagTarget`] with a [`HostWorkspace`] grown for each frame. It tracks
 /// the tag by detection as `TagTarget` does (the same core calls:
-/// [`Detector::refine_target`], then [`Detector::find_target_near`]) unless
+/// [`Detector::refine_target`], then [`Detector::refine_partial`] for a partly seen tag,
+/// flagged as such, then [`Detector::find_target_near`]) unless
 /// [`Self::track_by_detection`] turns it off.
 pub struct HostTagTarget<'a> {
     detector: &'a Detector,
@@ -261,14 +262,21 @@ impl Acquire for HostTagTarget<'_> {
         &mut self,
         frame: &ImageView<'_, u8>,
         predicted: &[Point2<f32>; 4],
-    ) -> camgeom::Result<Option<[Point2<f32>; 4]>> {
+    ) -> camgeom::Result<Option<Tracked>> {
         let (det, family, id) = (self.detector, self.family, self.id);
         if let Some(c) = det.refine_target(frame, family, id, predicted) {
-            return Ok(Some(c));
+            return Ok(Some(Tracked::whole(c)));
         }
-        self.workspace.run(frame, det.config().decimate, |ws| {
+        if let Ok(p) = det.refine_partial(frame, family, id, predicted) {
+            return Ok(Some(Tracked {
+                corners: p.detection.target_corners(),
+                partial: true,
+            }));
+        }
+        let near = self.workspace.run(frame, det.config().decimate, |ws| {
             det.find_target_near(frame, ws, family, id, predicted)
-        })
+        })?;
+        Ok(near.map(Tracked::whole))
     }
 }
 
@@ -484,6 +492,43 @@ pub struct JsonTag {
     /// The other solution of the planar ambiguity.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub alternative: Option<Option<JsonTagPose>>,
+    /// The tag was found partly seen (`camgeom apriltag --track`: `Detector::refine_partial`):
+    /// what of it was measured; absent for a tag seen whole. Its `hamming` counts the seen
+    /// cells that differ from the code.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub partial: Option<JsonPartial>,
+}
+
+/// What of a partly seen tag was measured (`camgeom::apriltag::PartialView`).
+#[derive(Debug, Clone, Serialize, PartialEq)]
+pub struct JsonPartial {
+    /// Per edge (the tag's top, right, bottom, left): the share of its length its inlier edge
+    /// points span.
+    pub edge_span: [f32; 4],
+    /// Per edge: inlier edge points, of the positions sampled.
+    pub edge_inliers: [u8; 4],
+    /// Per edge: positions sampled.
+    pub edge_samples: [u8; 4],
+    /// Payload cells seen.
+    pub cells_seen: u8,
+    /// Seen cells allowed to differ from the code.
+    pub cells_budget: u8,
+    /// Something lay over the tag's edges (not only the frame's edge).
+    pub occluded: bool,
+}
+
+impl JsonPartial {
+    /// The JSON form of `v`.
+    pub fn new(v: &PartialView) -> Self {
+        Self {
+            edge_span: v.edge_span,
+            edge_inliers: v.edge_inliers,
+            edge_samples: v.edge_samples,
+            cells_seen: v.cells_seen,
+            cells_budget: v.cells_budget,
+            occluded: v.occluded,
+        }
+    }
 }
 
 /// One frame's detections in the JSON output.
@@ -522,6 +567,7 @@ pub fn json_tag(d: &Detection, coords: Coords, pose: Option<&(f32, Camera<f32>)>
         t: None,
         rms_px: None,
         alternative: None,
+        partial: None,
     };
     if let Some((size, camera)) = pose {
         let p = tag_pose(d, *size, camera, &PlanarConfig::default()).ok();

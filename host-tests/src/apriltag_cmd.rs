@@ -3,11 +3,11 @@
 
 use std::path::PathBuf;
 
-use camgeom::apriltag::{Detection, Detector};
+use camgeom::apriltag::{Detection, Detector, PartialView};
 use camgeom::nalgebra::Vector2;
 use camgeom_host::apriltag::{
-    Coords, HostWorkspace, JsonFrame, detect, detector, draw_tags_on, families_list, json_tag,
-    pose_inputs,
+    Coords, HostWorkspace, JsonFrame, JsonPartial, JsonTag, detect, detector, draw_tags_on,
+    families_list, json_tag, pose_inputs,
 };
 use camgeom_host::board::{JsonBoardPose, board_pose_json, load_board};
 use camgeom_host::cli::files::create_dir;
@@ -86,8 +86,10 @@ pub struct ApriltagArgs {
     fps: f64,
     /// With --frames: track the last frame's tags by detecting them where they must be (the
     /// core's `Detector::refine_detection` from their corners predicted from the last two
-    /// frames, as the board's tag job tracks its tag); a full detection runs on the first
-    /// frame, when a tag is not found again (or none was seen) and every --guard-every frames.
+    /// frames, else `Detector::refine_partial` for a tag partly seen, reported with
+    /// "partial", as the board's tag job tracks its tag); a full detection runs on the first
+    /// frame, when a tag is not found again (or none was seen) and every --guard-every frames
+    /// (a tracked tag that one misses is looked for where it must be).
     #[arg(long, requires = "frames")]
     track: bool,
     /// With --track: a full detection at least every N frames (new tags are found then).
@@ -102,8 +104,13 @@ struct Tracked {
     since_full: usize,
 }
 
+/// A tag of a frame, and what was seen of it when only part was (--track).
+type Found = (Detection, Option<PartialView>);
+
 impl Tracked {
-    /// This frame's tags: the last frame's found where they must be, or a full detection.
+    /// This frame's tags: the last frame's found where they must be (whole, else partly
+    /// seen), or a full detection (with, on a guard frame, the tracked tags it missed looked
+    /// for where they must be).
     fn step(
         &mut self,
         det: &Detector,
@@ -111,19 +118,28 @@ impl Tracked {
         gray: &GrayImage,
         at: &std::path::Path,
         guard: usize,
-    ) -> Result<Vec<Detection>> {
+    ) -> Result<Vec<Found>> {
         let view = gray.view().ok_or_else(|| {
             Error::camgeom(format!("{}", at.display()), camgeom::Error::InvalidImage)
         })?;
+        // Where a tag of the last frame must be: found whole, else partly seen.
+        let again = |d: &Detection, motion: &[Vector2<f32>; 4]| -> Option<Found> {
+            let mut p = d.target_corners();
+            for (p, m) in p.iter_mut().zip(motion) {
+                *p += m;
+            }
+            if let Some(whole) = det.refine_detection(&view, d.family, d.id, &p) {
+                return Some((whole, None));
+            }
+            let part = det.refine_partial(&view, d.family, d.id, &p).ok()?;
+            Some((part.detection, Some(part.view)))
+        };
+        let due = self.since_full + 1 >= guard.max(1);
         let mut found = Vec::new();
-        if !self.last.is_empty() && self.since_full + 1 < guard.max(1) {
+        if !self.last.is_empty() && !due {
             for (d, motion) in &self.last {
-                let mut p = d.target_corners();
-                for (p, m) in p.iter_mut().zip(motion) {
-                    *p += m;
-                }
-                match det.refine_detection(&view, d.family, d.id, &p) {
-                    Some(again) => found.push(again),
+                match again(d, motion) {
+                    Some(f) => found.push(f),
                     None => {
                         found.clear();
                         break;
@@ -132,14 +148,29 @@ impl Tracked {
             }
         }
         if found.is_empty() {
-            found = detect(det, ws, gray, at)?.into_iter().collect();
+            found = detect(det, ws, gray, at)?
+                .into_iter()
+                .map(|d| (d, None))
+                .collect();
+            // The guard's detection missed a tag that was tracked: it is looked for where it
+            // must be (as the AR loop's guard does).
+            if due {
+                for (d, motion) in &self.last {
+                    let seen = found
+                        .iter()
+                        .any(|(f, _)| std::ptr::eq(f.family, d.family) && f.id == d.id);
+                    if !seen && let Some(f) = again(d, motion) {
+                        found.push(f);
+                    }
+                }
+            }
             self.since_full = 0;
         } else {
             self.since_full += 1;
         }
         self.last = found
             .iter()
-            .map(|d| {
+            .map(|(d, _)| {
                 let before = self
                     .last
                     .iter()
@@ -276,10 +307,16 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
         } = frame;
         let at = file.clone().unwrap_or_else(|| input.clone());
         require_size(&gray, &at, MIN_SIDE, "the smallest tag AprilTag can find")?;
-        let found: Vec<Detection> = if a.track {
-            tracked.step(&det, &mut ws, &gray, &at, a.guard_every)?
+        let (found, views): (Vec<Detection>, Vec<Option<PartialView>>) = if a.track {
+            tracked
+                .step(&det, &mut ws, &gray, &at, a.guard_every)?
+                .into_iter()
+                .unzip()
         } else {
-            detect(&det, &mut ws, &gray, &at)?.into_iter().collect()
+            detect(&det, &mut ws, &gray, &at)?
+                .into_iter()
+                .map(|d| (d, None))
+                .unzip()
         };
         let png = a.overlay.as_ref().filter(|_| index.is_multiple_of(every));
         if png.is_some() || a.video_out.is_some() {
@@ -308,7 +345,11 @@ pub fn run(a: &ApriltagArgs) -> Result<String> {
                     image: file.map(|f| f.display().to_string()),
                     detections: found
                         .iter()
-                        .map(|d| json_tag(d, coords, pose.as_ref()))
+                        .zip(&views)
+                        .map(|(d, v)| JsonTag {
+                            partial: v.as_ref().map(JsonPartial::new),
+                            ..json_tag(d, coords, pose.as_ref())
+                        })
                         .collect(),
                     width: gray.width,
                     height: gray.height,

@@ -135,7 +135,7 @@ pub struct ArArgs {
 }
 
 /// The columns of `poses.csv`.
-const POSES_COLUMNS: [&str; 14] = [
+const POSES_COLUMNS: [&str; 15] = [
     "frame",
     "state",
     "rx",
@@ -150,6 +150,7 @@ const POSES_COLUMNS: [&str; 14] = [
     "tracked",
     "inliers",
     "added",
+    "partial",
 ];
 
 /// How the target is found.
@@ -202,6 +203,8 @@ struct Summary {
     #[serde(skip_serializing_if = "Option::is_none")]
     fps: Option<f64>,
     tracking: usize,
+    /// Of the frames tracking, those whose pose is from a partly seen target.
+    partial: usize,
     lost: usize,
     mean_inliers: f64,
     worst_outline_px: Option<f32>,
@@ -360,6 +363,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
         .map_err(|e| Error::camgeom(format!("{}: tracking failed", a.frames.display()), e))?;
     let mut rows = Vec::with_capacity(n);
     let mut worst: Option<f32> = None;
+    let mut partial = 0usize;
     let (mut count, mut tracking, mut inliers) = (0usize, 0usize, 0usize);
     while let Some(frame) = source.next_frame()? {
         let f = tracker
@@ -445,6 +449,10 @@ pub fn run(a: &ArArgs) -> Result<String> {
         row.extend(nums.iter().map(|v| format_float(*v)));
         row.push(format_float(outline.unwrap_or(f32::NAN)));
         row.extend([f.frame.tracked, f.frame.inliers, f.frame.added].map(|n| n.to_string()));
+        row.push(u8::from(f.frame.partial).to_string());
+        if f.frame.partial {
+            partial += 1;
+        }
         rows.push(row);
     }
     bar.finish_and_clear();
@@ -471,6 +479,7 @@ pub fn run(a: &ArArgs) -> Result<String> {
         frames: count,
         fps,
         tracking,
+        partial,
         lost: count - tracking,
         mean_inliers: inliers as f64 / count.max(1) as f64,
         worst_outline_px: worst,
@@ -565,6 +574,7 @@ fn run_board(a: &ArArgs, path: &std::path::Path) -> Result<String> {
             pose: planar,
             outline,
             tracked: json.tags.len(),
+            partial: false,
             inliers: json.points,
             added: 0,
             features: 0,
@@ -622,6 +632,7 @@ fn run_board(a: &ArArgs, path: &std::path::Path) -> Result<String> {
         ));
         row.push(format_float(f32::NAN));
         row.extend([tf.tracked, tf.inliers, 0].map(|n| n.to_string()));
+        row.push("0".into());
         rows.push(row);
     }
     if count == 0 {
@@ -646,6 +657,7 @@ fn run_board(a: &ArArgs, path: &std::path::Path) -> Result<String> {
         frames: count,
         fps,
         tracking,
+        partial: 0,
         lost: count - tracking,
         mean_inliers: inliers as f64 / count.max(1) as f64,
         worst_outline_px: None,

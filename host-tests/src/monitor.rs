@@ -130,6 +130,8 @@ struct JsonFrame<'a> {
     frame: u32,
     state: &'static str,
     acquired: bool,
+    /// The pose is from a partly seen target.
+    partial: bool,
     error: Option<&'static str>,
     tracked: u16,
     inliers: u16,
@@ -479,6 +481,7 @@ fn json_frame(seq: u16, f: &FrameRecord) -> JsonFrame<'static> {
         frame: f.index,
         state: state(f.state),
         acquired: f.acquired,
+        partial: f.partial,
         error: f.error.map(|e| e.name()),
         tracked: f.tracked,
         inliers: f.inliers,

@@ -138,6 +138,7 @@ fn target_frame(f: &FrameRecord) -> TargetFrame {
         }),
         outline: f.outline.map(|o| o.map(|[x, y]| Point2::new(x, y))),
         tracked: usize::from(f.tracked),
+        partial: f.partial,
         inliers: usize::from(f.inliers),
         added: usize::from(f.added),
         features: usize::from(f.features),

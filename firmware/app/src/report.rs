@@ -13,7 +13,7 @@
 //! | 0..4 | tag | tag |
 //! | 4..8 | version | version |
 //! | 8..12 | `u32` frame index | `u32` frames run |
-//! | 12..16 | `u8` state (0 uninitialised, 1 tracking, 2 lost), `u8` flags (bit 0: acquired, 1: pose, 2: outline), `u8` error ([`ErrorCode`], 0: none), `u8` 0 | `u32` frames tracking |
+//! | 12..16 | `u8` state (0 uninitialised, 1 tracking, 2 lost), `u8` flags (bit 0: acquired, 1: pose, 2: outline, 3: partial), `u8` error ([`ErrorCode`], 0: none), `u8` 0 | `u32` frames tracking |
 //! | 16..24 | `u16` tracked, inliers, added, features | `u32` pipeline RAM, `u32` stack used |
 //! | 24..28 | `u32` track checksum | `u32` stack size |
 //! | 28..56 | best pose: `f32` `t` (3), rotation vector (3), RMS px | `u32` overlays saved, then zeros |
@@ -136,6 +136,8 @@ pub struct FrameRecord {
     pub state: TargetState,
     /// The target was acquired on this frame.
     pub acquired: bool,
+    /// The pose is from a partly seen target (`TargetFrame::partial`).
+    pub partial: bool,
     /// The frame failed with this error (the state is then the last one known).
     pub error: Option<ErrorCode>,
     /// Tracks that survived the flow.
@@ -168,6 +170,7 @@ impl FrameRecord {
             index: r.index,
             state: f.state,
             acquired: f.acquired,
+            partial: f.partial,
             error: None,
             tracked: count(f.tracked),
             inliers: count(f.inliers),
@@ -203,7 +206,8 @@ impl FrameRecord {
             };
             let flags = u8::from(self.acquired)
                 | (u8::from(self.pose.is_some()) << 1)
-                | (u8::from(self.outline.is_some()) << 2);
+                | (u8::from(self.outline.is_some()) << 2)
+                | (u8::from(self.partial) << 3);
             w.bytes(&[state, flags, self.error.map_or(0, |e| e.0), 0]);
             for c in [self.tracked, self.inliers, self.added, self.features] {
                 w.u16(c);
@@ -306,6 +310,7 @@ impl Record {
             index,
             state,
             acquired: flags & 1 != 0,
+            partial: flags & 8 != 0,
             error: (error != 0).then_some(ErrorCode(error)),
             tracked,
             inliers,
@@ -329,6 +334,7 @@ mod tests {
             index: 41,
             state: TargetState::Lost,
             acquired: true,
+            partial: true,
             error: Some(ErrorCode::of_core(&Error::BufferTooSmall("scratch"))),
             tracked: 30,
             inliers: 28,

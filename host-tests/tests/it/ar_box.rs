@@ -239,13 +239,17 @@ fn ar_cli_writes_overlays_poses_and_contact_sheet() {
     let mut lines = poses.lines();
     assert_eq!(
         lines.next(),
-        Some("frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added")
+        Some(
+            "frame,state,rx,ry,rz,tx,ty,tz,rms_px,alt_rms_px,outline_px,tracked,inliers,added,partial"
+        )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 12);
     for (k, r) in rows.iter().enumerate() {
-        assert_eq!(r.len(), 14);
+        assert_eq!(r.len(), 15);
         assert_eq!((r[0], r[1]), (k.to_string().as_str(), "tracking"));
+        // Given corners and KLT: never a partly seen tag.
+        assert_eq!(r[14], "0");
         // The lid is about 1.7 m away (tz), in front of the camera.
         let tz: f64 = r[7].parse().unwrap();
         assert!((1.0..3.0).contains(&tz), "{tz}");

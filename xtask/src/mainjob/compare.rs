@@ -40,6 +40,7 @@ fn counts(r: &FrameRecord) -> impl PartialEq + std::fmt::Debug {
     (
         r.state,
         r.acquired,
+        r.partial,
         r.error.map(|e| e.name()),
         [r.tracked, r.inliers, r.added, r.features],
     )
@@ -69,7 +70,7 @@ pub fn compare(
         };
         if counts(b) != counts(h) {
             problems.push(format!(
-                "frame {i}: board {:?}, host {:?} (state, acquired, error, tracked/inliers/added/features)",
+                "frame {i}: board {:?}, host {:?} (state, acquired, partial, error, tracked/inliers/added/features)",
                 counts(b),
                 counts(h)
             ));

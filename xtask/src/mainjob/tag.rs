@@ -158,10 +158,11 @@ fn pose_errors(records: &BTreeMap<u32, FrameRecord>) -> Result<BTreeMap<u32, (f6
 }
 
 /// The columns of `frames.csv`.
-const FRAMES_COLUMNS: [&str; 14] = [
+const FRAMES_COLUMNS: [&str; 15] = [
     "frame",
     "state",
     "acquired",
+    "partial",
     "tracked",
     "inliers",
     "features",
@@ -191,6 +192,7 @@ fn write_frames_csv(
             });
         let counts = [
             u32::from(r.acquired),
+            u32::from(r.partial),
             u32::from(r.tracked),
             u32::from(r.inliers),
             u32::from(r.features),
@@ -290,6 +292,16 @@ pub fn run(stride: u32) -> Result<String> {
         frames.len()
     );
     println!("{}", summary(frames, &errors));
+    let partial: Vec<String> = frames
+        .values()
+        .filter(|r| r.partial && r.state == TargetState::Tracking)
+        .map(|r| r.index.to_string())
+        .collect();
+    println!(
+        "tag job: {} of the frames with a pose from a partly seen tag ({})",
+        partial.len(),
+        partial.join(" ")
+    );
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -298,18 +310,20 @@ pub fn run(stride: u32) -> Result<String> {
         "---|".repeat(STAGES.len() - 1)
     );
     // Frame kinds: found by a full detection (acquired), found where it must be (4 corners
-    // tracked), tracked by KLT (other tracked frames), lost.
+    // tracked) wholly or partly seen, tracked by KLT (other tracked frames), lost.
     let kind = |r: &FrameRecord| match (r.acquired, r.state, r.tracked) {
         (true, _, _) => 0,
-        (false, TargetState::Tracking, 4) if r.features == 0 => 1,
-        (false, TargetState::Tracking, _) => 2,
-        _ => 3,
+        (false, TargetState::Tracking, 4) if r.features == 0 && !r.partial => 1,
+        (false, TargetState::Tracking, 4) if r.features == 0 => 2,
+        (false, TargetState::Tracking, _) => 3,
+        _ => 4,
     };
     for (name, k) in [
         ("full detection", 0),
         ("tracked by detection", 1),
-        ("tracked by KLT", 2),
-        ("lost (full detection)", 3),
+        ("tracked by detection, partly seen", 2),
+        ("tracked by KLT", 3),
+        ("lost (full detection)", 4),
     ] {
         let rows: Vec<&FrameRecord> = frames.values().filter(|r| kind(r) == k).collect();
         if rows.is_empty() {
