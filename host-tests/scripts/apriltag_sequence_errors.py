@@ -8,7 +8,8 @@ in between).
     python3 host-tests/scripts/apriltag_sequence_errors.py [--camgeom PATH] [--plot OUT.png]
 
 `--plot` draws each frame's rotation and translation error of the three methods (log scale,
-errors below 0.01 drawn at 0.01; a gap where a method has no pose), with OpenCV.
+errors below 0.01 drawn at 0.01; a gap where a method has no pose; tracking's poses from a
+partly seen tag ringed), with OpenCV.
 
 Runs the camgeom CLI (default: `cargo run --release -q -p camgeom-host --bin camgeom --`),
 prints a Markdown table: frames with a pose, rotation error (angle of R R_true^T) and
@@ -63,26 +64,30 @@ def row(name, n, dr, dt):
 
 
 def ar(cmd, cam, gt, extra):
-    """Per frame, (rotation, translation) error of `camgeom ar --tag` (None without a pose)."""
+    """Per frame, (rotation, translation) error of `camgeom ar --tag` (None without a pose),
+    and the frames whose pose is from a partly seen tag (`partial` 1)."""
     with tempfile.TemporaryDirectory() as tmp:
         subprocess.run(cmd + ["ar", "--frames", SEQ, "--tag", "42", "--family", "tag36h11",
                               "--tag-size", str(SIZE), "--intrinsics", cam, "--out", tmp,
                               "--no-overlay"] + extra,
                        cwd=ROOT, check=True, capture_output=True, text=True)
         rows = list(csv.DictReader(open(os.path.join(tmp, "poses.csv"))))
-    out = []
-    for r, (rt, tt) in zip(rows, gt):
+    out, partial = [], set()
+    for k, (r, (rt, tt)) in enumerate(zip(rows, gt)):
         if r["state"] != "tracking":
             out.append(None)
             continue
+        if r.get("partial") == "1":
+            partial.add(k)
         rot = rodrigues([float(r[k]) for k in ("rx", "ry", "rz")])
         t = np.array([float(r[k]) for k in ("tx", "ty", "tz")]) + rot @ np.array([SIZE / 2, SIZE / 2, 0])
         out.append(errors(rot, t, rt, tt))
-    return out
+    return out, partial
 
 
-def plot(path, series):
-    """Two log-scale panels (rotation in degrees, translation in mm) of per-frame errors."""
+def plot(path, series, partial=()):
+    """Two log-scale panels (rotation in degrees, translation in mm) of per-frame errors; the
+    last series' frames in `partial` (a pose from a partly seen tag) ringed."""
     import cv2
     w, ph, left, top, gap = 1100, 300, 70, 40, 60
     img = np.full((2 * ph + top + gap + 50, w, 3), 255, np.uint8)
@@ -114,6 +119,8 @@ def plot(path, series):
                 if prev is not None:
                     cv2.line(img, prev, p, c, 1, cv2.LINE_AA)
                 cv2.circle(img, p, 2, c, -1, cv2.LINE_AA)
+                if name == series[-1][0] and k in partial:
+                    cv2.circle(img, p, 5, c, 1, cv2.LINE_AA)
                 prev = p
     for i, ((name, _), c) in enumerate(zip(series, colours)):
         yy = 2 * ph + top + gap + 35
@@ -139,9 +146,11 @@ def main():
             if d["id"] == 42 and d["R"] is not None:
                 e = errors(np.reshape(d["R"], (3, 3)), np.array(d["t"]), rt, tt)
         det.append(e)
+    klt, _ = ar(cmd, cam, gt, ["--klt"])
+    tracked, partial = ar(cmd, cam, gt, [])
     series = [("detect every frame", det),
-              ("detect + KLT (ar --tag --klt)", ar(cmd, cam, gt, ["--klt"])),
-              ("tracking by detection (ar --tag)", ar(cmd, cam, gt, []))]
+              ("detect + KLT (ar --tag --klt)", klt),
+              ("ar --tag (ringed: partly seen)", tracked)]
     print(f"| method (160 frames) | frames with a pose | rotation error, median / p95 / max "
           f"| translation error, median / p95 / max |\n|---|---|---|---|")
     names = ["detect every frame (`camgeom apriltag --frames`)",
@@ -150,8 +159,12 @@ def main():
     for name, (_, v) in zip(names, series):
         got = [e for e in v if e is not None]
         print(row(name, len(got), [e[0] for e in got], [e[1] for e in got]))
+    part = [tracked[k] for k in sorted(partial)]
+    if part:
+        print(row("of which partly seen (`partial` 1 in `poses.csv`)", len(part),
+                  [e[0] for e in part], [e[1] for e in part]))
     if args.plot:
-        plot(args.plot, series)
+        plot(args.plot, series, partial)
 
 
 if __name__ == "__main__":
