@@ -925,17 +925,7 @@ fn run_apriltag() {
     let predicted = black_box([Point2::new(black_box(3.5f32), black_box(-2.0)); 4]);
     black_box(detector.refine_target(&v, &families::TAG36H11, black_box(7), &predicted));
     black_box(detector.refine_detection(&v, &families::TAG36H11, black_box(7), &predicted));
-    // A partly seen tag: the robust edge fit, the seen cells' reading and their confirmation.
-    black_box(
-        detector
-            .refine_partial(&v, &families::TAG36H11, black_box(7), &predicted)
-            .ok(),
-    );
-    black_box(
-        detector
-            .refine_partial(&v, black_box(&families::TAG25H9), black_box(3), &predicted)
-            .ok(),
-    );
+    run_apriltag_partial(&detector, &v, &predicted);
     black_box(
         detector
             .find_target_near(
@@ -1128,6 +1118,28 @@ fn run_aruco(v: &ImageView<'_, u8>, ws: &mut SmallWorkspace) {
         black_box(f.decode(black_box(0x1234_5678_9abc), black_box(9)));
     }
     black_box(families::by_name(black_box("DICT_6X6_250")));
+}
+
+/// A partly seen tag from an opaque prediction: the robust edge fit, the seen cells' reading
+/// and their confirmation (`Detector::refine_partial`).
+#[cfg(feature = "apriltag")]
+#[inline(never)]
+fn run_apriltag_partial(
+    detector: &camgeom::apriltag::Detector,
+    v: &ImageView<'_, u8>,
+    predicted: &[Point2<f32>; 4],
+) {
+    use camgeom::apriltag::families;
+    black_box(
+        detector
+            .refine_partial(v, &families::TAG36H11, black_box(7), predicted)
+            .ok(),
+    );
+    black_box(
+        detector
+            .refine_partial(v, black_box(&families::TAG25H9), black_box(3), predicted)
+            .ok(),
+    );
 }
 
 /// The same detection through a [`camgeom::apriltag::WorkspaceView`] of `u32` labels (a
