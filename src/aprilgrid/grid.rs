@@ -1,5 +1,7 @@
 //! The AprilGrid layout, as Kalibr defines it.
 
+use core::num::NonZeroUsize;
+
 use nalgebra::Point2;
 
 use crate::apriltag::{DetectorConfig, Family, families};
@@ -119,7 +121,8 @@ impl AprilGrid {
         if k >= self.points() {
             return None;
         }
-        let cols = 2 * self.cols();
+        // Non-zero by construction; the type lets the division carry no panic path.
+        let cols = NonZeroUsize::new(2 * self.cols())?;
         let (r, c) = (k / cols, k % cols);
         let pitch = (1.0 + self.spacing) * self.size;
         let at = |i: usize| (i / 2) as f32 * pitch + (i % 2) as f32 * self.size;
@@ -132,8 +135,8 @@ impl AprilGrid {
         if id >= self.tags() {
             return None;
         }
-        let cols = self.cols();
-        let b = (id / cols) * 4 * cols + (id % cols) * 2;
-        Some([b, b + 1, b + 2 * cols + 1, b + 2 * cols])
+        let cols = NonZeroUsize::new(self.cols())?;
+        let b = (id / cols) * 4 * cols.get() + (id % cols) * 2;
+        Some([b, b + 1, b + 2 * cols.get() + 1, b + 2 * cols.get()])
     }
 }
