@@ -31,11 +31,11 @@
 //! **Run cache**: the labelling pass also writes every row's runs, as it labelled them, into
 //! the end of a caller's `u32` buffer (the point buffer, whose points fill it from the start),
 //! downwards: per row a word with its run count, then below it a word a run (end column,
-//! class, provisional label; [`pack_run`]).
-//! A scan then reads the rows from there ([`boundary_scan_cached`]) instead of re-deriving
+//! class, provisional label; `pack_run`).
+//! A scan then reads the rows from there (`boundary_scan_cached`) instead of re-deriving
 //! them from the pixels, and may start and end at any row (the labels are stored, not
 //! re-counted). A frame whose runs do not fit (or, with `u32` labels, with a label of 16 bits
-//! or more) has no cache and its scans re-derive the rows ([`boundary_scan`]): the points are
+//! or more) has no cache and its scans re-derive the rows (`boundary_scan`): the points are
 //! the same either way, in the same order.
 
 use super::label::Label;
