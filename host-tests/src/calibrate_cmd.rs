@@ -313,22 +313,7 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
         )));
     }
     let cfg = calibration_config(a)?;
-    let ext = a
-        .out
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if !matches!(ext.as_deref(), Some("yml" | "yaml")) {
-        return Err(Error::usage(format!(
-            "--out {}: the camera file is OpenCV YAML, name it .yml or .yaml",
-            a.out.display()
-        )));
-    }
-    if a.images.len() > MAX_VIEWS {
-        return Err(Error::usage(format!(
-            "--images: at most {MAX_VIEWS} images, got {}",
-            a.images.len()
-        )));
-    }
+    check_args(a)?;
 
     let bar = progress_bar(a.images.len() as u64);
     bar.set_message("detecting");
@@ -479,6 +464,27 @@ pub fn run(a: &CalibrateArgs) -> Result<String> {
             height,
         },
     )
+}
+
+/// Checks `--out` and the number of images (before any image is read), whatever the board.
+fn check_args(a: &CalibrateArgs) -> Result<()> {
+    let ext = a
+        .out
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if !matches!(ext.as_deref(), Some("yml" | "yaml")) {
+        return Err(Error::usage(format!(
+            "--out {}: the camera file is OpenCV YAML, name it .yml or .yaml",
+            a.out.display()
+        )));
+    }
+    if a.images.len() > MAX_VIEWS {
+        return Err(Error::usage(format!(
+            "--images: at most {MAX_VIEWS} images, got {}",
+            a.images.len()
+        )));
+    }
+    Ok(())
 }
 
 /// Views numbered from 1, the numbers of those in `used` (the same objects).

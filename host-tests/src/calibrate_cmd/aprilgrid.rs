@@ -55,7 +55,7 @@ pub fn parse_spec(spec: &str) -> Result<AprilGrid> {
 pub fn run(a: &CalibrateArgs, spec: &str) -> Result<String> {
     let grid = parse_spec(spec)?;
     calibration_config(a)?;
-    identified::check_args(a)?;
+    check_args(a)?;
     let det = Detector::new(AprilGrid::detector_config(), &[grid.family()])
         .map_err(|e| Error::camgeom("detector configuration", e))?;
     let mut ws: Box<HostWorkspace> = Box::default();

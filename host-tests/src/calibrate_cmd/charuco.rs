@@ -65,7 +65,7 @@ const MIN_CORNERS: usize = 6;
 pub fn run(a: &CalibrateArgs, spec: &str) -> Result<String> {
     let board = parse_spec(spec)?;
     calibration_config(a)?;
-    identified::check_args(a)?;
+    check_args(a)?;
     let det = Detector::new(DetectorConfig::default(), &[board.dictionary()])
         .map_err(|e| Error::camgeom("detector configuration", e))?;
     let params = CharucoParams::default();

@@ -25,27 +25,6 @@ pub(super) struct IdBoard<'a> {
     pub(super) min_corners: usize,
 }
 
-/// Checks `--out` and the number of images (before any image is read).
-pub(super) fn check_args(a: &CalibrateArgs) -> Result<()> {
-    let ext = a
-        .out
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase());
-    if !matches!(ext.as_deref(), Some("yml" | "yaml")) {
-        return Err(Error::usage(format!(
-            "--out {}: the camera file is OpenCV YAML, name it .yml or .yaml",
-            a.out.display()
-        )));
-    }
-    if a.images.len() > MAX_VIEWS {
-        return Err(Error::usage(format!(
-            "--images: at most {MAX_VIEWS} images, got {}",
-            a.images.len()
-        )));
-    }
-    Ok(())
-}
-
 /// The views read, the names of the images skipped (another size) and the images' size.
 pub(super) type Loaded = (Vec<IdView>, Vec<String>, (usize, usize));
 
