@@ -31,7 +31,7 @@
 use nalgebra::Matrix3;
 
 use super::family::Family;
-use super::geom::{Line, at4, eigen, intersect, project};
+use super::geom::{Line, LineMoments, at4, intersect, project};
 use super::quad::Quad;
 use crate::image::ImageView;
 use crate::scalar::{above, at_most};
@@ -100,8 +100,8 @@ pub(crate) fn refine_edges_with(
         // keeps the loop finite for any quad and changes nothing for one in the image.
         let longest = (img.width() + img.height()) as f32;
         let nsamples = ((mag.min(longest) / 8.0) as usize).max(min_points);
-        let (mut mx, mut my, mut mxx, mut mxy, mut myy, mut cnt) =
-            (0f32, 0f32, 0f32, 0f32, 0f32, 0u32);
+        // Relative to the edge midpoint: small numbers keep the f32 covariance exact enough.
+        let mut m = LineMoments::new(line.ex, line.ey);
         for s in 0..nsamples {
             let alpha = (1.0 + s as f32) / (nsamples as f32 + 1.0);
             let x0 = alpha * pa.x + (1.0 - alpha) * pb.x;
@@ -110,35 +110,16 @@ pub(crate) fn refine_edges_with(
             else {
                 continue;
             };
-            // Relative to the edge midpoint: small numbers keep the f32 covariance exact enough.
-            let (bx, by) = (x0 + n0 * nx - line.ex, y0 + n0 * ny - line.ey);
-            mx += bx;
-            my += by;
-            mxx += bx * bx;
-            mxy += bx * by;
-            myy += by * by;
-            cnt += 1;
+            m.add(x0 + n0 * nx, y0 + n0 * ny);
         }
-        fit.fewest = fit.fewest.min(cnt as f32 / nsamples as f32);
-        if cnt < 2 {
-            continue;
-        }
-        let nf = cnt as f32;
-        let (ex, ey) = (mx / nf, my / nf);
-        let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
+        fit.fewest = fit.fewest.min(m.count as f32 / nsamples as f32);
         // The normal of the fit (AprilTag: the angle ½ atan2(-2 Cxy, Cyy - Cxx); the same
         // direction from the eigenvectors, as the quad fit computes it).
-        let (mse, _, nx, ny) = eigen(cxx, cxy, cyy);
-        if nx == 0.0 && ny == 0.0 {
+        let Some((fitted, mse)) = m.fit() else {
             continue;
-        }
-        fit.worst_mse = fit.worst_mse.max(mse);
-        *line = Line {
-            ex: ex + line.ex,
-            ey: ey + line.ey,
-            nx,
-            ny,
         };
+        fit.worst_mse = fit.worst_mse.max(mse);
+        *line = fitted;
     }
     let old = q.p;
     for (i, p) in q.p.iter_mut().enumerate() {
@@ -307,6 +288,46 @@ pub(crate) struct Reading {
     pub(crate) contrast: f32,
 }
 
+/// Sharpens a `tw x tw` grid of cell values (row-major) with AprilTag's `decode_sharpening`:
+/// `v += k (4 v - v_left - v_right - v_up - v_down)`, the discrete Laplacian of the values
+/// before any change (cells beyond the grid count as 0), on the cells `keep` selects; no change
+/// when `k = 0`.
+pub(crate) fn sharpen(
+    values: &mut [f32; MAX_TOTAL_WIDTH * MAX_TOTAL_WIDTH],
+    tw: usize,
+    sharpening: f32,
+    keep: impl Fn(usize) -> bool,
+) {
+    if sharpening == 0.0 {
+        return;
+    }
+    let orig = *values;
+    for y in 0..tw {
+        for x in 0..tw {
+            if !keep(y * tw + x) {
+                continue;
+            }
+            let at = |xx: usize, yy: usize| orig.get(yy * tw + xx).copied().unwrap_or(0.0);
+            let mut s = 4.0 * at(x, y);
+            if x > 0 {
+                s -= at(x - 1, y);
+            }
+            if x + 1 < tw {
+                s -= at(x + 1, y);
+            }
+            if y > 0 {
+                s -= at(x, y - 1);
+            }
+            if y + 1 < tw {
+                s -= at(x, y + 1);
+            }
+            if let Some(v) = values.get_mut(y * tw + x) {
+                *v += sharpening * s;
+            }
+        }
+    }
+}
+
 /// Reads the payload of the quad `h` maps to (module docs), `None` when the border does not
 /// fit the family (wrong polarity, or too few border samples inside the image for the
 /// intensity models).
@@ -410,30 +431,7 @@ pub(crate) fn read_code(
             read(x, y, &mut values);
         }
     }
-    if sharpening != 0.0 {
-        let orig = values;
-        for y in 0..tw {
-            for x in 0..tw {
-                let at = |xx: usize, yy: usize| orig.get(yy * tw + xx).copied().unwrap_or(0.0);
-                let mut s = 4.0 * at(x, y);
-                if x > 0 {
-                    s -= at(x - 1, y);
-                }
-                if x + 1 < tw {
-                    s -= at(x + 1, y);
-                }
-                if y > 0 {
-                    s -= at(x, y - 1);
-                }
-                if y + 1 < tw {
-                    s -= at(x, y + 1);
-                }
-                if let Some(v) = values.get_mut(y * tw + x) {
-                    *v += sharpening * s;
-                }
-            }
-        }
-    }
+    sharpen(&mut values, tw, sharpening, |_| true);
     let (mut ws, mut bs, mut wc, mut bc) = (0f32, 0f32, 1f32, 1f32);
     let mut rcode: u64 = 0;
     for (x, y) in bits() {

@@ -1,6 +1,7 @@
 //! The plane geometry of a quad, shared by the quad fit (`quad.rs`) and the full-resolution
 //! work on a quad (`decode.rs`): lines in point-normal form, their intersection, the line
-//! fit's 2x2 eigen-decomposition, corner indexing and the projection of tag coordinates.
+//! fit's moments and 2x2 eigen-decomposition, corner indexing and the projection of tag
+//! coordinates.
 
 use nalgebra::{Matrix3, Point2};
 
@@ -70,6 +71,78 @@ pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
         (small, big, 0.0, 0.0)
     } else {
         (small, big, nx / len, ny / len)
+    }
+}
+
+/// The first and second moments of points relative to an origin `o`, for a least-squares
+/// line (AprilTag's `fit_line` on sums): the points are taken as `p - o`, so with `o` near
+/// them the `f32` covariance `C = E[q qᵀ] - E[q] E[q]ᵀ` does not cancel the large squares of
+/// image coordinates.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LineMoments {
+    ox: f32,
+    oy: f32,
+    mx: f32,
+    my: f32,
+    mxx: f32,
+    mxy: f32,
+    myy: f32,
+    /// How many points were added.
+    pub(crate) count: u32,
+}
+
+impl LineMoments {
+    /// No points yet, relative to `(ox, oy)`.
+    pub(crate) fn new(ox: f32, oy: f32) -> Self {
+        Self {
+            ox,
+            oy,
+            mx: 0.0,
+            my: 0.0,
+            mxx: 0.0,
+            mxy: 0.0,
+            myy: 0.0,
+            count: 0,
+        }
+    }
+
+    /// Adds the point `(x, y)`.
+    #[inline]
+    pub(crate) fn add(&mut self, x: f32, y: f32) {
+        let (bx, by) = (x - self.ox, y - self.oy);
+        self.mx += bx;
+        self.my += by;
+        self.mxx += bx * bx;
+        self.mxy += bx * by;
+        self.myy += by * by;
+        self.count += 1;
+    }
+
+    /// The line through the points' mean along the covariance's major axis, with the mean
+    /// squared distance of the points to it (`λ_min` of [`eigen`]); `None` with fewer than
+    /// two points or an isotropic covariance (no direction).
+    pub(crate) fn fit(&self) -> Option<(Line, f32)> {
+        if self.count < 2 {
+            return None;
+        }
+        let nf = self.count as f32;
+        let (ex, ey) = (self.mx / nf, self.my / nf);
+        let (cxx, cxy, cyy) = (
+            self.mxx / nf - ex * ex,
+            self.mxy / nf - ex * ey,
+            self.myy / nf - ey * ey,
+        );
+        let (mse, _, nx, ny) = eigen(cxx, cxy, cyy);
+        if nx == 0.0 && ny == 0.0 {
+            return None;
+        }
+        let line = Line {
+            ex: ex + self.ox,
+            ey: ey + self.oy,
+            nx,
+            ny,
+        };
+        Some((line, mse))
     }
 }
 

@@ -25,7 +25,7 @@
 use nalgebra::Point2;
 
 use super::decode::{EdgePoint, edge_point};
-use super::geom::{Line, at4, eigen, intersect};
+use super::geom::{Line, LineMoments, at4, intersect};
 use super::quad::Quad;
 use crate::image::ImageView;
 use crate::scalar::above;
@@ -424,30 +424,18 @@ fn consensus(e: &mut Edge) -> Option<(Line, f32)> {
     let mut mse = 0.0;
     // Least squares on the inliers, twice (the second on the first's inliers).
     for _ in 0..2 {
-        let (mut mx, mut my, mut mxx, mut mxy, mut myy, mut cnt) =
-            (0f32, 0f32, 0f32, 0f32, 0f32, 0u32);
+        // The points are relative to the edge's midpoint already (small numbers for f32).
+        let mut m = LineMoments::new(0.0, 0.0);
         for j in 0..c {
             let p = at(j);
             if distance(&line, &p) <= INLIER_PX {
-                mx += p.x;
-                my += p.y;
-                mxx += p.x * p.x;
-                mxy += p.x * p.y;
-                myy += p.y * p.y;
-                cnt += 1;
+                m.add(p.x, p.y);
             }
         }
-        if cnt < 2 {
+        let Some((fitted, small)) = m.fit() else {
             break;
-        }
-        let nf = cnt as f32;
-        let (ex, ey) = (mx / nf, my / nf);
-        let (cxx, cxy, cyy) = (mxx / nf - ex * ex, mxy / nf - ex * ey, myy / nf - ey * ey);
-        let (small, _, nx, ny) = eigen(cxx, cxy, cyy);
-        if nx == 0.0 && ny == 0.0 {
-            break;
-        }
-        line = Line { ex, ey, nx, ny };
+        };
+        line = fitted;
         mse = small;
     }
     for j in 0..c {

@@ -32,7 +32,7 @@
 
 use nalgebra::{Matrix3, Point2};
 
-use super::decode::{GrayModel, MAX_TOTAL_WIDTH};
+use super::decode::{GrayModel, MAX_TOTAL_WIDTH, sharpen};
 use super::family::{Family, rotate90};
 use super::geom::{at4, project};
 use super::robust_edges::EdgeSupport;
@@ -320,33 +320,9 @@ pub(crate) fn read_visible(
             *r = true;
         }
     }
-    if sharpening != 0.0 {
-        let orig = values;
-        for y in 0..tw {
-            for x in 0..tw {
-                if !read.get(y * tw + x).copied().unwrap_or(false) {
-                    continue;
-                }
-                let at = |xx: usize, yy: usize| orig.get(yy * tw + xx).copied().unwrap_or(0.0);
-                let mut s = 4.0 * at(x, y);
-                if x > 0 {
-                    s -= at(x - 1, y);
-                }
-                if x + 1 < tw {
-                    s -= at(x + 1, y);
-                }
-                if y > 0 {
-                    s -= at(x, y - 1);
-                }
-                if y + 1 < tw {
-                    s -= at(x, y + 1);
-                }
-                if let Some(v) = values.get_mut(y * tw + x) {
-                    *v += sharpening * s;
-                }
-            }
-        }
-    }
+    sharpen(&mut values, tw, sharpening, |i| {
+        read.get(i).copied().unwrap_or(false)
+    });
     let (mut ws, mut bs, mut wc, mut bc) = (0f32, 0f32, 1f32, 1f32);
     let (mut rcode, mut seen) = (0u64, 0u64);
     for b in family.layout {
