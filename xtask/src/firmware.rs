@@ -135,6 +135,7 @@ pub fn bench() -> Result<()> {
         kept.display()
     );
     crate::charuco_bench::prepare()?;
+    crate::tag_bench::prepare()?;
     let summary = run_on_qemu_checked(&elf, BENCH_SUMMARY, BENCH_SUMMARY_REST)?;
     println!("bench-fw: {summary}");
     bench_twoview()

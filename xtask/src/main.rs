@@ -18,6 +18,7 @@ mod panic_check;
 mod profile;
 mod setup;
 mod size;
+mod tag_bench;
 mod util;
 
 use std::process::ExitCode;

@@ -19,6 +19,8 @@
 //! ([`board_bench`]), a whole 320x240 ArUco detection of six DICT_4X4_50 markers
 //! ([`aruco_bench`]), and a ChArUco view's detection at 320x240 (markers, corners interpolated
 //! and refined as saddle points) on an OpenCV render read from the host ([`charuco_bench`]),
+//! and the full AprilTag detection at decimation 1 on each frame of the rendered tag sequence
+//! ([`tag_sequence_bench`], mean and worst),
 //!
 //! then logs the cost table and the summary line `homography bench: ... instructions; klt
 //! bench: ... instructions`. Run it with `cargo xtask bench-fw`, which also reports the flash
@@ -443,7 +445,118 @@ fn aruco_bench(costs: &mut CostTable<24>, frame: &mut [u8]) -> (u32, CharucoCost
         }
         Err(e) => fail("aruco detection", e),
     }
-    (cost, charuco_bench(costs, frame, ws))
+    let charuco = charuco_bench(costs, frame, ws);
+    tag_sequence_bench(costs, frame, ws);
+    (cost, charuco)
+}
+
+/// The rendered tag sequence's frames and what the host's detector finds in each, written by
+/// `cargo xtask bench-fw` (relative to the repository root, where QEMU runs).
+const TAG_FRAMES: &str = "target/camgeom-bench/tag-frames.raw";
+const TAG_EXPECT: &str = "target/camgeom-bench/tag-expect.bin";
+/// Frames of [`TAG_FRAMES`] at most.
+const TAG_FRAMES_MAX: usize = 256;
+
+/// The full AprilTag detection at decimation 1 on every frame of the rendered tag sequence
+/// (`host-tests/data/sequences/tag/`, 320x240, tag36h11, the tag job's frames; read from
+/// [`TAG_FRAMES`] one at a time into `frame`, the workspace `ws` the board's
+/// `Workspace320x240`): records the mean and the worst instructions a detection. The tag job
+/// detects at decimation 2; this is the figure for decimation 1. [`TAG_EXPECT`] has a byte a
+/// frame, the detections the host's run of the same detector finds there; the bench checks
+/// that the board finds as many on every frame.
+#[cfg(not(feature = "size-baseline"))]
+fn tag_sequence_bench(
+    costs: &mut CostTable<24>,
+    frame: &mut [u8],
+    ws: &mut camgeom::apriltag::WorkspaceView<'_>,
+) {
+    use camgeom::apriltag::{Detection, Detector, DetectorConfig, families};
+    use camgeom::image::ImageView;
+    use camgeom_fw_emulated::semihost::HostFile;
+
+    const W: usize = 320;
+    const H: usize = 240;
+    let host = |what: &str, e: camgeom_fw_emulated::semihost::HostError| -> ! {
+        defmt::error!(
+            "{=str}: host file error {} (`cargo xtask bench-fw` writes it)",
+            what,
+            e
+        );
+        board::exit_failure()
+    };
+    let Some(frame) = frame.get_mut(..W * H) else {
+        board::exit_failure()
+    };
+    let mut expect = [0u8; TAG_FRAMES_MAX];
+    let n = match HostFile::open_read(TAG_EXPECT).and_then(|f| f.file_len()) {
+        Ok(n) if (1..=TAG_FRAMES_MAX).contains(&n) => n,
+        Ok(_) => {
+            defmt::error!("{=str}: not 1 to 256 frames", TAG_EXPECT);
+            board::exit_failure()
+        }
+        Err(e) => host(TAG_EXPECT, e),
+    };
+    if let Err(e) = HostFile::open_read(TAG_EXPECT).and_then(|mut f| f.read_exact(&mut expect[..n]))
+    {
+        host(TAG_EXPECT, e)
+    }
+    let mut file = match HostFile::open_read(TAG_FRAMES) {
+        Ok(f) => f,
+        Err(e) => host(TAG_FRAMES, e),
+    };
+    let det = match Detector::new(DetectorConfig::default(), &[&families::TAG36H11]) {
+        Ok(d) => d,
+        Err(e) => {
+            defmt::error!("tag detector: {}", e);
+            board::exit_failure()
+        }
+    };
+    let (mut total, mut worst, mut worst_at, mut with_tag) = (0u64, 0u32, 0usize, 0u32);
+    for (i, &want) in expect.iter().take(n).enumerate() {
+        if let Err(e) = file.read_exact(frame) {
+            host(TAG_FRAMES, e)
+        }
+        let Ok(view) = ImageView::packed(&frame[..], W, H) else {
+            board::exit_failure()
+        };
+        let (found, cost) = measure(
+            || -> camgeom::Result<camgeom::heapless::Vec<Detection, 8>> {
+                det.detect(black_box(&view), ws)
+            },
+        );
+        let found = match found {
+            Ok(f) => f.len(),
+            Err(e) => {
+                defmt::error!("tag sequence frame {=usize}: {}", i, e);
+                board::exit_failure()
+            }
+        };
+        if found != usize::from(want) {
+            defmt::error!(
+                "tag sequence frame {=usize}: {=usize} tags found, the host finds {=u8}",
+                i,
+                found,
+                want
+            );
+            board::exit_failure()
+        }
+        with_tag += u32::from(found > 0);
+        total += u64::from(cost);
+        if cost > worst {
+            (worst, worst_at) = (cost, i);
+        }
+    }
+    let mean = (total / n as u64) as u32;
+    costs.record("tag_seq_detect_mean", mean, n as u32);
+    costs.record("tag_seq_detect_worst", worst, 1);
+    defmt::info!(
+        "tag sequence bench: decimation 1, {=usize} frames, {=u32} with a tag; full detection {=u32} instructions mean, {=u32} worst (frame {=usize})",
+        n,
+        with_tag,
+        mean,
+        worst,
+        worst_at
+    );
 }
 
 /// The ChArUco view of [`charuco_bench`] and what it must give, written by `cargo xtask
