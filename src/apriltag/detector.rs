@@ -8,7 +8,7 @@ use super::family::{Family, Kind, MAX_CORRECTABLE};
 use super::geom::{at4, project};
 use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
-use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, Tally, fit_quad};
+use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, fit_quad};
 use super::segment::{
     Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles, label_pass, pack,
     tile_count,
@@ -484,7 +484,6 @@ impl Detector {
         let mut counter = Counter {
             table: &mut table,
             emitted: 0,
-            pending: (L::Key::EMPTY, Tally::EMPTY),
         };
         let mut cache_at = lab.cached;
         match cache_at.and_then(|at| ws.points.get(at..)) {
@@ -507,7 +506,6 @@ impl Detector {
                 &mut counter,
             ),
         }
-        counter.finish();
         // The batches' points fill the point buffer from its start; one that reaches the run
         // cache at its end ends the cache.
         let emitted = counter.emitted;
@@ -787,23 +785,11 @@ impl Detector {
     }
 }
 
-/// The counting scan's sink: every run of points into the cluster table.
-/// Consecutive points mostly share their cluster: they are gathered in `pending` and go into
-/// the table when the key changes (and at [`Counter::finish`]).
+/// The counting scan's sink: every run of points into its cluster of the table, as it comes
+/// (the table remembers the last cluster's slot: consecutive points mostly share it).
 struct Counter<'t, 'a, K: ClusterKey> {
     table: &'t mut Table<'a, K>,
     emitted: u32,
-    pending: (K, Tally),
-}
-
-impl<K: ClusterKey> Counter<'_, '_, K> {
-    fn finish(&mut self) {
-        let (key, t) = self.pending;
-        if t.n > 0 {
-            self.table.add(key, &t);
-        }
-        self.pending = (K::EMPTY, Tally::EMPTY);
-    }
 }
 
 impl<K: ClusterKey> Sink<K> for Counter<'_, '_, K> {
@@ -811,12 +797,8 @@ impl<K: ClusterKey> Sink<K> for Counter<'_, '_, K> {
     // code is unchanged by it).
     #[inline(always)]
     fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
-        if key != self.pending.0 {
-            self.finish();
-            self.pending.0 = key;
-        }
         let m = count.min(usize::from(u16::MAX)) as u16;
-        self.pending.1.add_run(x2 as u16, y2 as u16, m, gx, gy);
+        self.table.add_run(key, x2 as u16, y2 as u16, m, gx, gy);
         self.emitted = self.emitted.saturating_add(count as u32);
     }
 }

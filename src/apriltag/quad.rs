@@ -39,11 +39,14 @@ use crate::scalar::{above, at_most};
 pub(crate) const NOT_IN_BATCH: u32 = u32::MAX;
 
 /// One cluster: its key, point count, bounding box (doubled coordinates), the sums of its
-/// gradient signs `Σg` and of `Σ p · g` (saturating), and its range of the point buffer in the
+/// gradient signs `Σg` and of `Σ p · g`, and its range of the point buffer in the
 /// current batch. 32 bytes with the `u32` key of `u16` labels, 40 with the `u64` key of `u32`
 /// ones ([`super::label::Label::Key`]). The point count saturates at 65535: clusters of more
 /// than 65534 points (a boundary longer than twice the perimeter of a frame of
-/// [`super::segment::MAX_SIDE`] a side) are not fitted.
+/// [`super::segment::MAX_SIDE`] a side) are not fitted. The sums are `i32`, saturating: exact
+/// for every cluster that can be fitted (`|Σg| ≤ n`, and each `|p · g| < 2^15` in doubled
+/// coordinates, so `|Σ p · g| < 2^31` below 65536 points), hence the same in any order of
+/// the points.
 #[derive(Debug, Clone, Copy)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Cluster<K = u32> {
@@ -55,9 +58,9 @@ pub struct Cluster<K = u32> {
     pub(crate) xmax: u16,
     pub(crate) ymin: u16,
     pub(crate) ymax: u16,
-    pub(crate) sgx: i16,
-    pub(crate) sgy: i16,
-    pub(crate) spg: i64,
+    pub(crate) sgx: i32,
+    pub(crate) sgy: i32,
+    pub(crate) spg: i32,
 }
 
 impl Cluster {
@@ -89,7 +92,7 @@ impl<K: ClusterKey> Cluster<K> {
     pub(crate) fn dot(&self) -> i64 {
         let xs = i64::from(self.xmin) + i64::from(self.xmax);
         let ys = i64::from(self.ymin) + i64::from(self.ymax);
-        2 * self.spg - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
+        2 * i64::from(self.spg) - xs * i64::from(self.sgx) - ys * i64::from(self.sgy)
     }
 
     /// The cluster pre-filter (module docs): `Some(reversed)` for a closed boundary around
@@ -110,50 +113,6 @@ impl<K: ClusterKey> Cluster<K> {
             return None;
         }
         Some(dot < 0)
-    }
-}
-
-/// Points of one cluster gathered before they go into the [`Table`]: count, bounding box and
-/// the sums of [`Cluster`].
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Tally {
-    pub(crate) n: u32,
-    pub(crate) xmin: u16,
-    pub(crate) xmax: u16,
-    pub(crate) ymin: u16,
-    pub(crate) ymax: u16,
-    pub(crate) sgx: i32,
-    pub(crate) sgy: i32,
-    pub(crate) spg: i64,
-}
-
-impl Tally {
-    /// Nothing.
-    pub(crate) const EMPTY: Self = Self {
-        n: 0,
-        xmin: u16::MAX,
-        xmax: 0,
-        ymin: u16::MAX,
-        ymax: 0,
-        sgx: 0,
-        sgy: 0,
-        spg: 0,
-    };
-
-    /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, with gradient signs `(gx, gy)`.
-    #[inline]
-    pub(crate) fn add_run(&mut self, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
-        let mi = i32::from(m);
-        self.n += u32::from(m);
-        self.xmin = self.xmin.min(x2);
-        self.xmax = self.xmax.max(x2.saturating_add(2 * m.saturating_sub(1)));
-        self.ymin = self.ymin.min(y2);
-        self.ymax = self.ymax.max(y2);
-        self.sgx += mi * gx;
-        self.sgy += mi * gy;
-        // Σ x2 over the run: m x2 + m (m - 1); each term below 2^28 (MAX_DIM = 8192).
-        let sx = mi * i32::from(x2) + mi * (mi - 1);
-        self.spg += i64::from(sx * gx) + i64::from(mi * i32::from(y2) * gy);
     }
 }
 
@@ -195,16 +154,17 @@ impl<'a, K: ClusterKey> Table<'a, K> {
         self
     }
 
-    /// Adds the points `t` of cluster `key`.
+    /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, of cluster `key`, with gradient signs
+    /// `(gx, gy)` (each -1, 0 or 1).
     #[inline]
-    pub(crate) fn add(&mut self, key: K, t: &Tally) {
+    pub(crate) fn add_run(&mut self, key: K, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
         let i = if self.last.0 == key {
             self.last.1
         } else {
             match self.slot(key) {
                 Some(i) => i,
                 None => {
-                    self.dropped = self.dropped.saturating_add(t.n);
+                    self.dropped = self.dropped.saturating_add(u32::from(m));
                     return;
                 }
             }
@@ -212,15 +172,20 @@ impl<'a, K: ClusterKey> Table<'a, K> {
         let Some(c) = self.slots.get_mut(i) else {
             return;
         };
-        c.n = c.n.saturating_add(t.n.min(u32::from(u16::MAX)) as u16);
-        c.xmin = c.xmin.min(t.xmin);
-        c.xmax = c.xmax.max(t.xmax);
-        c.ymin = c.ymin.min(t.ymin);
-        c.ymax = c.ymax.max(t.ymax);
-        let clamp16 = |v: i32| v.clamp(i32::from(i16::MIN), i32::from(i16::MAX)) as i16;
-        c.sgx = clamp16(i32::from(c.sgx) + t.sgx);
-        c.sgy = clamp16(i32::from(c.sgy) + t.sgy);
-        c.spg = c.spg.saturating_add(t.spg);
+        let mi = i32::from(m);
+        c.n = c.n.saturating_add(m);
+        c.xmin = c.xmin.min(x2);
+        c.xmax = c.xmax.max(x2.saturating_add(2 * m.saturating_sub(1)));
+        c.ymin = c.ymin.min(y2);
+        c.ymax = c.ymax.max(y2);
+        c.sgx = c.sgx.saturating_add(mi * gx);
+        c.sgy = c.sgy.saturating_add(mi * gy);
+        // Σ x2 over the run: m x2 + m (m - 1), below 2^28 (a run is at most MAX_SIDE wide).
+        let sx = mi * i32::from(x2) + mi * (mi - 1);
+        c.spg = c
+            .spg
+            .saturating_add(sx * gx)
+            .saturating_add(mi * i32::from(y2) * gy);
     }
 
     /// The slot of `key`, inserted when new and there is room (and remembered).
