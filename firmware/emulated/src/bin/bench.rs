@@ -512,6 +512,10 @@ fn tag_sequence_bench(
         }
     };
     let (mut total, mut worst, mut worst_at, mut with_tag) = (0u64, 0u32, 0usize, 0u32);
+    let mut stages = StageTicks {
+        last: 0,
+        ticks: [0; STAGES],
+    };
     for (i, &want) in expect.iter().take(n).enumerate() {
         if let Err(e) = file.read_exact(frame) {
             host(TAG_FRAMES, e)
@@ -541,6 +545,16 @@ fn tag_sequence_bench(
             board::exit_failure()
         }
         with_tag += u32::from(found > 0);
+        // Where it went: the same detection again, told at each stage's end.
+        let mut again: camgeom::heapless::Vec<Detection, 8> = camgeom::heapless::Vec::new();
+        stages.last = cost::now();
+        if det
+            .detect_into(black_box(&view), ws, &mut stages, |_, _| true, &mut again)
+            .is_err()
+            || again.len() != found
+        {
+            board::exit_failure()
+        }
         total += u64::from(cost);
         if cost > worst {
             (worst, worst_at) = (cost, i);
@@ -557,6 +571,56 @@ fn tag_sequence_bench(
         worst,
         worst_at
     );
+    let per = |i: usize| {
+        let t = stages.ticks.get(i).copied().unwrap_or(0);
+        (t * u64::from(cost::per_tick()) / n as u64) as u32
+    };
+    defmt::info!(
+        "tag sequence bench, mean instructions a frame by stage: threshold {=u32}, components {=u32}, clusters {=u32}, points {=u32}, quad fit {=u32}, refine {=u32}, decode {=u32}, reconcile {=u32}",
+        per(0),
+        per(1),
+        per(2),
+        per(3),
+        per(4),
+        per(5),
+        per(6),
+        per(7)
+    );
+}
+
+/// Stages of an AprilTag detection ([`camgeom::apriltag::Stage`]).
+#[cfg(not(feature = "size-baseline"))]
+const STAGES: usize = 8;
+
+/// Counter ticks spent in each stage of the detections it is given to.
+#[cfg(not(feature = "size-baseline"))]
+struct StageTicks {
+    /// The reading at the last stage's end.
+    last: u64,
+    /// Ticks a stage, [`camgeom::apriltag::Stage`] order.
+    ticks: [u64; STAGES],
+}
+
+#[cfg(not(feature = "size-baseline"))]
+impl camgeom::probe::StageProbe<camgeom::apriltag::Stage> for StageTicks {
+    fn stage_done(&mut self, stage: camgeom::apriltag::Stage) {
+        use camgeom::apriltag::Stage;
+        let now = cost::now();
+        let i = match stage {
+            Stage::Threshold => 0,
+            Stage::Components => 1,
+            Stage::Clusters => 2,
+            Stage::Points => 3,
+            Stage::QuadFit => 4,
+            Stage::Refine => 5,
+            Stage::Decode => 6,
+            _ => 7,
+        };
+        if let Some(t) = self.ticks.get_mut(i) {
+            *t += now - self.last;
+        }
+        self.last = now;
+    }
 }
 
 /// The ChArUco view of [`charuco_bench`] and what it must give, written by `cargo xtask
