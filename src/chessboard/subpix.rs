@@ -392,6 +392,18 @@ impl SaddleParams {
             ..c
         })
     }
+
+    /// The smoothing kernel's radius, `⌈3σ⌉` px.
+    fn kernel_radius(&self) -> usize {
+        (libm::ceilf(3.0 * self.0.sigma) as usize).min(SADDLE_KERNEL)
+    }
+
+    /// How far from a corner the refinement reads the image, px: the window's half side plus
+    /// the smoothing kernel's radius, plus the bilinear neighbour (a corner at least this far
+    /// inside the frame is fitted on the frame's own pixels, none repeated from its border).
+    pub(crate) fn reach(&self) -> f32 {
+        (usize::from(self.0.half_window) + self.kernel_radius() + 1) as f32
+    }
 }
 
 impl Default for SaddleParams {
@@ -423,39 +435,105 @@ pub fn saddle_subpix(
     corners: &mut [Point2<f32>],
     params: &SaddleParams,
 ) -> Result<()> {
-    let cfg = params.config();
     check_finite(corners)?;
-    let r = cfg.half_window as usize;
-    let kr = (libm::ceilf(3.0 * cfg.sigma) as usize).min(SADDLE_KERNEL);
-    let mut kernel = [0.0f32; 2 * SADDLE_KERNEL + 1];
-    let mut ksum = 0.0;
-    for (i, k) in kernel.iter_mut().take(2 * kr + 1).enumerate() {
-        let t = i as f32 - kr as f32;
-        *k = libm::expf(-0.5 * t * t / (cfg.sigma * cfg.sigma));
-        ksum += *k;
-    }
-    for k in kernel.iter_mut() {
-        *k /= ksum;
-    }
-    let side = 2 * (r + kr) + 1;
-    let half = (r + kr) as isize;
-    // Fit denominators on the symmetric grid.
-    let rr = r as isize;
-    let m2 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() / (2 * r + 1) as f32;
-    let n1 = (2 * r + 1) as f32;
-    let sx2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() * n1;
-    let s2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum();
-    let sx2y2 = s2 * s2;
-    let sq: f32 = (-rr..=rr)
-        .map(|x| {
-            let t = (x * x) as f32 - m2;
-            t * t
-        })
-        .sum::<f32>()
-        * n1;
+    let fit = SaddleFit::new(params);
     for c in corners.iter_mut() {
-        let start = *c;
+        *c = fit.refine(image, *c).0;
+    }
+    Ok(())
+}
+
+/// The saddle refinement of one corner ([`saddle_subpix`]) when it converged: `Some` only when
+/// the iteration reached a step of at most `epsilon` (a fixed point of the fit, a saddle at
+/// every step, no step over one pixel) within `max_iterations`, and stayed within the window
+/// of its start. A corner that ends on a fit that is not a saddle, on a step over a pixel, or
+/// still moving after the last iteration is `None`: the window does not hold one clean saddle
+/// (another corner, an edge or a marker's corner of its own in reach, a cut or covered corner)
+/// and where the iteration stopped says nothing of the crossing.
+///
+/// Errors: [`Error::NonFinite`] for a non-finite corner.
+pub(crate) fn saddle_converged(
+    image: &ImageView<'_, u8>,
+    corner: Point2<f32>,
+    params: &SaddleParams,
+) -> Result<Option<Point2<f32>>> {
+    check_finite(&[corner])?;
+    let (q, converged) = SaddleFit::new(params).refine(image, corner);
+    Ok(converged.then_some(q))
+}
+
+/// The fixed parts of [`saddle_subpix`]'s fit: the smoothing kernel and the fit's sums on the
+/// symmetric grid.
+struct SaddleFit {
+    cfg: SaddleConfig,
+    kernel: [f32; 2 * SADDLE_KERNEL + 1],
+    /// Window half side and kernel radius.
+    r: usize,
+    kr: usize,
+    m2: f32,
+    sx2: f32,
+    sx2y2: f32,
+    sq: f32,
+}
+
+impl SaddleFit {
+    fn new(params: &SaddleParams) -> Self {
+        let cfg = *params.config();
+        let r = cfg.half_window as usize;
+        let kr = params.kernel_radius();
+        let mut kernel = [0.0f32; 2 * SADDLE_KERNEL + 1];
+        let mut ksum = 0.0;
+        for (i, k) in kernel.iter_mut().take(2 * kr + 1).enumerate() {
+            let t = i as f32 - kr as f32;
+            *k = libm::expf(-0.5 * t * t / (cfg.sigma * cfg.sigma));
+            ksum += *k;
+        }
+        for k in kernel.iter_mut() {
+            *k /= ksum;
+        }
+        // Fit denominators on the symmetric grid.
+        let rr = r as isize;
+        let m2 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() / (2 * r + 1) as f32;
+        let n1 = (2 * r + 1) as f32;
+        let sx2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum::<f32>() * n1;
+        let s2: f32 = (-rr..=rr).map(|x| (x * x) as f32).sum();
+        let sx2y2 = s2 * s2;
+        let sq: f32 = (-rr..=rr)
+            .map(|x| {
+                let t = (x * x) as f32 - m2;
+                t * t
+            })
+            .sum::<f32>()
+            * n1;
+        Self {
+            cfg,
+            kernel,
+            r,
+            kr,
+            m2,
+            sx2,
+            sx2y2,
+            sq,
+        }
+    }
+
+    /// The refined corner from `start` and whether the iteration converged (its last step at
+    /// most `epsilon`).
+    fn refine(&self, image: &ImageView<'_, u8>, start: Point2<f32>) -> (Point2<f32>, bool) {
+        let Self {
+            cfg,
+            kernel,
+            r,
+            kr,
+            m2,
+            sx2,
+            sx2y2,
+            sq,
+        } = *self;
+        let side = 2 * (r + kr) + 1;
+        let half = (r + kr) as isize;
         let mut q = start;
+        let mut converged = false;
         for _ in 0..cfg.max_iterations {
             let mut raw = [0.0f32; SADDLE_PATCH * SADDLE_PATCH];
             resample_window(image, &q, half, side, &mut raw, SADDLE_PATCH);
@@ -505,14 +583,61 @@ pub fn saddle_subpix(
             }
             q = Point2::new(q.x + dx, q.y + dy);
             if dx * dx + dy * dy <= cfg.epsilon {
+                converged = true;
                 break;
             }
         }
         let lim = r as f32 + 1.0;
         if !((q.x - start.x).abs() <= lim && (q.y - start.y).abs() <= lim) {
-            q = start;
+            return (start, false);
         }
-        *c = q;
+        (q, converged)
     }
-    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const N: usize = 40;
+
+    /// A 40x40 image of `f(x, y)` at the pixel centres, rounded.
+    fn render(f: impl Fn(f32, f32) -> f32) -> [u8; N * N] {
+        let mut img = [0u8; N * N];
+        for (k, px) in img.iter_mut().enumerate() {
+            *px = libm::roundf(f((k % N) as f32, (k / N) as f32)) as u8;
+        }
+        img
+    }
+
+    /// A clean corner converges onto its crossing; a flat patch and a straight edge (no
+    /// saddle) are refused, where `saddle_subpix` keeps their start.
+    #[test]
+    fn saddle_converged_only_on_a_saddle() {
+        let p = SaddleParams::default();
+        let c = Point2::new(20.3f32, 19.6);
+        // A blurred corner, point-symmetric about `c`.
+        let corner = render(|x, y| {
+            120.0 + 80.0 * libm::tanhf((x - c.x) / 2.0) * libm::tanhf((y - c.y) / 2.0)
+        });
+        let v = ImageView::new(&corner, N, N, N).unwrap();
+        let q = saddle_converged(&v, Point2::new(20.8, 19.2), &p)
+            .unwrap()
+            .unwrap();
+        assert!((q - c).norm() < 0.05, "{q:?}");
+        let flat = [128u8; N * N];
+        let edge = render(|x, _| 120.0 + 80.0 * libm::tanhf((x - 20.3) / 2.0));
+        for img in [&flat, &edge] {
+            let v = ImageView::new(img, N, N, N).unwrap();
+            let start = Point2::new(20.0, 20.0);
+            assert_eq!(saddle_converged(&v, start, &p).unwrap(), None);
+            let mut kept = [start];
+            saddle_subpix(&v, &mut kept, &p).unwrap();
+            assert_eq!(kept[0], start);
+        }
+        assert_eq!(
+            saddle_converged(&v, Point2::new(f32::NAN, 1.0), &p),
+            Err(Error::NonFinite)
+        );
+    }
 }
