@@ -46,6 +46,91 @@ fn camera<T: Real>(model: LensModel, p: &[T; NC]) -> Result<Camera<T>> {
     ))
 }
 
+/// A view's start pose through the start camera `cam`: [`solve_planar`] on its points. A start
+/// camera is rough, and worst far from its axis (a fisheye start whose focal length is short
+/// sends a wide view's outer corners towards 90 degrees, where the pose through them puts part
+/// of the board behind the camera): when the pose of every point is not found, the pose of the
+/// half of the points nearest the axis, then of the quarter, down to 4 points. The joint
+/// refinement then uses every point.
+fn start_pose<T: Real, const P: usize>(
+    cam: &Camera<T>,
+    plane: &[Point2<T>],
+    pixels: &[Point2<T>],
+    scratch: &mut [Point2<T>; P],
+) -> Result<Pose<T>> {
+    match solve_planar(cam, plane, pixels, scratch, &PlanarConfig::default()) {
+        Ok(pp) => Ok(pp.best.pose),
+        Err(e) => start_pose_near_axis(cam, plane, pixels, scratch).ok_or(e),
+    }
+}
+
+/// [`start_pose`]'s fallback: the pose of the nearest half of the points to the axis of `cam`
+/// (by their distorted normalised radius), then the nearest quarter, .., while at least 4.
+#[inline(never)]
+fn start_pose_near_axis<T: Real, const P: usize>(
+    cam: &Camera<T>,
+    plane: &[Point2<T>],
+    pixels: &[Point2<T>],
+    scratch: &mut [Point2<T>; P],
+) -> Option<Pose<T>> {
+    let n = pixels.len().min(plane.len()).min(P);
+    let mut radius = [T::zero(); P];
+    let mut order = [0usize; P];
+    for (i, (r, o)) in radius.iter_mut().zip(order.iter_mut()).take(n).enumerate() {
+        let d = pixels
+            .get(i)
+            .and_then(|u| cam.intrinsics.pixel_to_normalized(u).ok());
+        // Not finite or not mapped: last.
+        *r = d
+            .map(|d| d.coords.norm())
+            .filter(|r| r.is_finite())
+            .unwrap_or(T::lit(f64::INFINITY));
+        *o = i;
+    }
+    // Insertion sort by radius (bounded: n ≤ P).
+    for i in 1..n {
+        let mut j = i;
+        while j > 0 {
+            let (Some(&a), Some(&b)) = (order.get(j - 1), order.get(j)) else {
+                break;
+            };
+            let (Some(&ra), Some(&rb)) = (radius.get(a), radius.get(b)) else {
+                break;
+            };
+            if rb.partial_cmp(&ra) != Some(core::cmp::Ordering::Less) {
+                break;
+            }
+            order.swap(j - 1, j);
+            j -= 1;
+        }
+    }
+    let mut model = [Point2::origin(); P];
+    let mut obs = [Point2::origin(); P];
+    let mut k = n / 2;
+    while k >= 4 {
+        for ((m, u), &i) in model
+            .iter_mut()
+            .zip(obs.iter_mut())
+            .zip(order.iter())
+            .take(k)
+        {
+            (*m, *u) = (*plane.get(i)?, *pixels.get(i)?);
+        }
+        let pp = solve_planar(
+            cam,
+            model.get(..k)?,
+            obs.get(..k)?,
+            scratch,
+            &PlanarConfig::default(),
+        );
+        if let Ok(pp) = pp {
+            return Some(pp.best.pose);
+        }
+        k /= 2;
+    }
+    None
+}
+
 impl<T: Real, const V: usize> Refinement<T, V> {
     /// Nothing refined yet.
     pub(super) fn new() -> Self {
@@ -118,11 +203,10 @@ impl<T: Real, const V: usize> Refinement<T, V> {
                 None => {
                     let (plane, pixels) = views.view_plane(v);
                     let plane = plane.get(..pixels.len()).ok_or(Error::LengthMismatch)?;
-                    match solve_planar(&cam0, plane, pixels, &mut scratch, &PlanarConfig::default())
-                    {
-                        Ok(pp) => {
+                    match start_pose(&cam0, plane, pixels, &mut scratch) {
+                        Ok(pose) => {
                             if let Some(slot) = self.poses.get_mut(v) {
-                                *slot = pp.best.pose;
+                                *slot = pose;
                             }
                             None
                         }
