@@ -3,6 +3,7 @@
 
     python3 host-tests/scripts/charuco_render.py [OUT]   # default host-tests/data/charuco
     python3 host-tests/scripts/charuco_render.py qvga [DIR]   # DIR/brown -> DIR/brown-320x240
+    python3 host-tests/scripts/charuco_render.py heldout DIR  # DIR/heldout-{brown,fisheye}
 
 The board: `cv2.aruco.CharucoBoard((11, 8), 0.030, 0.022, DICT_4X4_50)` (OpenCV's default,
 non-legacy layout), drawn by `board.generateImage` at 8 px/mm on a white page with a 20 mm
@@ -58,6 +59,24 @@ CAMS = {
         K=np.array([[300.0, 0, 318.0], [0, 299.0, 242.5], [0, 0, 1]]),
         D=np.array([0.05, -0.01, 0.003, -0.0005]),
         fisheye=True,
+    ),
+}
+
+
+# Held-out cameras (`heldout`): other lenses, other poses (other seeds), the same board and
+# renderer, to check that what was measured on the two sets above carries over.
+HELDOUT = {
+    "heldout-brown": dict(
+        K=np.array([[480.0, 0, 314.0], [0, 483.0, 246.5], [0, 0, 1]]),
+        D=np.array([-0.22, 0.05, -0.0012, 0.0006, 0.004]),
+        fisheye=False,
+        seed=4141,
+    ),
+    "heldout-fisheye": dict(
+        K=np.array([[280.0, 0, 325.5], [0, 281.0, 236.0], [0, 0, 1]]),
+        D=np.array([0.02, 0.005, -0.004, 0.0008]),
+        fisheye=True,
+        seed=4142,
     ),
 }
 
@@ -222,12 +241,18 @@ def main():
     if len(sys.argv) > 1 and sys.argv[1] == "qvga":
         return qvga(sys.argv[2] if len(sys.argv) > 2 else os.path.join(
             os.path.dirname(__file__), "..", "data", "charuco"))
+    cams = CAMS
+    if len(sys.argv) > 1 and sys.argv[1] == "heldout":
+        if len(sys.argv) < 3:
+            sys.exit("usage: charuco_render.py heldout DIR")
+        cams = HELDOUT
+        sys.argv = sys.argv[1:]
     outdir = sys.argv[1] if len(sys.argv) > 1 else os.path.join(
         os.path.dirname(__file__), "..", "data", "charuco")
     b = board()
     tex = page(b)
-    for name, cam in CAMS.items():
-        rng = np.random.default_rng(41 + (1 if cam["fisheye"] else 0))
+    for name, cam in cams.items():
+        rng = np.random.default_rng(cam.get("seed", 41 + (1 if cam["fisheye"] else 0)))
         d = os.path.join(outdir, name)
         os.makedirs(d, exist_ok=True)
         rows = ["view,id,x,y"]
