@@ -100,7 +100,12 @@ fn start_pose_near_axis<T: Real, const P: usize>(
             if rb.partial_cmp(&ra) != Some(core::cmp::Ordering::Less) {
                 break;
             }
-            order.swap(j - 1, j);
+            if let Some(x) = order.get_mut(j - 1) {
+                *x = b;
+            }
+            if let Some(y) = order.get_mut(j) {
+                *y = a;
+            }
             j -= 1;
         }
     }
