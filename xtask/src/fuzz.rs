@@ -25,7 +25,7 @@ use crate::util::{output, root, run};
 pub const SMOKE_SECONDS: u64 = 1;
 
 /// The targets, in `fuzz/Cargo.toml` order.
-pub const TARGETS: [&str; 14] = [
+pub const TARGETS: [&str; 15] = [
     "image_pyramid_features",
     "homography",
     "pose",
@@ -35,6 +35,7 @@ pub const TARGETS: [&str; 14] = [
     "calibrate",
     "apriltag",
     "board",
+    "charuco",
     "remap",
     "sfm",
     "vanishing",
