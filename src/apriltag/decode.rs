@@ -288,6 +288,22 @@ pub(crate) struct Reading {
     pub(crate) contrast: f32,
 }
 
+/// The detector's sample rows of the quiet zone (white) and the border (black), `(x0, y0, dx,
+/// dy, white)` in cells from the border's outer corner, for a border `wab` cells wide: the
+/// intensity models' samples ([`read_code`] and the partial view's reading).
+pub(crate) fn border_rows(wab: f32) -> [(f32, f32, f32, f32, bool); 8] {
+    [
+        (-0.5, 0.5, 0.0, 1.0, true),
+        (0.5, 0.5, 0.0, 1.0, false),
+        (wab + 0.5, 0.5, 0.0, 1.0, true),
+        (wab - 0.5, 0.5, 0.0, 1.0, false),
+        (0.5, -0.5, 1.0, 0.0, true),
+        (0.5, 0.5, 1.0, 0.0, false),
+        (0.5, wab + 0.5, 1.0, 0.0, true),
+        (0.5, wab - 0.5, 1.0, 0.0, false),
+    ]
+}
+
 /// Sharpens a `tw x tw` grid of cell values (row-major) with AprilTag's `decode_sharpening`:
 /// `v += k (4 v - v_left - v_right - v_up - v_down)`, the discrete Laplacian of the values
 /// before any change (cells beyond the grid count as 0), on the cells `keep` selects; no change
@@ -343,17 +359,7 @@ pub(crate) fn read_code(
     if tw > MAX_TOTAL_WIDTH || wab < 2 {
         return None;
     }
-    // { x0, y0, dx, dy, white } in cells from the border's outer corner.
-    let patterns: [(f32, f32, f32, f32, bool); 8] = [
-        (-0.5, 0.5, 0.0, 1.0, true),
-        (0.5, 0.5, 0.0, 1.0, false),
-        (wabf + 0.5, 0.5, 0.0, 1.0, true),
-        (wabf - 0.5, 0.5, 0.0, 1.0, false),
-        (0.5, -0.5, 1.0, 0.0, true),
-        (0.5, 0.5, 1.0, 0.0, false),
-        (0.5, wabf + 0.5, 1.0, 0.0, true),
-        (0.5, wabf - 0.5, 1.0, 0.0, false),
-    ];
+    let patterns = border_rows(wabf);
     let (mut white, mut black) = (GrayModel::default(), GrayModel::default());
     let (w, hgt) = (img.width() as f32, img.height() as f32);
     let mut ring_in_view = true;

@@ -32,7 +32,7 @@
 
 use nalgebra::{Matrix3, Point2};
 
-use super::decode::{GrayModel, MAX_TOTAL_WIDTH, sharpen};
+use super::decode::{GrayModel, MAX_TOTAL_WIDTH, border_rows, sharpen};
 use super::family::{Family, rotate90};
 use super::geom::{at4, project};
 use super::robust_edges::EdgeSupport;
@@ -250,17 +250,7 @@ pub(crate) fn read_visible(
     if tw > MAX_TOTAL_WIDTH || wab < 2 || family.layout.len() > 64 {
         return None;
     }
-    // The detector's sample rows of the quiet zone (white) and the border (black).
-    let patterns: [(f32, f32, f32, f32, bool); 8] = [
-        (-0.5, 0.5, 0.0, 1.0, true),
-        (0.5, 0.5, 0.0, 1.0, false),
-        (wabf + 0.5, 0.5, 0.0, 1.0, true),
-        (wabf - 0.5, 0.5, 0.0, 1.0, false),
-        (0.5, -0.5, 1.0, 0.0, true),
-        (0.5, 0.5, 1.0, 0.0, false),
-        (0.5, wabf + 0.5, 1.0, 0.0, true),
-        (0.5, wabf - 0.5, 1.0, 0.0, false),
-    ];
+    let patterns = border_rows(wabf);
     let (mut white, mut black) = (GrayModel::default(), GrayModel::default());
     for &(x0, y0, dx, dy, is_white) in &patterns {
         for i in 0..wab {
