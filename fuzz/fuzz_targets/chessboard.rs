@@ -225,7 +225,11 @@ fuzz_target!(|inp: Input| {
         });
         match any {
             Ok(Some(found)) => {
-                assert_eq!(found.corners.len(), board.corners(), "any scale: corner count");
+                assert_eq!(
+                    found.corners.len(),
+                    board.corners(),
+                    "any scale: corner count"
+                );
                 for p in &found.corners {
                     assert!(p.x.is_finite() && p.y.is_finite(), "any scale: not finite");
                 }

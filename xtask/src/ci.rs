@@ -37,6 +37,21 @@ fn steps() -> Vec<Step> {
         }),
     );
     add(
+        "fmt (fuzz targets)",
+        Box::new(|| {
+            // rustfmt on the files: `cargo fmt` there would resolve the fuzz workspace first.
+            let dir = root().join("fuzz").join("fuzz_targets");
+            let mut files: Vec<_> = std::fs::read_dir(&dir)?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x == "rs"))
+                .collect();
+            files.sort();
+            let mut cmd = Command::new("rustfmt");
+            cmd.args(["--check", "--edition", "2024"]).args(&files);
+            run(&mut cmd)
+        }),
+    );
+    add(
         "imports point down (core, board app, host crate, xtask)",
         Box::new(|| crate::imports::check(&root())),
     );
@@ -168,7 +183,7 @@ fn steps() -> Vec<Step> {
     );
     // Measured on the shared 2-core machine (load average 5): panic check ~3.5 min (one release
     // LTO link of every area with f32 and f64 per target, thumbv7em ~110 s and thumbv6m ~90 s,
-    // each building camgeom for its target); fuzz smoke: the build (~57 s for the nine targets)
+    // each building camgeom for its target); fuzz smoke: the build of every target (most of the step)
     // then 1 s for each after replaying its committed corpus; a fresh machine also spends ~95 s in `setup`
     // installing cargo-fuzz.
     add(
