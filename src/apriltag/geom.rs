@@ -5,7 +5,7 @@
 
 use nalgebra::{Matrix3, Point2};
 
-use crate::scalar::{above, at_most};
+use crate::scalar::{above, at_most, larger};
 
 /// A line through `(ex, ey)` with unit normal `(nx, ny)` (AprilTag's `lines[i]`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -50,14 +50,30 @@ pub(crate) fn intersect(a: &Line, b: &Line) -> Option<Point2<f32>> {
 }
 
 /// `(λ_min, λ_max, n_x, n_y)` of the symmetric 2x2 matrix `[cxx cxy; cxy cyy]` (a covariance:
-/// AprilTag's `fit_line`): `λ = (cxx + cyy ∓ √((cxx - cyy)² + 4 cxy²)) / 2` (`λ_min` clamped at
-/// 0), and `n` the unit eigenvector of `λ_min`, the normal of the fitted line (the longer of
-/// the two columns of `C - λ_max I`; `(0, 0)` when both vanish, an isotropic `C`).
+/// AprilTag's `fit_line`): [`eigenvalues`] and [`normal`].
 #[inline]
 pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
+    let (small, big) = eigenvalues(cxx, cxy, cyy);
+    let (nx, ny) = normal(cxx, cxy, cyy, big);
+    (small, big, nx, ny)
+}
+
+/// `(λ_min, λ_max)` of the symmetric 2x2 matrix `[cxx cxy; cxy cyy]`:
+/// `λ = (cxx + cyy ∓ √((cxx - cyy)² + 4 cxy²)) / 2`, `λ_min` clamped at 0 (NaN gives 0).
+#[inline]
+pub(crate) fn eigenvalues(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32) {
     let d = libm::sqrtf((cxx - cyy) * (cxx - cyy) + 4.0 * cxy * cxy);
-    let small = (0.5 * (cxx + cyy - d)).max(0.0);
+    // `max(0)` without the library call (`fmaxf` on the M4/M7): the difference is never -0.
+    let small = larger(0.0, 0.5 * (cxx + cyy - d));
     let big = 0.5 * (cxx + cyy + d);
+    (small, big)
+}
+
+/// The unit eigenvector of `[cxx cxy; cxy cyy]` for the smaller eigenvalue, given the larger
+/// `big` ([`eigenvalues`]): the normal of the fitted line, the longer of the two columns of
+/// `C - λ_max I` normalised; `(0, 0)` when both vanish (an isotropic `C`).
+#[inline]
+pub(crate) fn normal(cxx: f32, cxy: f32, cyy: f32, big: f32) -> (f32, f32) {
     let (nx1, ny1) = (cxx - big, cxy);
     let (nx2, ny2) = (cxy, cyy - big);
     let (m1, m2) = (nx1 * nx1 + ny1 * ny1, nx2 * nx2 + ny2 * ny2);
@@ -68,9 +84,9 @@ pub(crate) fn eigen(cxx: f32, cxy: f32, cyy: f32) -> (f32, f32, f32, f32) {
     };
     let len = libm::sqrtf(m);
     if len < 1e-12 {
-        (small, big, 0.0, 0.0)
+        (0.0, 0.0)
     } else {
-        (small, big, nx / len, ny / len)
+        (nx / len, ny / len)
     }
 }
 

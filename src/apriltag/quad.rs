@@ -29,7 +29,7 @@
 
 use nalgebra::Point2;
 
-use super::geom::{Line, at4, eigen, intersect};
+use super::geom::{Line, at4, eigen, eigenvalues, intersect, normal};
 use super::label::ClusterKey;
 use super::segment::{Sampled, unpack};
 use crate::features::offer_best;
@@ -271,9 +271,15 @@ pub(crate) fn sort_by_key(pts: &mut [u32], keys: &mut [u16]) {
         return;
     };
     let bounds = flag_pass(pts, keys, 8);
-    for b in 0..256 {
-        let s = usize::from(bounds.get(b).copied().unwrap_or(0));
-        let e = usize::from(bounds.get(b + 1).copied().unwrap_or(0));
+    for pair in bounds.windows(2) {
+        let &[s, e] = pair else {
+            continue;
+        };
+        // Most buckets of a cluster's boundary hold zero or one point: nothing to sort.
+        if e.saturating_sub(s) < 2 {
+            continue;
+        }
+        let (s, e) = (usize::from(s), usize::from(e));
         let (Some(p), Some(k)) = (pts.get_mut(s..e), keys.get_mut(s..e)) else {
             continue;
         };
@@ -295,11 +301,10 @@ fn flag_pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> [u16; 257] {
         }
     }
     let mut bounds = [0u16; 257];
-    for b in 0..256 {
-        let v = bounds.get(b).copied().unwrap_or(0) + count.get(b).copied().unwrap_or(0);
-        if let Some(slot) = bounds.get_mut(b + 1) {
-            *slot = v;
-        }
+    let mut sum = 0u16;
+    for (slot, &c) in bounds.iter_mut().skip(1).zip(count.iter()) {
+        sum += c;
+        *slot = sum;
     }
     let mut next = [0u16; 256];
     next.copy_from_slice(bounds.get(..256).unwrap_or(&[0; 256]));
@@ -380,16 +385,61 @@ struct Moments {
 
 impl Moments {
     #[inline]
+    fn add_window(&mut self, o: &Window) {
+        self.w += i64::from(o.w);
+        self.x += i64::from(o.x);
+        self.y += i64::from(o.y);
+        self.xx += o.xx;
+        self.xy += o.xy;
+        self.yy += o.yy;
+    }
+    #[inline]
+    fn add(&mut self, o: &Self) {
+        self.w += o.w;
+        self.x += o.x;
+        self.y += o.y;
+        self.xx += o.xx;
+        self.xy += o.xy;
+        self.yy += o.yy;
+    }
+    #[inline]
+    fn sub(&mut self, o: &Self) {
+        self.w -= o.w;
+        self.x -= o.x;
+        self.y -= o.y;
+        self.xx -= o.xx;
+        self.xy -= o.xy;
+        self.yy -= o.yy;
+    }
+}
+
+/// The [`Moments`] of one point or of a window of at most 42 points, with the first moments
+/// in `i32`: a weight is below `2^9` and a coordinate below `2^14`, so `Σw < 2^15` and
+/// `|Σw u| < 2^29`; the products of a point are `i32` times `i32` into `i64` (one instruction
+/// on a 32-bit core, where `i64` times `i64` takes three).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Window {
+    w: i32,
+    x: i32,
+    y: i32,
+    xx: i64,
+    xy: i64,
+    yy: i64,
+}
+
+impl Window {
+    #[inline]
     fn of(p: u32, w: u16, x0: i32, y0: i32) -> Self {
         let (x2, y2, _, _) = unpack(p);
-        let (u, v, w) = (i64::from(x2 - x0), i64::from(y2 - y0), i64::from(w));
+        let (u, v, w) = (x2 - x0, y2 - y0, i32::from(w));
+        let (wu, wv) = (w * u, w * v);
         Self {
             w,
-            x: w * u,
-            y: w * v,
-            xx: w * u * u,
-            xy: w * u * v,
-            yy: w * v * v,
+            x: wu,
+            y: wv,
+            xx: i64::from(wu) * i64::from(u),
+            xy: i64::from(wu) * i64::from(v),
+            yy: i64::from(wv) * i64::from(v),
         }
     }
     #[inline]
@@ -412,20 +462,41 @@ impl Moments {
     }
 }
 
-/// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
-/// points (`Σw < 2^14`, `Σw u² < 2^42`).
+/// `v as f32` (round to nearest, ties to even) without the library routine a 32-bit core
+/// calls for a 64-bit integer (`__aeabi_l2f`): below `2^32` the `u32` conversion (one
+/// instruction); above, the top 32 bits of `|v|` with a sticky bit for the rest in bit 0
+/// (below the 8 bits that conversion rounds away, so it rounds exactly as the full value),
+/// scaled by the exact power of two.
 #[inline]
-fn window_error(m: &Moments, count: usize) -> f32 {
-    let w = m.w;
-    if w <= 0 {
+fn to_f32(v: i64) -> f32 {
+    let a = v.unsigned_abs();
+    let (hi, lo) = ((a >> 32) as u32, a as u32);
+    let r = if hi == 0 {
+        lo as f32
+    } else {
+        // 1..=32 bits below the top 32.
+        let sh = 32 - hi.leading_zeros();
+        let m = (a >> sh) as u32 | u32::from(lo << (32 - sh) != 0);
+        (m as f32) * f32::from_bits((127 + sh) << 23)
+    };
+    if v < 0 { -r } else { r }
+}
+
+/// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
+/// points (`Σw < 2^14`, `Σw u² < 2^43`).
+#[inline]
+fn window_error(m: &Window, count: usize) -> f32 {
+    if m.w <= 0 {
         return 0.0;
     }
-    let cxx = (w * m.xx - m.x * m.x) as f32;
-    let cxy = (w * m.xy - m.x * m.y) as f32;
-    let cyy = (w * m.yy - m.y * m.y) as f32;
+    let (w, x, y) = (i64::from(m.w), i64::from(m.x), i64::from(m.y));
+    let cxx = to_f32(w * m.xx - x * x);
+    let cxy = to_f32(w * m.xy - x * y);
+    let cyy = to_f32(w * m.yy - y * y);
     // Doubled coordinates: covariances in pixels² are a quarter.
-    let s = 0.25 / ((w as f32) * (w as f32));
-    let (small, _, _, _) = eigen(cxx * s, cxy * s, cyy * s);
+    let wf = m.w as f32;
+    let s = 0.25 / (wf * wf);
+    let (small, _) = eigenvalues(cxx * s, cxy * s, cyy * s);
     count as f32 * small
 }
 
@@ -434,48 +505,81 @@ fn window_error(m: &Moments, count: usize) -> f32 {
 #[inline]
 fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
     match (w.checked_mul(s2), a.checked_mul(b)) {
-        (Some(p), Some(q)) => p.wrapping_sub(q) as f32,
+        (Some(p), Some(q)) => to_f32(p.wrapping_sub(q)),
         _ => (i128::from(w) * i128::from(s2) - i128::from(a) * i128::from(b)) as f32,
     }
 }
 
-/// The line fit of a run from its moments (exact covariance numerators: a run can hold a
-/// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates: the line
-/// through the weighted mean (pixels) and its `λ_min` (the mean squared distance, px²).
-fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<(Line, f32)> {
+/// The covariance of a run in pixels² (`cxx`, `cxy`, `cyy`) and its weight `Σw` as `f32`,
+/// from the exact numerators; `None` without weight.
+#[inline]
+fn covariance(m: &Moments) -> Option<(f32, f32, f32, f32)> {
     if m.w <= 0 {
         return None;
     }
     let cxx = cov(m.w, m.xx, m.x, m.x);
     let cxy = cov(m.w, m.xy, m.x, m.y);
     let cyy = cov(m.w, m.yy, m.y, m.y);
-    let wf = m.w as f32;
+    let wf = to_f32(m.w);
     let s = 0.25 / (wf * wf);
-    let (small, _, nx, ny) = eigen(cxx * s, cxy * s, cyy * s);
+    Some((cxx * s, cxy * s, cyy * s, wf))
+}
+
+/// The line fit of a run from its moments (exact covariance numerators: a run can hold a
+/// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates: the line
+/// through the weighted mean (pixels) and its `λ_min` (the mean squared distance, px²).
+fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<(Line, f32)> {
+    let (cxx, cxy, cyy, wf) = covariance(m)?;
+    let (small, _, nx, ny) = eigen(cxx, cxy, cyy);
     let line = Line {
-        ex: 0.5 * (m.x as f32 / wf + x0 as f32),
-        ey: 0.5 * (m.y as f32 / wf + y0 as f32),
+        ex: 0.5 * (to_f32(m.x) / wf + x0 as f32),
+        ey: 0.5 * (to_f32(m.y) / wf + y0 as f32),
         nx,
         ny,
     };
     Some((line, small))
 }
 
-/// The gradient weight of a boundary point in the sampled image (module docs).
-#[inline]
-fn weight(src: &Sampled<'_>, p: u32) -> u16 {
-    let (x2, y2, _, _) = unpack(p);
-    let (ix, iy) = (((x2 + 1) >> 1) as usize, ((y2 + 1) >> 1) as usize);
-    if ix == 0 || iy == 0 || ix + 1 >= src.w || iy + 1 >= src.h {
-        return 1;
+/// The sampled image's pixels by index, for the gradient weights: the offsets of a pixel's
+/// four neighbours are the same for every point (no multiplications per pixel).
+struct Gradient<'a> {
+    data: &'a [u8],
+    /// Index step of one sampled pixel along a row (`d`) and down a column (`d` rows).
+    step: usize,
+    row: usize,
+    w: usize,
+    h: usize,
+}
+
+impl<'a> Gradient<'a> {
+    fn new(src: &Sampled<'a>) -> Self {
+        Self {
+            data: src.img.data(),
+            step: src.d,
+            row: src.d * src.img.stride(),
+            w: src.w,
+            h: src.h,
+        }
     }
-    // (ix, iy) is inside the sampled image: one index a pixel.
-    let px = |x: usize, y: usize| i32::from(src.px(x, y));
-    let gx = px(ix + 1, iy) - px(ix - 1, iy);
-    let gy = px(ix, iy + 1) - px(ix, iy - 1);
-    let (a, b) = (gx.unsigned_abs(), gy.unsigned_abs());
-    let (hi, lo) = if a > b { (a, b) } else { (b, a) };
-    (hi + (3 * lo) / 8 + 1) as u16
+
+    /// The gradient weight of a boundary point in the sampled image (module docs): pixel
+    /// `(x, y)` is `data[(y d) stride + x d]`, 0 past the end.
+    #[inline]
+    fn weight(&self, p: u32) -> u16 {
+        let (x2, y2, _, _) = unpack(p);
+        let (ix, iy) = (((x2 + 1) >> 1) as usize, ((y2 + 1) >> 1) as usize);
+        if ix == 0 || iy == 0 || ix + 1 >= self.w || iy + 1 >= self.h {
+            return 1;
+        }
+        // (ix, iy) is inside the sampled image, not on its border: all four neighbours are.
+        let c = iy * self.row + ix * self.step;
+        let px = |i: usize| i32::from(self.data.get(i).copied().unwrap_or(0));
+        let gx = px(c + self.step) - px(c - self.step);
+        let gy = px(c + self.row) - px(c - self.row);
+        let (a, b) = (gx.unsigned_abs(), gy.unsigned_abs());
+        let (hi, lo) = if a > b { (a, b) } else { (b, a) };
+        (hi + (3 * lo) / 8 + 1) as u16
+    }
 }
 
 /// The Gaussian low-pass of the corner search (σ = 1, AprilTag's 5 % cutoff: 7 taps).
@@ -520,9 +624,18 @@ pub(crate) fn fit_quad(
         return None;
     }
     // 0. The edge contrast: the mean gradient weight (recomputed after the sort below, which
-    //    needs the same scratch for its keys).
-    let wsum: u64 = pts.iter().map(|&p| u64::from(weight(src, p))).sum();
-    if wsum < u64::from(prm.min_edge_gradient) * n as u64 {
+    //    needs the same scratch for its keys). The weights are positive: the sum is summed
+    //    until it reaches the bound (`n < 2^16`, weights below 2^9: no overflow).
+    let grad = Gradient::new(src);
+    let need = prm.min_edge_gradient.saturating_mul(n as u32);
+    let mut wsum = 0u32;
+    for &p in pts.iter() {
+        if wsum >= need {
+            break;
+        }
+        wsum += u32::from(grad.weight(p));
+    }
+    if wsum < need {
         return None;
     }
     // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
@@ -534,25 +647,23 @@ pub(crate) fn fit_quad(
     sort_by_key(pts, keys);
     // 2. Weights replace the keys.
     for (p, k) in pts.iter().zip(keys.iter_mut()) {
-        *k = weight(src, *p);
+        *k = grad.weight(*p);
     }
     let pts = &*pts;
     let keys = &*keys;
-    let m_at = |i: usize| -> Moments {
+    let m_at = |i: usize| -> Window {
         match (pts.get(i), keys.get(i)) {
-            (Some(&p), Some(&w)) => Moments::of(p, w, xmin, ymin),
-            _ => Moments::default(),
+            (Some(&p), Some(&w)) => Window::of(p, w, xmin, ymin),
+            _ => Window::default(),
         }
     };
     let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
     let count = 2 * ksz + 1;
     let start: isize = -4;
-    // The window's points' moments in a ring: the one leaving is the one stored longest.
-    let mut ring = [Moments::default(); 41];
-    let mut win = Moments::default();
-    for (j, slot) in (-(ksz as isize)..=(ksz as isize)).zip(ring.iter_mut()) {
-        *slot = m_at(wrap(start + j));
-        win.add(slot);
+    // The window's moments: each step adds the point entering and subtracts the one leaving.
+    let mut win = Window::default();
+    for j in -(ksz as isize)..=(ksz as isize) {
+        win.add(&m_at(wrap(start + j)));
     }
     // The last 8 errors (index t mod 8) and the last three filtered values.
     let mut errs = [0f32; 8];
@@ -561,13 +672,14 @@ pub(crate) fn fit_quad(
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
     let mut nbest = 0usize;
     let mut nmaxima = 0usize;
+    // The points leaving and entering at the next step.
+    let (mut leave, mut enter) = (wrap(start - ksz as isize), wrap(start + ksz as isize + 1));
     for t in 0..n + 8 {
-        if t > 0
-            && let Some(slot) = ring.get_mut((t - 1) % count)
-        {
-            win.sub(slot);
-            *slot = m_at(wrap(start + t as isize + ksz as isize));
-            win.add(slot);
+        if t > 0 {
+            win.add(&m_at(enter));
+            win.sub(&m_at(leave));
+            leave = if leave + 1 == n { 0 } else { leave + 1 };
+            enter = if enter + 1 == n { 0 } else { enter + 1 };
         }
         if let Some(e) = errs.get_mut(t & 7) {
             *e = window_error(&win, count);
@@ -598,20 +710,24 @@ pub(crate) fn fit_quad(
     let mut pre = [Moments::default(); MAX_NMAXIMA];
     let mut inc = [Moments::default(); MAX_NMAXIMA];
     let mut acc = Moments::default();
-    let mut next = 0usize;
-    for i in 0..n {
-        let here = cand.get(next).is_some_and(|c| c.1 as usize == i);
-        if here && let Some(p) = pre.get_mut(next) {
-            *p = acc;
-        }
-        acc.add(&m_at(i));
-        if here {
-            if let Some(p) = inc.get_mut(next) {
-                *p = acc;
+    let add_range = |acc: &mut Moments, from: usize, to: usize| {
+        if let (Some(p), Some(w)) = (pts.get(from..to), keys.get(from..to)) {
+            for (&p, &w) in p.iter().zip(w) {
+                acc.add_window(&Window::of(p, w, xmin, ymin));
             }
-            next += 1;
         }
+    };
+    // Candidates are distinct positions in increasing order.
+    let mut from = 0usize;
+    for ((c, p), q) in cand.iter().zip(pre.iter_mut()).zip(inc.iter_mut()) {
+        let at = c.1 as usize;
+        add_range(&mut acc, from, at);
+        *p = acc;
+        add_range(&mut acc, at, at + 1);
+        *q = acc;
+        from = at + 1;
     }
+    add_range(&mut acc, from, n);
     let total = acc;
     let idx = |a: usize| cand.get(a).map_or(0, |c| c.1 as usize);
     // Moments and point count of the run from candidate a to candidate b (inclusive, wrapping).
@@ -637,20 +753,29 @@ pub(crate) fn fit_quad(
     };
     let mse_max = prm.max_line_fit_mse;
     let k = cand.len();
-    // Every run between two candidates fitted once: (normal, λ_min, N λ_min), `None` when
-    // the fit fails or exceeds the bound.
+    // The runs between two candidates, each fitted when the search first asks for it:
+    // (normal, N λ_min), `None` when the fit fails or `λ_min` exceeds the bound (the normal
+    // is then not needed).
     let mut fits = [[None::<(f32, f32, f32)>; MAX_NMAXIMA]; MAX_NMAXIMA];
-    for (a, row) in fits.iter_mut().enumerate().take(k) {
-        for (b, f) in row.iter_mut().enumerate().take(k) {
-            if a != b
-                && let Some((l, mse, e)) = fit(a, b)
-                && at_most(mse, mse_max)
-            {
-                *f = Some((l.nx, l.ny, e));
-            }
+    let mut done = [0u16; MAX_NMAXIMA];
+    let mut get = |a: usize, b: usize| -> Option<(f32, f32, f32)> {
+        let asked = done.get_mut(a)?;
+        let bit = 1u16.checked_shl(b as u32)?;
+        let slot = fits.get_mut(a)?.get_mut(b)?;
+        if *asked & bit == 0 {
+            *asked |= bit;
+            let (m, cnt) = run(a, b);
+            *slot = covariance(&m).and_then(|(cxx, cxy, cyy, _)| {
+                let (small, big) = eigenvalues(cxx, cxy, cyy);
+                if !at_most(small, mse_max) {
+                    return None;
+                }
+                let (nx, ny) = normal(cxx, cxy, cyy, big);
+                Some((nx, ny, cnt as f32 * small))
+            });
         }
-    }
-    let get = |a: usize, b: usize| fits.get(a).and_then(|r| r.get(b)).copied().flatten();
+        *slot
+    };
     let mut best_err = f32::INFINITY;
     let mut best_idx = [0usize; 4];
     for m0 in 0..k.saturating_sub(3) {
@@ -719,4 +844,37 @@ pub(crate) fn fit_quad(
         p,
         reversed_border: reversed,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::to_f32;
+
+    #[test]
+    fn to_f32_rounds_as_the_cast() {
+        let mut edge = std::vec::Vec::new();
+        for b in 0..64 {
+            let p = 1i64.checked_shl(b).unwrap_or(0);
+            for d in [-3i64, -1, 0, 1, 3] {
+                edge.push(p.wrapping_add(d));
+            }
+            // Ties and near-ties at 24 significant bits.
+            if b >= 25 {
+                let half = 1i64 << (b - 25);
+                edge.extend([p + half, p + 3 * half, p + half - 1, p + half + 1]);
+            }
+        }
+        edge.extend([i64::MIN, i64::MAX, i64::MIN + 1]);
+        let mut seed = 0x9E37_79B9_7F4A_7C15u64;
+        for i in 0..200_000 {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            // All magnitudes: shift a random word right by 0..63.
+            edge.push((seed >> (i % 64)) as i64);
+        }
+        for v in edge.iter().flat_map(|&v| [v, v.wrapping_neg()]) {
+            assert_eq!(to_f32(v).to_bits(), (v as f32).to_bits(), "{v}");
+        }
+    }
 }

@@ -88,13 +88,6 @@ impl<'a> Sampled<'a> {
         }
     }
 
-    /// Pixel `(x, y)` of the sampled image (0 outside).
-    #[inline]
-    pub(crate) fn px(&self, x: usize, y: usize) -> u8 {
-        let i = (y * self.d) * self.img.stride() + x * self.d;
-        self.img.data().get(i).copied().unwrap_or(0)
-    }
-
     /// Row `y` of the full image that is row `y` here (`None` past the end).
     #[inline]
     pub(crate) fn full_row(&self, y: usize) -> &'a [u8] {
