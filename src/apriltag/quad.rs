@@ -271,19 +271,18 @@ pub(crate) fn sort_by_key(pts: &mut [u32], keys: &mut [u16]) {
         return;
     };
     let bounds = flag_pass(pts, keys, 8);
-    for pair in bounds.windows(2) {
-        let &[s, e] = pair else {
-            continue;
-        };
+    let mut end = 0usize;
+    for &e in bounds.iter().skip(1) {
+        let (start, e) = (end, usize::from(e));
+        end = e;
         // Most buckets of a cluster's boundary hold zero or one point: nothing to sort.
-        if e.saturating_sub(s) < 2 {
+        if e < start + 2 {
             continue;
         }
-        let (s, e) = (usize::from(s), usize::from(e));
-        let (Some(p), Some(k)) = (pts.get_mut(s..e), keys.get_mut(s..e)) else {
+        let (Some(p), Some(k)) = (pts.get_mut(start..e), keys.get_mut(start..e)) else {
             continue;
         };
-        if e - s > 16 {
+        if e - start > 16 {
             flag_pass(p, k, 0);
         } else {
             insertion(p, k);
@@ -308,28 +307,42 @@ fn flag_pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> [u16; 257] {
     }
     let mut next = [0u16; 256];
     next.copy_from_slice(bounds.get(..256).unwrap_or(&[0; 256]));
-    for b in 0..256 {
-        let end = bounds.get(b + 1).copied().unwrap_or(0);
-        // Each swap puts one element into its final bucket: at most n swaps in all.
+    let n = keys.len().min(pts.len());
+    for (b, &end) in bounds.iter().skip(1).enumerate() {
+        let end = usize::from(end);
+        // Each element taken in hand goes to its final place: at most n moves in all.
         loop {
-            let i = usize::from(next.get(b).copied().unwrap_or(end));
-            if i >= usize::from(end) {
+            let i = usize::from(next.get(b).copied().unwrap_or(u16::MAX));
+            if i >= end || i >= n {
                 break;
             }
-            let d = keys.get(i).map_or(b, |&k| digit(k));
-            if d == b {
-                if let Some(nb) = next.get_mut(b) {
-                    *nb += 1;
+            let (Some(&k0), Some(&p0)) = (keys.get(i), pts.get(i)) else {
+                break;
+            };
+            // The element at i in hand: while it belongs elsewhere, put it at its bucket's
+            // next place and take the one there (the swaps of the textbook pass, without
+            // writing the element in hand back each time: the same permutation).
+            let (mut k, mut p) = (k0, p0);
+            for _ in 0..n {
+                let d = digit(k);
+                if d == b {
+                    break;
                 }
-            } else {
-                let j = usize::from(next.get(d).copied().unwrap_or(0));
-                if i < keys.len() && j < keys.len() && i < pts.len() && j < pts.len() {
-                    keys.swap(i, j);
-                    pts.swap(i, j);
+                let Some(nd) = next.get_mut(d) else {
+                    break;
+                };
+                let j = usize::from(*nd);
+                *nd += 1;
+                if let (Some(kj), Some(pj)) = (keys.get_mut(j), pts.get_mut(j)) {
+                    (k, *kj) = (*kj, k);
+                    (p, *pj) = (*pj, p);
                 }
-                if let Some(nd) = next.get_mut(d) {
-                    *nd += 1;
-                }
+            }
+            if let (Some(ki), Some(pi)) = (keys.get_mut(i), pts.get_mut(i)) {
+                (*ki, *pi) = (k, p);
+            }
+            if let Some(nb) = next.get_mut(b) {
+                *nb += 1;
             }
         }
     }
@@ -469,17 +482,22 @@ impl Window {
 /// scaled by the exact power of two.
 #[inline]
 fn to_f32(v: i64) -> f32 {
-    let a = v.unsigned_abs();
+    let r = to_f32_unsigned(v.unsigned_abs());
+    if v < 0 { -r } else { r }
+}
+
+/// `a as f32` ([`to_f32`] of a magnitude).
+#[inline]
+fn to_f32_unsigned(a: u64) -> f32 {
     let (hi, lo) = ((a >> 32) as u32, a as u32);
-    let r = if hi == 0 {
+    if hi == 0 {
         lo as f32
     } else {
         // 1..=32 bits below the top 32.
         let sh = 32 - hi.leading_zeros();
         let m = (a >> sh) as u32 | u32::from(lo << (32 - sh) != 0);
         (m as f32) * f32::from_bits((127 + sh) << 23)
-    };
-    if v < 0 { -r } else { r }
+    }
 }
 
 /// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
@@ -490,9 +508,10 @@ fn window_error(m: &Window, count: usize) -> f32 {
         return 0.0;
     }
     let (w, x, y) = (i64::from(m.w), i64::from(m.x), i64::from(m.y));
-    let cxx = to_f32(w * m.xx - x * x);
+    // `cxx`, `cyy` ≥ 0 (Cauchy-Schwarz on exact integers).
+    let cxx = to_f32_unsigned((w * m.xx - x * x).unsigned_abs());
     let cxy = to_f32(w * m.xy - x * y);
-    let cyy = to_f32(w * m.yy - y * y);
+    let cyy = to_f32_unsigned((w * m.yy - y * y).unsigned_abs());
     // Doubled coordinates: covariances in pixels² are a quarter.
     let wf = m.w as f32;
     let s = 0.25 / (wf * wf);
@@ -501,9 +520,13 @@ fn window_error(m: &Window, count: usize) -> f32 {
 }
 
 /// `w s₂ - a b` exactly (a covariance numerator), in `i64` when it fits (frames up to about
-/// 640x480), else `i128`; then as `f32`.
+/// 640x480), else `i128`; then as `f32`. `small`: both products are known to be below `2^62`
+/// (plain `i64`, no checks).
 #[inline]
-fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
+fn cov(w: i64, s2: i64, a: i64, b: i64, small: bool) -> f32 {
+    if small {
+        return to_f32(w * s2 - a * b);
+    }
     match (w.checked_mul(s2), a.checked_mul(b)) {
         (Some(p), Some(q)) => to_f32(p.wrapping_sub(q)),
         _ => (i128::from(w) * i128::from(s2) - i128::from(a) * i128::from(b)) as f32,
@@ -511,25 +534,36 @@ fn cov(w: i64, s2: i64, a: i64, b: i64) -> f32 {
 }
 
 /// The covariance of a run in pixels² (`cxx`, `cxy`, `cyy`) and its weight `Σw` as `f32`,
-/// from the exact numerators; `None` without weight.
+/// from the exact numerators; `None` without weight. `small` as [`cov`] (see [`products_fit`]).
 #[inline]
-fn covariance(m: &Moments) -> Option<(f32, f32, f32, f32)> {
+fn covariance(m: &Moments, small: bool) -> Option<(f32, f32, f32, f32)> {
     if m.w <= 0 {
         return None;
     }
-    let cxx = cov(m.w, m.xx, m.x, m.x);
-    let cxy = cov(m.w, m.xy, m.x, m.y);
-    let cyy = cov(m.w, m.yy, m.y, m.y);
+    let cxx = cov(m.w, m.xx, m.x, m.x, small);
+    let cxy = cov(m.w, m.xy, m.x, m.y, small);
+    let cyy = cov(m.w, m.yy, m.y, m.y, small);
     let wf = to_f32(m.w);
     let s = 0.25 / (wf * wf);
     Some((cxx * s, cxy * s, cyy * s, wf))
 }
 
+/// Whether every covariance product of a run of the points with moments `total` is below
+/// `2^62`: a run's sums are parts of the total's with `w ≥ 0` and `w u² ≥ 0`, so its `Σw ≤ W`,
+/// `Σw u² ≤ XX`, and by Cauchy-Schwarz `(Σw u)² ≤ Σw Σw u²`, `|Σw u Σw v|` and `|Σw Σw u v|` at
+/// most `W max(XX, YY)`.
+fn products_fit(total: &Moments) -> bool {
+    total
+        .w
+        .checked_mul(total.xx.max(total.yy))
+        .is_some_and(|b| (0..1 << 62).contains(&b))
+}
+
 /// The line fit of a run from its moments (exact covariance numerators: a run can hold a
 /// whole cluster) with the bounding box corner `(x0, y0)` in doubled coordinates: the line
 /// through the weighted mean (pixels) and its `λ_min` (the mean squared distance, px²).
-fn fit_line(m: &Moments, x0: i32, y0: i32) -> Option<(Line, f32)> {
-    let (cxx, cxy, cyy, wf) = covariance(m)?;
+fn fit_line(m: &Moments, x0: i32, y0: i32, small: bool) -> Option<(Line, f32)> {
+    let (cxx, cxy, cyy, wf) = covariance(m, small)?;
     let (small, _, nx, ny) = eigen(cxx, cxy, cyy);
     let line = Line {
         ex: 0.5 * (to_f32(m.x) / wf + x0 as f32),
@@ -665,8 +699,8 @@ pub(crate) fn fit_quad(
     for j in -(ksz as isize)..=(ksz as isize) {
         win.add(&m_at(wrap(start + j)));
     }
-    // The last 8 errors (index t mod 8) and the last three filtered values.
-    let mut errs = [0f32; 8];
+    // The last 7 errors (oldest first) and the last three filtered values.
+    let mut errs = [0f32; 7];
     let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
     let mut best = [(0u32, 0u32); MAX_NMAXIMA];
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
@@ -681,13 +715,12 @@ pub(crate) fn fit_quad(
             leave = if leave + 1 == n { 0 } else { leave + 1 };
             enter = if enter + 1 == n { 0 } else { enter + 1 };
         }
-        if let Some(e) = errs.get_mut(t & 7) {
-            *e = window_error(&win, count);
-        }
+        let [_, e1, e2, e3, e4, e5, e6] = errs;
+        errs = [e1, e2, e3, e4, e5, e6, window_error(&win, count)];
         if t >= 6 {
             let mut y = 0.0;
-            for (k, f) in FILTER.iter().enumerate() {
-                y += f * errs.get((t + 2 + k) & 7).copied().unwrap_or(0.0);
+            for (f, e) in FILTER.iter().zip(errs) {
+                y += f * e;
             }
             (y0, y1, y2) = (y1, y2, y);
         }
@@ -729,6 +762,7 @@ pub(crate) fn fit_quad(
     }
     add_range(&mut acc, from, n);
     let total = acc;
+    let small = products_fit(&total);
     let idx = |a: usize| cand.get(a).map_or(0, |c| c.1 as usize);
     // Moments and point count of the run from candidate a to candidate b (inclusive, wrapping).
     let run = |a: usize, b: usize| -> (Moments, usize) {
@@ -748,7 +782,7 @@ pub(crate) fn fit_quad(
     // The line of a run, its `λ_min` and its error `N λ_min`.
     let fit = |a: usize, b: usize| -> Option<(Line, f32, f32)> {
         let (m, cnt) = run(a, b);
-        let (l, mse) = fit_line(&m, xmin, ymin)?;
+        let (l, mse) = fit_line(&m, xmin, ymin, small)?;
         Some((l, mse, cnt as f32 * mse))
     };
     let mse_max = prm.max_line_fit_mse;
@@ -765,7 +799,7 @@ pub(crate) fn fit_quad(
         if *asked & bit == 0 {
             *asked |= bit;
             let (m, cnt) = run(a, b);
-            *slot = covariance(&m).and_then(|(cxx, cxy, cyy, _)| {
+            *slot = covariance(&m, small).and_then(|(cxx, cxy, cyy, _)| {
                 let (small, big) = eigenvalues(cxx, cxy, cyy);
                 if !at_most(small, mse_max) {
                     return None;
@@ -848,7 +882,34 @@ pub(crate) fn fit_quad(
 
 #[cfg(test)]
 mod tests {
-    use super::to_f32;
+    use super::{sort_by_key, to_f32};
+
+    #[test]
+    fn sort_by_key_orders_and_keeps_each_point_with_its_key() {
+        let mut seed = 12345u32;
+        for n in [0usize, 1, 2, 17, 300, 5000] {
+            // Few distinct high bytes and many ties: both passes and the insertion sort run.
+            let mut keys: std::vec::Vec<u16> = (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    ((seed >> 16) as u16) & 0x0f3f
+                })
+                .collect();
+            let mut pts: std::vec::Vec<u32> = keys
+                .iter()
+                .enumerate()
+                .map(|(i, &k)| (u32::from(k) << 16) | i as u32)
+                .collect();
+            let mut want = pts.clone();
+            want.sort_unstable();
+            sort_by_key(&mut pts, &mut keys);
+            assert!(keys.windows(2).all(|w| w[0] <= w[1]));
+            assert!(pts.iter().zip(&keys).all(|(&p, &k)| (p >> 16) as u16 == k));
+            let mut got = pts.clone();
+            got.sort_unstable();
+            assert_eq!(got, want);
+        }
+    }
 
     #[test]
     fn to_f32_rounds_as_the_cast() {
