@@ -371,53 +371,6 @@ pub(crate) struct Rows<'a, L: Label> {
     pub(crate) runs: [&'a mut [Run<L>]; 2],
 }
 
-/// The index of the run of `runs` (from `from` on) that holds column `x`.
-#[inline]
-fn run_at<L: Label>(runs: &[Run<L>], from: usize, x: usize) -> usize {
-    let mut i = from;
-    while let Some(r) = runs.get(i) {
-        if usize::from(r.x1) > x {
-            return i;
-        }
-        i += 1;
-    }
-    i
-}
-
-/// The columns of the previous row a run `[x0, x1)` of class `c` touches (8-connected white,
-/// 4-connected black), clipped to `w`.
-#[inline]
-fn touched(c: u8, x0: usize, x1: usize, w: usize) -> (usize, usize) {
-    if c == WHITE {
-        (x0.saturating_sub(1), (x1 + 1).min(w))
-    } else {
-        (x0, x1)
-    }
-}
-
-/// The label a run of class `c` starting at `x0` inherits from the previous row `up` (from
-/// run `j` on, `j` holding column `a` of [`touched`]): that of its first pixel's same-class
-/// neighbour up, then (white only) up-left, up-right; `NONE` when it has none. (The pixel left
-/// of a run has another class, so the per-pixel rule of the module docs gives the whole run
-/// this label.)
-#[inline]
-fn inherited<L: Label>(c: u8, x0: usize, up: &[Run<L>], j: usize) -> L {
-    let at = |x: usize| {
-        let r = up.get(run_at(up, j, x)).copied().unwrap_or(Run::empty());
-        if r.c == c && x >= usize::from(r.x0) {
-            r.lab
-        } else {
-            L::NONE
-        }
-    };
-    let v = at(x0);
-    if v != L::NONE || c != WHITE {
-        return v;
-    }
-    let v = if x0 > 0 { at(x0 - 1) } else { L::NONE };
-    if v != L::NONE { v } else { at(x0 + 1) }
-}
-
 /// Outcome of the labelling pass.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct Labelled {
@@ -453,19 +406,64 @@ trait Labels<L: Label> {
     fn skipped(&mut self, len: usize);
 }
 
-/// Labels the runs `cur` of a row from the previous row's runs `up` (module docs).
+/// Labels the runs `cur` of a row from the previous row's runs `up` (module docs), in one
+/// walk over the runs of `up` each run touches: columns `x0 - 1 ..= x1` for white
+/// (8-connected), `x0 .. x1` for black (4-connected).
+///
+/// A run inherits the label of its first pixel's same-class neighbour up, then (white only)
+/// up-left, up-right (the pixel left of a run has another class, so the per-pixel rule of
+/// the module docs gives the whole run this label). That neighbour is the first touched
+/// same-class run of `up` when it starts at most at `x0` (black) or `x0 + 1` (white):
+/// consecutive runs differ in class, so of the runs holding `x0 - 1, x0, x0 + 1` at most
+/// the two outer ones are white, and the rule's order then picks the left one. Otherwise the
+/// run takes a fresh label; every further touched same-class run is joined to it.
 #[inline]
-fn label_runs<L: Label, B: Labels<L>>(cur: &mut [Run<L>], up: &[Run<L>], w: usize, labels: &mut B) {
+fn label_runs<L: Label, B: Labels<L>>(cur: &mut [Run<L>], up: &[Run<L>], labels: &mut B) {
     let mut j = 0;
     for r in cur.iter_mut() {
         if r.c == SKIP {
             continue;
         }
+        // White reaches one column further on each side.
+        let wide = usize::from(r.c == WHITE);
         let (x0, x1) = (usize::from(r.x0), usize::from(r.x1));
-        let (a, b) = touched(r.c, x0, x1, w);
-        j = run_at(up, j, a);
-        let mut l = inherited(r.c, x0, up, j);
+        // The first run of `up` touched or right of it (`x0` grows from run to run).
+        while up.get(j).is_some_and(|o| usize::from(o.x1) + wide <= x0) {
+            j += 1;
+        }
+        let (reach, end) = (x0 + wide, x1 + wide);
+        let mut l = L::NONE;
+        let mut last = L::NONE;
+        for o in up.get(j..).unwrap_or(&[]) {
+            if usize::from(o.x0) >= end {
+                break;
+            }
+            if o.c != r.c {
+                continue;
+            }
+            if l == L::NONE {
+                if usize::from(o.x0) <= reach {
+                    (l, last) = (o.lab, o.lab);
+                    if !B::JOINS {
+                        break;
+                    }
+                    continue;
+                }
+                let Some(n) = labels.fresh() else {
+                    break;
+                };
+                (l, last) = (n, n);
+                if !B::JOINS {
+                    break;
+                }
+            }
+            if o.lab != last && o.lab != L::NONE {
+                labels.join(l, o.lab);
+                last = o.lab;
+            }
+        }
         if l == L::NONE {
+            // No touched run passed a label and none was fresh yet (or none was left).
             match labels.fresh() {
                 Some(n) => l = n,
                 None => {
@@ -476,19 +474,6 @@ fn label_runs<L: Label, B: Labels<L>>(cur: &mut [Run<L>], up: &[Run<L>], w: usiz
             }
         }
         r.lab = l;
-        if !B::JOINS {
-            continue;
-        }
-        let mut last = l;
-        for o in up.get(j..).unwrap_or(&[]) {
-            if usize::from(o.x0) >= b {
-                break;
-            }
-            if o.c == r.c && o.lab != last && o.lab != L::NONE {
-                labels.join(l, o.lab);
-                last = o.lab;
-            }
-        }
     }
 }
 
@@ -579,7 +564,6 @@ pub(crate) fn label_pass<L: Label>(
     let mut out = Labelled::default();
     let mut next: usize = 0;
     let mut cached = Some(cache.len());
-    let w = src.w;
     let mut n_up = 0;
     for y in 0..src.h {
         let (up, cur) = run_rows(&mut rows.runs, y);
@@ -593,18 +577,39 @@ pub(crate) fn label_pass<L: Label>(
             cap,
             exhausted: out.exhausted,
         };
-        label_runs(cur, up, w, &mut uf);
+        label_runs(cur, up, &mut uf);
         next = uf.next;
         out.exhausted = uf.exhausted;
-        for r in cur.iter() {
-            if r.c != SKIP
-                && let Some(s) = size.get_mut(r.lab.index())
+        // The row's words of the run cache: a count, then below it a word a run. Labels
+        // grow from 0, so every label of the row fits when `next` does.
+        let mut words: &mut [u32] = &mut [];
+        if let Some(top) = cached {
+            cached = top.checked_sub(1 + n).filter(|_| next <= CACHE_LABELS);
+            match cached
+                .and_then(|at| cache.get_mut(at..top))
+                .and_then(|c| c.split_last_mut())
             {
-                *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
+                Some((head, row)) => {
+                    *head = n as u32;
+                    words = row;
+                }
+                None => cached = None,
             }
         }
-        if let Some(at) = cached {
-            cached = cache_row(cache, at, cur);
+        // Pixel counts and the cache words, in one walk.
+        let mut words = words.iter_mut();
+        for r in cur.iter() {
+            let lab = if r.c == SKIP {
+                0
+            } else {
+                if let Some(s) = size.get_mut(r.lab.index()) {
+                    *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
+                }
+                r.lab.index()
+            };
+            if let Some(w) = words.next() {
+                *w = pack_run(r.x1, r.c, lab);
+            }
         }
         n_up = n;
     }
@@ -625,23 +630,6 @@ pub(crate) fn label_pass<L: Label>(
         }
     }
     out
-}
-
-/// Writes a row's runs into the run cache below word `top` (module docs); the cache's new
-/// start, or `None` when they do not fit.
-#[inline]
-fn cache_row<L: Label>(cache: &mut [u32], top: usize, runs: &[Run<L>]) -> Option<usize> {
-    let start = top.checked_sub(1 + runs.len())?;
-    let (head, words) = cache.get_mut(start..top)?.split_last_mut()?;
-    *head = runs.len() as u32;
-    for (w, r) in words.iter_mut().zip(runs) {
-        let lab = if r.c == SKIP { 0 } else { r.lab.index() };
-        if lab >= CACHE_LABELS {
-            return None;
-        }
-        *w = pack_run(r.x1, r.c, lab);
-    }
-    Some(start)
 }
 
 /// Packs a boundary point: doubled coordinates and the signs of the direction to white.
@@ -725,7 +713,7 @@ pub(crate) fn boundary_scan<L: Label>(
             next,
             labels,
         };
-        label_runs(cur, up, w, &mut roots);
+        label_runs(cur, up, &mut roots);
         next = roots.next;
         n_up = n;
         // The upper row y - 1 must be in 1..h - 1 (AprilTag's scan domain).
