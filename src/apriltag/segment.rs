@@ -212,6 +212,43 @@ fn class(v: u8, t: u8) -> u8 {
     u8::from(v > t) | (u8::from(t == SKIP_TILE) << 1)
 }
 
+/// The classes of the four pixels of word `v` (little-endian: the first pixel in the low
+/// byte) in a tile of threshold `t`, as two 4-bit masks (bit `i` for pixel `i`): white
+/// (`v > t`) and skipped (`t = 255`, where `v > t` is impossible).
+///
+/// Two pixels at a time in 16-bit lanes: `v + (255 - t)` reaches bit 8 exactly when `v > t`.
+#[inline(always)]
+fn classes4(v: u32, t: u8) -> (u32, u32) {
+    let k = u32::from(255 - t) * 0x0001_0001;
+    let even = (v & 0x00ff_00ff) + k;
+    let odd = ((v >> 8) & 0x00ff_00ff) + k;
+    // Pixels 0, 1, 2, 3 at bits 8, 9, 24, 25; the multiply moves bits 8, 9 to 22, 23.
+    let m = (even & 0x0100_0100) | ((odd & 0x0100_0100) << 1);
+    let white = (m.wrapping_mul(0x4001) >> 22) & 0xf;
+    (white, if t == SKIP_TILE { 0xf } else { 0 })
+}
+
+/// The classes of up to 8 tiles' pixels `px` (4 a tile, thresholds `ts`): white and skipped
+/// masks (bit `i` for pixel `i`, [`classes4`]) and the number of pixels.
+#[inline(always)]
+fn classes_of(px: &[u8], ts: &[u8]) -> (u32, u32, u32) {
+    let (mut white, mut skip, mut bits) = (0u32, 0u32, 0u32);
+    for (p, &t) in px.chunks_exact(TILE).zip(ts).take(8) {
+        let &[a, b, c, d] = p else {
+            continue;
+        };
+        let (white4, skip4) = classes4(u32::from_le_bytes([a, b, c, d]), t);
+        white = (white >> 4) | (white4 << 28);
+        skip = (skip >> 4) | (skip4 << 28);
+        bits += 4;
+    }
+    // The first pixel at bit 0.
+    match bits {
+        0 => (0, 0, 0),
+        _ => (white >> (32 - bits), skip >> (32 - bits), bits),
+    }
+}
+
 /// Cuts row `y` into runs of one class (module docs: the classes are recomputed from the
 /// tile thresholds, one compare a pixel, never stored); `out` holds at most one per column.
 /// Returns the count.
@@ -239,17 +276,22 @@ pub(crate) fn row_runs<L: Label>(
     if src.d == 1 && row.len() >= w {
         let full = (trow.len() * TILE).min(w);
         let (head, tail) = row.split_at(full);
-        for (px, &t) in head.chunks_exact(TILE).zip(trow) {
-            if t == SKIP_TILE {
-                // A skipped tile is one class throughout (`class`): one test for its pixels.
-                cut.class_at(x, u32::from(SKIP));
-                x += TILE;
-                continue;
-            }
-            for &v in px {
-                cut.class_at(x, u32::from(v > t));
-                x += 1;
-            }
+        // Eight tiles (32 pixels) at a time: a bit a pixel for white and one for skipped, and
+        // a run starts at each pixel whose bits differ from its left neighbour's.
+        let mut before = (0u32, 0u32);
+        let groups = head.chunks_exact(8 * TILE);
+        let rest = groups.remainder();
+        let tgroups = trow.chunks_exact(8);
+        let trest = tgroups.remainder();
+        for (px, ts) in groups.zip(tgroups) {
+            let (white, skip, bits) = classes_of(px, ts);
+            cut.starts(x, (white, skip, bits), &mut before);
+            x += bits as usize;
+        }
+        let (white, skip, bits) = classes_of(rest, trest);
+        if bits > 0 {
+            cut.starts(x, (white, skip, bits), &mut before);
+            x += bits as usize;
         }
         for &v in tail.get(..w - full).unwrap_or(&[]) {
             cut.class_at(x, u32::from(class(v, last)));
@@ -282,9 +324,38 @@ impl<L: Label> Cutter<'_, L> {
     #[inline(always)]
     fn class_at(&mut self, x: usize, c: u32) {
         if c != self.cur {
-            self.close(x);
-            (self.x0, self.cur) = (x, c);
+            self.start(x, c);
         }
+    }
+
+    /// The runs that start in a group of `bits` pixels from column `x` on (bit `i` of
+    /// `white` and `skip`: column `x + i`), after a pixel of bits `before` (the group's last
+    /// on return); the first pixel of the row starts a run whatever its class.
+    #[inline(always)]
+    fn starts(&mut self, x: usize, (white, skip, bits): (u32, u32, u32), before: &mut (u32, u32)) {
+        let mut starts = (white ^ ((white << 1) | before.0)) | (skip ^ ((skip << 1) | before.1));
+        // Not past the group's last pixel.
+        starts &= u32::MAX >> (32 - bits.clamp(1, 32));
+        if x == 0 {
+            starts |= 1;
+        }
+        while starts != 0 {
+            let i = starts.trailing_zeros();
+            self.start(
+                x + i as usize,
+                ((white >> i) & 1) | (((skip >> i) & 1) << 1),
+            );
+            starts &= starts - 1;
+        }
+        let i = bits.saturating_sub(1) & 31;
+        *before = ((white >> i) & 1, (skip >> i) & 1);
+    }
+
+    /// A run of class `c` starts at column `x`.
+    #[inline(always)]
+    fn start(&mut self, x: usize, c: u32) {
+        self.close(x);
+        (self.x0, self.cur) = (x, c);
     }
 
     /// Ends the open run before column `x1` (dropped when `out` is full: at most one a column).
