@@ -170,25 +170,29 @@ pub(crate) fn build_tiles<'t>(
         let Some(out) = thr.get_mut(ty * tw..ty * tw + tw) else {
             break;
         };
-        // The 3x3 dilation: vertical over the (up to) three rows, then horizontal.
-        let rows = [ty.checked_sub(1), Some(ty), (ty + 1 < th).then_some(ty + 1)];
-        // Each row's ring slot, found once for the whole tile row.
-        let slots = rows.map(|r| {
-            let s = (r? % 3) * tw;
+        // The 3x3 dilation: vertical over the (up to) three rows, then horizontal. A missing
+        // row above or below is replaced by the row itself (min and max take it twice).
+        let slot = |r: usize| {
+            let s = (r % 3) * tw;
             Some((ring_min.get(s..s + tw)?, ring_max.get(s..s + tw)?))
-        });
-        let mut prev = (255u8, 0u8);
-        let col = |tx: usize| -> (u8, u8) {
-            let (mut mn, mut mx) = (255u8, 0u8);
-            for (rmin, rmax) in slots.iter().flatten() {
-                mn = mn.min(rmin.get(tx).copied().unwrap_or(255));
-                mx = mx.max(rmax.get(tx).copied().unwrap_or(0));
-            }
-            (mn, mx)
         };
-        let mut cur = col(0);
-        for (tx, t) in out.iter_mut().enumerate() {
-            let next = if tx + 1 < tw { col(tx + 1) } else { (255, 0) };
+        let (Some((umin, umax)), Some((cmin, cmax)), Some((dmin, dmax))) = (
+            slot(ty.saturating_sub(1)),
+            slot(ty),
+            slot(if ty + 1 < th { ty + 1 } else { ty }),
+        ) else {
+            break;
+        };
+        let mut col = umin
+            .iter()
+            .zip(cmin)
+            .zip(dmin)
+            .zip(umax.iter().zip(cmax).zip(dmax))
+            .map(|(((&a, &b), &c), ((&d, &e), &f))| (a.min(b).min(c), d.max(e).max(f)));
+        let mut prev = (255u8, 0u8);
+        let mut cur = col.next().unwrap_or((255, 0));
+        for t in out.iter_mut() {
+            let next = col.next().unwrap_or((255, 0));
             let mn = prev.0.min(cur.0).min(next.0);
             let mx = prev.1.max(cur.1).max(next.1);
             *t = if mx.saturating_sub(mn) < min_diff {
