@@ -108,6 +108,15 @@ pub(crate) const fn tile_count(w: usize, h: usize) -> usize {
     (w / TILE) * (h / TILE)
 }
 
+/// The min and max of a tile's row of pixels (`(255, 0)` for a short slice).
+#[inline(always)]
+fn minmax4(p: &[u8]) -> (u8, u8) {
+    match *p {
+        [a, b, c, d] => (a.min(b).min(c.min(d)), a.max(b).max(c.max(d))),
+        _ => (255, 0),
+    }
+}
+
 /// Computes the tile thresholds into `thr` (`tw th` bytes) with the raw min/max of three tile
 /// rows in `ring_min`, `ring_max` (`3 tw` bytes each). `w, h ≥ 4` and the buffers long enough
 /// are the caller's checks; short buffers leave tiles skipped.
@@ -130,29 +139,33 @@ pub(crate) fn build_tiles<'t>(
         ) else {
             return;
         };
+        let rows: [&[u8]; TILE] = core::array::from_fn(|dy| src.full_row(ty * TILE + dy));
+        if src.d == 1 && rows.iter().all(|r| r.len() >= tw * TILE) {
+            // The tile's four rows at once, its 16 pixels' min and max straight into the ring.
+            let [r0, r1, r2, r3] = rows.map(|r| r.chunks_exact(TILE));
+            for ((mn, mx), (((a, b), c), d)) in mins
+                .iter_mut()
+                .zip(maxs.iter_mut())
+                .zip(r0.zip(r1).zip(r2).zip(r3))
+            {
+                let (la, ha) = minmax4(a);
+                let (lb, hb) = minmax4(b);
+                let (lc, hc) = minmax4(c);
+                let (ld, hd) = minmax4(d);
+                *mn = la.min(lb).min(lc.min(ld));
+                *mx = ha.max(hb).max(hc.max(hd));
+            }
+            return;
+        }
         mins.fill(255);
         maxs.fill(0);
-        for dy in 0..TILE {
-            let row = src.full_row(ty * TILE + dy);
-            if src.d == 1 {
-                for ((mn, mx), px) in mins
-                    .iter_mut()
-                    .zip(maxs.iter_mut())
-                    .zip(row.chunks_exact(TILE))
-                {
-                    if let [a, b, c, d] = *px {
-                        *mn = (*mn).min(a.min(b).min(c.min(d)));
-                        *mx = (*mx).max(a.max(b).max(c.max(d)));
-                    }
-                }
-            } else {
-                let mut it = row.iter().step_by(src.d.max(1));
-                for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
-                    for _ in 0..TILE {
-                        if let Some(&v) = it.next() {
-                            *mn = (*mn).min(v);
-                            *mx = (*mx).max(v);
-                        }
+        for row in rows {
+            let mut it = row.iter().step_by(src.d.max(1));
+            for (mn, mx) in mins.iter_mut().zip(maxs.iter_mut()) {
+                for _ in 0..TILE {
+                    if let Some(&v) = it.next() {
+                        *mn = (*mn).min(v);
+                        *mx = (*mx).max(v);
                     }
                 }
             }
