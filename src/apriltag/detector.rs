@@ -10,8 +10,8 @@ use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, fit_quad};
 use super::segment::{
-    Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles, label_pass, pack,
-    tile_count,
+    PairPoints, Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles, label_pass,
+    pack, tile_count,
 };
 use super::workspace::{Stats, WorkspaceView};
 use crate::homography::Homography;
@@ -801,12 +801,43 @@ impl<K: ClusterKey> Sink<K> for Counter<'_, '_, K> {
         self.table.add_run(key, x2 as u16, y2 as u16, m, gx, gy);
         self.emitted = self.emitted.saturating_add(count as u32);
     }
+
+    #[inline(always)]
+    fn point(&mut self, key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
+        self.run(key, x2, y2, 1, gx, gy);
+    }
+
+    #[inline(always)]
+    fn pair(&mut self, key: K, p: &PairPoints) {
+        self.table.add_pair(key, p);
+        self.emitted = self.emitted.saturating_add(p.count() as u32);
+    }
 }
 
 /// The storing scan's sink: the points of the clusters of the batch into their ranges.
 struct Filler<'t, 'a, 'p, K: ClusterKey> {
     table: &'t mut Table<'a, K>,
     points: &'p mut [u32],
+}
+
+/// Stores `count` points `(x2 + 2i, y2)` with direction `(gx, gy)` into cluster `c`'s range
+/// of `points`, as far as its count leaves room.
+#[inline(always)]
+fn store<K>(
+    c: &mut Cluster<K>,
+    points: &mut [u32],
+    (x2, y2): (usize, usize),
+    count: usize,
+    (gx, gy): (i32, i32),
+) {
+    let room = usize::from(c.n.saturating_sub(c.fill)).min(count);
+    let at = c.start as usize + usize::from(c.fill);
+    if let Some(out) = points.get_mut(at..at + room) {
+        for (i, p) in out.iter_mut().enumerate() {
+            *p = pack(x2 + 2 * i, y2, gx, gy);
+        }
+        c.fill += room as u16;
+    }
 }
 
 impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
@@ -818,13 +849,39 @@ impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
         if c.start == NOT_IN_BATCH {
             return;
         }
-        let room = usize::from(c.n.saturating_sub(c.fill)).min(count);
-        let at = c.start as usize + usize::from(c.fill);
-        if let Some(out) = self.points.get_mut(at..at + room) {
-            for (i, p) in out.iter_mut().enumerate() {
-                *p = pack(x2 + 2 * i, y2, gx, gy);
-            }
-            c.fill += room as u16;
+        store(c, self.points, (x2, y2), count, (gx, gy));
+    }
+
+    /// One look-up for the pair's points.
+    #[inline]
+    fn pair(&mut self, key: K, p: &PairPoints) {
+        let Some(c) = self.table.get_mut(key) else {
+            return;
+        };
+        if c.start == NOT_IN_BATCH {
+            return;
+        }
+        let (y2, s) = (p.y2, p.s);
+        if p.below.1 > p.below.0 {
+            store(
+                c,
+                self.points,
+                (2 * p.below.0, y2),
+                p.below.1 - p.below.0,
+                (0, s),
+            );
+        }
+        if p.right.1 > p.right.0 {
+            store(
+                c,
+                self.points,
+                (2 * p.right.0 + 1, y2),
+                p.right.1 - p.right.0,
+                (s, s),
+            );
+        }
+        for &x in p.left.iter().take(p.nleft) {
+            store(c, self.points, (2 * x - 1, y2), 1, (-s, s));
         }
     }
 }

@@ -31,7 +31,7 @@ use nalgebra::Point2;
 
 use super::geom::{Line, at4, eigen, eigenvalues, intersect, normal};
 use super::label::ClusterKey;
-use super::segment::{Sampled, unpack};
+use super::segment::{PairPoints, Sampled, unpack};
 use crate::features::offer_best;
 use crate::scalar::{above, at_most};
 
@@ -154,20 +154,24 @@ impl<'a, K: ClusterKey> Table<'a, K> {
         self
     }
 
+    /// The slot of `key`: the last one looked up, or found (inserted when new and there is
+    /// room).
+    #[inline(always)]
+    fn index(&mut self, key: K) -> Option<usize> {
+        if self.last.0 == key {
+            Some(self.last.1)
+        } else {
+            self.slot(key)
+        }
+    }
+
     /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, of cluster `key`, with gradient signs
     /// `(gx, gy)` (each -1, 0 or 1).
     #[inline]
     pub(crate) fn add_run(&mut self, key: K, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
-        let i = if self.last.0 == key {
-            self.last.1
-        } else {
-            match self.slot(key) {
-                Some(i) => i,
-                None => {
-                    self.dropped = self.dropped.saturating_add(u32::from(m));
-                    return;
-                }
-            }
+        let Some(i) = self.index(key) else {
+            self.dropped = self.dropped.saturating_add(u32::from(m));
+            return;
         };
         let Some(c) = self.slots.get_mut(i) else {
             return;
@@ -186,6 +190,53 @@ impl<'a, K: ClusterKey> Table<'a, K> {
             .spg
             .saturating_add(sx * gx)
             .saturating_add(mi * i32::from(y2) * gy);
+    }
+
+    /// Adds the points of a pair of runs ([`PairPoints`], at least one) to cluster `key`: the
+    /// same cluster as [`Self::add_run`] for each of its runs of points, summed first (the
+    /// sums are exact below 65535 points, module docs of [`Cluster`]; a cluster of more is
+    /// never fitted).
+    #[inline]
+    pub(crate) fn add_pair(&mut self, key: K, p: &PairPoints) {
+        let (b0, b1) = p.below;
+        let (r0, r1) = p.right;
+        let mb = b1.saturating_sub(b0);
+        let mr = r1.saturating_sub(r0);
+        let m = mb + mr + p.nleft;
+        let Some(i) = self.index(key) else {
+            self.dropped = self.dropped.saturating_add(m as u32);
+            return;
+        };
+        let Some(c) = self.slots.get_mut(i) else {
+            return;
+        };
+        // Doubled columns: first and last point, and Σ x2 gx / s over the pair.
+        let (mut lo, mut hi, mut sx) = (usize::MAX, 0usize, 0i32);
+        if mb > 0 {
+            (lo, hi) = (2 * b0, 2 * b1 - 2);
+        }
+        if mr > 0 {
+            (lo, hi) = (lo.min(2 * r0 + 1), hi.max(2 * r1 - 1));
+            let mi = mr as i32;
+            sx = mi * (2 * r0 as i32 + 1) + mi * (mi - 1);
+        }
+        for &x in p.left.iter().take(p.nleft) {
+            let x2 = 2 * x - 1;
+            (lo, hi) = (lo.min(x2), hi.max(x2));
+            sx -= x2 as i32;
+        }
+        let (s, y2, mi) = (p.s, p.y2 as u16, m as i32);
+        c.n = c.n.saturating_add(m as u16);
+        c.xmin = c.xmin.min(lo as u16);
+        c.xmax = c.xmax.max(hi as u16);
+        c.ymin = c.ymin.min(y2);
+        c.ymax = c.ymax.max(y2);
+        c.sgx = c.sgx.saturating_add(s * (mr as i32 - p.nleft as i32));
+        c.sgy = c.sgy.saturating_add(s * mi);
+        c.spg = c
+            .spg
+            .saturating_add(s * sx)
+            .saturating_add(s * mi * i32::from(y2));
     }
 
     /// The slot of `key`, inserted when new and there is room (and remembered).

@@ -740,8 +740,33 @@ pub(crate) fn unpack(p: u32) -> (i32, i32, i32, i32) {
     )
 }
 
-/// Where a boundary scan sends its points: runs of points along a row, and single points.
-pub(crate) trait Sink<K = u32> {
+/// The points one pair of overlapping runs of opposite classes gives ([`boundary_scan`]):
+/// upper run in row `y`, lower run in row `y + 1`, all points at doubled row `y2 = 2 y + 1`
+/// with `gy = s` towards white. By upper pixel column `x`: below `x ∈ below`, below-right
+/// `x ∈ right`, below-left `x = left[i]`, `i < nleft` (half-open ranges, possibly empty).
+#[derive(Clone, Copy)]
+pub(crate) struct PairPoints {
+    pub(crate) y2: usize,
+    pub(crate) s: i32,
+    pub(crate) below: (usize, usize),
+    pub(crate) right: (usize, usize),
+    pub(crate) left: [usize; 2],
+    pub(crate) nleft: usize,
+}
+
+impl PairPoints {
+    /// The number of points.
+    #[inline(always)]
+    pub(crate) fn count(&self) -> usize {
+        self.below.1.saturating_sub(self.below.0)
+            + self.right.1.saturating_sub(self.right.0)
+            + self.nleft
+    }
+}
+
+/// Where a boundary scan sends its points: runs of points along a row, single points, and
+/// the points of a pair of runs ([`PairPoints`]), all of one cluster.
+pub(crate) trait Sink<K: Copy = u32> {
     /// `count` points `(x2 + 2i, y2)`, `i = 0..count`, of cluster `key`, all with direction
     /// `(gx, gy)` towards white.
     fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
@@ -749,17 +774,32 @@ pub(crate) trait Sink<K = u32> {
     fn point(&mut self, key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
         self.run(key, x2, y2, 1, gx, gy);
     }
+    /// The points of a pair of runs (`p.count() ≥ 1`), in this order: below (direction
+    /// `(0, s)`), below-right (`(s, s)`), below-left (`(-s, s)`).
+    fn pair(&mut self, key: K, p: &PairPoints) {
+        let (y2, s) = (p.y2, p.s);
+        if p.below.1 > p.below.0 {
+            self.run(key, 2 * p.below.0, y2, p.below.1 - p.below.0, 0, s);
+        }
+        if p.right.1 > p.right.0 {
+            self.run(key, 2 * p.right.0 + 1, y2, p.right.1 - p.right.0, s, s);
+        }
+        for &x in p.left.iter().take(p.nleft) {
+            self.point(key, 2 * x - 1, y2, -s, s);
+        }
+    }
 }
 
-/// A run's class and label when it counts for boundaries (not skipped, in a large component).
-#[inline]
+/// A run's label when it counts for boundaries (in a large component; the scans give
+/// skipped runs [`Label::NONE`]).
+#[inline(always)]
 fn valid<L: Label>(r: &Run<L>) -> bool {
-    r.c != SKIP && r.lab < L::SMALL
+    r.lab < L::SMALL
 }
 
 /// The cluster key of a black/white pair and the sign `s` of the direction from `a` to `b`
 /// towards white (`+1` when `a` is black).
-#[inline]
+#[inline(always)]
 fn key_of<L: Label>(a: &Run<L>, b: &Run<L>) -> (L::Key, i32) {
     if a.c == BLACK {
         (L::key(a.lab, b.lab), 1)
@@ -815,7 +855,8 @@ pub(crate) fn boundary_scan<L: Label>(
 /// from where the cache starts to its end), for the
 /// points whose upper pixel is in rows `ylo..=yhi` only: the same points in the same order
 /// (all of them for `(0, h)`), without re-deriving the rows. `(w, h)` is the sampled
-/// image's size.
+/// image's size. Only the runs that count (large components) are kept in `rows`: [`pairs`]
+/// takes a row with gaps.
 pub(crate) fn boundary_scan_cached<L: Label>(
     cache: &[u32],
     (w, h): (usize, usize),
@@ -844,25 +885,27 @@ pub(crate) fn boundary_scan_cached<L: Label>(
         let words = cache.get(start..end).unwrap_or(&[]);
         let mut x0 = 0u16;
         let mut k = 0;
-        for (&word, r) in words.iter().zip(cur.iter_mut()) {
+        for &word in words {
             let (x1, c) = ((word & 0x3fff) as u16, ((word >> 14) & 3) as u8);
-            // The scans' label (`Roots`): the root, or SMALL for a small component.
-            let lab = if c == SKIP {
-                L::NONE
-            } else {
+            // The scans' label (`Roots`): the root of a large component; others are left out.
+            if c != SKIP {
                 let root = parent
                     .get((word >> 16) as usize)
                     .copied()
                     .unwrap_or(L::NONE);
-                if size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT {
-                    root
-                } else {
-                    L::SMALL
+                if size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT
+                    && let Some(r) = cur.get_mut(k)
+                {
+                    *r = Run {
+                        x0,
+                        x1,
+                        c,
+                        lab: root,
+                    };
+                    k += 1;
                 }
-            };
-            *r = Run { x0, x1, c, lab };
+            }
             x0 = x1;
-            k += 1;
         }
         let up = up.get(..n_up).unwrap_or(&[]);
         let cur = cur.get(..k).unwrap_or(&[]);
@@ -874,7 +917,8 @@ pub(crate) fn boundary_scan_cached<L: Label>(
 }
 
 /// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
-/// `lo`), upper pixels in columns `1..w - 1`.
+/// `lo`), upper pixels in columns `1..w - 1`. A row may leave out runs that do not count
+/// (invalid: skipped or small): a gap between two runs is such a run.
 fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut impl Sink<L::Key>) {
     let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
     // Right neighbours: one point at each boundary between two runs of the upper row.
@@ -883,7 +927,7 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
             continue;
         };
         let x = usize::from(a.x1) - 1;
-        if valid(a) && valid(b) && a.c != b.c && x >= xmin && x < xmax {
+        if a.x1 == b.x0 && a.c != b.c && valid(a) && valid(b) && x >= xmin && x < xmax {
             let (key, s) = key_of(a, b);
             sink.point(key, 2 * x + 1, y2, s, 0);
         }
@@ -898,52 +942,64 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
         if !valid(u) {
             continue;
         }
+        // The run holding column ux0 - 1 of the upper row, if it counts.
+        let left = i
+            .checked_sub(1)
+            .and_then(|k| up.get(k))
+            .filter(|p| p.x1 == u.x0 && valid(p));
         let mut j = j0;
         while let Some(l) = lo.get(j) {
             let (lx0, lx1) = (usize::from(l.x0), usize::from(l.x1));
             if lx0 > ux1 {
                 break;
             }
-            if valid(l) && l.c != u.c {
-                let (key, s) = key_of(u, l);
+            j += 1;
+            if l.c == u.c || !valid(l) {
+                continue;
+            }
+            let (key, s) = key_of(u, l);
+            let mut p = PairPoints {
+                y2: y2 + 1,
+                s,
                 // Below: x in u and l.
-                let (a, b) = (ux0.max(lx0).max(xmin), ux1.min(lx1).min(xmax));
-                if a < b {
-                    sink.run(key, 2 * a, y2 + 1, b - a, 0, s);
-                }
+                below: (ux0.max(lx0).max(xmin), ux1.min(lx1).min(xmax)),
                 // Below-right: x in u, x + 1 in l.
-                let (a, b) = (
+                right: (
                     ux0.max(lx0.saturating_sub(1)).max(xmin),
                     ux1.min(lx1 - 1).min(xmax),
-                );
-                if a < b {
-                    sink.run(key, 2 * a + 1, y2 + 1, b - a, s, s);
+                ),
+                left: [0; 2],
+                nleft: 0,
+            };
+            // Below-left: x in u, x - 1 in l, unless (x - 1, y) and (x, y + 1) are an
+            // opposite pair too (its below-right point is the same). Inside the overlap
+            // they are (u and l), so only the first column of the range (x - 1 left of u,
+            // or x = 1 with no pixel (0, y) in the scan) and x = lx1 (x right of l) can
+            // give a point.
+            let (a, b) = (ux0.max(lx0 + 1).max(xmin), ux1.min(lx1 + 1).min(xmax));
+            if a < b {
+                // The run holding column lx1 of the lower row, if it counts.
+                let right = lo.get(j).filter(|q| q.x0 == l.x1 && valid(q));
+                let at = |x: usize| {
+                    let p = if x > ux0 { Some(u) } else { left };
+                    let q = if x < lx1 { Some(l) } else { right };
+                    let shadowed = x >= 2 && matches!((p, q), (Some(p), Some(q)) if p.c != q.c);
+                    !shadowed
+                };
+                if at(a) {
+                    p.left = [a, 0];
+                    p.nleft = 1;
                 }
-                // Below-left: x in u, x - 1 in l, unless (x - 1, y) and (x, y + 1) are an
-                // opposite pair too (its below-right point is the same). Inside the overlap
-                // they are (u and l), so only the first column of the range (x - 1 left of u,
-                // or x = 1 with no pixel (0, y) in the scan) and x = lx1 (x right of l) can
-                // give a point.
-                let (a, b) = (ux0.max(lx0 + 1).max(xmin), ux1.min(lx1 + 1).min(xmax));
-                if a < b {
-                    let right = lo.get(j + 1);
-                    let left = i.checked_sub(1).and_then(|k| up.get(k));
-                    let mut at = |x: usize| {
-                        let p = if x > ux0 { Some(u) } else { left };
-                        let q = if x < lx1 { Some(l) } else { right };
-                        let shadowed = x >= 2
-                            && matches!((p, q), (Some(p), Some(q)) if valid(p) && valid(q) && p.c != q.c);
-                        if !shadowed {
-                            sink.point(key, 2 * x - 1, y2 + 1, -s, s);
-                        }
-                    };
-                    at(a);
-                    if lx1 > a && lx1 < b {
-                        at(lx1);
+                if lx1 > a && lx1 < b && at(lx1) {
+                    if let Some(slot) = p.left.get_mut(p.nleft) {
+                        *slot = lx1;
                     }
+                    p.nleft += 1;
                 }
             }
-            j += 1;
+            if p.count() > 0 {
+                sink.pair(key, &p);
+            }
         }
     }
 }
