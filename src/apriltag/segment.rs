@@ -939,14 +939,11 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
         while lo.get(j0).is_some_and(|l| usize::from(l.x1) < ux0) {
             j0 += 1;
         }
-        if !valid(u) {
+        // Every point of u has its upper pixel in u's columns within the scan's.
+        let (cx0, cx1) = (ux0.max(xmin), ux1.min(xmax));
+        if !valid(u) || cx0 >= cx1 {
             continue;
         }
-        // The run holding column ux0 - 1 of the upper row, if it counts.
-        let left = i
-            .checked_sub(1)
-            .and_then(|k| up.get(k))
-            .filter(|p| p.x1 == u.x0 && valid(p));
         let mut j = j0;
         while let Some(l) = lo.get(j) {
             let (lx0, lx1) = (usize::from(l.x0), usize::from(l.x1));
@@ -962,35 +959,41 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
                 y2: y2 + 1,
                 s,
                 // Below: x in u and l.
-                below: (ux0.max(lx0).max(xmin), ux1.min(lx1).min(xmax)),
-                // Below-right: x in u, x + 1 in l.
-                right: (
-                    ux0.max(lx0.saturating_sub(1)).max(xmin),
-                    ux1.min(lx1 - 1).min(xmax),
-                ),
+                below: (cx0.max(lx0), cx1.min(lx1)),
+                // Below-right: x in u, x + 1 in l (`cx0 ≥ 1`).
+                right: ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1)),
                 left: [0; 2],
                 nleft: 0,
             };
-            // Below-left: x in u, x - 1 in l, unless (x - 1, y) and (x, y + 1) are an
-            // opposite pair too (its below-right point is the same). Inside the overlap
-            // they are (u and l), so only the first column of the range (x - 1 left of u,
-            // or x = 1 with no pixel (0, y) in the scan) and x = lx1 (x right of l) can
-            // give a point.
-            let (a, b) = (ux0.max(lx0 + 1).max(xmin), ux1.min(lx1 + 1).min(xmax));
+            // Below-left: x in u, x - 1 in l, unless x ≥ 2 and (x - 1, y), (x, y + 1) are an
+            // opposite pair that counts (its below-right point is the same). Inside the
+            // overlap (ux0 < x < lx1) they are u and l: no point. At x = lx1 > ux0 they are
+            // u and the run right of l, of u's class (classes alternate along a row): a point;
+            // the same at x = ux0 < lx1 (the run left of u and l). So only the range's first
+            // column a can lose its point, and the second candidate x = lx1 never does; at
+            // x = ux0 = lx1 the runs left of u and right of l are of opposite classes: no
+            // point when both count.
+            let (a, b) = (cx0.max(lx0 + 1), cx1.min(lx1 + 1));
             if a < b {
-                // The run holding column lx1 of the lower row, if it counts.
-                let right = lo.get(j).filter(|q| q.x0 == l.x1 && valid(q));
-                let at = |x: usize| {
-                    let p = if x > ux0 { Some(u) } else { left };
-                    let q = if x < lx1 { Some(l) } else { right };
-                    let shadowed = x >= 2 && matches!((p, q), (Some(p), Some(q)) if p.c != q.c);
-                    !shadowed
+                let first = if a < 2 {
+                    true
+                } else if a > ux0 {
+                    a == lx1
+                } else if a < lx1 {
+                    true
+                } else {
+                    let left = i
+                        .checked_sub(1)
+                        .and_then(|k| up.get(k))
+                        .is_some_and(|q| q.x1 == u.x0 && valid(q));
+                    let right = lo.get(j).is_some_and(|q| q.x0 == l.x1 && valid(q));
+                    !(left && right)
                 };
-                if at(a) {
+                if first {
                     p.left = [a, 0];
                     p.nleft = 1;
                 }
-                if lx1 > a && lx1 < b && at(lx1) {
+                if lx1 > a && lx1 < b {
                     if let Some(slot) = p.left.get_mut(p.nleft) {
                         *slot = lx1;
                     }
