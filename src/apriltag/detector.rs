@@ -10,8 +10,8 @@ use super::label::{ClusterKey, Label};
 use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, fit_quad};
 use super::segment::{
-    PairPoints, Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles, label_pass,
-    pack, tile_count,
+    PairPoints, Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles,
+    cache_rows_end, label_pass, pack, tile_count,
 };
 use super::workspace::{Stats, WorkspaceView};
 use crate::homography::Homography;
@@ -486,9 +486,10 @@ impl Detector {
             emitted: 0,
         };
         let mut cache_at = lab.cached;
-        match cache_at.and_then(|at| ws.points.get(at..)) {
-            Some(cache) => boundary_scan_cached(
-                cache,
+        match cache_at {
+            Some(at) => boundary_scan_cached(
+                ws.points,
+                at,
                 (src.w, src.h),
                 (0, src.h),
                 &mut rows,
@@ -503,6 +504,7 @@ impl Detector {
                 parent,
                 size,
                 lab.labels,
+                ws.points,
                 &mut counter,
             ),
         }
@@ -601,43 +603,43 @@ impl Detector {
                     )
                 },
             );
-            let split = cache_at
-                .filter(|&at| offset <= at)
-                .and_then(|at| ws.points.split_at_mut_checked(at));
-            if split.is_none() {
+            // The points fill the buffer below the run cache. When they do not all fit there
+            // and no later batch reads the cache, a cluster may take words of the cache's
+            // rows that the scan has read before it sends the cluster's first point (rows
+            // up to one below the cluster's top row), from the buffer's end down.
+            let mut low = offset;
+            if let Some(at) = cache_at
+                && offset > at
+                && table.slots.get(cursor).is_none()
+            {
+                (low, _) = place_over_cache(table.slots, ws.points, at);
+            }
+            let cached = cache_at.filter(|&at| low <= at);
+            if cached.is_none() {
                 cache_at = None;
             }
-            match split {
-                Some((points, cache)) => {
-                    let mut filler = Filler {
-                        table: &mut table,
-                        points,
-                    };
-                    boundary_scan_cached(
-                        cache,
-                        (src.w, src.h),
-                        (ylo, yhi),
-                        &mut rows,
-                        parent,
-                        size,
-                        &mut filler,
-                    );
-                }
-                None => {
-                    let mut filler = Filler {
-                        table: &mut table,
-                        points: &mut *ws.points,
-                    };
-                    boundary_scan(
-                        &src,
-                        &tiles,
-                        &mut rows,
-                        parent,
-                        size,
-                        lab.labels,
-                        &mut filler,
-                    );
-                }
+            let mut filler = Filler { table: &mut table };
+            match cached {
+                Some(at) => boundary_scan_cached(
+                    ws.points,
+                    at,
+                    (src.w, src.h),
+                    (ylo, yhi),
+                    &mut rows,
+                    parent,
+                    size,
+                    &mut filler,
+                ),
+                None => boundary_scan(
+                    &src,
+                    &tiles,
+                    &mut rows,
+                    parent,
+                    size,
+                    lab.labels,
+                    ws.points,
+                    &mut filler,
+                ),
             }
             ws.stats.points += offset as u32;
             probe.stage_done(Stage::Points);
@@ -796,28 +798,28 @@ impl<K: ClusterKey> Sink<K> for Counter<'_, '_, K> {
     // Always into the scan, as when the scan was not generic over the label type (the board's
     // code is unchanged by it).
     #[inline(always)]
-    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+    fn run(&mut self, _: &mut [u32], key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
         let m = count.min(usize::from(u16::MAX)) as u16;
         self.table.add_run(key, x2 as u16, y2 as u16, m, gx, gy);
         self.emitted = self.emitted.saturating_add(count as u32);
     }
 
     #[inline(always)]
-    fn point(&mut self, key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
-        self.run(key, x2, y2, 1, gx, gy);
+    fn point(&mut self, buf: &mut [u32], key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
+        self.run(buf, key, x2, y2, 1, gx, gy);
     }
 
     #[inline(always)]
-    fn pair(&mut self, key: K, p: &PairPoints) {
+    fn pair(&mut self, _: &mut [u32], key: K, p: &PairPoints) {
         self.table.add_pair(key, p);
         self.emitted = self.emitted.saturating_add(p.count() as u32);
     }
 }
 
-/// The storing scan's sink: the points of the clusters of the batch into their ranges.
-struct Filler<'t, 'a, 'p, K: ClusterKey> {
+/// The storing scan's sink: the points of the clusters of the batch into their ranges of the
+/// scan's buffer.
+struct Filler<'t, 'a, K: ClusterKey> {
     table: &'t mut Table<'a, K>,
-    points: &'p mut [u32],
 }
 
 /// Stores `count` points `(x2 + 2i, y2)` with direction `(gx, gy)` into cluster `c`'s range
@@ -840,21 +842,30 @@ fn store<K>(
     }
 }
 
-impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
+impl<K: ClusterKey> Sink<K> for Filler<'_, '_, K> {
     #[inline]
-    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+    fn run(
+        &mut self,
+        buf: &mut [u32],
+        key: K,
+        x2: usize,
+        y2: usize,
+        count: usize,
+        gx: i32,
+        gy: i32,
+    ) {
         let Some(c) = self.table.get_mut(key) else {
             return;
         };
         if c.start == NOT_IN_BATCH {
             return;
         }
-        store(c, self.points, (x2, y2), count, (gx, gy));
+        store(c, buf, (x2, y2), count, (gx, gy));
     }
 
     /// One look-up for the pair's points.
     #[inline]
-    fn pair(&mut self, key: K, p: &PairPoints) {
+    fn pair(&mut self, buf: &mut [u32], key: K, p: &PairPoints) {
         let Some(c) = self.table.get_mut(key) else {
             return;
         };
@@ -863,25 +874,19 @@ impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
         }
         let (y2, s) = (p.y2, p.s);
         if p.below.1 > p.below.0 {
-            store(
-                c,
-                self.points,
-                (2 * p.below.0, y2),
-                p.below.1 - p.below.0,
-                (0, s),
-            );
+            store(c, buf, (2 * p.below.0, y2), p.below.1 - p.below.0, (0, s));
         }
         if p.right.1 > p.right.0 {
             store(
                 c,
-                self.points,
+                buf,
                 (2 * p.right.0 + 1, y2),
                 p.right.1 - p.right.0,
                 (s, s),
             );
         }
         for &x in p.left.iter().take(p.nleft) {
-            store(c, self.points, (2 * x - 1, y2), 1, (-s, s));
+            store(c, buf, (2 * x - 1, y2), 1, (-s, s));
         }
     }
 }
@@ -890,6 +895,28 @@ impl<K: ClusterKey> Sink<K> for Filler<'_, '_, '_, K> {
 #[allow(dead_code)]
 fn in_batch<K>(c: &Cluster<K>) -> bool {
     c.start != NOT_IN_BATCH
+}
+
+/// Places the batch's clusters (those with a range) in `buf` around the run cache at `at`
+/// (segment docs), in table order: from the buffer's end down while a cluster's range stays
+/// within the cache rows read before its first point is sent (rows `0..=r + 1`, `r` its top
+/// row, [`cache_rows_end`]), the others from the buffer's start up. Returns the words used at
+/// the start and the end (disjoint: together the batch's points, at most `buf.len()`).
+fn place_over_cache<K>(slots: &mut [Cluster<K>], buf: &[u32], at: usize) -> (usize, usize) {
+    let (mut low, mut top) = (0usize, buf.len());
+    for c in slots.iter_mut().filter(|c| c.start != NOT_IN_BATCH) {
+        let n = usize::from(c.n);
+        let row = usize::from(c.ymin) / 2;
+        let read = cache_rows_end(buf, at, row + 2).unwrap_or(buf.len());
+        if top >= n && top - n >= read {
+            top -= n;
+            c.start = top as u32;
+        } else {
+            c.start = low as u32;
+            low += n;
+        }
+    }
+    (low, buf.len() - top)
 }
 
 /// A deterministic order of two detections by their corners (AprilTag's last tie-break).

@@ -34,7 +34,9 @@
 //! class, provisional label; `pack_run`).
 //! A scan then reads the rows from there (`boundary_scan_cached`) instead of re-deriving
 //! them from the pixels, and may start and end at any row (the labels are stored, not
-//! re-counted). A frame whose runs do not fit (or, with `u32` labels, with a label of 16 bits
+//! re-counted); once it has read a row, the row's words are free for points (the last
+//! batch's clusters may take them when they do not all fit below the cache). A frame whose
+//! runs do not fit (or, with `u32` labels, with a label of 16 bits
 //! or more) has no cache and its scans re-derive the rows (`boundary_scan`): the points are
 //! the same either way, in the same order.
 
@@ -765,27 +767,39 @@ impl PairPoints {
 }
 
 /// Where a boundary scan sends its points: runs of points along a row, single points, and
-/// the points of a pair of runs ([`PairPoints`]), all of one cluster.
+/// the points of a pair of runs ([`PairPoints`]), all of one cluster. `buf` is the buffer the
+/// scan was given (the point buffer, which may hold the run cache too: a sink that stores
+/// points there writes only where the scan has read).
 pub(crate) trait Sink<K: Copy = u32> {
     /// `count` points `(x2 + 2i, y2)`, `i = 0..count`, of cluster `key`, all with direction
     /// `(gx, gy)` towards white.
-    fn run(&mut self, key: K, x2: usize, y2: usize, count: usize, gx: i32, gy: i32);
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        buf: &mut [u32],
+        key: K,
+        x2: usize,
+        y2: usize,
+        count: usize,
+        gx: i32,
+        gy: i32,
+    );
     /// One point.
-    fn point(&mut self, key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
-        self.run(key, x2, y2, 1, gx, gy);
+    fn point(&mut self, buf: &mut [u32], key: K, x2: usize, y2: usize, gx: i32, gy: i32) {
+        self.run(buf, key, x2, y2, 1, gx, gy);
     }
     /// The points of a pair of runs (`p.count() ≥ 1`), in this order: below (direction
     /// `(0, s)`), below-right (`(s, s)`), below-left (`(-s, s)`).
-    fn pair(&mut self, key: K, p: &PairPoints) {
+    fn pair(&mut self, buf: &mut [u32], key: K, p: &PairPoints) {
         let (y2, s) = (p.y2, p.s);
         if p.below.1 > p.below.0 {
-            self.run(key, 2 * p.below.0, y2, p.below.1 - p.below.0, 0, s);
+            self.run(buf, key, 2 * p.below.0, y2, p.below.1 - p.below.0, 0, s);
         }
         if p.right.1 > p.right.0 {
-            self.run(key, 2 * p.right.0 + 1, y2, p.right.1 - p.right.0, s, s);
+            self.run(buf, key, 2 * p.right.0 + 1, y2, p.right.1 - p.right.0, s, s);
         }
         for &x in p.left.iter().take(p.nleft) {
-            self.point(key, 2 * x - 1, y2, -s, s);
+            self.point(buf, key, 2 * x - 1, y2, -s, s);
         }
     }
 }
@@ -818,6 +832,7 @@ fn key_of<L: Label>(a: &Run<L>, b: &Run<L>) -> (L::Key, i32) {
 /// and below-left unless the below-right pair of `(x - 1, y)` gave the same point. They are
 /// found run against run: a pair of overlapping runs of opposite classes gives three runs of
 /// points (below, below-right, below-left) and two rows give `O(runs)` work, not `O(pixels)`.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn boundary_scan<L: Label>(
     src: &Sampled<'_>,
     tiles: &Tiles<'_>,
@@ -825,6 +840,7 @@ pub(crate) fn boundary_scan<L: Label>(
     parent: &[L],
     size: &[u8],
     labels: usize,
+    buf: &mut [u32],
     sink: &mut impl Sink<L::Key>,
 ) {
     let mut next: usize = 0;
@@ -846,19 +862,23 @@ pub(crate) fn boundary_scan<L: Label>(
         n_up = n;
         // The upper row y - 1 must be in 1..h - 1 (AprilTag's scan domain).
         if y >= 2 && w >= 3 {
-            pairs(up, cur, y - 1, w, sink);
+            pairs(up, cur, y - 1, w, buf, sink);
         }
     }
 }
 
 /// [`boundary_scan`] from the run cache `cache` of [`label_pass`] (module docs: the buffer
-/// from where the cache starts to its end), for the
+/// from where the cache starts, `buf[at..]`), for the
 /// points whose upper pixel is in rows `ylo..=yhi` only: the same points in the same order
 /// (all of them for `(0, h)`), without re-deriving the rows. `(w, h)` is the sampled
 /// image's size. Only the runs that count (large components) are kept in `rows`: [`pairs`]
-/// takes a row with gaps.
+/// takes a row with gaps. The points go to `sink` with `buf`: once the points of upper row
+/// `y` are sent, the cache's rows `0..=y + 1` have been read and are not read again
+/// ([`cache_rows_end`]).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn boundary_scan_cached<L: Label>(
-    cache: &[u32],
+    buf: &mut [u32],
+    at: usize,
     (w, h): (usize, usize),
     (ylo, yhi): (usize, usize),
     rows: &mut Rows<'_, L>,
@@ -866,13 +886,17 @@ pub(crate) fn boundary_scan_cached<L: Label>(
     size: &[u8],
     sink: &mut impl Sink<L::Key>,
 ) {
-    let mut top = cache.len();
+    let mut top = buf.len();
     let mut n_up = 0;
     for y in 0..h.min(yhi.saturating_add(2)) {
-        let Some(&n) = top.checked_sub(1).and_then(|i| cache.get(i)) else {
+        let Some(&n) = top
+            .checked_sub(1)
+            .filter(|&i| i >= at)
+            .and_then(|i| buf.get(i))
+        else {
             return;
         };
-        let Some(start) = top.checked_sub(1 + n as usize) else {
+        let Some(start) = top.checked_sub(1 + n as usize).filter(|&s| s >= at) else {
             return;
         };
         let end = top - 1;
@@ -882,7 +906,7 @@ pub(crate) fn boundary_scan_cached<L: Label>(
             continue;
         }
         let (up, cur) = run_rows(&mut rows.runs, y);
-        let words = cache.get(start..end).unwrap_or(&[]);
+        let words = buf.get(start..end).unwrap_or(&[]);
         let mut x0 = 0u16;
         let mut k = 0;
         for &word in words {
@@ -910,16 +934,34 @@ pub(crate) fn boundary_scan_cached<L: Label>(
         let up = up.get(..n_up).unwrap_or(&[]);
         let cur = cur.get(..k).unwrap_or(&[]);
         if y > ylo && y >= 2 && w >= 3 {
-            pairs(up, cur, y - 1, w, sink);
+            pairs(up, cur, y - 1, w, buf, sink);
         }
         n_up = k;
     }
 }
 
+/// Where the run cache's rows `0..rows` begin in `buf` (the cache from `at` on, module docs):
+/// the lowest word of those rows, `buf.len()` for none; `None` when the cache has fewer.
+pub(crate) fn cache_rows_end(buf: &[u32], at: usize, rows: usize) -> Option<usize> {
+    let mut top = buf.len();
+    for _ in 0..rows {
+        let n = *buf.get(top.checked_sub(1).filter(|&i| i >= at)?)?;
+        top = top.checked_sub(1 + n as usize).filter(|&s| s >= at)?;
+    }
+    Some(top)
+}
+
 /// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
 /// `lo`), upper pixels in columns `1..w - 1`. A row may leave out runs that do not count
 /// (invalid: skipped or small): a gap between two runs is such a run.
-fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut impl Sink<L::Key>) {
+fn pairs<L: Label>(
+    up: &[Run<L>],
+    lo: &[Run<L>],
+    y: usize,
+    w: usize,
+    buf: &mut [u32],
+    sink: &mut impl Sink<L::Key>,
+) {
     let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
     // Right neighbours: one point at each boundary between two runs of the upper row.
     for pair in up.windows(2) {
@@ -929,7 +971,7 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
         let x = usize::from(a.x1) - 1;
         if a.x1 == b.x0 && a.c != b.c && valid(a) && valid(b) && x >= xmin && x < xmax {
             let (key, s) = key_of(a, b);
-            sink.point(key, 2 * x + 1, y2, s, 0);
+            sink.point(buf, key, 2 * x + 1, y2, s, 0);
         }
     }
     // Run against run: lower runs within one column of each upper run.
@@ -1001,7 +1043,7 @@ fn pairs<L: Label>(up: &[Run<L>], lo: &[Run<L>], y: usize, w: usize, sink: &mut 
                 }
             }
             if p.count() > 0 {
-                sink.pair(key, &p);
+                sink.pair(buf, key, &p);
             }
         }
     }

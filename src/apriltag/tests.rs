@@ -550,7 +550,16 @@ fn overlapping_duplicates_keep_the_better_one() {
 struct Collect(Vec<ScanPoint>);
 
 impl Sink for Collect {
-    fn run(&mut self, key: u32, x2: usize, y2: usize, count: usize, gx: i32, gy: i32) {
+    fn run(
+        &mut self,
+        _: &mut [u32],
+        key: u32,
+        x2: usize,
+        y2: usize,
+        count: usize,
+        gx: i32,
+        gy: i32,
+    ) {
         for i in 0..count {
             self.0.push((key, (x2 + 2 * i) as i32, y2 as i32, gx, gy));
         }
@@ -675,7 +684,14 @@ fn scan_points(px: &[u8], w: usize, h: usize) -> (Vec<u8>, Vec<ScanPoint>) {
     assert_eq!(lab.exhausted, 0);
     let mut sink = Collect(Vec::new());
     boundary_scan(
-        &src, &tiles, &mut rows, &parent, &size, lab.labels, &mut sink,
+        &src,
+        &tiles,
+        &mut rows,
+        &parent,
+        &size,
+        lab.labels,
+        &mut [],
+        &mut sink,
     );
     (cls, sink.0)
 }
@@ -702,8 +718,10 @@ fn cached_points(
     let mut cache = vec![0u32; words];
     let lab = label_pass(&src, &tiles, &mut rows, &mut parent, &mut size, &mut cache);
     let mut sink = Collect(Vec::new());
+    let at = lab.cached?;
     boundary_scan_cached(
-        cache.get(lab.cached?..).unwrap(),
+        &mut cache,
+        at,
         (w, h),
         (ylo, yhi),
         &mut rows,

@@ -473,3 +473,31 @@ fn tag_sequence_poses_are_at_least_as_close_as_apriltag_3s() {
     // leave room for f32 rounding, and catch a flipped or wrong pose (several degrees).
     assert!(rc.2 < 1.0 && tc.2 < 3.0, "{rc:?} {tc:?}");
 }
+
+/// The board's workspace with four times its point buffer: a batch's points and the run
+/// cache always fit side by side at 320x240.
+type RoomyWorkspace =
+    Workspace<320, { tiles_len(320, 240, 1) }, 8192, 512, 65536, { sort_len(320, 240, 1) }>;
+
+/// Frames 75 and 155 of the tag sequence have more points of kept clusters than fit below
+/// the run cache of `Workspace320x240`: their batch places clusters over the cache rows the
+/// storing scan has already read. The same tags and the same counts (quads fitted, decoded)
+/// as with room for both, where nothing is placed over the cache.
+#[test]
+fn points_over_the_read_run_cache_give_the_same_detections() {
+    let dir = camgeom_host::data_dir().join("sequences/tag");
+    let det = Detector::new(DetectorConfig::default(), &[&families::TAG36H11]).unwrap();
+    let mut board = Box::new(camgeom::apriltag::Workspace320x240::new());
+    let mut roomy = Box::new(RoomyWorkspace::new());
+    for k in [75, 155] {
+        let img = load_gray(dir.join(format!("{k:04}.png"))).unwrap();
+        let view = img.view().unwrap();
+        let a: camgeom::heapless::Vec<Detection, 8> =
+            det.detect(&view, &mut board.as_mut_view()).unwrap();
+        let b: camgeom::heapless::Vec<Detection, 8> =
+            det.detect(&view, &mut roomy.as_mut_view()).unwrap();
+        assert_eq!(a.len(), 1, "frame {k}");
+        assert_eq!(a, b, "frame {k}");
+        assert_eq!(board.stats(), roomy.stats(), "frame {k}");
+    }
+}
