@@ -757,14 +757,19 @@ pub(crate) fn fit_quad(
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
     let mut nbest = 0usize;
     let mut nmaxima = 0usize;
-    // The points leaving and entering at the next step.
-    let (mut leave, mut enter) = (wrap(start - ksz as isize), wrap(start + ksz as isize + 1));
+    // The points (and weights) entering and leaving, in cyclic order from index i.
+    let from = |i: usize| {
+        let all = pts.iter().zip(keys.iter());
+        all.clone().skip(i).chain(all.cycle())
+    };
+    let mut entering = from(wrap(start + ksz as isize + 1));
+    let mut leaving = from(wrap(start - ksz as isize));
     for t in 0..n + 8 {
-        if t > 0 {
-            win.add(&m_at(enter));
-            win.sub(&m_at(leave));
-            leave = if leave + 1 == n { 0 } else { leave + 1 };
-            enter = if enter + 1 == n { 0 } else { enter + 1 };
+        if t > 0
+            && let (Some((&pe, &we)), Some((&pl, &wl))) = (entering.next(), leaving.next())
+        {
+            win.add(&Window::of(pe, we, xmin, ymin));
+            win.sub(&Window::of(pl, wl, xmin, ymin));
         }
         let [_, e1, e2, e3, e4, e5, e6] = errs;
         errs = [e1, e2, e3, e4, e5, e6, window_error(&win, count)];
@@ -841,9 +846,10 @@ pub(crate) fn fit_quad(
     // The runs between two candidates, each fitted when the search first asks for it:
     // (normal, N λ_min), `None` when the fit fails or `λ_min` exceeds the bound (the normal
     // is then not needed).
-    let mut fits = [[None::<(f32, f32, f32)>; MAX_NMAXIMA]; MAX_NMAXIMA];
+    type Fits = [[Option<(f32, f32, f32)>; MAX_NMAXIMA]; MAX_NMAXIMA];
+    let mut fits: Fits = [[None; MAX_NMAXIMA]; MAX_NMAXIMA];
     let mut done = [0u16; MAX_NMAXIMA];
-    let mut get = |a: usize, b: usize| -> Option<(f32, f32, f32)> {
+    let get = |fits: &mut Fits, done: &mut [u16; MAX_NMAXIMA], a: usize, b: usize| {
         let asked = done.get_mut(a)?;
         let bit = 1u16.checked_shl(b as u32)?;
         let slot = fits.get_mut(a)?.get_mut(b)?;
@@ -863,20 +869,42 @@ pub(crate) fn fit_quad(
     };
     let mut best_err = f32::INFINITY;
     let mut best_idx = [0usize; 4];
+    // Runs fitted: row m2 from m2 + 1 on, column m0 from `col_from[m0]` on.
+    let mut row_full = [false; MAX_NMAXIMA];
+    let mut col_from = [k; MAX_NMAXIMA];
     for m0 in 0..k.saturating_sub(3) {
         for m1 in m0 + 1..k.saturating_sub(2) {
-            let Some((nx01, ny01, e01)) = get(m0, m1) else {
+            let Some((nx01, ny01, e01)) = get(&mut fits, &mut done, m0, m1) else {
                 continue;
             };
             for m2 in m1 + 1..k.saturating_sub(1) {
-                let Some((nx12, ny12, e12)) = get(m1, m2) else {
+                let Some((nx12, ny12, e12)) = get(&mut fits, &mut done, m1, m2) else {
                     continue;
                 };
                 if (nx01 * nx12 + ny01 * ny12).abs() > prm.cos_critical {
                     continue;
                 }
+                // Every m3 needs both runs: fit the ones not yet fitted (each row's tail at
+                // its first use, each column's from the lowest m3 asked), then read the table.
+                if let Some(full) = row_full.get_mut(m2)
+                    && !*full
+                {
+                    *full = true;
+                    for m3 in m2 + 1..k {
+                        get(&mut fits, &mut done, m2, m3);
+                    }
+                }
+                if let Some(from) = col_from.get_mut(m0)
+                    && m2 + 1 < *from
+                {
+                    for m3 in m2 + 1..*from {
+                        get(&mut fits, &mut done, m3, m0);
+                    }
+                    *from = m2 + 1;
+                }
+                let at = |a: usize, b: usize| fits.get(a).and_then(|r| r.get(b)).copied().flatten();
                 for m3 in m2 + 1..k {
-                    let (Some((_, _, e23)), Some((_, _, e30))) = (get(m2, m3), get(m3, m0)) else {
+                    let (Some((_, _, e23)), Some((_, _, e30))) = (at(m2, m3), at(m3, m0)) else {
                         continue;
                     };
                     let err = e01 + e12 + e23 + e30;
