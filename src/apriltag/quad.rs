@@ -435,6 +435,36 @@ fn pseudo_angle(dx: i32, dy: i32) -> u16 {
     ((q << 14) | frac) as u16
 }
 
+// `add` and `sub` over the six sums of `Moments` and `Window` (one text for both: their
+// first moments differ in width only).
+macro_rules! sums_add_sub {
+    ($t:ty) => {
+        impl $t {
+            #[inline]
+            fn add(&mut self, o: &Self) {
+                self.w += o.w;
+                self.x += o.x;
+                self.y += o.y;
+                self.xx += o.xx;
+                self.xy += o.xy;
+                self.yy += o.yy;
+            }
+            #[inline]
+            fn sub(&mut self, o: &Self) {
+                self.w -= o.w;
+                self.x -= o.x;
+                self.y -= o.y;
+                self.xx -= o.xx;
+                self.xy -= o.xy;
+                self.yy -= o.yy;
+            }
+        }
+    };
+}
+
+sums_add_sub!(Moments);
+sums_add_sub!(Window);
+
 /// Weighted moments of a run of points: `Σw`, `Σw u`, `Σw v`, `Σw u²`, `Σw u v`, `Σw v²`
 /// (doubled coordinates relative to the bounding box corner; exact).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -456,24 +486,6 @@ impl Moments {
         self.xx += o.xx;
         self.xy += o.xy;
         self.yy += o.yy;
-    }
-    #[inline]
-    fn add(&mut self, o: &Self) {
-        self.w += o.w;
-        self.x += o.x;
-        self.y += o.y;
-        self.xx += o.xx;
-        self.xy += o.xy;
-        self.yy += o.yy;
-    }
-    #[inline]
-    fn sub(&mut self, o: &Self) {
-        self.w -= o.w;
-        self.x -= o.x;
-        self.y -= o.y;
-        self.xx -= o.xx;
-        self.xy -= o.xy;
-        self.yy -= o.yy;
     }
 }
 
@@ -505,24 +517,6 @@ impl Window {
             xy: i64::from(wu) * i64::from(v),
             yy: i64::from(wv) * i64::from(v),
         }
-    }
-    #[inline]
-    fn add(&mut self, o: &Self) {
-        self.w += o.w;
-        self.x += o.x;
-        self.y += o.y;
-        self.xx += o.xx;
-        self.xy += o.xy;
-        self.yy += o.yy;
-    }
-    #[inline]
-    fn sub(&mut self, o: &Self) {
-        self.w -= o.w;
-        self.x -= o.x;
-        self.y -= o.y;
-        self.xx -= o.xx;
-        self.xy -= o.xy;
-        self.yy -= o.yy;
     }
 }
 
