@@ -19,14 +19,13 @@ use camgeom::apriltag::{
     families, grid_tags,
 };
 use camgeom::camera::{Camera, Distortion, Intrinsics};
-use camgeom::homography::Homography;
 use camgeom::nalgebra::{Point2, Point3};
 use camgeom::transform::Pose;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::{Num, pt2, vec3};
+use common::{Num, detection, pt2, vec3};
 
 const FAMILIES: [&Family; 4] = [
     &families::DICT_4X4_50,
@@ -75,19 +74,6 @@ struct Input {
     max_rms_px: Num,
     ambiguity_ratio: Num,
     small: bool,
-}
-
-fn detection(family: &'static Family, id: u16, c: [Point2<f32>; 4]) -> Detection {
-    // `target_corners` is corners 3, 2, 1, 0.
-    Detection {
-        family,
-        id,
-        hamming: 0,
-        decision_margin: 10.0,
-        corners: [c[3], c[2], c[1], c[0]],
-        center: c[0],
-        homography: Homography::identity(),
-    }
 }
 
 fn check<const N: usize>(

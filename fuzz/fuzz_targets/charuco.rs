@@ -14,17 +14,16 @@
 
 use arbitrary::Arbitrary;
 use camgeom::Error;
-use camgeom::apriltag::{Detection, Family, families};
+use camgeom::apriltag::{Family, families};
 use camgeom::charuco::{CharucoBoard, CharucoConfig, CharucoCorner, interpolate_corners};
 use camgeom::chessboard::SaddleConfig;
-use camgeom::homography::Homography;
 use camgeom::image::ImageView;
 use camgeom::nalgebra::Point2;
 use libfuzzer_sys::fuzz_target;
 
 #[path = "common.rs"]
 mod common;
-use common::Num;
+use common::{Num, detection};
 
 const FAMILIES: [&Family; 4] = [
     &families::DICT_4X4_50,
@@ -69,18 +68,6 @@ struct Input {
 }
 
 /// `target_corners` (and so `aruco_corners`) is corners 3, 2, 1, 0.
-fn detection(family: &'static Family, id: u16, c: [Point2<f32>; 4]) -> Detection {
-    Detection {
-        family,
-        id,
-        hamming: 0,
-        decision_margin: 10.0,
-        corners: [c[3], c[2], c[1], c[0]],
-        center: c[0],
-        homography: Homography::identity(),
-    }
-}
-
 fuzz_target!(|inp: Input| {
     let family = FAMILIES[usize::from(inp.family) % FAMILIES.len()];
     let (sx, sy) = (

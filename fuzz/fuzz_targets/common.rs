@@ -2,6 +2,8 @@
 #![allow(dead_code)]
 
 use arbitrary::Arbitrary;
+use camgeom::apriltag::{Detection, Family};
+use camgeom::homography::Homography;
 use camgeom::nalgebra::{Point, Point2, Point3, Vector3};
 
 /// An `f32` that is usually an ordinary coordinate but can be any bit pattern (NaN, ±inf,
@@ -180,5 +182,19 @@ impl Geometry {
                 (w, h, s, (need + i64::from(slack)).max(0) as usize)
             }
         }
+    }
+}
+
+/// A detection of tag `id` of `family` whose target corners (`Detection::target_corners`:
+/// corners 3, 2, 1, 0) are `c`; the other fields plausible constants.
+pub fn detection(family: &'static Family, id: u16, c: [Point2<f32>; 4]) -> Detection {
+    Detection {
+        family,
+        id,
+        hamming: 0,
+        decision_margin: 10.0,
+        corners: [c[3], c[2], c[1], c[0]],
+        center: c[0],
+        homography: Homography::identity(),
     }
 }
