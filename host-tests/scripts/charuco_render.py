@@ -237,6 +237,25 @@ def qvga(root):
     open(os.path.join(dst, "truth.yaml"), "w").write("\n".join(yaml) + "\n")
 
 
+def write_set(cam, rng, d, tex, b):
+    """Renders one set of views of board `b` (page `tex`) through `cam` into directory `d`: the
+    PNGs, truth.csv (every corner inside the view) and truth.yaml (camera and view poses)."""
+    os.makedirs(d, exist_ok=True)
+    rows = ["view,id,x,y"]
+    yaml = ["%YAML:1.0", "---", "camera_matrix: [%s]" % ", ".join("%.10g" % x for x in cam["K"].ravel()),
+            "distortion: [%s]" % ", ".join("%.10g" % x for x in cam["D"]),
+            "model: %s" % ("fisheye" if cam["fisheye"] else "brown"), "views:"]
+    for i, (rvec, t, p, inside) in enumerate(poses(rng, cam, b)):
+        img = render(tex, rvec, t, cam, rng)
+        cv2.imwrite(os.path.join(d, "%02d.png" % i), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+        for k in np.nonzero(inside)[0]:
+            rows.append("%d,%d,%.6f,%.6f" % (i, k, p[k, 0], p[k, 1]))
+        yaml.append("  - {rvec: [%s], tvec: [%s]}" % (
+            ", ".join("%.12g" % x for x in rvec.ravel()), ", ".join("%.12g" % x for x in t.ravel())))
+    open(os.path.join(d, "truth.csv"), "w").write("\n".join(rows) + "\n")
+    open(os.path.join(d, "truth.yaml"), "w").write("\n".join(yaml) + "\n")
+
+
 def main():
     if len(sys.argv) > 1 and sys.argv[1] == "qvga":
         return qvga(sys.argv[2] if len(sys.argv) > 2 else os.path.join(
@@ -253,21 +272,7 @@ def main():
     tex = page(b)
     for name, cam in cams.items():
         rng = np.random.default_rng(cam.get("seed", 41 + (1 if cam["fisheye"] else 0)))
-        d = os.path.join(outdir, name)
-        os.makedirs(d, exist_ok=True)
-        rows = ["view,id,x,y"]
-        yaml = ["%YAML:1.0", "---", "camera_matrix: [%s]" % ", ".join("%.10g" % x for x in cam["K"].ravel()),
-                "distortion: [%s]" % ", ".join("%.10g" % x for x in cam["D"]),
-                "model: %s" % ("fisheye" if cam["fisheye"] else "brown"), "views:"]
-        for i, (rvec, t, p, inside) in enumerate(poses(rng, cam, b)):
-            img = render(tex, rvec, t, cam, rng)
-            cv2.imwrite(os.path.join(d, "%02d.png" % i), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
-            for k in np.nonzero(inside)[0]:
-                rows.append("%d,%d,%.6f,%.6f" % (i, k, p[k, 0], p[k, 1]))
-            yaml.append("  - {rvec: [%s], tvec: [%s]}" % (
-                ", ".join("%.12g" % x for x in rvec.ravel()), ", ".join("%.12g" % x for x in t.ravel())))
-        open(os.path.join(d, "truth.csv"), "w").write("\n".join(rows) + "\n")
-        open(os.path.join(d, "truth.yaml"), "w").write("\n".join(yaml) + "\n")
+        write_set(cam, rng, os.path.join(outdir, name), tex, b)
 
 
 if __name__ == "__main__":

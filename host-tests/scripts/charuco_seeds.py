@@ -24,24 +24,6 @@ import bench_charuco as bench  # noqa: E402
 import charuco_render as render  # noqa: E402
 
 
-def render_set(cam, seed, d, tex, b):
-    rng = np.random.default_rng(seed)
-    os.makedirs(d, exist_ok=True)
-    rows = ["view,id,x,y"]
-    yaml = ["%YAML:1.0", "---", "camera_matrix: [%s]" % ", ".join("%.10g" % x for x in cam["K"].ravel()),
-            "distortion: [%s]" % ", ".join("%.10g" % x for x in cam["D"]),
-            "model: %s" % ("fisheye" if cam["fisheye"] else "brown"), "views:"]
-    for i, (rvec, t, p, inside) in enumerate(render.poses(rng, cam, b)):
-        img = render.render(tex, rvec, t, cam, rng)
-        render.cv2.imwrite(os.path.join(d, "%02d.png" % i), img)
-        for k in np.nonzero(inside)[0]:
-            rows.append("%d,%d,%.6f,%.6f" % (i, k, p[k, 0], p[k, 1]))
-        yaml.append("  - {rvec: [%s], tvec: [%s]}" % (
-            ", ".join("%.12g" % x for x in rvec.ravel()), ", ".join("%.12g" % x for x in t.ravel())))
-    open(os.path.join(d, "truth.csv"), "w").write("\n".join(rows) + "\n")
-    open(os.path.join(d, "truth.yaml"), "w").write("\n".join(yaml) + "\n")
-
-
 def kerr(K, T):
     return np.abs(np.array([K[0, 0] - T[0, 0], K[1, 1] - T[1, 1], K[0, 2] - T[0, 2], K[1, 2] - T[1, 2]]))
 
@@ -67,7 +49,7 @@ def main():
             # Seeds apart from the committed sets' (41, 42, 4141, 4142).
             seed = 9000 + 100 * list(cams).index(name) + s
             d = os.path.join(out, "%s-%d" % (name, seed))
-            render_set(cam, seed, d, tex, b)
+            render.write_set(cam, np.random.default_rng(seed), d, tex, b)
             T, _, fisheye, t = bench.truth(d)
             files = sorted(glob.glob(os.path.join(d, "[0-9][0-9].png")))
             try:
