@@ -155,21 +155,23 @@ impl<'a, K: ClusterKey> Table<'a, K> {
     }
 
     /// The slot of `key`: the last one looked up, or found (inserted when new and there is
-    /// room).
+    /// room, with `ymin = y2`).
     #[inline(always)]
-    fn index(&mut self, key: K) -> Option<usize> {
+    fn index(&mut self, key: K, y2: u16) -> Option<usize> {
         if self.last.0 == key {
             Some(self.last.1)
         } else {
-            self.slot(key)
+            self.slot(key, y2)
         }
     }
 
     /// Adds `m ≥ 1` points `(x2 + 2i, y2)`, `i < m`, of cluster `key`, with gradient signs
-    /// `(gx, gy)` (each -1, 0 or 1).
+    /// `(gx, gy)` (each -1, 0 or 1). The points come row by row down the image (`y2` never
+    /// less than the last one's): a cluster's first point is its top (`ymin`, set when the
+    /// key is inserted) and its latest point its bottom (`ymax`).
     #[inline]
     pub(crate) fn add_run(&mut self, key: K, x2: u16, y2: u16, m: u16, gx: i32, gy: i32) {
-        let Some(i) = self.index(key) else {
+        let Some(i) = self.index(key, y2) else {
             self.dropped = self.dropped.saturating_add(u32::from(m));
             return;
         };
@@ -180,8 +182,7 @@ impl<'a, K: ClusterKey> Table<'a, K> {
         c.n = c.n.saturating_add(m);
         c.xmin = c.xmin.min(x2);
         c.xmax = c.xmax.max(x2.saturating_add(2 * m.saturating_sub(1)));
-        c.ymin = c.ymin.min(y2);
-        c.ymax = c.ymax.max(y2);
+        c.ymax = y2;
         c.sgx = c.sgx.saturating_add(mi * gx);
         c.sgy = c.sgy.saturating_add(mi * gy);
         // Σ x2 over the run: m x2 + m (m - 1), below 2^28 (a run is at most MAX_SIDE wide).
@@ -195,7 +196,7 @@ impl<'a, K: ClusterKey> Table<'a, K> {
     /// Adds the points of a pair of runs ([`PairPoints`], at least one) to cluster `key`: the
     /// same cluster as [`Self::add_run`] for each of its runs of points, summed first (the
     /// sums are exact below 65535 points, module docs of [`Cluster`]; a cluster of more is
-    /// never fitted).
+    /// never fitted), in the same row order.
     #[inline]
     pub(crate) fn add_pair(&mut self, key: K, p: &PairPoints) {
         let (b0, b1) = p.below;
@@ -203,7 +204,8 @@ impl<'a, K: ClusterKey> Table<'a, K> {
         let mb = b1.saturating_sub(b0);
         let mr = r1.saturating_sub(r0);
         let m = mb + mr + p.nleft;
-        let Some(i) = self.index(key) else {
+        let y2 = p.y2 as u16;
+        let Some(i) = self.index(key, y2) else {
             self.dropped = self.dropped.saturating_add(m as u32);
             return;
         };
@@ -225,12 +227,11 @@ impl<'a, K: ClusterKey> Table<'a, K> {
             (lo, hi) = (lo.min(x2), hi.max(x2));
             sx -= x2 as i32;
         }
-        let (s, y2, mi) = (p.s, p.y2 as u16, m as i32);
+        let (s, mi) = (p.s, m as i32);
         c.n = c.n.saturating_add(m as u16);
         c.xmin = c.xmin.min(lo as u16);
         c.xmax = c.xmax.max(hi as u16);
-        c.ymin = c.ymin.min(y2);
-        c.ymax = c.ymax.max(y2);
+        c.ymax = y2;
         c.sgx = c.sgx.saturating_add(s * (mr as i32 - p.nleft as i32));
         c.sgy = c.sgy.saturating_add(s * mi);
         c.spg = c
@@ -239,8 +240,9 @@ impl<'a, K: ClusterKey> Table<'a, K> {
             .saturating_add(s * mi * i32::from(y2));
     }
 
-    /// The slot of `key`, inserted when new and there is room (and remembered).
-    fn slot(&mut self, key: K) -> Option<usize> {
+    /// The slot of `key`, inserted with top row `ymin = y2` when new and there is room (and
+    /// remembered).
+    fn slot(&mut self, key: K, y2: u16) -> Option<usize> {
         let len = self.slots.len();
         let mut i = home(key, len);
         for _ in 0..len {
@@ -254,6 +256,7 @@ impl<'a, K: ClusterKey> Table<'a, K> {
                     return None;
                 }
                 c.key = key;
+                c.ymin = y2;
                 self.used += 1;
                 self.last = (key, i);
                 return Some(i);
