@@ -161,10 +161,21 @@ pub(crate) fn edge_point(
         img.width().saturating_sub(1) as f32,
         img.height().saturating_sub(1) as f32,
     );
+    let inside = |x: f32, y: f32| x >= 0.0 && y >= 0.0 && x <= xmax && y <= ymax;
+    let at = |j: usize| {
+        let m = -range - 1.0 + 0.25 * j as f32;
+        (x0 + m * nx, y0 + m * ny)
+    };
+    // The positions are monotone in j (each step of the computation rounds monotonically),
+    // so when both ends are inside the image, every sample is.
+    let ((xa, ya), (xb, yb)) = (at(0), at(steps + 7));
+    let all_inside = inside(xa, ya) && inside(xb, yb);
     let mut along = [f32::NAN; MAX_ALONG];
     for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
-        let m = -range - 1.0 + 0.25 * j as f32;
-        *g = bilinear(data, stride, xmax, ymax, x0 + m * nx, y0 + m * ny);
+        let (x, y) = at(j);
+        if all_inside || inside(x, y) {
+            *g = bilinear(data, stride, x, y);
+        }
     }
     for (step, (&g1, &g2)) in along
         .iter()
@@ -192,23 +203,25 @@ pub(crate) fn edge_point(
     })
 }
 
-/// [`ImageView::sample_bilinear`] on the view's bytes (`data`, `stride`, the largest
-/// coordinates `xmax`, `ymax`), the same arithmetic in the same order (so the same value to
-/// the bit), NaN outside: the edge points' inner loop, without the row look-ups.
+/// [`ImageView::sample_bilinear`] on the view's bytes (`data`, `stride`) at `(x, y)` inside
+/// the image, the same arithmetic in the same order (so the same value to the bit): the edge
+/// points' inner loop, without the row look-ups. The right and lower neighbours are read even
+/// where `a` or `b` is 0 (where the view reads the pixel itself): their terms are then
+/// `0 · p = +0` for any pixel value, and adding `+0` to the non-negative sum changes nothing.
 #[inline(always)]
-fn bilinear(data: &[u8], stride: usize, xmax: f32, ymax: f32, x: f32, y: f32) -> f32 {
-    if !(x >= 0.0 && y >= 0.0 && x <= xmax && y <= ymax) {
-        return f32::NAN;
-    }
-    // In range and non-negative: truncation is the floor.
+fn bilinear(data: &[u8], stride: usize, x: f32, y: f32) -> f32 {
+    // Inside and non-negative: truncation is the floor.
     let (i, j) = (x as usize, y as usize);
     let (a, b) = (x - i as f32, y - j as f32);
-    let (i1, j1) = (i + usize::from(a > 0.0), j + usize::from(b > 0.0));
-    let p = |i: usize, j: usize| f32::from(data.get(j * stride + i).copied().unwrap_or(0));
-    (1.0 - a) * (1.0 - b) * p(i, j)
-        + a * (1.0 - b) * p(i1, j)
-        + (1.0 - a) * b * p(i, j1)
-        + a * b * p(i1, j1)
+    let k = j * stride + i;
+    // A pixel and its right neighbour from one bounds check; past the end of the data the
+    // neighbour (whose weight is then 0) reads 0.
+    let two = |k: usize| match data.get(k..k.wrapping_add(2)) {
+        Some(&[l, r]) => (f32::from(l), f32::from(r)),
+        _ => (f32::from(data.get(k).copied().unwrap_or(0)), 0.0),
+    };
+    let ((p00, p10), (p01, p11)) = (two(k), two(k + stride));
+    (1.0 - a) * (1.0 - b) * p00 + a * (1.0 - b) * p10 + (1.0 - a) * b * p01 + a * b * p11
 }
 
 /// Least-squares plane `I = c₀ x + c₁ y + c₂` over tag coordinates.
