@@ -963,13 +963,14 @@ fn pairs<L: Label>(
     sink: &mut impl Sink<L::Key>,
 ) {
     let (y2, xmin, xmax) = (2 * y, 1usize, w - 1);
-    // Right neighbours: one point at each boundary between two runs of the upper row.
+    // Right neighbours: one point at each boundary between two runs of the upper row (the
+    // boundary column is below `b.x1 <= w`, so `x < w - 1`).
     for pair in up.windows(2) {
         let (Some(a), Some(b)) = (pair.first(), pair.get(1)) else {
             continue;
         };
         let x = usize::from(a.x1) - 1;
-        if a.x1 == b.x0 && a.c != b.c && valid(a) && valid(b) && x >= xmin && x < xmax {
+        if a.x1 == b.x0 && a.c != b.c && valid(a) && valid(b) && x >= xmin {
             let (key, s) = key_of(a, b);
             sink.point(buf, key, 2 * x + 1, y2, s, 0);
         }
