@@ -977,8 +977,11 @@ fn pairs<L: Label>(
     }
     // Run against run: lower runs within one column of each upper run.
     let mut j0 = 0;
-    for (i, u) in up.iter().enumerate() {
+    // Where the previous upper run ends when it counts (`usize::MAX` otherwise).
+    let mut end = usize::MAX;
+    for u in up {
         let (ux0, ux1) = (usize::from(u.x0), usize::from(u.x1));
+        let left_end = core::mem::replace(&mut end, if valid(u) { ux1 } else { usize::MAX });
         while lo.get(j0).is_some_and(|l| usize::from(l.x1) < ux0) {
             j0 += 1;
         }
@@ -1001,46 +1004,52 @@ fn pairs<L: Label>(
             let mut p = PairPoints {
                 y2: y2 + 1,
                 s,
-                // Below: x in u and l.
-                below: (cx0.max(lx0), cx1.min(lx1)),
-                // Below-right: x in u, x + 1 in l (`cx0 ≥ 1`).
-                right: ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1)),
+                below: (0, 0),
+                right: (0, 0),
                 left: [0; 2],
                 nleft: 0,
             };
-            // Below-left: x in u, x - 1 in l, unless x ≥ 2 and (x - 1, y), (x, y + 1) are an
-            // opposite pair that counts (its below-right point is the same). Inside the
-            // overlap (ux0 < x < lx1) they are u and l: no point. At x = lx1 > ux0 they are
-            // u and the run right of l, of u's class (classes alternate along a row): a point;
-            // the same at x = ux0 < lx1 (the run left of u and l). So only the range's first
-            // column a can lose its point, and the second candidate x = lx1 never does; at
-            // x = ux0 = lx1 the runs left of u and right of l are of opposite classes: no
-            // point when both count.
-            let (a, b) = (cx0.max(lx0 + 1), cx1.min(lx1 + 1));
-            if a < b {
-                let first = if a < 2 {
-                    true
-                } else if a > ux0 {
-                    a == lx1
-                } else if a < lx1 {
-                    true
-                } else {
-                    let left = i
-                        .checked_sub(1)
-                        .and_then(|k| up.get(k))
-                        .is_some_and(|q| q.x1 == u.x0 && valid(q));
-                    let right = lo.get(j).is_some_and(|q| q.x0 == l.x1 && valid(q));
-                    !(left && right)
-                };
-                if first {
-                    p.left = [a, 0];
-                    p.nleft = 1;
+            // The runs are within one column: l ends where u starts, starts where u ends, or
+            // they overlap. Below-left points: x in u, x - 1 in l, unless x ≥ 2 and
+            // (x - 1, y), (x, y + 1) are an opposite pair that counts (its below-right point
+            // is the same).
+            if lx1 == ux0 {
+                // Touching at u's start: only the below-left point of x = ux0 (in the scan when
+                // ux0 ≥ 1). (ux0 - 1, y) and (ux0, y + 1) are the run left of u and the run
+                // right of l, of opposite classes: no point when both count.
+                let left = left_end == ux0;
+                let right = lo.get(j).is_some_and(|q| q.x0 == l.x1 && valid(q));
+                if ux0 == 0 || (ux0 >= 2 && left && right) {
+                    continue;
                 }
-                if lx1 > a && lx1 < b {
-                    if let Some(slot) = p.left.get_mut(p.nleft) {
-                        *slot = lx1;
+                p.left = [ux0, 0];
+                p.nleft = 1;
+            } else if lx0 == ux1 {
+                // Touching at u's end: only the below-right point of x = ux1 - 1 (in the scan
+                // when ux1 ≤ w - 1; x ≥ cx0 as cx0 < cx1).
+                p.right = (ux1 - 1, cx1);
+            } else {
+                // Below: x in u and l.
+                p.below = (cx0.max(lx0), cx1.min(lx1));
+                // Below-right: x in u, x + 1 in l (`cx0 ≥ 1`).
+                p.right = ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1));
+                // Below-left: inside the overlap (ux0 < x < lx1) (x - 1, y), (x, y + 1) are u
+                // and l: no point. At x = lx1 > ux0 they are u and the run right of l, of u's
+                // class or not counting: a point; the same at x = ux0 < lx1 (the run left of u
+                // and l). So of the range [a, b) only a (when it is 1, ux0 or lx1) and lx1
+                // give points.
+                let (a, b) = (cx0.max(lx0 + 1), cx1.min(lx1 + 1));
+                if a < b {
+                    if a < 2 || a == ux0 || a == lx1 {
+                        p.left = [a, 0];
+                        p.nleft = 1;
                     }
-                    p.nleft += 1;
+                    if lx1 > a && lx1 < b {
+                        if let Some(slot) = p.left.get_mut(p.nleft) {
+                            *slot = lx1;
+                        }
+                        p.nleft += 1;
+                    }
                 }
             }
             if p.count() > 0 {
