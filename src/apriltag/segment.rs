@@ -110,13 +110,123 @@ pub(crate) const fn tile_count(w: usize, h: usize) -> usize {
     (w / TILE) * (h / TILE)
 }
 
-/// The min and max of a tile's row of pixels (`(255, 0)` for a short slice).
+/// Bit 7 of every byte of a `u32` (the SWAR helpers' lane tops).
+const TOPS: u32 = 0x8080_8080;
+
+/// Bytewise `x ≥ y` of two words of four `u8` lanes: bit 7 of each byte of the result is
+/// set where the lane of `x` is at least that of `y` (the other bits are 0).
+///
+/// Per byte, `(x | 0x80) - (y & 0x7f)` is in `1..=255` (no borrow crosses into the next
+/// byte) and its bit 7 is `x mod 128 ≥ y mod 128`; that decides when the lanes' top bits are
+/// equal, and `x`'s top bit alone when they differ.
 #[inline(always)]
-fn minmax4(p: &[u8]) -> (u8, u8) {
-    match *p {
-        [a, b, c, d] => (a.min(b).min(c.min(d)), a.max(b).max(c.max(d))),
-        _ => (255, 0),
+fn ge_bytes(x: u32, y: u32) -> u32 {
+    let low = (x | TOPS) - (y & !TOPS);
+    ((x & !y) | (low & !(x ^ y))) & TOPS
+}
+
+/// The lanes whose bit 7 is set in `b` ([`ge_bytes`]) as `0xff` bytes, the others `0`
+/// (`2^(8k+8) - 2^(8k)` a lane, wrapping at the top one).
+#[inline(always)]
+fn lane_mask(b: u32) -> u32 {
+    (b << 1).wrapping_sub(b >> 7)
+}
+
+/// Bytewise min and max of two words of four `u8` lanes.
+#[inline(always)]
+fn minmax_bytes(x: u32, y: u32) -> (u32, u32) {
+    let swap = (x ^ y) & lane_mask(ge_bytes(x, y));
+    (x ^ swap, y ^ swap)
+}
+
+/// Bytewise min of two words of four `u8` lanes.
+#[inline(always)]
+fn min_bytes(x: u32, y: u32) -> u32 {
+    minmax_bytes(x, y).0
+}
+
+/// Bytewise max of two words of four `u8` lanes.
+#[inline(always)]
+fn max_bytes(x: u32, y: u32) -> u32 {
+    minmax_bytes(x, y).1
+}
+
+/// The four bytes of `s` from `at` as a little-endian word, `pad` for those past its end.
+#[inline(always)]
+fn load4(s: &[u8], at: usize, pad: u8) -> u32 {
+    match s.get(at..at + 4) {
+        Some(&[a, b, c, d]) => u32::from_le_bytes([a, b, c, d]),
+        _ => {
+            let mut w = [pad; 4];
+            for (o, &v) in w.iter_mut().zip(s.get(at..).unwrap_or(&[])) {
+                *o = v;
+            }
+            u32::from_le_bytes(w)
+        }
     }
+}
+
+/// The min and max of a tile's 16 pixels, its four rows given as little-endian words: the
+/// rows bytewise ([`minmax_bytes`]), then the four columns.
+#[inline(always)]
+fn tile_minmax([a, b, c, d]: [u32; 4]) -> (u8, u8) {
+    let (lo_ab, hi_ab) = minmax_bytes(a, b);
+    let (lo_cd, hi_cd) = minmax_bytes(c, d);
+    let [l0, l1, l2, l3] = min_bytes(lo_ab, lo_cd).to_le_bytes();
+    let [h0, h1, h2, h3] = max_bytes(hi_ab, hi_cd).to_le_bytes();
+    (l0.min(l1).min(l2.min(l3)), h0.max(h1).max(h2.max(h3)))
+}
+
+/// The bytewise min of the four bytes from `at` of three rows of tile mins, and the max of
+/// those of three rows of tile maxes (past the rows' end: 255 and 0).
+#[inline(always)]
+fn vertical3([u, c, d]: [&[u8]; 3], [uu, cc, dd]: [&[u8]; 3], at: usize) -> (u32, u32) {
+    let mn = min_bytes(
+        min_bytes(load4(u, at, 255), load4(c, at, 255)),
+        load4(d, at, 255),
+    );
+    let mx = max_bytes(
+        max_bytes(load4(uu, at, 0), load4(cc, at, 0)),
+        load4(dd, at, 0),
+    );
+    (mn, mx)
+}
+
+/// The thresholds ([`build_tiles`]) of four tiles of a row from the bytewise min and max
+/// words ([`vertical3`]) of theirs (`cur`) and of the four tiles before and after them: the
+/// horizontal part of the dilation, then per lane `SKIP_TILE` when `max - min < min_diff`,
+/// else `min + ⌊(max - min) f⌋` with `f = fraction_q8 / 256 < 1` (below `max - min`, and
+/// `(max - min) / 2` exactly at 128).
+#[inline(always)]
+fn thresholds4(
+    prev: (u32, u32),
+    cur: (u32, u32),
+    next: (u32, u32),
+    min_diff: u8,
+    fraction_q8: u8,
+) -> u32 {
+    // Each lane with its left and right neighbours' lanes.
+    let mn = min_bytes(
+        min_bytes(cur.0, (cur.0 << 8) | (prev.0 >> 24)),
+        (cur.0 >> 8) | (next.0 << 24),
+    );
+    let mx = max_bytes(
+        max_bytes(cur.1, (cur.1 << 8) | (prev.1 >> 24)),
+        (cur.1 >> 8) | (next.1 << 24),
+    );
+    // Every tile has its 16 pixels, so `mn ≤ mx` in its lane and `mx - mn` borrows from no
+    // tile's lane (the lanes past a row's end, min 255 and max 0, borrow from those above
+    // them, past the end too, and are not stored); split into 16-bit lanes, the products by
+    // `f` and the sums `(mx - mn) + 256 - min_diff` (bit 8: `mx - mn ≥ min_diff`) fit.
+    const EVEN: u32 = 0x00ff_00ff;
+    let diff = mx.wrapping_sub(mn);
+    let (even, odd) = (diff & EVEN, (diff >> 8) & EVEN);
+    let f = u32::from(fraction_q8);
+    let part = (((even * f) >> 8) & EVEN) | ((odd * f) & !EVEN);
+    let room = (256 - u32::from(min_diff)) * 0x0001_0001;
+    let wide = (((even + room) >> 8) & 0x0001_0001) | ((odd + room) & 0x0100_0100);
+    // Skipped lanes are 255.
+    mn.wrapping_add(part) | !(wide * 0xff)
 }
 
 /// Computes the tile thresholds into `thr` (`tw th` bytes) with the raw min/max of three tile
@@ -143,19 +253,14 @@ pub(crate) fn build_tiles<'t>(
         };
         let rows: [&[u8]; TILE] = core::array::from_fn(|dy| src.full_row(ty * TILE + dy));
         if src.d == 1 && rows.iter().all(|r| r.len() >= tw * TILE) {
-            // The tile's four rows at once, its 16 pixels' min and max straight into the ring.
+            // The tile's four rows at once, a word each, its min and max straight into the ring.
             let [r0, r1, r2, r3] = rows.map(|r| r.chunks_exact(TILE));
             for ((mn, mx), (((a, b), c), d)) in mins
                 .iter_mut()
                 .zip(maxs.iter_mut())
                 .zip(r0.zip(r1).zip(r2).zip(r3))
             {
-                let (la, ha) = minmax4(a);
-                let (lb, hb) = minmax4(b);
-                let (lc, hc) = minmax4(c);
-                let (ld, hd) = minmax4(d);
-                *mn = la.min(lb).min(lc.min(ld));
-                *mx = ha.max(hb).max(hc.max(hd));
+                (*mn, *mx) = tile_minmax([a, b, c, d].map(|p| load4(p, 0, 0)));
             }
             return;
         }
@@ -185,8 +290,10 @@ pub(crate) fn build_tiles<'t>(
         let Some(out) = thr.get_mut(ty * tw..ty * tw + tw) else {
             break;
         };
-        // The 3x3 dilation: vertical over the (up to) three rows, then horizontal. A missing
-        // row above or below is replaced by the row itself (min and max take it twice).
+        // The 3x3 dilation, four tiles a word: vertical over the (up to) three rows, then
+        // horizontal. A missing row above or below is replaced by the row itself (min and max
+        // take it twice); a missing tile left or right (and the padding of a last, partial
+        // word) is 255 for the min and 0 for the max, which change nothing.
         let slot = |r: usize| {
             let s = (r % 3) * tw;
             Some((ring_min.get(s..s + tw)?, ring_max.get(s..s + tw)?))
@@ -198,27 +305,46 @@ pub(crate) fn build_tiles<'t>(
         ) else {
             break;
         };
-        let mut col = umin
+        // Four tiles a word: the full words, then the last partial one padded (or `none`,
+        // the lanes outside the row).
+        let none = (u32::MAX, 0u32);
+        let tail = match tw % 4 {
+            0 => none,
+            r => vertical3([umin, cmin, dmin], [umax, cmax, dmax], tw - r),
+        };
+        let word = |p: &[u8; 4]| u32::from_le_bytes(*p);
+        let mut words = umin
+            .as_chunks::<4>()
+            .0
             .iter()
-            .zip(cmin)
-            .zip(dmin)
-            .zip(umax.iter().zip(cmax).zip(dmax))
-            .map(|(((&a, &b), &c), ((&d, &e), &f))| (a.min(b).min(c), d.max(e).max(f)));
-        let mut prev = (255u8, 0u8);
-        let mut cur = col.next().unwrap_or((255, 0));
-        for t in out.iter_mut() {
-            let next = col.next().unwrap_or((255, 0));
-            let mn = prev.0.min(cur.0).min(next.0);
-            let mx = prev.1.max(cur.1).max(next.1);
-            *t = if mx.saturating_sub(mn) < min_diff {
-                SKIP_TILE
-            } else {
-                // `⌊(mx - mn) f⌋` with `f = fraction_q8 / 256 < 1`: below `mx - mn`, and
-                // `(mx - mn) / 2` exactly at 128.
-                mn + ((u16::from(mx - mn) * u16::from(fraction_q8)) >> 8) as u8
-            };
+            .zip(cmin.as_chunks::<4>().0)
+            .zip(dmin.as_chunks::<4>().0)
+            .zip(
+                umax.as_chunks::<4>()
+                    .0
+                    .iter()
+                    .zip(cmax.as_chunks::<4>().0)
+                    .zip(dmax.as_chunks::<4>().0),
+            )
+            .map(|(((u, c), d), ((uu, cc), dd))| {
+                (
+                    min_bytes(min_bytes(word(u), word(c)), word(d)),
+                    max_bytes(max_bytes(word(uu), word(cc)), word(dd)),
+                )
+            })
+            .chain(core::iter::once(tail));
+        let mut prev = none;
+        let mut cur = words.next().unwrap_or(none);
+        let (full, rest) = out.as_chunks_mut::<4>();
+        for o in full {
+            let next = words.next().unwrap_or(none);
+            *o = thresholds4(prev, cur, next, min_diff, fraction_q8).to_le_bytes();
             prev = cur;
             cur = next;
+        }
+        let t = thresholds4(prev, cur, none, min_diff, fraction_q8).to_le_bytes();
+        for (o, v) in rest.iter_mut().zip(t) {
+            *o = v;
         }
     }
     Tiles { thr, tw, th }

@@ -789,6 +789,70 @@ proptest! {
     }
 }
 
+/// AprilTag's tile thresholds, transcribed tile by tile: the min and max of each 4x4 tile,
+/// both dilated over the 3x3 tiles around (clamped to the image), then `SKIP` (255) or
+/// `min + ⌊(max - min) f⌋`.
+fn reference_tiles(px: &[u8], w: usize, h: usize, min_diff: u8, fraction_q8: u8) -> Vec<u8> {
+    let (tw, th) = (w / 4, h / 4);
+    let (mut lo, mut hi) = (vec![255u8; tw * th], vec![0u8; tw * th]);
+    for ty in 0..th {
+        for tx in 0..tw {
+            for dy in 0..4 {
+                for dx in 0..4 {
+                    let v = px[(4 * ty + dy) * w + 4 * tx + dx];
+                    lo[ty * tw + tx] = lo[ty * tw + tx].min(v);
+                    hi[ty * tw + tx] = hi[ty * tw + tx].max(v);
+                }
+            }
+        }
+    }
+    let mut out = vec![0u8; tw * th];
+    for ty in 0..th {
+        for tx in 0..tw {
+            let (mut mn, mut mx) = (255u8, 0u8);
+            for y in ty.saturating_sub(1)..(ty + 2).min(th) {
+                for x in tx.saturating_sub(1)..(tx + 2).min(tw) {
+                    mn = mn.min(lo[y * tw + x]);
+                    mx = mx.max(hi[y * tw + x]);
+                }
+            }
+            out[ty * tw + tx] = if mx - mn < min_diff.max(1) {
+                255
+            } else {
+                mn + ((u16::from(mx - mn) * u16::from(fraction_q8)) >> 8) as u8
+            };
+        }
+    }
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The four-tiles-a-word threshold gives the tile-by-tile one, for any width (partial
+    /// words at the right), contrast and fraction.
+    #[test]
+    fn tile_thresholds_match_the_transcription(
+        seed in any::<u64>(),
+        w in 4usize..60,
+        h in 4usize..24,
+        min_diff in any::<u8>(),
+        fraction_q8 in any::<u8>(),
+        spread in 1u32..256,
+    ) {
+        let mut g = crate::rng::Pcg32::new(seed);
+        let base = g.next_u32() % 256;
+        let px: Vec<u8> = (0..w * h)
+            .map(|_| (base + g.next_u32() % spread).min(255) as u8)
+            .collect();
+        let src = Sampled::new(ImageView::packed(&px, w, h).unwrap(), 1);
+        let mut thr = vec![0u8; tile_count(w, h)];
+        let (mut rmin, mut rmax) = (vec![0u8; 3 * (w / 4)], vec![0u8; 3 * (w / 4)]);
+        let tiles = build_tiles(&src, min_diff, fraction_q8, &mut thr, &mut rmin, &mut rmax);
+        prop_assert_eq!(tiles.thr, &reference_tiles(&px, w, h, min_diff, fraction_q8)[..]);
+    }
+}
+
 // ---------------------------------------------------------------------------- robustness
 
 proptest! {
