@@ -1127,14 +1127,6 @@ fn pairs<L: Label>(
                 continue;
             }
             let (key, s) = key_of(u, l);
-            let mut p = PairPoints {
-                y2: y2 + 1,
-                s,
-                below: (0, 0),
-                right: (0, 0),
-                left: [0; 2],
-                nleft: 0,
-            };
             // The runs are within one column: l ends where u starts, starts where u ends, or
             // they overlap. Below-left points: x in u, x - 1 in l, unless x ≥ 2 and
             // (x - 1, y), (x, y + 1) are an opposite pair that counts (its below-right point
@@ -1145,37 +1137,45 @@ fn pairs<L: Label>(
                 // right of l, of opposite classes: no point when both count.
                 let left = left_end == ux0;
                 let right = lo.get(j).is_some_and(|q| q.x0 == l.x1 && valid(q));
-                if ux0 == 0 || (ux0 >= 2 && left && right) {
-                    continue;
+                if ux0 == 1 || (ux0 >= 2 && !(left && right)) {
+                    sink.point(buf, key, 2 * ux0 - 1, y2 + 1, -s, s);
                 }
-                p.left = [ux0, 0];
-                p.nleft = 1;
-            } else if lx0 == ux1 {
+                continue;
+            }
+            if lx0 == ux1 {
                 // Touching at u's end: only the below-right point of x = ux1 - 1 (in the scan
                 // when ux1 ≤ w - 1; x ≥ cx0 as cx0 < cx1).
-                p.right = (ux1 - 1, cx1);
-            } else {
+                if cx1 == ux1 {
+                    sink.point(buf, key, 2 * ux1 - 1, y2 + 1, s, s);
+                }
+                continue;
+            }
+            // They overlap.
+            let mut p = PairPoints {
+                y2: y2 + 1,
+                s,
                 // Below: x in u and l.
-                p.below = (cx0.max(lx0), cx1.min(lx1));
+                below: (cx0.max(lx0), cx1.min(lx1)),
                 // Below-right: x in u, x + 1 in l (`cx0 ≥ 1`).
-                p.right = ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1));
-                // Below-left: inside the overlap (ux0 < x < lx1) (x - 1, y), (x, y + 1) are u
-                // and l: no point. At x = lx1 > ux0 they are u and the run right of l, of u's
-                // class or not counting: a point; the same at x = ux0 < lx1 (the run left of u
-                // and l). So of the range [a, b) only a (when it is 1, ux0 or lx1) and lx1
-                // give points.
-                let (a, b) = (cx0.max(lx0 + 1), cx1.min(lx1 + 1));
-                if a < b {
-                    if a < 2 || a == ux0 || a == lx1 {
-                        p.left = [a, 0];
-                        p.nleft = 1;
+                right: ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1)),
+                left: [0; 2],
+                nleft: 0,
+            };
+            // Below-left: inside the overlap (ux0 < x < lx1) (x - 1, y), (x, y + 1) are u and
+            // l: no point. At x = lx1 > ux0 they are u and the run right of l, of u's class or
+            // not counting: a point; the same at x = ux0 < lx1 (the run left of u and l). So
+            // of the range [a, b) only a (when it is 1, ux0 or lx1) and lx1 give points.
+            let (a, b) = (cx0.max(lx0 + 1), cx1.min(lx1 + 1));
+            if a < b {
+                if a < 2 || a == ux0 || a == lx1 {
+                    p.left = [a, 0];
+                    p.nleft = 1;
+                }
+                if lx1 > a && lx1 < b {
+                    if let Some(slot) = p.left.get_mut(p.nleft) {
+                        *slot = lx1;
                     }
-                    if lx1 > a && lx1 < b {
-                        if let Some(slot) = p.left.get_mut(p.nleft) {
-                            *slot = lx1;
-                        }
-                        p.nleft += 1;
-                    }
+                    p.nleft += 1;
                 }
             }
             if p.count() > 0 {
