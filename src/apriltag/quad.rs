@@ -644,13 +644,39 @@ impl<'a> Gradient<'a> {
         }
     }
 
+    /// The sum of the weights of `pts` (in order) until it reaches `need` (module docs: the
+    /// weights are positive). Not inlined, as [`Self::weights`].
+    #[inline(never)]
+    fn sum_until(&self, pts: &[u32], need: u32) -> u32 {
+        let mut sum = 0u32;
+        for &p in pts.iter() {
+            if sum >= need {
+                break;
+            }
+            sum += u32::from(self.weight(p));
+        }
+        sum
+    }
+
+    /// The weight of each of `pts` into `out`. Not inlined: the loop then has the registers
+    /// of its own function, not the ones `fit_quad` leaves (its values spill to the stack).
+    #[inline(never)]
+    fn weights(&self, pts: &[u32], out: &mut [u16]) {
+        for (p, k) in pts.iter().zip(out.iter_mut()) {
+            *k = self.weight(*p);
+        }
+    }
+
     /// The gradient weight of a boundary point in the sampled image (module docs): pixel
     /// `(x, y)` is `data[(y d) stride + x d]`, 0 past the end.
     #[inline]
     fn weight(&self, p: u32) -> u16 {
         let (x2, y2, _, _) = unpack(p);
         let (ix, iy) = (((x2 + 1) >> 1) as usize, ((y2 + 1) >> 1) as usize);
-        if ix == 0 || iy == 0 || ix + 1 >= self.w || iy + 1 >= self.h {
+        // Not on the border: 1 ≤ ix ≤ w - 2 and the same for iy (0 wraps to the largest).
+        if ix.wrapping_sub(1) >= self.w.saturating_sub(2)
+            || iy.wrapping_sub(1) >= self.h.saturating_sub(2)
+        {
             return 1;
         }
         // (ix, iy) is inside the sampled image, not on its border: all four neighbours are.
@@ -674,6 +700,70 @@ const FILTER: [f32; 7] = [
     0.135_335_28,
     0.011_108_997,
 ];
+
+/// The corner candidates of step 2 (module docs) of the points `pts` with weights `weights`
+/// in angle order, `(x0, y0)` the bounding box corner and `ksz` the window's half width: the
+/// largest local maxima of the filtered window errors offered to `heap` (as `(error bits,
+/// index)`); returns how many the heap holds and how many maxima there were. Not inlined:
+/// in a function of its own the window's sums spill less than among `fit_quad`'s values.
+#[inline(never)]
+fn candidates(
+    pts: &[u32],
+    weights: &[u16],
+    xmin: i32,
+    ymin: i32,
+    ksz: usize,
+    heap: &mut [(u32, u32)],
+) -> (usize, usize) {
+    let n = pts.len();
+    let m_at = |i: usize| -> Window {
+        match (pts.get(i), weights.get(i)) {
+            (Some(&p), Some(&w)) => Window::of(p, w, xmin, ymin),
+            _ => Window::default(),
+        }
+    };
+    let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
+    let count = 2 * ksz + 1;
+    let start: isize = -4;
+    // The window's moments: each step adds the point entering and subtracts the one leaving.
+    let mut win = Window::default();
+    for j in -(ksz as isize)..=(ksz as isize) {
+        win.add(&m_at(wrap(start + j)));
+    }
+    // The last 7 errors (oldest first) and the last three filtered values.
+    let mut errs = [0f32; 7];
+    let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
+    let mut nbest = 0usize;
+    let mut nmaxima = 0usize;
+    // The points entering and leaving, in cyclic order.
+    let next = |i: usize| if i + 1 >= n { 0 } else { i + 1 };
+    let mut entering = wrap(start + ksz as isize + 1);
+    let mut leaving = wrap(start - ksz as isize);
+    for t in 0..n + 8 {
+        if t > 0 {
+            win.add(&m_at(entering));
+            win.sub(&m_at(leaving));
+            (entering, leaving) = (next(entering), next(leaving));
+        }
+        let [_, e1, e2, e3, e4, e5, e6] = errs;
+        errs = [e1, e2, e3, e4, e5, e6, window_error(&win, count)];
+        if t >= 6 {
+            let mut y = 0.0;
+            for (f, e) in FILTER.iter().zip(errs) {
+                y += f * e;
+            }
+            (y0, y1, y2) = (y1, y2, y);
+        }
+        if t >= 8 && y1 > y0 && y1 > y2 {
+            // The candidate at position t - 8 in [0, n).
+            nmaxima += 1;
+            // Non-negative f32 bits order as the values.
+            let item = (y1.to_bits(), (t - 8) as u32);
+            offer_best(heap, &mut nbest, item, |it| i64::from(it.0));
+        }
+    }
+    (nbest, nmaxima)
+}
 
 /// Fits a quad to one cluster's points (module docs). `keys` is scratch of at least
 /// `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates; `reversed`
@@ -710,14 +800,7 @@ pub(crate) fn fit_quad(
     //    until it reaches the bound (`n < 2^16`, weights below 2^9: no overflow).
     let grad = Gradient::new(src);
     let need = prm.min_edge_gradient.saturating_mul(n as u32);
-    let mut wsum = 0u32;
-    for &p in pts.iter() {
-        if wsum >= need {
-            break;
-        }
-        wsum += u32::from(grad.weight(p));
-    }
-    if wsum < need {
+    if grad.sum_until(pts, need) < need {
         return None;
     }
     // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
@@ -728,65 +811,12 @@ pub(crate) fn fit_quad(
     }
     sort_by_key(pts, keys);
     // 2. Weights replace the keys.
-    for (p, k) in pts.iter().zip(keys.iter_mut()) {
-        *k = grad.weight(*p);
-    }
+    grad.weights(pts, keys);
     let pts = &*pts;
     let keys = &*keys;
-    let m_at = |i: usize| -> Window {
-        match (pts.get(i), keys.get(i)) {
-            (Some(&p), Some(&w)) => Window::of(p, w, xmin, ymin),
-            _ => Window::default(),
-        }
-    };
-    let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
-    let count = 2 * ksz + 1;
-    let start: isize = -4;
-    // The window's moments: each step adds the point entering and subtracts the one leaving.
-    let mut win = Window::default();
-    for j in -(ksz as isize)..=(ksz as isize) {
-        win.add(&m_at(wrap(start + j)));
-    }
-    // The last 7 errors (oldest first) and the last three filtered values.
-    let mut errs = [0f32; 7];
-    let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
     let mut best = [(0u32, 0u32); MAX_NMAXIMA];
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
-    let mut nbest = 0usize;
-    let mut nmaxima = 0usize;
-    // The points (and weights) entering and leaving, in cyclic order from index i.
-    let from = |i: usize| {
-        let all = pts.iter().zip(keys.iter());
-        all.clone().skip(i).chain(all.cycle())
-    };
-    let mut entering = from(wrap(start + ksz as isize + 1));
-    let mut leaving = from(wrap(start - ksz as isize));
-    for t in 0..n + 8 {
-        if t > 0
-            && let (Some((&pe, &we)), Some((&pl, &wl))) = (entering.next(), leaving.next())
-        {
-            win.add(&Window::of(pe, we, xmin, ymin));
-            win.sub(&Window::of(pl, wl, xmin, ymin));
-        }
-        let [_, e1, e2, e3, e4, e5, e6] = errs;
-        errs = [e1, e2, e3, e4, e5, e6, window_error(&win, count)];
-        if t >= 6 {
-            let mut y = 0.0;
-            for (f, e) in FILTER.iter().zip(errs) {
-                y += f * e;
-            }
-            (y0, y1, y2) = (y1, y2, y);
-        }
-        if t >= 8 && y1 > y0 && y1 > y2 {
-            // The candidate at position t - 8 in [0, n).
-            nmaxima += 1;
-            // Non-negative f32 bits order as the values.
-            let item = (y1.to_bits(), (t - 8) as u32);
-            if let Some(heap) = best.get_mut(..kmax) {
-                offer_best(heap, &mut nbest, item, |it| i64::from(it.0));
-            }
-        }
-    }
+    let (nbest, nmaxima) = candidates(pts, keys, xmin, ymin, ksz, best.get_mut(..kmax)?);
     if nmaxima < 4 || nbest < 4 {
         return None;
     }
