@@ -358,19 +358,17 @@ fn class(v: u8, t: u8) -> u8 {
 }
 
 /// The classes of the four pixels of word `v` (little-endian: the first pixel in the low
-/// byte) in a tile of threshold `t`, as two 4-bit masks (bit `i` for pixel `i`): white
-/// (`v > t`) and skipped (`t = 255`, where `v > t` is impossible).
+/// byte) in a tile of threshold `t`, as two 4-bit masks in bits 28..32 (bit `28 + i` for
+/// pixel `i`): white (`v > t`) and skipped (`t = 255`, where `v > t` is impossible).
 ///
-/// Two pixels at a time in 16-bit lanes: `v + (255 - t)` reaches bit 8 exactly when `v > t`.
+/// `v > t` bytewise is the complement of [`ge_bytes`] of `t` in every byte; the multiply
+/// moves bits 7, 15, 23, 31 to 28, 29, 30, 31 (its other products land below bit 28, each on
+/// a bit of its own).
 #[inline(always)]
 fn classes4(v: u32, t: u8) -> (u32, u32) {
-    let k = u32::from(255 - t) * 0x0001_0001;
-    let even = (v & 0x00ff_00ff) + k;
-    let odd = ((v >> 8) & 0x00ff_00ff) + k;
-    // Pixels 0, 1, 2, 3 at bits 8, 9, 24, 25; the multiply moves bits 8, 9 to 22, 23.
-    let m = (even & 0x0100_0100) | ((odd & 0x0100_0100) << 1);
-    let white = (m.wrapping_mul(0x4001) >> 22) & 0xf;
-    (white, if t == SKIP_TILE { 0xf } else { 0 })
+    let white = ge_bytes(u32::from(t) * 0x0101_0101, v) ^ TOPS;
+    let white = white.wrapping_mul(0x0020_4081) & 0xf000_0000;
+    (white, if t == SKIP_TILE { 0xf000_0000 } else { 0 })
 }
 
 /// The classes of up to 8 tiles' pixels `px` (4 a tile, thresholds `ts`): white and skipped
@@ -383,8 +381,8 @@ fn classes_of(px: &[u8], ts: &[u8]) -> (u32, u32, u32) {
             continue;
         };
         let (white4, skip4) = classes4(u32::from_le_bytes([a, b, c, d]), t);
-        white = (white >> 4) | (white4 << 28);
-        skip = (skip >> 4) | (skip4 << 28);
+        white = (white >> 4) | white4;
+        skip = (skip >> 4) | skip4;
         bits += 4;
     }
     // The first pixel at bit 0.
