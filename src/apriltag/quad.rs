@@ -426,12 +426,11 @@ fn insertion(pts: &mut [u32], keys: &mut [u16]) {
 #[inline]
 fn pseudo_angle(dx: i32, dy: i32) -> u16 {
     let (ax, ay) = (dx.unsigned_abs(), dy.unsigned_abs());
-    let (q, t) = match (dx > 0, dy > 0) {
-        (false, false) => (0u32, ay),
-        (true, false) => (1, ax),
-        (true, true) => (2, ay),
-        (false, true) => (3, ax),
-    };
+    // By signs (dx > 0, dy > 0): (no, no) q 0, t |dy|; (yes, no) 1, |dx|; (yes, yes) 2, |dy|;
+    // (no, yes) 3, |dx|: t is |dx| where the signs differ, and q counts them thus.
+    let (px, py) = (dx > 0, dy > 0);
+    let q = 2 * u32::from(py) + u32::from(px != py);
+    let t = if px != py { ax } else { ay };
     let s = ax + ay;
     // |dx|, |dy| < 2^16: t 2^14 < 2^30.
     let frac = (t << 14).checked_div(s).unwrap_or(0).min((1 << 14) - 1);
