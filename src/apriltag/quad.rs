@@ -437,6 +437,17 @@ fn pseudo_angle(dx: i32, dy: i32) -> u16 {
     ((q << 14) | frac) as u16
 }
 
+/// The [`pseudo_angle`] of each of `pts` about the centre `(xs, ys) / 2` (doubled
+/// coordinates) into `keys`, offset by a quarter unit so that no point sits on an axis. Not
+/// inlined, as [`Gradient::weights`].
+#[inline(never)]
+fn angle_keys(pts: &[u32], keys: &mut [u16], xs: i32, ys: i32) {
+    for (p, k) in pts.iter().zip(keys.iter_mut()) {
+        let (x2, y2, _, _) = unpack(*p);
+        *k = pseudo_angle(2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
+    }
+}
+
 // `add` and `sub` over the six sums of `Moments` and `Window` (one text for both: their
 // first moments differ in width only).
 macro_rules! sums_add_sub {
@@ -802,12 +813,8 @@ pub(crate) fn fit_quad(
     if grad.sum_until(pts, need) < need {
         return None;
     }
-    // 1. Angle keys around the centre (offset by a quarter unit so no point sits on an axis).
-    let (xs, ys) = (xmin + xmax, ymin + ymax);
-    for (p, k) in pts.iter().zip(keys.iter_mut()) {
-        let (x2, y2, _, _) = unpack(*p);
-        *k = pseudo_angle(2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
-    }
+    // 1. Angle keys around the centre.
+    angle_keys(pts, keys, xmin + xmax, ymin + ymax);
     sort_by_key(pts, keys);
     // 2. Weights replace the keys.
     grad.weights(pts, keys);
