@@ -67,7 +67,6 @@ struct Input {
     short_out: bool,
 }
 
-/// `target_corners` (and so `aruco_corners`) is corners 3, 2, 1, 0.
 fuzz_target!(|inp: Input| {
     let family = FAMILIES[usize::from(inp.family) % FAMILIES.len()];
     let (sx, sy) = (
