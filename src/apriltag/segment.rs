@@ -691,6 +691,85 @@ fn label_runs<L: Label, B: Labels<L>>(cur: &mut [Run<L>], up: &[Run<L>], labels:
     }
 }
 
+/// [`label_runs`] for the labelling pass, with the row's bookkeeping in the same walk: the
+/// same labels and the same sets (a fresh label joined to a run's set is put under its
+/// root at once, which [`union`] would do), each run's pixels added to its label's count
+/// (saturating) and its run cache word ([`pack_run`]) written to `words` (when there is one).
+///
+/// The walk over `up` resumes where the last one ended, less two runs: `up` and `cur` are
+/// sorted and disjoint, so with `k` past a touched run every run before `k - 2` ends at least
+/// two columns before the last run's end, left of anything the next run touches.
+#[inline(always)]
+fn label_row<L: Label>(
+    cur: &mut [Run<L>],
+    up: &[Run<L>],
+    uf: &mut UnionFind<'_, L>,
+    words: &mut [u32],
+) {
+    let mut words = words.iter_mut();
+    let mut j = 0;
+    for r in cur.iter_mut() {
+        let (x0, x1, c) = (usize::from(r.x0), usize::from(r.x1), r.c);
+        let mut lab = 0;
+        if c != SKIP {
+            // White reaches one column further on each side.
+            let wide = usize::from(c == WHITE);
+            while up.get(j).is_some_and(|o| usize::from(o.x1) + wide <= x0) {
+                j += 1;
+            }
+            let (reach, end) = (x0 + wide, x1 + wide);
+            // The first touched run of the class.
+            let mut k = j;
+            let mut first = None;
+            while let Some(o) = up.get(k) {
+                if usize::from(o.x0) >= end {
+                    break;
+                }
+                k += 1;
+                if o.c == c {
+                    first = Some(o);
+                    break;
+                }
+            }
+            let l = match first {
+                Some(o) if usize::from(o.x0) <= reach => Some((o.lab, o.lab)),
+                Some(o) => uf.fresh_under(o.lab).map(|n| (n, o.lab)),
+                None => uf.fresh().map(|n| (n, n)),
+            };
+            let Some((l, mut last)) = l else {
+                r.c = SKIP;
+                uf.skipped(x1 - x0);
+                if let Some(w) = words.next() {
+                    *w = pack_run(r.x1, SKIP, 0);
+                }
+                continue;
+            };
+            // Every further touched run of the class joins its set.
+            if first.is_some() {
+                while let Some(o) = up.get(k) {
+                    if usize::from(o.x0) >= end {
+                        break;
+                    }
+                    k += 1;
+                    if o.c == c && o.lab != last {
+                        union(uf.parent, l, o.lab);
+                        last = o.lab;
+                    }
+                }
+            }
+            j = j.max(k.saturating_sub(2));
+            r.lab = l;
+            if let Some(s) = uf.size.get_mut(l.index()) {
+                *s = s.saturating_add((x1 - x0).min(255) as u8);
+            }
+            lab = l.index();
+        }
+        if let Some(w) = words.next() {
+            *w = pack_run(r.x1, r.c, lab);
+        }
+    }
+}
+
 /// The runs of the previous and the current row for row `y`.
 fn run_rows<'r, L: Label>(
     runs: &'r mut [&mut [Run<L>]; 2],
@@ -711,6 +790,20 @@ struct UnionFind<'a, L: Label> {
     next: usize,
     cap: usize,
     exhausted: u32,
+}
+
+impl<L: Label> UnionFind<'_, L> {
+    /// A fresh label put under the root of `o` at once (its set joined with `o`'s, as
+    /// [`union`] of the new root and `o` would); `None` when no label is left.
+    #[inline(always)]
+    fn fresh_under(&mut self, o: L) -> Option<L> {
+        let n = self.fresh()?;
+        let root = find(self.parent, o);
+        if let Some(p) = self.parent.get_mut(n.index()) {
+            *p = root;
+        }
+        Some(n)
+    }
 }
 
 impl<L: Label> Labels<L> for UnionFind<'_, L> {
@@ -784,6 +877,24 @@ pub(crate) fn label_pass<L: Label>(
         let n = row_runs(src, tiles, y, cur);
         let up = up.get(..n_up).unwrap_or(&[]);
         let cur = cur.get_mut(..n).unwrap_or(&mut []);
+        // The row's words of the run cache: a count, then below it a word a run. Labels
+        // grow from 0, so every label of the row fits when `next` does after it (checked
+        // below; words written for a row that then does not fit are left unused).
+        let mut words: &mut [u32] = &mut [];
+        let mut head = None;
+        if let Some(top) = cached {
+            match top
+                .checked_sub(1 + n)
+                .and_then(|at| cache.get_mut(at..top))
+                .and_then(|c| c.split_last_mut())
+            {
+                Some((h, row)) => {
+                    head = Some(h);
+                    words = row;
+                }
+                None => cached = None,
+            }
+        }
         let mut uf = UnionFind {
             parent: &mut *parent,
             size: &mut *size,
@@ -791,38 +902,13 @@ pub(crate) fn label_pass<L: Label>(
             cap,
             exhausted: out.exhausted,
         };
-        label_runs(cur, up, &mut uf);
+        label_row(cur, up, &mut uf, words);
         next = uf.next;
         out.exhausted = uf.exhausted;
-        // The row's words of the run cache: a count, then below it a word a run. Labels
-        // grow from 0, so every label of the row fits when `next` does.
-        let mut words: &mut [u32] = &mut [];
-        if let Some(top) = cached {
+        if let (Some(top), Some(h)) = (cached, head) {
             cached = top.checked_sub(1 + n).filter(|_| next <= CACHE_LABELS);
-            match cached
-                .and_then(|at| cache.get_mut(at..top))
-                .and_then(|c| c.split_last_mut())
-            {
-                Some((head, row)) => {
-                    *head = n as u32;
-                    words = row;
-                }
-                None => cached = None,
-            }
-        }
-        // Pixel counts and the cache words, in one walk.
-        let mut words = words.iter_mut();
-        for r in cur.iter() {
-            let lab = if r.c == SKIP {
-                0
-            } else {
-                if let Some(s) = size.get_mut(r.lab.index()) {
-                    *s = s.saturating_add((r.x1 - r.x0).min(255) as u8);
-                }
-                r.lab.index()
-            };
-            if let Some(w) = words.next() {
-                *w = pack_run(r.x1, r.c, lab);
+            if cached.is_some() {
+                *h = n as u32;
             }
         }
         n_up = n;
