@@ -502,10 +502,28 @@ impl Moments {
     }
 }
 
-/// The [`Moments`] of one point or of a window of at most 42 points, with the first moments
-/// in `i32`: a weight is below `2^9` and a coordinate below `2^14`, so `Σw < 2^15` and
-/// `|Σw u| < 2^29`; the products of a point are `i32` times `i32` into `i64` (one instruction
-/// on a 32-bit core, where `i64` times `i64` takes three).
+/// The running sums of the corner search's window (at most 41 points; [`Moments`] of
+/// coordinates relative to the bounding box centre): one point's, their sum and difference,
+/// and the exact covariance numerators. The numerators `Σw Σw u² - (Σw u)²` are the same for
+/// any origin (the terms in the origin cancel in exact integers), so the centre, which keeps
+/// the sums small, gives the numerators of the corner: the same errors.
+trait WindowSums: Copy + Default {
+    /// One point at `(u, v)` from the centre with weight `w` (at most [`MAX_WEIGHT`]).
+    fn of(u: i32, v: i32, w: i32) -> Self;
+    fn add(&mut self, o: &Self);
+    fn sub(&mut self, o: &Self);
+    /// `(Σw, Σw Σw u² - (Σw u)², Σw Σw u v - Σw u Σw v, Σw Σw v² - (Σw v)²)`.
+    fn numerators(&self) -> (i32, i64, i64, i64);
+}
+
+/// The largest gradient weight ([`Gradient::weight`] of two differences of 255: `255 +
+/// 3·255/8 + 1`).
+const MAX_WEIGHT: u64 = 351;
+
+/// The window's sums with the first moments in `i32`: a weight is at most [`MAX_WEIGHT`] and a
+/// coordinate below `2^14`, so `Σw < 2^14` and `|Σw u| < 2^29` over 41 points; the products
+/// of a point are `i32` times `i32` into `i64` (one instruction on a 32-bit core, where `i64`
+/// times `i64` takes three).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 struct Window {
     w: i32,
@@ -520,7 +538,13 @@ impl Window {
     #[inline]
     fn of(p: u32, w: u16, x0: i32, y0: i32) -> Self {
         let (x2, y2, _, _) = unpack(p);
-        let (u, v, w) = (x2 - x0, y2 - y0, i32::from(w));
+        <Self as WindowSums>::of(x2 - x0, y2 - y0, i32::from(w))
+    }
+}
+
+impl WindowSums for Window {
+    #[inline]
+    fn of(u: i32, v: i32, w: i32) -> Self {
         let (wu, wv) = (w * u, w * v);
         Self {
             w,
@@ -530,6 +554,95 @@ impl Window {
             xy: i64::from(wu) * i64::from(v),
             yy: i64::from(wv) * i64::from(v),
         }
+    }
+    #[inline]
+    fn add(&mut self, o: &Self) {
+        Window::add(self, o);
+    }
+    #[inline]
+    fn sub(&mut self, o: &Self) {
+        Window::sub(self, o);
+    }
+    /// `i64` products suffice for at most 41 points (`Σw < 2^14`, `Σw u² < 2^43`).
+    #[inline]
+    fn numerators(&self) -> (i32, i64, i64, i64) {
+        let (w, x, y) = (i64::from(self.w), i64::from(self.x), i64::from(self.y));
+        (
+            self.w,
+            w * self.xx - x * x,
+            w * self.xy - x * y,
+            w * self.yy - y * y,
+        )
+    }
+}
+
+/// The window's sums all in `i32`, for a bounding box whose half extents `h` about its centre
+/// keep `count MAX_WEIGHT h² < 2^31` ([`Window32::fits`]): then every second moment of the
+/// window is below `2^31` in magnitude (`|Σw u v|` by Cauchy-Schwarz), the sums take one
+/// register each and their numerators one `i32` times `i32` product each. The running sums
+/// wrap on the way (a window is added before one is taken away), exact when done.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct Window32 {
+    w: i32,
+    x: i32,
+    y: i32,
+    xx: i32,
+    xy: i32,
+    yy: i32,
+}
+
+impl Window32 {
+    /// Whether windows of `count` points of a bounding box with half extents `hx`, `hy`
+    /// (doubled coordinates) keep their sums in `i32`.
+    fn fits(count: usize, hx: i32, hy: i32) -> bool {
+        let h = u64::from(hx.max(hy).unsigned_abs());
+        (count as u64)
+            .saturating_mul(MAX_WEIGHT)
+            .saturating_mul(h * h)
+            <= i32::MAX as u64
+    }
+}
+
+impl WindowSums for Window32 {
+    #[inline]
+    fn of(u: i32, v: i32, w: i32) -> Self {
+        let (wu, wv) = (w.wrapping_mul(u), w.wrapping_mul(v));
+        Self {
+            w,
+            x: wu,
+            y: wv,
+            xx: wu.wrapping_mul(u),
+            xy: wu.wrapping_mul(v),
+            yy: wv.wrapping_mul(v),
+        }
+    }
+    #[inline]
+    fn add(&mut self, o: &Self) {
+        self.w = self.w.wrapping_add(o.w);
+        self.x = self.x.wrapping_add(o.x);
+        self.y = self.y.wrapping_add(o.y);
+        self.xx = self.xx.wrapping_add(o.xx);
+        self.xy = self.xy.wrapping_add(o.xy);
+        self.yy = self.yy.wrapping_add(o.yy);
+    }
+    #[inline]
+    fn sub(&mut self, o: &Self) {
+        self.w = self.w.wrapping_sub(o.w);
+        self.x = self.x.wrapping_sub(o.x);
+        self.y = self.y.wrapping_sub(o.y);
+        self.xx = self.xx.wrapping_sub(o.xx);
+        self.xy = self.xy.wrapping_sub(o.xy);
+        self.yy = self.yy.wrapping_sub(o.yy);
+    }
+    #[inline]
+    fn numerators(&self) -> (i32, i64, i64, i64) {
+        let (w, x, y) = (i64::from(self.w), i64::from(self.x), i64::from(self.y));
+        (
+            self.w,
+            w * i64::from(self.xx) - x * x,
+            w * i64::from(self.xy) - x * y,
+            w * i64::from(self.yy) - y * y,
+        )
     }
 }
 
@@ -558,20 +671,19 @@ fn to_f32_unsigned(a: u64) -> f32 {
     }
 }
 
-/// The error `N λ_min` (pixels²) of a window fit: `i64` products suffice for at most 41
-/// points (`Σw < 2^14`, `Σw u² < 2^43`).
+/// The error `N λ_min` (pixels²) of a window fit from its sums.
 #[inline]
-fn window_error(m: &Window, count: usize) -> f32 {
-    if m.w <= 0 {
+fn window_error<S: WindowSums>(m: &S, count: usize) -> f32 {
+    let (w, cxx, cxy, cyy) = m.numerators();
+    if w <= 0 {
         return 0.0;
     }
-    let (w, x, y) = (i64::from(m.w), i64::from(m.x), i64::from(m.y));
     // `cxx`, `cyy` ≥ 0 (Cauchy-Schwarz on exact integers).
-    let cxx = to_f32_unsigned((w * m.xx - x * x).unsigned_abs());
-    let cxy = to_f32(w * m.xy - x * y);
-    let cyy = to_f32_unsigned((w * m.yy - y * y).unsigned_abs());
+    let cxx = to_f32_unsigned(cxx.unsigned_abs());
+    let cxy = to_f32(cxy);
+    let cyy = to_f32_unsigned(cyy.unsigned_abs());
     // Doubled coordinates: covariances in pixels² are a quarter.
-    let wf = m.w as f32;
+    let wf = w as f32;
     let s = 0.25 / (wf * wf);
     let (small, _) = eigenvalues(cxx * s, cxy * s, cyy * s);
     count as f32 * small
@@ -712,31 +824,34 @@ const FILTER: [f32; 7] = [
 ];
 
 /// The corner candidates of step 2 (module docs) of the points `pts` with weights `weights`
-/// in angle order, `(x0, y0)` the bounding box corner and `ksz` the window's half width: the
-/// largest local maxima of the filtered window errors offered to `heap` (as `(error bits,
-/// index)`); returns how many the heap holds and how many maxima there were. Not inlined:
-/// in a function of its own the window's sums spill less than among `fit_quad`'s values.
+/// in angle order, `(xc, yc)` the bounding box centre, `ksz` the window's half width and `S`
+/// the window's sums: the largest local maxima of the filtered window errors offered to
+/// `heap` (as `(error bits, index)`); returns how many the heap holds and how many maxima
+/// there were. Not inlined: in a function of its own the window's sums spill less than among
+/// `fit_quad`'s values.
 #[inline(never)]
-fn candidates(
+fn candidates<S: WindowSums>(
     pts: &[u32],
     weights: &[u16],
-    xmin: i32,
-    ymin: i32,
+    (xc, yc): (i32, i32),
     ksz: usize,
     heap: &mut [(u32, u32)],
 ) -> (usize, usize) {
     let n = pts.len();
-    let m_at = |i: usize| -> Window {
+    let m_at = |i: usize| -> S {
         match (pts.get(i), weights.get(i)) {
-            (Some(&p), Some(&w)) => Window::of(p, w, xmin, ymin),
-            _ => Window::default(),
+            (Some(&p), Some(&w)) => {
+                let (x2, y2, _, _) = unpack(p);
+                S::of(x2 - xc, y2 - yc, i32::from(w))
+            }
+            _ => S::default(),
         }
     };
     let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
     let count = 2 * ksz + 1;
     let start: isize = -4;
     // The window's moments: each step adds the point entering and subtracts the one leaving.
-    let mut win = Window::default();
+    let mut win = S::default();
     for j in -(ksz as isize)..=(ksz as isize) {
         win.add(&m_at(wrap(start + j)));
     }
@@ -822,7 +937,14 @@ pub(crate) fn fit_quad(
     let keys = &*keys;
     let mut best = [(0u32, 0u32); MAX_NMAXIMA];
     let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
-    let (nbest, nmaxima) = candidates(pts, keys, xmin, ymin, ksz, best.get_mut(..kmax)?);
+    let heap = best.get_mut(..kmax)?;
+    // The window's sums about the bounding box centre, in `i32` when they fit.
+    let centre = ((xmin + xmax) >> 1, (ymin + ymax) >> 1);
+    let (nbest, nmaxima) = if Window32::fits(2 * ksz + 1, xmax - centre.0, ymax - centre.1) {
+        candidates::<Window32>(pts, keys, centre, ksz, heap)
+    } else {
+        candidates::<Window>(pts, keys, centre, ksz, heap)
+    };
     if nmaxima < 4 || nbest < 4 {
         return None;
     }
