@@ -865,7 +865,7 @@ impl<K: ClusterKey> Sink<K> for Filler<'_, '_, K> {
     }
 
     /// One look-up for the pair's points.
-    #[inline]
+    #[inline(always)]
     fn pair(&mut self, buf: &mut [u32], key: K, p: &PairPoints) {
         let Some(c) = self.table.get_mut(key) else {
             return;

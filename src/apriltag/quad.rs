@@ -197,7 +197,7 @@ impl<'a, K: ClusterKey> Table<'a, K> {
     /// same cluster as [`Self::add_run`] for each of its runs of points, summed first (the
     /// sums are exact below 65535 points, module docs of [`Cluster`]; a cluster of more is
     /// never fitted), in the same row order.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn add_pair(&mut self, key: K, p: &PairPoints) {
         let (b0, b1) = p.below;
         let (r0, r1) = p.right;

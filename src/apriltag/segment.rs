@@ -1072,7 +1072,7 @@ pub(crate) fn boundary_scan<L: Label>(
         n_up = n;
         // The upper row y - 1 must be in 1..h - 1 (AprilTag's scan domain).
         if y >= 2 && w >= 3 {
-            pairs(up, cur, y - 1, w, buf, sink);
+            pairs::<L, false>(up, cur, y - 1, w, buf, sink);
         }
     }
 }
@@ -1144,7 +1144,7 @@ pub(crate) fn boundary_scan_cached<L: Label>(
         let up = up.get(..n_up).unwrap_or(&[]);
         let cur = cur.get(..k).unwrap_or(&[]);
         if y > ylo && y >= 2 && w >= 3 {
-            pairs(up, cur, y - 1, w, buf, sink);
+            pairs::<L, true>(up, cur, y - 1, w, buf, sink);
         }
         n_up = k;
     }
@@ -1163,8 +1163,13 @@ pub(crate) fn cache_rows_end(buf: &[u32], at: usize, rows: usize) -> Option<usiz
 
 /// The boundary points with upper pixel in row `y` (runs `up`) and lower in `y + 1` (runs
 /// `lo`), upper pixels in columns `1..w - 1`. A row may leave out runs that do not count
-/// (invalid: skipped or small): a gap between two runs is such a run.
-fn pairs<L: Label>(
+/// (invalid: skipped or small): a gap between two runs is such a run. With `ALL_COUNT` the
+/// rows hold only runs that count (the cached scan's), so no run's label is tested, and two
+/// adjacent runs are of opposite classes (runs are maximal and neither is skipped).
+///
+/// Never inlined: in its row loop the scan's registers would be spilled around it.
+#[inline(never)]
+fn pairs<L: Label, const ALL_COUNT: bool>(
     up: &[Run<L>],
     lo: &[Run<L>],
     y: usize,
@@ -1180,7 +1185,8 @@ fn pairs<L: Label>(
             continue;
         };
         let x = usize::from(a.x1) - 1;
-        if a.x1 == b.x0 && a.c != b.c && valid(a) && valid(b) && x >= xmin {
+        let opposite = ALL_COUNT || (a.c != b.c && valid(a) && valid(b));
+        if a.x1 == b.x0 && opposite && x >= xmin {
             let (key, s) = key_of(a, b);
             sink.point(buf, key, 2 * x + 1, y2, s, 0);
         }
@@ -1191,13 +1197,14 @@ fn pairs<L: Label>(
     let mut end = usize::MAX;
     for u in up {
         let (ux0, ux1) = (usize::from(u.x0), usize::from(u.x1));
-        let left_end = core::mem::replace(&mut end, if valid(u) { ux1 } else { usize::MAX });
+        let counts = ALL_COUNT || valid(u);
+        let left_end = core::mem::replace(&mut end, if counts { ux1 } else { usize::MAX });
         while lo.get(j0).is_some_and(|l| usize::from(l.x1) < ux0) {
             j0 += 1;
         }
         // Every point of u has its upper pixel in u's columns within the scan's.
         let (cx0, cx1) = (ux0.max(xmin), ux1.min(xmax));
-        if !valid(u) || cx0 >= cx1 {
+        if !counts || cx0 >= cx1 {
             continue;
         }
         let mut j = j0;
@@ -1207,7 +1214,7 @@ fn pairs<L: Label>(
                 break;
             }
             j += 1;
-            if l.c == u.c || !valid(l) {
+            if l.c == u.c || !(ALL_COUNT || valid(l)) {
                 continue;
             }
             let (key, s) = key_of(u, l);
@@ -1220,7 +1227,9 @@ fn pairs<L: Label>(
                 // ux0 ≥ 1). (ux0 - 1, y) and (ux0, y + 1) are the run left of u and the run
                 // right of l, of opposite classes: no point when both count.
                 let left = left_end == ux0;
-                let right = lo.get(j).is_some_and(|q| q.x0 == l.x1 && valid(q));
+                let right = lo
+                    .get(j)
+                    .is_some_and(|q| q.x0 == l.x1 && (ALL_COUNT || valid(q)));
                 if ux0 == 1 || (ux0 >= 2 && !(left && right)) {
                     sink.point(buf, key, 2 * ux0 - 1, y2 + 1, -s, s);
                 }
