@@ -601,10 +601,12 @@ pub(crate) struct Labelled {
 const CACHE_LABELS: usize = 0xffff;
 
 /// A run in the run cache: end column (14 bits: [`MAX_SIDE`]), class (2 bits), provisional
-/// label (16 bits; 0 for a skipped run).
+/// label (16 bits; 0 for a skipped run). No masks: `x1 ≤ MAX_SIDE < 2^14` and `c ≤ SKIP < 4`
+/// for every run, and a label of `2^16` or more only in a row that leaves the cache
+/// ([`label_pass`]).
 #[inline(always)]
 fn pack_run(x1: u16, c: u8, lab: usize) -> u32 {
-    (u32::from(x1) & 0x3fff) | ((u32::from(c) & 3) << 14) | ((lab as u32) << 16)
+    u32::from(x1) | (u32::from(c) << 14) | ((lab as u32) << 16)
 }
 
 /// What a pass does with the labels of [`label_runs`].
@@ -706,68 +708,82 @@ fn label_row<L: Label>(
     uf: &mut UnionFind<'_, L>,
     words: &mut [u32],
 ) {
-    let mut words = words.iter_mut();
     let mut j = 0;
-    for r in cur.iter_mut() {
-        let (x0, x1, c) = (usize::from(r.x0), usize::from(r.x1), r.c);
-        let mut lab = 0;
-        if c != SKIP {
-            // White reaches one column further on each side.
-            let wide = usize::from(c == WHITE);
-            while up.get(j).is_some_and(|o| usize::from(o.x1) + wide <= x0) {
-                j += 1;
-            }
-            let (reach, end) = (x0 + wide, x1 + wide);
-            // The first touched run of the class.
-            let mut k = j;
-            let mut first = None;
-            while let Some(o) = up.get(k) {
-                if usize::from(o.x0) >= end {
-                    break;
-                }
-                k += 1;
-                if o.c == c {
-                    first = Some(o);
-                    break;
-                }
-            }
-            let l = match first {
-                Some(o) if usize::from(o.x0) <= reach => Some((o.lab, o.lab)),
-                Some(o) => uf.fresh_under(o.lab).map(|n| (n, o.lab)),
-                None => uf.fresh().map(|n| (n, n)),
-            };
-            let Some((l, mut last)) = l else {
-                r.c = SKIP;
-                uf.skipped(x1 - x0);
-                if let Some(w) = words.next() {
-                    *w = pack_run(r.x1, SKIP, 0);
-                }
-                continue;
-            };
-            // Every further touched run of the class joins its set.
-            if first.is_some() {
-                while let Some(o) = up.get(k) {
-                    if usize::from(o.x0) >= end {
-                        break;
-                    }
-                    k += 1;
-                    if o.c == c && o.lab != last {
-                        union(uf.parent, l, o.lab);
-                        last = o.lab;
-                    }
-                }
-            }
-            j = j.max(k.saturating_sub(2));
-            r.lab = l;
-            if let Some(s) = uf.size.get_mut(l.index()) {
-                *s = s.saturating_add((x1 - x0).min(255) as u8);
-            }
-            lab = l.index();
+    // The same walk with and without the cache words (no per-run test of which).
+    if words.len() == cur.len() {
+        for (r, w) in cur.iter_mut().zip(words) {
+            *w = label_one(r, up, &mut j, uf);
         }
-        if let Some(w) = words.next() {
-            *w = pack_run(r.x1, r.c, lab);
+    } else {
+        for r in cur.iter_mut() {
+            label_one(r, up, &mut j, uf);
         }
     }
+}
+
+/// One run of [`label_row`]: labels `r` (or skips it when no label is left), adds its pixel
+/// count and returns its cache word ([`pack_run`]); `j` is where the walk over `up` resumes.
+#[inline(always)]
+fn label_one<L: Label>(
+    r: &mut Run<L>,
+    up: &[Run<L>],
+    j: &mut usize,
+    uf: &mut UnionFind<'_, L>,
+) -> u32 {
+    let (x0, x1, c) = (usize::from(r.x0), usize::from(r.x1), r.c);
+    if c == SKIP {
+        return pack_run(r.x1, SKIP, 0);
+    }
+    // White reaches one column further on each side.
+    let wide = usize::from(c == WHITE);
+    while up.get(*j).is_some_and(|o| usize::from(o.x1) + wide <= x0) {
+        *j += 1;
+    }
+    let (reach, end) = (x0 + wide, x1 + wide);
+    // The first touched run of the class.
+    let mut k = *j;
+    let mut first = None;
+    while let Some(o) = up.get(k) {
+        if usize::from(o.x0) >= end {
+            break;
+        }
+        k += 1;
+        if o.c == c {
+            first = Some(o);
+            break;
+        }
+    }
+    let l = match first {
+        Some(o) if usize::from(o.x0) <= reach => Some((o.lab, o.lab)),
+        Some(o) => uf.fresh_under(o.lab).map(|n| (n, o.lab)),
+        None => uf.fresh().map(|n| (n, n)),
+    };
+    let Some((l, mut last)) = l else {
+        r.c = SKIP;
+        uf.skipped(x1 - x0);
+        return pack_run(r.x1, SKIP, 0);
+    };
+    // Every further touched run of the class joins its set.
+    if first.is_some() {
+        while let Some(o) = up.get(k) {
+            if usize::from(o.x0) >= end {
+                break;
+            }
+            k += 1;
+            if o.c == c && o.lab != last {
+                union(uf.parent, l, o.lab);
+                last = o.lab;
+            }
+        }
+    }
+    // Any start at or before the next run's first touched run gives the same walk
+    // ([`label_row`]): `k - 2` is one, even below `j`.
+    *j = k.saturating_sub(2);
+    r.lab = l;
+    if let Some(s) = uf.size.get_mut(l.index()) {
+        *s = s.saturating_add((x1 - x0).min(255) as u8);
+    }
+    pack_run(r.x1, c, l.index())
 }
 
 /// The runs of the previous and the current row for row `y`.
