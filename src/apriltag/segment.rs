@@ -1241,21 +1241,22 @@ fn pairs<L: Label, const ALL_COUNT: bool>(
             if lx1 == ux0 {
                 // Touching at u's start: only the below-left point of x = ux0 (in the scan when
                 // ux0 ≥ 1). (ux0 - 1, y) and (ux0, y + 1) are the run left of u and the run
-                // right of l, of opposite classes: no point when both count.
-                let left = left_end == ux0;
+                // right of l, of opposite classes: no point when both count. (Written with
+                // lx1 = ux0: from u's columns, the compiler computed these for every upper run.)
+                let left = left_end == lx1;
                 let right = lo
                     .get(j)
                     .is_some_and(|q| q.x0 == l.x1 && (ALL_COUNT || valid(q)));
-                if ux0 == 1 || (ux0 >= 2 && !(left && right)) {
-                    sink.point(buf, key, 2 * ux0 - 1, y2 + 1, -s, s);
+                if lx1 == 1 || (lx1 >= 2 && !(left && right)) {
+                    sink.point(buf, key, 2 * lx1 - 1, y2 + 1, -s, s);
                 }
                 continue;
             }
             if lx0 == ux1 {
                 // Touching at u's end: only the below-right point of x = ux1 - 1 (in the scan
-                // when ux1 ≤ w - 1; x ≥ cx0 as cx0 < cx1).
-                if cx1 == ux1 {
-                    sink.point(buf, key, 2 * ux1 - 1, y2 + 1, s, s);
+                // when ux1 ≤ w - 1; x ≥ cx0 as cx0 < cx1). Written with lx0 = ux1, as above.
+                if lx0 <= xmax {
+                    sink.point(buf, key, 2 * lx0 - 1, y2 + 1, s, s);
                 }
                 continue;
             }
@@ -1265,8 +1266,8 @@ fn pairs<L: Label, const ALL_COUNT: bool>(
                 s,
                 // Below: x in u and l.
                 below: (cx0.max(lx0), cx1.min(lx1)),
-                // Below-right: x in u, x + 1 in l (`cx0 ≥ 1`).
-                right: ((cx0 + 1).max(lx0) - 1, cx1.min(lx1 - 1)),
+                // Below-right: x in u, x + 1 in l.
+                right: (cx0.max(lx0.saturating_sub(1)), cx1.min(lx1 - 1)),
                 left: [0; 2],
                 nleft: 0,
             };
