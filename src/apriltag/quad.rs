@@ -678,10 +678,11 @@ fn window_error<S: WindowSums>(m: &S, count: usize) -> f32 {
     if w <= 0 {
         return 0.0;
     }
-    // `cxx`, `cyy` ≥ 0 (Cauchy-Schwarz on exact integers).
-    let cxx = to_f32_unsigned(cxx.unsigned_abs());
+    // `cxx`, `cyy` ≥ 0 (Cauchy-Schwarz on exact integers with positive weights): their bits
+    // are their magnitudes, no absolute value to take.
+    let cxx = to_f32_unsigned(cxx as u64);
     let cxy = to_f32(cxy);
-    let cyy = to_f32_unsigned(cyy.unsigned_abs());
+    let cyy = to_f32_unsigned(cyy as u64);
     // Doubled coordinates: covariances in pixels² are a quarter.
     let wf = w as f32;
     let s = 0.25 / (wf * wf);
