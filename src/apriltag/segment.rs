@@ -177,6 +177,44 @@ fn tile_minmax([a, b, c, d]: [u32; 4]) -> (u8, u8) {
     (l0.min(l1).min(l2.min(l3)), h0.max(h1).max(h2.max(h3)))
 }
 
+/// [`tile_minmax`] of four adjacent tiles, their four rows given as 16 bytes each: the
+/// mins and the maxes as words of four lanes, tile `i` in lane `i`.
+///
+/// Each tile's rows bytewise, as [`tile_minmax`]; then, instead of a tile's four lanes one by
+/// one, the four tiles' words at once: tiles 0 and 2 (and 1 and 3) paired by their low and
+/// high halves ([`across4`]).
+#[inline(always)]
+fn tiles4_minmax(rows: [&[u8; 16]; 4]) -> (u32, u32) {
+    let mut mn = [0u32; 4];
+    let mut mx = [0u32; 4];
+    for (k, (mn, mx)) in mn.iter_mut().zip(mx.iter_mut()).enumerate() {
+        let [a, b, c, d] = rows.map(|r| load4(r, TILE * k, 0));
+        let (lo_ab, hi_ab) = minmax_bytes(a, b);
+        let (lo_cd, hi_cd) = minmax_bytes(c, d);
+        (*mn, *mx) = (min_bytes(lo_ab, lo_cd), max_bytes(hi_ab, hi_cd));
+    }
+    (across4(mn, min_bytes), across4(mx, max_bytes))
+}
+
+/// `op` (a bytewise min or max) over the four lanes of each of four words, word `i`'s result
+/// in lane `i`: lanes 0, 1 of word `i` against its lanes 2, 3 (words 0 with 2 and 1 with 3 in
+/// one word, their low halves against their high halves), then the two lanes left of each
+/// word against each other (the even lanes against the odd ones, interleaved so that word
+/// `i` lands in lane `i`).
+#[inline(always)]
+fn across4(m: [u32; 4], op: impl Fn(u32, u32) -> u32) -> u32 {
+    const HALF: u32 = 0x0000_ffff;
+    const EVEN: u32 = 0x00ff_00ff;
+    let [m0, m1, m2, m3] = m;
+    let lo_hi = |a: u32, b: u32| op((a & HALF) | (b << 16), (a >> 16) | (b & !HALF));
+    // Lanes 0, 1: word 0 (or 1); lanes 2, 3: word 2 (or 3).
+    let (s02, s13) = (lo_hi(m0, m2), lo_hi(m1, m3));
+    op(
+        (s02 & EVEN) | ((s13 & EVEN) << 8),
+        ((s02 >> 8) & EVEN) | (s13 & !EVEN),
+    )
+}
+
 /// The bytewise min of the four bytes from `at` of three rows of tile mins, and the max of
 /// those of three rows of tile maxes (past the rows' end: 255 and 0).
 #[inline(always)]
@@ -253,11 +291,25 @@ pub(crate) fn build_tiles<'t>(
         };
         let rows: [&[u8]; TILE] = core::array::from_fn(|dy| src.full_row(ty * TILE + dy));
         if src.d == 1 && rows.iter().all(|r| r.len() >= tw * TILE) {
-            // The tile's four rows at once, a word each, its min and max straight into the ring.
-            let [r0, r1, r2, r3] = rows.map(|r| r.chunks_exact(TILE));
-            for ((mn, mx), (((a, b), c), d)) in mins
+            // Four tiles at once (their four rows, 16 bytes each), their mins and maxes a word
+            // each into the ring; then the tiles left one by one, a word a row.
+            let rows = rows.map(|r| r.get(..tw * TILE).unwrap_or(&[]));
+            let [r0, r1, r2, r3] = rows.map(|r| r.as_chunks::<16>().0.iter());
+            let (mins4, maxs4) = (mins.as_chunks_mut::<4>(), maxs.as_chunks_mut::<4>());
+            for ((mn, mx), (((a, b), c), d)) in mins4
+                .0
                 .iter_mut()
-                .zip(maxs.iter_mut())
+                .zip(maxs4.0.iter_mut())
+                .zip(r0.zip(r1).zip(r2).zip(r3))
+            {
+                let (lo, hi) = tiles4_minmax([a, b, c, d]);
+                (*mn, *mx) = (lo.to_le_bytes(), hi.to_le_bytes());
+            }
+            let [r0, r1, r2, r3] = rows.map(|r| r.as_chunks::<16>().1.chunks_exact(TILE));
+            for ((mn, mx), (((a, b), c), d)) in mins4
+                .1
+                .iter_mut()
+                .zip(maxs4.1.iter_mut())
                 .zip(r0.zip(r1).zip(r2).zip(r3))
             {
                 (*mn, *mx) = tile_minmax([a, b, c, d].map(|p| load4(p, 0, 0)));
