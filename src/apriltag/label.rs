@@ -33,6 +33,8 @@ pub trait ClusterKey: Copy + Eq + core::fmt::Debug + sealed::Sealed {
     const EMPTY: Self;
     /// The key widened to 64 bits (the table's Fibonacci hash multiplies it).
     fn wide(self) -> u64;
+    /// The key with its two halves exchanged: `key(a, b)` becomes `key(b, a)`.
+    fn swapped(self) -> Self;
 }
 
 mod sealed {
@@ -94,6 +96,10 @@ impl ClusterKey for u32 {
     fn wide(self) -> u64 {
         u64::from(self)
     }
+    #[inline(always)]
+    fn swapped(self) -> Self {
+        self.rotate_left(16)
+    }
 }
 
 impl ClusterKey for u64 {
@@ -101,5 +107,9 @@ impl ClusterKey for u64 {
     #[inline(always)]
     fn wide(self) -> u64 {
         self
+    }
+    #[inline(always)]
+    fn swapped(self) -> Self {
+        self.rotate_left(32)
     }
 }

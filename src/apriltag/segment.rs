@@ -40,7 +40,7 @@
 //! or more) has no cache and its scans re-derive the rows (`boundary_scan`): the points are
 //! the same either way, in the same order.
 
-use super::label::Label;
+use super::label::{ClusterKey, Label};
 use crate::image::ImageView;
 
 /// Pixel classes of the thresholded image.
@@ -1090,13 +1090,16 @@ fn valid<L: Label>(r: &Run<L>) -> bool {
 }
 
 /// The cluster key of a black/white pair and the sign `s` of the direction from `a` to `b`
-/// towards white (`+1` when `a` is black).
+/// towards white (`+1` when `a` is black). Both labels are read whatever the classes, and
+/// the halves exchanged when `a` is white: written as two keys, the compiler chose between
+/// the runs' addresses before reading them.
 #[inline(always)]
 fn key_of<L: Label>(a: &Run<L>, b: &Run<L>) -> (L::Key, i32) {
+    let key = L::key(a.lab, b.lab);
     if a.c == BLACK {
-        (L::key(a.lab, b.lab), 1)
+        (key, 1)
     } else {
-        (L::key(b.lab, a.lab), -1)
+        (key.swapped(), -1)
     }
 }
 
