@@ -1025,45 +1025,38 @@ pub(crate) fn fit_quad(
     };
     let mut best_err = f32::INFINITY;
     let mut best_idx = [0usize; 4];
-    // Runs fitted: row m2 from m2 + 1 on, column m0 from `col_from[m0]` on.
-    let mut row_full = [false; MAX_NMAXIMA];
-    let mut col_from = [k; MAX_NMAXIMA];
+    // A split's error is `((e01 + e12) + e23) + e30` with every term at least 0, and adding a
+    // non-negative float never lowers a sum: a partial sum at or above the best error cannot
+    // win, and the runs after it are not fitted (a run's fit does not depend on when it is
+    // made: the same splits are compared, with the same errors).
     for m0 in 0..k.saturating_sub(3) {
         for m1 in m0 + 1..k.saturating_sub(2) {
             let Some((nx01, ny01, e01)) = get(&mut fits, &mut done, m0, m1) else {
                 continue;
             };
+            if at_most(best_err, e01) {
+                continue;
+            }
             for m2 in m1 + 1..k.saturating_sub(1) {
                 let Some((nx12, ny12, e12)) = get(&mut fits, &mut done, m1, m2) else {
                     continue;
                 };
-                if (nx01 * nx12 + ny01 * ny12).abs() > prm.cos_critical {
+                let e012 = e01 + e12;
+                if at_most(best_err, e012) || (nx01 * nx12 + ny01 * ny12).abs() > prm.cos_critical {
                     continue;
                 }
-                // Every m3 needs both runs: fit the ones not yet fitted (each row's tail at
-                // its first use, each column's from the lowest m3 asked), then read the table.
-                if let Some(full) = row_full.get_mut(m2)
-                    && !*full
-                {
-                    *full = true;
-                    for m3 in m2 + 1..k {
-                        get(&mut fits, &mut done, m2, m3);
-                    }
-                }
-                if let Some(from) = col_from.get_mut(m0)
-                    && m2 + 1 < *from
-                {
-                    for m3 in m2 + 1..*from {
-                        get(&mut fits, &mut done, m3, m0);
-                    }
-                    *from = m2 + 1;
-                }
-                let at = |a: usize, b: usize| fits.get(a).and_then(|r| r.get(b)).copied().flatten();
                 for m3 in m2 + 1..k {
-                    let (Some((_, _, e23)), Some((_, _, e30))) = (at(m2, m3), at(m3, m0)) else {
+                    let Some((_, _, e23)) = get(&mut fits, &mut done, m2, m3) else {
                         continue;
                     };
-                    let err = e01 + e12 + e23 + e30;
+                    let e0123 = e012 + e23;
+                    if at_most(best_err, e0123) {
+                        continue;
+                    }
+                    let Some((_, _, e30)) = get(&mut fits, &mut done, m3, m0) else {
+                        continue;
+                    };
+                    let err = e0123 + e30;
                     if err < best_err {
                         best_err = err;
                         best_idx = [m0, m1, m2, m3];
