@@ -788,18 +788,21 @@ fn label_one<L: Label>(
     }
     // White reaches one column further on each side.
     let wide = usize::from(c == WHITE);
-    while up.get(*j).is_some_and(|o| usize::from(o.x1) + wide <= x0) {
-        *j += 1;
+    // The walk holds the runs of `up` not passed yet as a slice (a pointer stepping over
+    // them, not an index into `up`).
+    let mut rest = up.get(*j..).unwrap_or(&[]);
+    while let [o, tail @ ..] = rest
+        && usize::from(o.x1) + wide <= x0
+    {
+        rest = tail;
     }
     let (reach, end) = (x0 + wide, x1 + wide);
     // The first touched run of the class.
-    let mut k = *j;
     let mut first = None;
-    while let Some(o) = up.get(k) {
-        if usize::from(o.x0) >= end {
-            break;
-        }
-        k += 1;
+    while let [o, tail @ ..] = rest
+        && usize::from(o.x0) < end
+    {
+        rest = tail;
         if o.c == c {
             first = Some(o);
             break;
@@ -817,11 +820,10 @@ fn label_one<L: Label>(
     };
     // Every further touched run of the class joins its set.
     if first.is_some() {
-        while let Some(o) = up.get(k) {
-            if usize::from(o.x0) >= end {
-                break;
-            }
-            k += 1;
+        while let [o, tail @ ..] = rest
+            && usize::from(o.x0) < end
+        {
+            rest = tail;
             if o.c == c && o.lab != last {
                 union(uf.parent, l, o.lab);
                 last = o.lab;
@@ -829,8 +831,8 @@ fn label_one<L: Label>(
         }
     }
     // Any start at or before the next run's first touched run gives the same walk
-    // ([`label_row`]): `k - 2` is one, even below `j`.
-    *j = k.saturating_sub(2);
+    // ([`label_row`]): two runs before the first run not passed is one, even below `j`.
+    *j = (up.len() - rest.len()).saturating_sub(2);
     r.lab = l;
     if let Some(s) = uf.size.get_mut(l.index()) {
         *s = s.saturating_add((x1 - x0).min(255) as u8);
