@@ -11,7 +11,7 @@ use super::quad::Cluster;
 use super::quad::{MAX_NMAXIMA, NOT_IN_BATCH, Quad, QuadParams, Table, fit_quad};
 use super::segment::{
     PairPoints, Rows, Sampled, Sink, boundary_scan, boundary_scan_cached, build_tiles,
-    cache_rows_end, label_pass, pack, tile_count,
+    cache_rows_end, label_pass, mark_small, pack, tile_count,
 };
 use super::workspace::{Stats, WorkspaceView};
 use crate::homography::Homography;
@@ -480,6 +480,9 @@ impl Detector {
         ws.stats.label_overflow = lab.exhausted;
         probe.stage_done(Stage::Components);
 
+        // Small components marked once: the counting scan then reads one label a run.
+        mark_small(parent.get_mut(..lab.labels).unwrap_or(&mut []), size);
+
         let mut table = Table::new(ws.clusters);
         let mut counter = Counter {
             table: &mut table,
@@ -487,7 +490,7 @@ impl Detector {
         };
         let mut cache_at = lab.cached;
         match cache_at {
-            Some(at) => boundary_scan_cached(
+            Some(at) => boundary_scan_cached::<_, true>(
                 ws.points,
                 at,
                 (src.w, src.h),
@@ -620,7 +623,7 @@ impl Detector {
             }
             let mut filler = Filler { table: &mut table };
             match cached {
-                Some(at) => boundary_scan_cached(
+                Some(at) => boundary_scan_cached::<_, false>(
                     ws.points,
                     at,
                     (src.w, src.h),

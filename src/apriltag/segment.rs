@@ -1157,9 +1157,11 @@ pub(crate) fn boundary_scan<L: Label>(
 /// image's size. Only the runs that count (large components) are kept in `rows`: [`pairs`]
 /// takes a row with gaps. The points go to `sink` with `buf`: once the points of upper row
 /// `y` are sent, the cache's rows `0..=y + 1` have been read and are not read again
-/// ([`cache_rows_end`]).
+/// ([`cache_rows_end`]). With `MARKED` the labels of small components have parent
+/// [`Label::SMALL`] ([`mark_small`]) and `size` is not read: a run counts when its root is a
+/// label.
 #[allow(clippy::too_many_arguments)]
-pub(crate) fn boundary_scan_cached<L: Label>(
+pub(crate) fn boundary_scan_cached<L: Label, const MARKED: bool>(
     buf: &mut [u32],
     at: usize,
     (w, h): (usize, usize),
@@ -1200,9 +1202,12 @@ pub(crate) fn boundary_scan_cached<L: Label>(
                     .get((word >> 16) as usize)
                     .copied()
                     .unwrap_or(L::NONE);
-                if size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT
-                    && let Some(r) = cur.get_mut(k)
-                {
+                let counts = if MARKED {
+                    root < L::SMALL
+                } else {
+                    size.get(root.index()).copied().unwrap_or(0) >= MIN_COMPONENT
+                };
+                if counts && let Some(r) = cur.get_mut(k) {
                     *r = Run {
                         x0,
                         x1,
@@ -1220,6 +1225,18 @@ pub(crate) fn boundary_scan_cached<L: Label>(
             pairs::<L, true>(up, cur, y - 1, w, buf, sink);
         }
         n_up = k;
+    }
+}
+
+/// Marks the labels of components below [`MIN_COMPONENT`] pixels: their parent (a root, in
+/// the flattened forest of [`label_pass`]) becomes [`Label::SMALL`], so that one look-up tells
+/// a scan whether a run counts. The scans read the same either way: `size` has no entry at
+/// `SMALL` (at most [`Label::MAX_LABELS`] = `SMALL` labels), which reads as a small count.
+pub(crate) fn mark_small<L: Label>(parent: &mut [L], size: &[u8]) {
+    for p in parent.iter_mut() {
+        if size.get(p.index()).copied().unwrap_or(0) < MIN_COMPONENT {
+            *p = L::SMALL;
+        }
     }
 }
 

@@ -719,7 +719,7 @@ fn cached_points(
     let lab = label_pass(&src, &tiles, &mut rows, &mut parent, &mut size, &mut cache);
     let mut sink = Collect(Vec::new());
     let at = lab.cached?;
-    boundary_scan_cached(
+    boundary_scan_cached::<_, false>(
         &mut cache,
         at,
         (w, h),
