@@ -318,52 +318,113 @@ pub const MAX_NMAXIMA: usize = 12;
 
 /// Sorts `pts` by `keys` (both moved), in place: an American-flag radix pass on the high byte,
 /// then on the low byte inside buckets of more than 16, insertion sort inside smaller ones.
-/// `O(n)` with two 256-entry count tables on the stack; `n ≤ u16::MAX`.
+/// `O(n)` with three 256-entry tables on the stack; `n ≤ u16::MAX`.
 pub(crate) fn sort_by_key(pts: &mut [u32], keys: &mut [u16]) {
     let n = pts.len().min(keys.len()).min(usize::from(u16::MAX));
     let (Some(pts), Some(keys)) = (pts.get_mut(..n), keys.get_mut(..n)) else {
         return;
     };
-    let bounds = flag_pass(pts, keys, 8);
-    let mut end = 0usize;
-    for &e in bounds.iter().skip(1) {
-        let (start, e) = (end, usize::from(e));
-        end = e;
-        // Most buckets of a cluster's boundary hold zero or one point: nothing to sort.
-        if e < start + 2 {
-            continue;
+    let (mut high, mut low) = (Buckets::new(), Buckets::new());
+    let mut next = [0u16; 256];
+    flag_pass(pts, keys, 8, &mut high, &mut next);
+    let mut start = 0usize;
+    high.for_each(|_, c| {
+        let e = start + usize::from(c);
+        // Most buckets of a cluster's boundary hold one point: nothing to sort.
+        if c >= 2
+            && let (Some(p), Some(k)) = (pts.get_mut(start..e), keys.get_mut(start..e))
+        {
+            if c > 16 {
+                flag_pass(p, k, 0, &mut low, &mut next);
+                low.clear();
+            } else {
+                insertion(p, k);
+            }
         }
-        let (Some(p), Some(k)) = (pts.get_mut(start..e), keys.get_mut(start..e)) else {
-            continue;
-        };
-        if e - start > 16 {
-            flag_pass(p, k, 0);
-        } else {
-            insertion(p, k);
+        start = e;
+    });
+}
+
+/// The digit counts of one American-flag pass and the set of the digits present, a bit each:
+/// the pass visits only the buckets that hold keys, in increasing digit order (the empty ones
+/// do nothing in the textbook pass, so the permutation is the same), and the counts return to
+/// zero by the same bits.
+struct Buckets {
+    count: [u16; 256],
+    present: [u32; 8],
+}
+
+impl Buckets {
+    /// No keys counted.
+    fn new() -> Self {
+        Self {
+            count: [0; 256],
+            present: [0; 8],
+        }
+    }
+
+    /// Counts digit `(k >> shift) & 255` of each of `keys` (at most `u16::MAX` keys).
+    fn add(&mut self, keys: &[u16], shift: u32) {
+        for &k in keys {
+            let d = usize::from((k >> shift) & 255);
+            if let Some(c) = self.count.get_mut(d) {
+                *c = c.wrapping_add(1);
+            }
+            if let Some(w) = self.present.get_mut(d >> 5) {
+                *w |= 1 << (d & 31);
+            }
+        }
+    }
+
+    /// `f(digit, count)` for each digit present, in increasing order.
+    #[inline]
+    fn for_each(&self, mut f: impl FnMut(usize, u16)) {
+        for (i, &word) in self.present.iter().enumerate() {
+            let mut bits = word;
+            while bits != 0 {
+                let d = 32 * i + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                f(d, self.count.get(d).copied().unwrap_or(0));
+            }
+        }
+    }
+
+    /// Back to no keys counted (only the counts of the digits present were set).
+    fn clear(&mut self) {
+        for (i, word) in self.present.iter_mut().enumerate() {
+            while *word != 0 {
+                let d = 32 * i + word.trailing_zeros() as usize;
+                *word &= *word - 1;
+                if let Some(c) = self.count.get_mut(d) {
+                    *c = 0;
+                }
+            }
         }
     }
 }
 
-/// One American-flag pass on digit `(key >> shift) & 255`: returns the 257 bucket bounds.
-fn flag_pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> [u16; 257] {
+/// One American-flag pass on digit `(key >> shift) & 255`, its digits counted into `buckets`
+/// (which must hold none) and `next` as scratch (each bucket's next place).
+fn flag_pass(
+    pts: &mut [u32],
+    keys: &mut [u16],
+    shift: u32,
+    buckets: &mut Buckets,
+    next: &mut [u16; 256],
+) {
     let digit = |k: u16| usize::from((k >> shift) & 255);
-    let mut count = [0u16; 256];
-    for &k in keys.iter() {
-        if let Some(c) = count.get_mut(digit(k)) {
-            *c = c.saturating_add(1);
-        }
-    }
-    let mut bounds = [0u16; 257];
+    buckets.add(keys, shift);
     let mut sum = 0u16;
-    for (slot, &c) in bounds.iter_mut().skip(1).zip(count.iter()) {
-        sum += c;
-        *slot = sum;
-    }
-    let mut next = [0u16; 256];
-    next.copy_from_slice(bounds.get(..256).unwrap_or(&[0; 256]));
+    buckets.for_each(|d, c| {
+        if let Some(nd) = next.get_mut(d) {
+            *nd = sum;
+        }
+        sum = sum.wrapping_add(c);
+    });
     let n = keys.len().min(pts.len());
-    for (b, &end) in bounds.iter().skip(1).enumerate() {
-        let end = usize::from(end);
+    let mut end = 0usize;
+    buckets.for_each(|b, c| {
+        end += usize::from(c);
         // Each element taken in hand goes to its final place: at most n moves in all.
         loop {
             let i = usize::from(next.get(b).copied().unwrap_or(u16::MAX));
@@ -399,8 +460,7 @@ fn flag_pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> [u16; 257] {
                 *nb += 1;
             }
         }
-    }
-    bounds
+    });
 }
 
 /// Insertion sort of `(pts, keys)` by key (stable).
@@ -1136,6 +1196,77 @@ mod tests {
             let mut got = pts.clone();
             got.sort_unstable();
             assert_eq!(got, want);
+        }
+    }
+
+    /// The textbook American-flag sort (swaps over all 256 buckets, insertion sort in buckets
+    /// of at most 16): the permutation [`sort_by_key`] keeps, ties included.
+    fn textbook_sort(pts: &mut [u32], keys: &mut [u16]) {
+        fn pass(pts: &mut [u32], keys: &mut [u16], shift: u32) -> std::vec::Vec<usize> {
+            let digit = |k: u16| usize::from((k >> shift) & 255);
+            let mut bounds = std::vec![0usize; 257];
+            for &k in keys.iter() {
+                bounds[digit(k) + 1] += 1;
+            }
+            for b in 0..256 {
+                bounds[b + 1] += bounds[b];
+            }
+            let mut next = bounds.clone();
+            for b in 0..256 {
+                while next[b] < bounds[b + 1] {
+                    let i = next[b];
+                    let d = digit(keys[i]);
+                    if d == b {
+                        next[b] += 1;
+                    } else {
+                        let j = next[d];
+                        next[d] += 1;
+                        keys.swap(i, j);
+                        pts.swap(i, j);
+                    }
+                }
+            }
+            bounds
+        }
+        let bounds = pass(pts, keys, 8);
+        for b in 0..256 {
+            let (s, e) = (bounds[b], bounds[b + 1]);
+            if e - s > 16 {
+                pass(&mut pts[s..e], &mut keys[s..e], 0);
+            } else {
+                for i in s + 1..e {
+                    let mut j = i;
+                    while j > s && keys[j - 1] > keys[j] {
+                        keys.swap(j - 1, j);
+                        pts.swap(j - 1, j);
+                        j -= 1;
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sort_by_key_permutes_as_the_textbook_sort() {
+        let mut seed = 2024u32;
+        for (n, mask) in [
+            (40usize, 0x0307u16),
+            (300, 0x1f3f),
+            (2000, 0xffff),
+            (5000, 0x0f0f),
+        ] {
+            let mut keys: std::vec::Vec<u16> = (0..n)
+                .map(|_| {
+                    seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                    ((seed >> 16) as u16) & mask
+                })
+                .collect();
+            let mut pts: std::vec::Vec<u32> = (0..n as u32).collect();
+            let (mut want_pts, mut want_keys) = (pts.clone(), keys.clone());
+            textbook_sort(&mut want_pts, &mut want_keys);
+            sort_by_key(&mut pts, &mut keys);
+            assert_eq!(pts, want_pts);
+            assert_eq!(keys, want_keys);
         }
     }
 
