@@ -170,20 +170,23 @@ pub(crate) fn edge_point(
     // so when both ends are inside the image, every sample is.
     let ((xa, ya), (xb, yb)) = (at(0), at(steps + 7));
     let all_inside = inside(xa, ya) && inside(xb, yb);
-    let mut along = [f32::NAN; MAX_ALONG];
-    for (j, g) in along.iter_mut().take(steps + 8).enumerate() {
+    // Step k needs the samples k and k + 8 only: the last eight samples in a ring (not all
+    // of them in an array, whose NaN fill cost more than the steps), the step done as its
+    // second sample arrives; the same samples and the same sums in the same order.
+    let mut ring = [f32::NAN; 8];
+    for j in 0..(steps + 8).min(MAX_ALONG) {
         let (x, y) = at(j);
-        if all_inside || inside(x, y) {
-            *g = bilinear(data, stride, x, y);
-        }
-    }
-    for (step, (&g1, &g2)) in along
-        .iter()
-        .skip(8)
-        .zip(along.iter())
-        .take(steps)
-        .enumerate()
-    {
+        let g1 = if all_inside || inside(x, y) {
+            bilinear(data, stride, x, y)
+        } else {
+            f32::NAN
+        };
+        let g2 = ring
+            .get_mut(j % 8)
+            .map_or(f32::NAN, |slot| core::mem::replace(slot, g1));
+        let Some(step) = j.checked_sub(8) else {
+            continue;
+        };
         let n = -range + 0.25 * step as f32;
         // NaN (outside) fails the comparison too.
         if !at_most(g2, g1) {
