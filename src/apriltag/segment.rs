@@ -1307,7 +1307,6 @@ fn pairs<L: Label, const ALL_COUNT: bool>(
             if l.c == u.c || !(ALL_COUNT || valid(l)) {
                 continue;
             }
-            let (key, s) = key_of(u, l);
             // The runs are within one column: l ends where u starts, starts where u ends, or
             // they overlap. Below-left points: x in u, x - 1 in l, unless x ≥ 2 and
             // (x - 1, y), (x, y + 1) are an opposite pair that counts (its below-right point
@@ -1321,7 +1320,9 @@ fn pairs<L: Label, const ALL_COUNT: bool>(
                 let right = lo
                     .get(j)
                     .is_some_and(|q| q.x0 == l.x1 && (ALL_COUNT || valid(q)));
+                // Mostly no point: the key only when there is one.
                 if lx1 == 1 || (lx1 >= 2 && !(left && right)) {
+                    let (key, s) = key_of(u, l);
                     sink.point(buf, key, 2 * lx1 - 1, y2 + 1, -s, s);
                 }
                 continue;
@@ -1330,10 +1331,12 @@ fn pairs<L: Label, const ALL_COUNT: bool>(
                 // Touching at u's end: only the below-right point of x = ux1 - 1 (in the scan
                 // when ux1 ≤ w - 1; x ≥ cx0 as cx0 < cx1). Written with lx0 = ux1, as above.
                 if lx0 <= xmax {
+                    let (key, s) = key_of(u, l);
                     sink.point(buf, key, 2 * lx0 - 1, y2 + 1, s, s);
                 }
                 continue;
             }
+            let (key, s) = key_of(u, l);
             // They overlap.
             let mut p = PairPoints {
                 y2: y2 + 1,
