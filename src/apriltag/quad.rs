@@ -492,8 +492,8 @@ fn pseudo_angle(dx: i32, dy: i32) -> u16 {
     let q = 2 * u32::from(py) + u32::from(px != py);
     let t = if px != py { ax } else { ay };
     let s = ax + ay;
-    // |dx|, |dy| < 2^16: t 2^14 < 2^30.
-    let frac = (t << 14).checked_div(s).unwrap_or(0).min((1 << 14) - 1);
+    // |dx|, |dy| < 2^16: t 2^14 < 2^30. Both non-zero: t < s, the fraction below 2^14.
+    let frac = (t << 14).checked_div(s).unwrap_or(0);
     ((q << 14) | frac) as u16
 }
 
