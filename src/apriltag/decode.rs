@@ -223,7 +223,19 @@ fn bilinear(data: &[u8], stride: usize, x: f32, y: f32) -> f32 {
         Some(&[l, r]) => (f32::from(l), f32::from(r)),
         _ => (f32::from(data.get(k).copied().unwrap_or(0)), 0.0),
     };
-    let ((p00, p10), (p01, p11)) = (two(k), two(k + stride));
+    // Inside the image the four pixels are in the `stride + 2` bytes from `k`: one bounds
+    // check for the window (the pairs in it need none), the pairs one by one otherwise.
+    let window = data
+        .get(k..)
+        .and_then(|d| d.get(..stride.wrapping_add(2)))
+        .and_then(|w| Some((w.first_chunk::<2>()?, w.get(stride..)?.first_chunk::<2>()?)));
+    let ((p00, p10), (p01, p11)) = match window {
+        Some((&[l0, r0], &[l1, r1])) => (
+            (f32::from(l0), f32::from(r0)),
+            (f32::from(l1), f32::from(r1)),
+        ),
+        None => (two(k), two(k + stride)),
+    };
     (1.0 - a) * (1.0 - b) * p00 + a * (1.0 - b) * p10 + (1.0 - a) * b * p01 + a * b * p11
 }
 
