@@ -497,14 +497,99 @@ fn pseudo_angle(dx: i32, dy: i32) -> u16 {
     ((q << 14) | frac) as u16
 }
 
-/// The [`pseudo_angle`] of each of `pts` about the centre `(xs, ys) / 2` (doubled
-/// coordinates) into `keys`, offset by a quarter unit so that no point sits on an axis. Not
-/// inlined, as [`Gradient::weights`].
+/// The [`pseudo_angle`] of each of `pts` (in the format `P`) about the centre `(xs, ys) / 2`
+/// (doubled coordinates of that format) into `keys`, offset by a quarter unit so that no
+/// point sits on an axis. Not inlined, as [`Gradient::weights`].
 #[inline(never)]
-fn angle_keys(pts: &[u32], keys: &mut [u16], xs: i32, ys: i32) {
+fn angle_keys<P: Points>(pts: &[u32], keys: &mut [u16], xs: i32, ys: i32) {
     for (p, k) in pts.iter().zip(keys.iter_mut()) {
-        let (x2, y2, _, _) = unpack(*p);
-        *k = pseudo_angle(2 * (2 * x2 - xs) + 1, 2 * (2 * y2 - ys) - 1);
+        let (x, y) = P::coords(*p);
+        *k = pseudo_angle(2 * (2 * x - xs) + 1, 2 * (2 * y - ys) - 1);
+    }
+}
+
+/// The quad fit's points after their weights (the two formats of [`fit_quad`]): point `i` as
+/// its doubled coordinates relative to the bounding box corner and its gradient weight.
+trait Points {
+    /// The doubled coordinates of a point word (absolute or relative, as the format keeps
+    /// them).
+    fn coords(p: u32) -> (i32, i32);
+    /// The number of points.
+    fn len(&self) -> usize;
+    /// `(u, v, w)`: point `i` relative to the box corner and its weight.
+    fn at(&self, i: usize) -> Option<(i32, i32, i32)>;
+}
+
+/// Points packed with their weights ([`Gradient::pack`]): `u | v << 11 | w << 22` with `(u, v)`
+/// relative to the bounding box corner (boxes below `2^11` doubled pixels a side) and the
+/// weight `w ≤ MAX_WEIGHT < 2^9`.
+#[derive(Clone, Copy)]
+struct Packed<'a>(&'a [u32]);
+
+impl Packed<'_> {
+    /// Bits of a relative coordinate.
+    const BITS: u32 = 11;
+    const MASK: u32 = (1 << Self::BITS) - 1;
+
+    /// Whether a bounding box of extents `(dx, dy)` (doubled) fits the packed coordinates.
+    fn fits(dx: i32, dy: i32) -> bool {
+        (0..=Self::MASK as i32).contains(&dx) && (0..=Self::MASK as i32).contains(&dy)
+    }
+
+    /// The packed word of relative `(u, v)` (below `2^11`) and weight `w` (below `2^9`).
+    #[inline]
+    fn pack(u: i32, v: i32, w: u16) -> u32 {
+        (u as u32 & Self::MASK)
+            | ((v as u32 & Self::MASK) << Self::BITS)
+            | (u32::from(w) << (2 * Self::BITS))
+    }
+}
+
+impl Points for Packed<'_> {
+    #[inline]
+    fn coords(p: u32) -> (i32, i32) {
+        (
+            (p & Self::MASK) as i32,
+            ((p >> Self::BITS) & Self::MASK) as i32,
+        )
+    }
+    #[inline]
+    fn len(&self) -> usize {
+        self.0.len()
+    }
+    #[inline]
+    fn at(&self, i: usize) -> Option<(i32, i32, i32)> {
+        let p = *self.0.get(i)?;
+        let (u, v) = Self::coords(p);
+        Some((u, v, (p >> (2 * Self::BITS)) as i32))
+    }
+}
+
+/// Boundary points ([`unpack`]) with their weights beside them, for bounding boxes too large
+/// to pack; `(x0, y0)` the box corner.
+#[derive(Clone, Copy)]
+struct Split<'a> {
+    pts: &'a [u32],
+    weights: &'a [u16],
+    x0: i32,
+    y0: i32,
+}
+
+impl Points for Split<'_> {
+    #[inline]
+    fn coords(p: u32) -> (i32, i32) {
+        let (x2, y2, _, _) = unpack(p);
+        (x2, y2)
+    }
+    #[inline]
+    fn len(&self) -> usize {
+        self.pts.len().min(self.weights.len())
+    }
+    #[inline]
+    fn at(&self, i: usize) -> Option<(i32, i32, i32)> {
+        let (p, w) = (*self.pts.get(i)?, *self.weights.get(i)?);
+        let (x2, y2) = Self::coords(p);
+        Some((x2 - self.x0, y2 - self.y0, i32::from(w)))
     }
 }
 
@@ -592,14 +677,6 @@ struct Window {
     xx: i64,
     xy: i64,
     yy: i64,
-}
-
-impl Window {
-    #[inline]
-    fn of(p: u32, w: u16, x0: i32, y0: i32) -> Self {
-        let (x2, y2, _, _) = unpack(p);
-        <Self as WindowSums>::of(x2 - x0, y2 - y0, i32::from(w))
-    }
 }
 
 impl WindowSums for Window {
@@ -731,8 +808,9 @@ fn to_f32_unsigned(a: u64) -> f32 {
     }
 }
 
-/// The error `N λ_min` (pixels²) of a window fit from its sums.
-#[inline]
+/// The error `N λ_min` (pixels²) of a window fit from its sums. Always inlined: out of line,
+/// the window's sums go through memory at every point.
+#[inline(always)]
 fn window_error<S: WindowSums>(m: &S, count: usize) -> f32 {
     let (w, cxx, cxy, cyy) = m.numerators();
     if w <= 0 {
@@ -841,6 +919,21 @@ impl<'a> Gradient<'a> {
         sum
     }
 
+    /// Packs each of `pts` with its weight ([`Packed`]; the box corner `(x0, y0)` and its
+    /// extents below `2^11`) and returns the sum of the weights (`n < 2^16` weights below
+    /// `2^9`: no overflow). Not inlined, as [`Self::weights`].
+    #[inline(never)]
+    fn pack(&self, pts: &mut [u32], x0: i32, y0: i32) -> u32 {
+        let mut sum = 0u32;
+        for p in pts.iter_mut() {
+            let w = self.weight(*p);
+            sum += u32::from(w);
+            let (x2, y2, _, _) = unpack(*p);
+            *p = Packed::pack(x2 - x0, y2 - y0, w);
+        }
+        sum
+    }
+
     /// The weight of each of `pts` into `out`. Not inlined: the loop then has the registers
     /// of its own function, not the ones `fit_quad` leaves (its values spill to the stack).
     #[inline(never)]
@@ -884,28 +977,24 @@ const FILTER: [f32; 7] = [
     0.011_108_997,
 ];
 
-/// The corner candidates of step 2 (module docs) of the points `pts` with weights `weights`
-/// in angle order, `(xc, yc)` the bounding box centre, `ksz` the window's half width and `S`
-/// the window's sums: the largest local maxima of the filtered window errors offered to
-/// `heap` (as `(error bits, index)`); returns how many the heap holds and how many maxima
-/// there were. Not inlined: in a function of its own the window's sums spill less than among
-/// `fit_quad`'s values.
+/// The corner candidates of step 2 (module docs) of the weighted points `pts` in angle
+/// order, `(uc, vc)` the bounding box centre relative to its corner, `ksz` the window's half
+/// width and `S` the window's sums: the largest local maxima of the filtered window errors
+/// offered to `heap` (as `(error bits, index)`); returns how many the heap holds and how many
+/// maxima there were. Not inlined: in a function of its own the window's sums spill less than
+/// among `fit_quad`'s values.
 #[inline(never)]
-fn candidates<S: WindowSums>(
-    pts: &[u32],
-    weights: &[u16],
-    (xc, yc): (i32, i32),
+fn candidates<S: WindowSums, P: Points>(
+    pts: P,
+    (uc, vc): (i32, i32),
     ksz: usize,
     heap: &mut [(u32, u32)],
 ) -> (usize, usize) {
     let n = pts.len();
     let m_at = |i: usize| -> S {
-        match (pts.get(i), weights.get(i)) {
-            (Some(&p), Some(&w)) => {
-                let (x2, y2, _, _) = unpack(p);
-                S::of(x2 - xc, y2 - yc, i32::from(w))
-            }
-            _ => S::default(),
+        match pts.at(i) {
+            Some((u, v, w)) => S::of(u - uc, v - vc, w),
+            None => S::default(),
         }
     };
     let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
@@ -951,8 +1040,68 @@ fn candidates<S: WindowSums>(
     (nbest, nmaxima)
 }
 
-/// Fits a quad to one cluster's points (module docs). `keys` is scratch of at least
-/// `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates; `reversed`
+/// Steps 2 and 3 (module docs) on the weighted points `pts` in angle order, with a bounding
+/// box of extents `(dx, dy)` (doubled) and windows of half width `ksz`: at most `kmax`
+/// candidates into `best` in increasing position and the prefix moments at them into `pre`
+/// and `inc`; returns how many candidates and the total moments, `None` with fewer than 4.
+fn corner_runs<P: Points + Copy>(
+    pts: P,
+    (dx, dy): (i32, i32),
+    ksz: usize,
+    kmax: usize,
+    best: &mut [(u32, u32); MAX_NMAXIMA],
+    pre: &mut [Moments; MAX_NMAXIMA],
+    inc: &mut [Moments; MAX_NMAXIMA],
+) -> Option<(usize, Moments)> {
+    let heap = best.get_mut(..kmax)?;
+    // The window's sums about the bounding box centre, in `i32` when they fit.
+    let centre = (dx >> 1, dy >> 1);
+    let (nbest, nmaxima) = if Window32::fits(2 * ksz + 1, dx - centre.0, dy - centre.1) {
+        candidates::<Window32, P>(pts, centre, ksz, heap)
+    } else {
+        candidates::<Window, P>(pts, centre, ksz, heap)
+    };
+    if nmaxima < 4 || nbest < 4 {
+        return None;
+    }
+    let cand = best.get_mut(..nbest)?;
+    crate::corners::heapsort_by(cand, |a, b| a.1.cmp(&b.1));
+    Some((nbest, prefix_moments(pts, cand, pre, inc)))
+}
+
+/// The prefix moments (relative to the box corner) of `pts` just before and at each of the
+/// candidates `cand` (distinct positions in increasing order) into `pre` and `inc`; returns
+/// the moments of all the points.
+fn prefix_moments<P: Points>(
+    pts: P,
+    cand: &[(u32, u32)],
+    pre: &mut [Moments],
+    inc: &mut [Moments],
+) -> Moments {
+    let mut acc = Moments::default();
+    let add_range = |acc: &mut Moments, from: usize, to: usize| {
+        for i in from..to {
+            if let Some((u, v, w)) = pts.at(i) {
+                acc.add_window(&<Window as WindowSums>::of(u, v, w));
+            }
+        }
+    };
+    let mut from = 0usize;
+    for ((c, p), q) in cand.iter().zip(pre.iter_mut()).zip(inc.iter_mut()) {
+        let at = c.1 as usize;
+        add_range(&mut acc, from, at);
+        *p = acc;
+        add_range(&mut acc, at, at + 1);
+        *q = acc;
+        from = at + 1;
+    }
+    add_range(&mut acc, from, pts.len());
+    acc
+}
+
+/// Fits a quad to one cluster's points (module docs). `pts` is left reordered and, for a
+/// bounding box below `2^11` doubled pixels a side, rewritten ([`Packed`]); `keys` is scratch
+/// of at least `pts.len()` entries. `bbox = (xmin, xmax, ymin, ymax)` in doubled coordinates; `reversed`
 /// the border kind ([`Cluster::shape`]).
 pub(crate) fn fit_quad(
     src: &Sampled<'_>,
@@ -981,59 +1130,51 @@ pub(crate) fn fit_quad(
     if ksz < 2 {
         return None;
     }
-    // 0. The edge contrast: the mean gradient weight (recomputed after the sort below, which
-    //    needs the same scratch for its keys). The weights are positive: the sum is summed
-    //    until it reaches the bound (`n < 2^16`, weights below 2^9: no overflow).
+    // 0. The edge contrast: the mean gradient weight (`n < 2^16` weights below 2^9: no
+    //    overflow). 1. Angle keys around the centre, the sort. 2. The weights: packed into
+    //    the point words with the coordinates relative to the box when it is small enough
+    //    (one pass of weights), else summed first (until the sum reaches the bound: the
+    //    weights are positive, the same decision) and computed again after the sort (which
+    //    needs the same scratch for its keys) into the keys.
     let grad = Gradient::new(src);
     let need = prm.min_edge_gradient.saturating_mul(n as u32);
-    if grad.sum_until(pts, need) < need {
-        return None;
-    }
-    // 1. Angle keys around the centre.
-    angle_keys(pts, keys, xmin + xmax, ymin + ymax);
-    sort_by_key(pts, keys);
-    // 2. Weights replace the keys.
-    grad.weights(pts, keys);
-    let pts = &*pts;
-    let keys = &*keys;
+    let (dx, dy) = (xmax - xmin, ymax - ymin);
     let mut best = [(0u32, 0u32); MAX_NMAXIMA];
-    let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
-    let heap = best.get_mut(..kmax)?;
-    // The window's sums about the bounding box centre, in `i32` when they fit.
-    let centre = ((xmin + xmax) >> 1, (ymin + ymax) >> 1);
-    let (nbest, nmaxima) = if Window32::fits(2 * ksz + 1, xmax - centre.0, ymax - centre.1) {
-        candidates::<Window32>(pts, keys, centre, ksz, heap)
-    } else {
-        candidates::<Window>(pts, keys, centre, ksz, heap)
-    };
-    if nmaxima < 4 || nbest < 4 {
-        return None;
-    }
-    let cand = best.get_mut(..nbest)?;
-    crate::corners::heapsort_by(cand, |a, b| a.1.cmp(&b.1));
-    // 3. Prefix moments just before and at each candidate, and the total.
     let mut pre = [Moments::default(); MAX_NMAXIMA];
     let mut inc = [Moments::default(); MAX_NMAXIMA];
-    let mut acc = Moments::default();
-    let add_range = |acc: &mut Moments, from: usize, to: usize| {
-        if let (Some(p), Some(w)) = (pts.get(from..to), keys.get(from..to)) {
-            for (&p, &w) in p.iter().zip(w) {
-                acc.add_window(&Window::of(p, w, xmin, ymin));
-            }
+    let kmax = prm.max_nmaxima.clamp(4, MAX_NMAXIMA);
+    let found = if Packed::fits(dx, dy) {
+        if grad.pack(pts, xmin, ymin) < need {
+            return None;
         }
+        angle_keys::<Packed>(pts, keys, dx, dy);
+        sort_by_key(pts, keys);
+        corner_runs(
+            Packed(pts),
+            (dx, dy),
+            ksz,
+            kmax,
+            &mut best,
+            &mut pre,
+            &mut inc,
+        )
+    } else {
+        if grad.sum_until(pts, need) < need {
+            return None;
+        }
+        angle_keys::<Split>(pts, keys, xmin + xmax, ymin + ymax);
+        sort_by_key(pts, keys);
+        grad.weights(pts, keys);
+        let split = Split {
+            pts,
+            weights: keys,
+            x0: xmin,
+            y0: ymin,
+        };
+        corner_runs(split, (dx, dy), ksz, kmax, &mut best, &mut pre, &mut inc)
     };
-    // Candidates are distinct positions in increasing order.
-    let mut from = 0usize;
-    for ((c, p), q) in cand.iter().zip(pre.iter_mut()).zip(inc.iter_mut()) {
-        let at = c.1 as usize;
-        add_range(&mut acc, from, at);
-        *p = acc;
-        add_range(&mut acc, at, at + 1);
-        *q = acc;
-        from = at + 1;
-    }
-    add_range(&mut acc, from, n);
-    let total = acc;
+    let (nbest, total) = found?;
+    let cand = best.get(..nbest)?;
     let small = products_fit(&total);
     let idx = |a: usize| cand.get(a).map_or(0, |c| c.1 as usize);
     // Moments and point count of the run from candidate a to candidate b (inclusive, wrapping).
