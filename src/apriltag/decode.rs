@@ -171,23 +171,25 @@ pub(crate) fn edge_point(
     let ((xa, ya), (xb, yb)) = (at(0), at(steps + 7));
     let all_inside = inside(xa, ya) && inside(xb, yb);
     // Step k needs the samples k and k + 8 only: the last eight samples in a ring (not all
-    // of them in an array, whose NaN fill cost more than the steps), the step done as its
-    // second sample arrives; the same samples and the same sums in the same order.
-    let mut ring = [f32::NAN; 8];
-    for j in 0..(steps + 8).min(MAX_ALONG) {
+    // of them in an array, whose NaN fill cost more than the steps), the first eight read
+    // first, then each step done as its second sample arrives; the same samples and the
+    // same sums in the same order.
+    let sample = |j: usize| {
         let (x, y) = at(j);
-        let g1 = if all_inside || inside(x, y) {
+        if all_inside || inside(x, y) {
             bilinear(data, stride, x, y)
         } else {
             f32::NAN
-        };
+        }
+    };
+    let total = (steps + 8).min(MAX_ALONG);
+    let mut ring: [f32; 8] = core::array::from_fn(|j| if j < total { sample(j) } else { f32::NAN });
+    for j in 8..total {
+        let g1 = sample(j);
         let g2 = ring
             .get_mut(j % 8)
             .map_or(f32::NAN, |slot| core::mem::replace(slot, g1));
-        let Some(step) = j.checked_sub(8) else {
-            continue;
-        };
-        let n = -range + 0.25 * step as f32;
+        let n = -range + 0.25 * (j - 8) as f32;
         // NaN (outside) fails the comparison too.
         if !at_most(g2, g1) {
             continue;
