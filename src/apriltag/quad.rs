@@ -1000,20 +1000,23 @@ fn candidates<S: WindowSums, P: Points>(
     let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
     let count = 2 * ksz + 1;
     let start: isize = -4;
-    // The window's moments: each step adds the point entering and subtracts the one leaving.
+    // The points entering and leaving, in cyclic order.
+    let next = |i: usize| if i + 1 >= n { 0 } else { i + 1 };
+    let mut leaving = wrap(start - ksz as isize);
+    // The window's moments: the first window's points from the first to leave on (stepped
+    // as in the loop below, not wrapped by a division each), then each step adds the point
+    // entering and subtracts the one leaving.
     let mut win = S::default();
-    for j in -(ksz as isize)..=(ksz as isize) {
-        win.add(&m_at(wrap(start + j)));
+    let mut entering = leaving;
+    for _ in 0..count {
+        win.add(&m_at(entering));
+        entering = next(entering);
     }
     // The last 7 errors (oldest first) and the last three filtered values.
     let mut errs = [0f32; 7];
     let (mut y0, mut y1, mut y2) = (0f32, 0f32, 0f32);
     let mut nbest = 0usize;
     let mut nmaxima = 0usize;
-    // The points entering and leaving, in cyclic order.
-    let next = |i: usize| if i + 1 >= n { 0 } else { i + 1 };
-    let mut entering = wrap(start + ksz as isize + 1);
-    let mut leaving = wrap(start - ksz as isize);
     for t in 0..n + 8 {
         if t > 0 {
             win.add(&m_at(entering));
