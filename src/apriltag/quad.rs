@@ -518,6 +518,9 @@ trait Points {
     fn len(&self) -> usize;
     /// `(u, v, w)`: point `i` relative to the box corner and its weight.
     fn at(&self, i: usize) -> Option<(i32, i32, i32)>;
+    /// `f(u, v, w)` for the points `from..to` in order (none when the range is not inside):
+    /// one bounds check for the range, not one a point.
+    fn each(&self, from: usize, to: usize, f: impl FnMut((i32, i32, i32)));
 }
 
 /// Points packed with their weights ([`Gradient::pack`]): `u | v << 11 | w << 22` with `(u, v)`
@@ -534,6 +537,13 @@ impl Packed<'_> {
     /// Whether a bounding box of extents `(dx, dy)` (doubled) fits the packed coordinates.
     fn fits(dx: i32, dy: i32) -> bool {
         (0..=Self::MASK as i32).contains(&dx) && (0..=Self::MASK as i32).contains(&dy)
+    }
+
+    /// `(u, v, w)` of a packed word.
+    #[inline]
+    fn unpack(p: u32) -> (i32, i32, i32) {
+        let (u, v) = <Self as Points>::coords(p);
+        (u, v, (p >> (2 * Self::BITS)) as i32)
     }
 
     /// The packed word of relative `(u, v)` (below `2^11`) and weight `w` (below `2^9`).
@@ -559,9 +569,13 @@ impl Points for Packed<'_> {
     }
     #[inline]
     fn at(&self, i: usize) -> Option<(i32, i32, i32)> {
-        let p = *self.0.get(i)?;
-        let (u, v) = Self::coords(p);
-        Some((u, v, (p >> (2 * Self::BITS)) as i32))
+        self.0.get(i).map(|&p| Self::unpack(p))
+    }
+    #[inline]
+    fn each(&self, from: usize, to: usize, mut f: impl FnMut((i32, i32, i32))) {
+        for &p in self.0.get(from..to).unwrap_or(&[]) {
+            f(Self::unpack(p));
+        }
     }
 }
 
@@ -590,6 +604,15 @@ impl Points for Split<'_> {
         let (p, w) = (*self.pts.get(i)?, *self.weights.get(i)?);
         let (x2, y2) = Self::coords(p);
         Some((x2 - self.x0, y2 - self.y0, i32::from(w)))
+    }
+    #[inline]
+    fn each(&self, from: usize, to: usize, mut f: impl FnMut((i32, i32, i32))) {
+        let pts = self.pts.get(from..to).unwrap_or(&[]);
+        let weights = self.weights.get(from..to).unwrap_or(&[]);
+        for (&p, &w) in pts.iter().zip(weights) {
+            let (x2, y2) = Self::coords(p);
+            f((x2 - self.x0, y2 - self.y0, i32::from(w)));
+        }
     }
 }
 
@@ -1083,11 +1106,9 @@ fn prefix_moments<P: Points>(
 ) -> Moments {
     let mut acc = Moments::default();
     let add_range = |acc: &mut Moments, from: usize, to: usize| {
-        for i in from..to {
-            if let Some((u, v, w)) = pts.at(i) {
-                acc.add_window(&<Window as WindowSums>::of(u, v, w));
-            }
-        }
+        pts.each(from, to, |(u, v, w)| {
+            acc.add_window(&<Window as WindowSums>::of(u, v, w));
+        });
     };
     let mut from = 0usize;
     for ((c, p), q) in cand.iter().zip(pre.iter_mut()).zip(inc.iter_mut()) {
