@@ -1020,7 +1020,9 @@ fn candidates<S: WindowSums, P: Points>(
             None => S::default(),
         }
     };
-    let wrap = |i: isize| -> usize { i.rem_euclid(n as isize) as usize };
+    // `checked_`: a division by `n` is a panic path for the compiler, which does not know
+    // `n > 0` here (the caller's `ksz ≥ 2` needs `n ≥ 24`).
+    let wrap = |i: isize| -> usize { i.checked_rem_euclid(n as isize).unwrap_or(0) as usize };
     let count = 2 * ksz + 1;
     let start: isize = -4;
     // The points entering and leaving, in cyclic order.
