@@ -27,6 +27,8 @@
 //! All moment sums are exact integers (doubled coordinates relative to the bounding box, `i64`
 //! sums and `i128` products for the covariances); the fits convert to `f32` only at the end.
 
+use core::ops::{Add, Sub};
+
 use nalgebra::Point2;
 
 use super::geom::{Line, at4, eigen, eigenvalues, intersect, normal};
@@ -616,35 +618,38 @@ impl Points for Split<'_> {
     }
 }
 
-// `add` and `sub` over the six sums of `Moments` and `Window` (one text for both: their
-// first moments differ in width only).
+// `add` and `sub` over the six sums of `Moments`, `Window` and `Window32` (one text for all:
+// their fields differ in width only), with the integer operations `$add` and `$sub`: `Add::add`
+// and `Sub::sub` (`+` and `-`, checked for overflow in debug builds) where the sums never
+// overflow, `wrapping_add` and `wrapping_sub` for `Window32`, whose running sums wrap on the way.
 macro_rules! sums_add_sub {
-    ($t:ty) => {
+    ($t:ty, $add:ident, $sub:ident) => {
         impl $t {
             #[inline]
             fn add(&mut self, o: &Self) {
-                self.w += o.w;
-                self.x += o.x;
-                self.y += o.y;
-                self.xx += o.xx;
-                self.xy += o.xy;
-                self.yy += o.yy;
+                self.w = self.w.$add(o.w);
+                self.x = self.x.$add(o.x);
+                self.y = self.y.$add(o.y);
+                self.xx = self.xx.$add(o.xx);
+                self.xy = self.xy.$add(o.xy);
+                self.yy = self.yy.$add(o.yy);
             }
             #[inline]
             fn sub(&mut self, o: &Self) {
-                self.w -= o.w;
-                self.x -= o.x;
-                self.y -= o.y;
-                self.xx -= o.xx;
-                self.xy -= o.xy;
-                self.yy -= o.yy;
+                self.w = self.w.$sub(o.w);
+                self.x = self.x.$sub(o.x);
+                self.y = self.y.$sub(o.y);
+                self.xx = self.xx.$sub(o.xx);
+                self.xy = self.xy.$sub(o.xy);
+                self.yy = self.yy.$sub(o.yy);
             }
         }
     };
 }
 
-sums_add_sub!(Moments);
-sums_add_sub!(Window);
+sums_add_sub!(Moments, add, sub);
+sums_add_sub!(Window, add, sub);
+sums_add_sub!(Window32, wrapping_add, wrapping_sub);
 
 /// Weighted moments of a run of points: `Σw`, `Σw u`, `Σw v`, `Σw u²`, `Σw u v`, `Σw v²`
 /// (doubled coordinates relative to the bounding box corner; exact).
@@ -778,21 +783,11 @@ impl WindowSums for Window32 {
     }
     #[inline]
     fn add(&mut self, o: &Self) {
-        self.w = self.w.wrapping_add(o.w);
-        self.x = self.x.wrapping_add(o.x);
-        self.y = self.y.wrapping_add(o.y);
-        self.xx = self.xx.wrapping_add(o.xx);
-        self.xy = self.xy.wrapping_add(o.xy);
-        self.yy = self.yy.wrapping_add(o.yy);
+        Window32::add(self, o);
     }
     #[inline]
     fn sub(&mut self, o: &Self) {
-        self.w = self.w.wrapping_sub(o.w);
-        self.x = self.x.wrapping_sub(o.x);
-        self.y = self.y.wrapping_sub(o.y);
-        self.xx = self.xx.wrapping_sub(o.xx);
-        self.xy = self.xy.wrapping_sub(o.xy);
-        self.yy = self.yy.wrapping_sub(o.yy);
+        Window32::sub(self, o);
     }
     #[inline]
     fn numerators(&self) -> (i32, i64, i64, i64) {
